@@ -1,0 +1,151 @@
+"""Simulated humans who correct the robot.
+
+A human holds hidden weights θ* and answers ``act(x, u_R, theta_hat)`` with a correction u_H.
+Real and simulated humans share this interface, so a user can pass their own object to the envs.
+Noise and bias are fractions of the action bound a_max (DESIGN.md): δ ~ N(ε·a_max, (σ·a_max)²).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from strol_gym.tasks.base import Task
+
+DEFAULT_CANDIDATES = 512
+
+
+@runtime_checkable
+class Human(Protocol):
+    """Anything that can correct the robot. ``theta_star`` is exposed for evaluation only."""
+
+    theta_star: np.ndarray
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        """The correction u_H at state x, given the robot's action and current estimate."""
+        ...
+
+
+def check_fraction(name: str, value: float, *, allow_negative: bool = False) -> float:
+    """Validate a noise or bias level given as a fraction of a_max."""
+    value = float(value)
+    low = -np.inf if allow_negative else 0.0
+    if not np.isfinite(value) or value < low:
+        rng = "a finite number" if allow_negative else "a finite number >= 0"
+        raise ValueError(f"{name} must be {rng} (a fraction of the action bound), got {value}")
+    return value
+
+
+def optimal_correction(
+    task: Task,
+    x: np.ndarray,
+    u_r: np.ndarray,
+    theta_hat: np.ndarray,
+    theta_star: np.ndarray,
+    candidates: np.ndarray,
+) -> np.ndarray:
+    """Eq. M6, batched: the candidate u minimising ‖θ* − (θ̂ + α g(x, u, u_R))‖.
+
+    Shapes: x (B, s), u_r (B, a), theta_hat / theta_star (B, d), candidates (B, K, a) -> (B, a).
+    """
+    g = task.g(x[:, None, :], candidates, u_r[:, None, :])  # (B, K, d)
+    resid = theta_star[:, None, :] - (theta_hat[:, None, :] + task.alpha * g)
+    best = np.argmin(np.einsum("bkd,bkd->bk", resid, resid), axis=1)
+    return candidates[np.arange(len(candidates)), best]
+
+
+def boltzmann_correction(
+    task: Task,
+    x: np.ndarray,
+    u_r: np.ndarray,
+    theta_star: np.ndarray,
+    candidates: np.ndarray,
+    beta: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """A Boltzmann-rational choice among candidates: P(u) ∝ exp(β θ*·g(x, u, u_R)). (B, a)."""
+    g = task.g(x[:, None, :], candidates, u_r[:, None, :])
+    logits = beta * np.einsum("bkd,bd->bk", g, theta_star)
+    logits -= logits.max(axis=1, keepdims=True)
+    p = np.exp(logits)
+    p /= p.sum(axis=1, keepdims=True)
+    u = rng.random((len(p), 1))
+    idx = np.minimum((p.cumsum(axis=1) < u).sum(axis=1), p.shape[1] - 1)
+    return candidates[np.arange(len(candidates)), idx]
+
+
+def perturb(
+    task: Task, u: np.ndarray, sigma: float, bias: float, rng: np.random.Generator
+) -> np.ndarray:
+    """u + δ with δ ~ N(ε·a_max, (σ·a_max)²) per component. Draws even when σ = 0 (pairing)."""
+    a = task.action_bound
+    return u + bias * a + sigma * a * rng.standard_normal(u.shape)
+
+
+class NominalHuman:
+    """The eq. M6 teacher: picks the correction that moves θ̂ closest to θ*, then adds δ.
+
+    It needs the robot's current estimate θ̂; the env passes it (see ``set_theta_hat``).
+    """
+
+    def __init__(
+        self,
+        task: Task,
+        theta_star: np.ndarray,
+        rng: np.random.Generator,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        n_candidates: int = DEFAULT_CANDIDATES,
+    ) -> None:
+        self.task = task
+        self.theta_star = np.asarray(theta_star, dtype=np.float64)
+        self.rng = rng
+        self.sigma = check_fraction("sigma", sigma)
+        self.bias = check_fraction("bias", bias, allow_negative=True)
+        if int(n_candidates) < 1:
+            raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
+        self.n_candidates = int(n_candidates)
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        cand = self.task.candidate_actions(self.rng, 1, self.n_candidates)
+        u = optimal_correction(
+            self.task, x[None], u_r[None], theta_hat[None], self.theta_star[None], cand
+        )
+        return perturb(self.task, u, self.sigma, self.bias, self.rng)[0]
+
+
+class BoltzmannHuman:
+    """A noisily-rational human: P(u) ∝ exp(β θ*·g(x, u, u_R)). Ignores θ̂; δ is added on top."""
+
+    def __init__(
+        self,
+        task: Task,
+        theta_star: np.ndarray,
+        rng: np.random.Generator,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        beta: float = 50.0,
+        n_candidates: int = DEFAULT_CANDIDATES,
+    ) -> None:
+        self.task = task
+        self.theta_star = np.asarray(theta_star, dtype=np.float64)
+        self.rng = rng
+        self.sigma = check_fraction("sigma", sigma)
+        self.bias = check_fraction("bias", bias, allow_negative=True)
+        if not (np.isfinite(beta) and beta >= 0):
+            raise ValueError(f"beta must be a finite number >= 0, got {beta}")
+        self.beta = float(beta)
+        if int(n_candidates) < 1:
+            raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
+        self.n_candidates = int(n_candidates)
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        cand = self.task.candidate_actions(self.rng, 1, self.n_candidates)
+        u = boltzmann_correction(
+            self.task, x[None], u_r[None], self.theta_star[None], cand, self.beta, self.rng
+        )
+        return perturb(self.task, u, self.sigma, self.bias, self.rng)[0]
+
+
+HUMAN_MODELS = {"nominal": NominalHuman, "boltzmann": BoltzmannHuman}

@@ -1,0 +1,115 @@
+"""Priors P(θ) over reward weights: what the simulated humans draw θ* from."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Prior(Protocol):
+    """A distribution over θ ∈ R^d. ``mean`` is the robot's initial estimate θ̂0."""
+
+    dim: int
+
+    @property
+    def mean(self) -> np.ndarray: ...
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Draw ``n`` weight vectors, shape (n, d)."""
+        ...
+
+
+@dataclass(frozen=True)
+class MixturePrior:
+    """Equal-weight mixture of modes with isotropic Gaussian jitter (the paper's bimodal prior)."""
+
+    modes: np.ndarray
+    jitter: float = 0.1
+    name: str = "bimodal"
+    dim: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        modes = np.atleast_2d(np.asarray(self.modes, dtype=np.float64))
+        if modes.ndim != 2 or modes.shape[0] < 1:
+            raise ValueError(f"modes must have shape (k, d) with k >= 1, got {modes.shape}")
+        if not np.isfinite(modes).all():
+            raise ValueError("modes must be finite")
+        if not (np.isfinite(self.jitter) and self.jitter >= 0):
+            raise ValueError(f"jitter must be a finite number >= 0, got {self.jitter}")
+        object.__setattr__(self, "modes", modes)
+        object.__setattr__(self, "dim", modes.shape[1])
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.modes.mean(axis=0)
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        idx = rng.integers(0, len(self.modes), size=n)
+        return self.modes[idx] + self.jitter * rng.standard_normal((n, self.dim))
+
+
+@dataclass(frozen=True)
+class UniformPrior:
+    """Uniform over the box [low, high]^d (the paper's 'uniform prior' condition)."""
+
+    dim: int
+    low: float = -1.0
+    high: float = 1.0
+    name: str = "uniform"
+
+    def __post_init__(self) -> None:
+        if self.dim < 1:
+            raise ValueError(f"dim must be >= 1, got {self.dim}")
+        if not self.low < self.high:
+            raise ValueError(f"need low < high, got low={self.low}, high={self.high}")
+
+    @property
+    def mean(self) -> np.ndarray:
+        return np.full(self.dim, 0.5 * (self.low + self.high))
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return rng.uniform(self.low, self.high, size=(n, self.dim))
+
+
+@dataclass(frozen=True)
+class FixedPrior:
+    """A point mass (or a finite set, drawn uniformly): for tests and hand-picked θ*."""
+
+    thetas: np.ndarray
+    name: str = "fixed"
+    dim: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        thetas = np.atleast_2d(np.asarray(self.thetas, dtype=np.float64))
+        object.__setattr__(self, "thetas", thetas)
+        object.__setattr__(self, "dim", thetas.shape[1])
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.thetas.mean(axis=0)
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return self.thetas[rng.integers(0, len(self.thetas), size=n)]
+
+
+def make_prior(spec: str | Prior | Sequence[Sequence[float]], task_modes: np.ndarray) -> Prior:
+    """Resolve a user's prior argument: "bimodal", "uniform", a Prior object, or explicit modes."""
+    task_modes = np.atleast_2d(task_modes)
+    if isinstance(spec, str):
+        if spec == "bimodal":
+            return MixturePrior(task_modes)
+        if spec == "uniform":
+            return UniformPrior(task_modes.shape[1])
+        raise ValueError(f"prior must be 'bimodal', 'uniform', a Prior or an array of modes; got {spec!r}")
+    if isinstance(spec, Prior):
+        if spec.dim != task_modes.shape[1]:
+            raise ValueError(f"prior has dim {spec.dim}, the task needs {task_modes.shape[1]}")
+        return spec
+    modes = np.atleast_2d(np.asarray(spec, dtype=np.float64))
+    if modes.shape[1] != task_modes.shape[1]:
+        raise ValueError(f"prior modes need {task_modes.shape[1]} columns, got shape {modes.shape}")
+    return MixturePrior(modes, name="custom")

@@ -1,0 +1,20 @@
+"""Gymnasium registration of the strol-gym envs. Idempotent: safe to import twice."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+ENV_SPECS: dict[str, dict] = {
+    "StROL-Robot-v0": {"entry_point": "strol_gym.envs.robot:RobotEnv", "max_episode_steps": None},
+    "StROL-Highway-v0": {
+        "entry_point": "strol_gym.envs.highway:HighwayEnv",
+        "max_episode_steps": None,
+    },
+}
+
+
+def register_envs() -> None:
+    """Register every env id once; a second call (or a re-import) changes nothing."""
+    for env_id, spec in ENV_SPECS.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=spec["entry_point"])

@@ -1,0 +1,124 @@
+"""The Task: everything true of a setting whatever simulates it.
+
+φ (features), the state transition f used by the learning rule, g = φ(x_H) − φ(x_R), the prior,
+the action bound, the start distribution and the planner. The env, the humans, the learners,
+training and the benchmark all read these from one Task object, and every array method is
+batched: leading dimensions broadcast, the last axis is the state / action / feature axis.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+
+from strol_gym.priors import Prior
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Task(ABC):
+    """Base class for a StROL setting. Subclasses are frozen dataclasses, so they pickle.
+
+    Class attributes a subclass sets: ``task_id``, ``version``, ``feature_names``,
+    ``state_dim``, ``action_dim``. Instance fields: ``prior`` (P(θ*)), ``alpha`` (the learning
+    rate α of eq. P2) and whatever geometry the setting needs.
+    """
+
+    task_id: ClassVar[str]
+    version: ClassVar[int]
+    feature_names: ClassVar[tuple[str, ...]]
+    state_dim: ClassVar[int]
+    action_dim: ClassVar[int]
+
+    prior: Prior
+    alpha: float
+
+    # ----------------------------------------------------------------- what subclasses define
+    @property
+    @abstractmethod
+    def action_bound(self) -> np.ndarray:
+        """a_max per action axis, shape (action_dim,): the largest admissible |u| per axis."""
+
+    @property
+    @abstractmethod
+    def prior_modes(self) -> np.ndarray:
+        """The modes of the paper's bimodal prior for this setting, shape (k, d)."""
+
+    @property
+    @abstractmethod
+    def feature_scale(self) -> np.ndarray:
+        """A typical range of each feature, shape (d,), so features can be compared (One)."""
+
+    @abstractmethod
+    def features(self, x: np.ndarray) -> np.ndarray:
+        """φ(x): (..., state_dim) -> (..., d)."""
+
+    @abstractmethod
+    def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """f(x, u_H, u_R): (..., state_dim), (..., action_dim) x2 -> (..., state_dim)."""
+
+    @abstractmethod
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Draw ``n`` start states, shape (n, state_dim)."""
+
+    # ----------------------------------------------------------------- shared by every setting
+    @property
+    def dim(self) -> int:
+        """d, the number of reward weights."""
+        return len(self.feature_names)
+
+    def reward(self, x: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """R(x, θ) = θ·φ(x), batched: (..., state_dim), (..., d) -> (...)."""
+        return np.sum(self.features(x) * theta, axis=-1)
+
+    def g(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """The original learning rule (eq. P3) for linear rewards: φ(x_H) − φ(x_R)."""
+        x_h = self.dynamics(x, u_h, u_r)
+        x_r = self.dynamics(x, np.zeros_like(u_h), u_r)
+        return self.features(x_h) - self.features(x_r)
+
+    def candidate_actions(self, rng: np.random.Generator, n: int, k: int) -> np.ndarray:
+        """Candidate human actions for eq. M6, shape (n, k + 1, action_dim).
+
+        ``k`` uniform draws from the admissible box, plus the zero action at index 0, so that
+        "do nothing" is always available to the optimal human.
+        """
+        if k < 0:
+            raise ValueError(f"k must be >= 0, got {k}")
+        a = self.action_bound
+        draws = rng.uniform(-1.0, 1.0, size=(n, k, self.action_dim)) * a
+        return np.concatenate([np.zeros((n, 1, self.action_dim)), draws], axis=1)
+
+    def with_prior(self, prior: Prior) -> Task:
+        """The same setting with another prior over θ*."""
+        if prior.dim != self.dim:
+            raise ValueError(f"prior has dim {prior.dim}, task {self.task_id} needs {self.dim}")
+        return dataclasses.replace(self, prior=prior)
+
+    def describe(self) -> dict:
+        """What a checkpoint or results file records about the task (JSON-ready)."""
+        return {
+            "task_id": self.task_id,
+            "version": self.version,
+            "feature_names": list(self.feature_names),
+            "state_dim": self.state_dim,
+            "action_dim": self.action_dim,
+            "alpha": self.alpha,
+            "action_bound": self.action_bound.tolist(),
+        }
+
+    # ----------------------------------------------------------------- planning (optional)
+    def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """Trajectories that maximise Σ_t R(x_t, θ) from x0: (B, d), (B, s) -> (B, T+1, s)."""
+        raise NotImplementedError(f"{type(self).__name__} has no planner")
+
+    def regret(self, theta_hat: np.ndarray, theta_star: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """Eq. S1, batched: Σ_{x∈ξ*} R(x,θ*) − Σ_{x∈ξ_θ̂} R(x,θ*), both planned from x0. -> (B,)."""
+        theta_hat, theta_star, x0 = (np.atleast_2d(a) for a in (theta_hat, theta_star, x0))
+        plans = self.plan(np.concatenate([theta_star, theta_hat]), np.concatenate([x0, x0]))
+        returns = self.reward(plans[:, 1:], np.concatenate([theta_star, theta_star])[:, None])
+        total = returns.sum(axis=1)
+        b = len(theta_star)
+        return total[:b] - total[b:]

@@ -1,0 +1,85 @@
+"""The Robot setting: an end effector moving among a plate and a cup on a table.
+
+Task frame: metres, x forward from the robot base, y to the left, z up from the table top.
+State x is the end-effector position (3,). Actions are end-effector displacements per step,
+bounded per axis by ``step_bound``. The transition used by the learning rule is
+x' = clip(x + u_R + u_H, workspace), the kinematics that the MuJoCo env tracks with IK.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import numpy as np
+
+from strol_gym.priors import MixturePrior, Prior
+from strol_gym.tasks.base import Task
+
+PLATE = np.array([0.35, 0.10, 0.00])
+CUP = np.array([0.70, -0.45, 0.10])
+START = np.array([0.20, 0.20, 0.60])
+ROBOT_MODES = np.array([[0.8, -0.8], [-0.8, 0.8]])
+WORKSPACE_LOW = np.array([0.0, -0.6, 0.0])
+WORKSPACE_HIGH = np.array([0.8, 0.4, 0.7])
+
+
+def _default_prior() -> Prior:
+    return MixturePrior(ROBOT_MODES, jitter=0.1)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class RobotTask(Task):
+    """φ(x) = (−‖x_xy − plate_xy‖, −‖x − cup‖): positive weights reach, negative avoid."""
+
+    task_id: ClassVar[str] = "StROL-Robot-v0"
+    version: ClassVar[int] = 0
+    feature_names: ClassVar[tuple[str, ...]] = ("plate_planar_distance", "cup_distance")
+    state_dim: ClassVar[int] = 3
+    action_dim: ClassVar[int] = 3
+
+    prior: Prior = dataclasses.field(default_factory=_default_prior)
+    alpha: float = 2.0
+    plate: np.ndarray = dataclasses.field(default_factory=PLATE.copy)
+    cup: np.ndarray = dataclasses.field(default_factory=CUP.copy)
+    start: np.ndarray = dataclasses.field(default_factory=START.copy)
+    workspace_low: np.ndarray = dataclasses.field(default_factory=WORKSPACE_LOW.copy)
+    workspace_high: np.ndarray = dataclasses.field(default_factory=WORKSPACE_HIGH.copy)
+    step_bound: float = 0.1
+    plan_steps: int = 10
+    plan_step_bound: float = 0.05
+
+    @property
+    def action_bound(self) -> np.ndarray:
+        return np.full(3, self.step_bound)
+
+    @property
+    def prior_modes(self) -> np.ndarray:
+        return ROBOT_MODES
+
+    @property
+    def feature_scale(self) -> np.ndarray:
+        # Both features are distances in metres across the same workspace: one scale.
+        return np.ones(2)
+
+    def features(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        d_plate = np.linalg.norm(x[..., :2] - self.plate[:2], axis=-1)
+        d_cup = np.linalg.norm(x - self.cup, axis=-1)
+        return -np.stack([d_plate, d_cup], axis=-1)
+
+    def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning."""
+        x = np.asarray(x, dtype=np.float64)
+        dp = np.zeros(x.shape)
+        dp[..., :2] = x[..., :2] - self.plate[:2]
+        dp /= np.maximum(np.linalg.norm(dp, axis=-1, keepdims=True), 1e-9)
+        dc = x - self.cup
+        dc /= np.maximum(np.linalg.norm(dc, axis=-1, keepdims=True), 1e-9)
+        return -np.stack([dp, dc], axis=-2)
+
+    def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        return np.clip(x + u_r + u_h, self.workspace_low, self.workspace_high)
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return rng.uniform(self.workspace_low, self.workspace_high, size=(n, 3))
