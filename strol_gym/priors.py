@@ -104,7 +104,9 @@ def make_prior(spec: str | Prior | Sequence[Sequence[float]], task_modes: np.nda
             return MixturePrior(task_modes)
         if spec == "uniform":
             return UniformPrior(task_modes.shape[1])
-        raise ValueError(f"prior must be 'bimodal', 'uniform', a Prior or an array of modes; got {spec!r}")
+        raise ValueError(
+            f"prior must be 'bimodal', 'uniform', a Prior or an array of modes; got {spec!r}"
+        )
     if isinstance(spec, Prior):
         if spec.dim != task_modes.shape[1]:
             raise ValueError(f"prior has dim {spec.dim}, the task needs {task_modes.shape[1]}")

@@ -109,6 +109,19 @@ class Task(ABC):
             "action_bound": self.action_bound.tolist(),
         }
 
+    @property
+    def robot_action_bound(self) -> np.ndarray:
+        """Largest |u_R| per axis; the env's action in [−1, 1] is scaled by it. Default a_max."""
+        return self.action_bound
+
+    def robot_policy(self, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        """The robot's default action u_R (task units) given its estimate: (B, s), (B, d) -> (B, a).
+
+        Default: the first step of the plan for θ̂. Settings without a planner override it.
+        """
+        x, theta_hat = np.atleast_2d(x), np.atleast_2d(theta_hat)
+        return self.plan(theta_hat, x)[:, 1] - x
+
     # ----------------------------------------------------------------- planning (optional)
     def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """Trajectories that maximise Σ_t R(x_t, θ) from x0: (B, d), (B, s) -> (B, T+1, s)."""
