@@ -109,6 +109,22 @@ class Task(ABC):
             "action_bound": self.action_bound.tolist(),
         }
 
+    def network_input(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """What a learned correction term ĝ sees: (..., s), (..., a), (..., a) -> (..., k).
+
+        Default: the state and the human action scaled by a_max. Settings whose raw state is
+        not scale-free (absolute road positions, say) override this with relative quantities.
+        """
+        return np.concatenate([x, u_h / self.action_bound], axis=-1)
+
+    @property
+    def network_input_dim(self) -> int:
+        """k, the width of ``network_input``."""
+        z = np.zeros
+        return self.network_input(z(self.state_dim), z(self.action_dim), z(self.action_dim)).shape[
+            -1
+        ]
+
     @property
     def robot_action_bound(self) -> np.ndarray:
         """Largest |u_R| per axis; the env's action in [−1, 1] is scaled by it. Default a_max."""
