@@ -1,0 +1,329 @@
+"""A results folder: atomic per-unit records, meta.json, resume, and the long-format tables.
+
+Layout::
+
+    OUT/meta.json                   resolved config, config hash, seeds, versions, git, wall times
+    OUT/records/<unit>.json         one file per finished unit of work (a block of run seeds ×
+                                    every learner), written to a temp file, fsync'ed, os.replace'd
+    OUT/runs.csv, curves.csv        per-run records in long format (rebuilt from records/)
+    OUT/summary.csv, stats.csv, anova.csv, summary.md, plots/   (see report.py)
+
+A record file exists completely or not at all, so after Ctrl-C or a crash the folder holds only
+finished units; rerunning the same command runs the missing ones. Records are keyed by seed,
+and each unit is a deterministic function of (config, seeds), so the final tables are the same
+as those of an uninterrupted run. A folder made with another config, or one we cannot parse,
+raises :class:`ResultsError` and is never overwritten unless the caller asks (``force``).
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import json
+import math
+import os
+import shutil
+import subprocess
+from collections.abc import Iterable, Sequence
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from strol_gym.benchmarks.config import BenchConfig, Unit, diff_configs
+
+META = "meta.json"
+RECORDS = "records"
+RUN_FIELDS = ("final_error", "cos_error", "regret")
+"""Scalar metrics of a run; lower is better for each."""
+
+PACKAGES = (
+    "strol-gym",
+    "numpy",
+    "scipy",
+    "torch",
+    "gymnasium",
+    "mujoco",
+    "highway-env",
+    "gymnasium-robotics",
+    "matplotlib",
+)
+
+
+class ResultsError(RuntimeError):
+    """A results folder that cannot be used as asked: mismatched config, corrupt, or not ours."""
+
+
+def package_versions() -> dict[str, str | None]:
+    out: dict[str, str | None] = {}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def git_revision() -> dict[str, Any] | None:
+    """HEAD of the repository this package runs from, and whether the tree had edits."""
+    here = Path(__file__).resolve().parent
+    try:
+        rev = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10
+        )
+        if rev.returncode != 0:
+            return None
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        )
+        return {"commit": rev.stdout.strip(), "dirty": bool(dirty.stdout.strip())}
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def write_json_atomic(path: Path, obj: Any) -> None:
+    """Write JSON to a temp file beside ``path``, fsync it, then os.replace: all or nothing."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    data = json.dumps(obj, indent=1, allow_nan=True).encode()
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def _now() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+
+class ResultsDir:
+    """A benchmark's results folder, bound to one config.
+
+    ``open`` creates it or validates an existing one (same config hash: resume). Only the
+    process that owns this object writes to the folder: workers return records to it.
+    """
+
+    def __init__(self, path: Path, config: BenchConfig, config_hash: str, meta: dict) -> None:
+        self.path = path
+        self.config = config
+        self.config_hash = config_hash
+        self.meta = meta
+
+    # ------------------------------------------------------------------ open / create
+    @classmethod
+    def open(
+        cls,
+        path: str | os.PathLike,
+        config: BenchConfig,
+        *,
+        extra: dict[str, Any] | None = None,
+        force: bool = False,
+    ) -> ResultsDir:
+        """Create ``path`` for ``config`` or resume it; ``force`` replaces earlier results.
+
+        ``extra`` joins the config in the hash (e.g. fingerprints of learner weights) and is
+        stored in meta.json.
+        """
+        path = Path(path)
+        chash = config.hash(extra)
+        meta_path = path / META
+        if path.exists() and not path.is_dir():
+            raise ResultsError(f"--out {path} exists and is not a folder")
+        if path.exists() and any(path.iterdir()):
+            if not meta_path.exists():
+                raise ResultsError(
+                    f"{path} is not empty and has no {META}: it is not a strol-bench results "
+                    "folder. Choose another --out; nothing was changed."
+                )
+            if force:
+                cls._check_ours(path)
+                shutil.rmtree(path)
+            else:
+                meta = cls._read_meta(path)
+                if meta.get("config_hash") != chash:
+                    diffs = diff_configs(meta.get("config", {}), config.to_dict())
+                    diffs += diff_configs(meta.get("extra", {}), extra or {}, "extra")
+                    detail = "; ".join(diffs[:8]) or "config hash differs"
+                    raise ResultsError(
+                        f"{path} holds results of a different configuration ({detail}). "
+                        "Use another --out, or --force to delete those results and start over."
+                    )
+                return cls(path, config, chash, meta)
+        path.mkdir(parents=True, exist_ok=True)
+        seeds = {
+            f"{e.env}/{e.condition.name}": [e.seeds.start, e.seeds.stop - 1]
+            for e in config.experiments
+        }
+        meta = {
+            "tool": "strol-bench",
+            "config": config.to_dict(),
+            "config_hash": chash,
+            "extra": extra or {},
+            "seeds": seeds,
+            "created": _now(),
+            "versions": package_versions(),
+            "git": git_revision(),
+            "sessions": [],
+            "status": "running",
+        }
+        (path / RECORDS).mkdir(exist_ok=True)
+        write_json_atomic(meta_path, meta)
+        return cls(path, config, chash, meta)
+
+    @staticmethod
+    def _read_meta(path: Path) -> dict:
+        try:
+            meta = json.loads((path / META).read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise ResultsError(
+                f"{path / META} is unreadable or corrupt ({e}). Use another --out, or --force "
+                "to delete this folder's results and start over."
+            ) from e
+        if not isinstance(meta, dict) or meta.get("tool") != "strol-bench" or "config" not in meta:
+            raise ResultsError(f"{path / META} is not a strol-bench meta file")
+        return meta
+
+    @staticmethod
+    def _check_ours(path: Path) -> None:
+        """Refuse to delete a folder holding anything but our own outputs."""
+        ours = {META, RECORDS, "plots", "runs.csv", "curves.csv", "summary.csv", "stats.csv"}
+        ours |= {"anova.csv", "summary.md"}
+        foreign = [p.name for p in path.iterdir() if p.name not in ours]
+        if foreign:
+            raise ResultsError(
+                f"--force refused: {path} holds files strol-bench did not write: {foreign[:5]}"
+            )
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> ResultsDir:
+        """Open an existing folder read-only-ish (for ``report``), trusting its meta.json."""
+        path = Path(path)
+        if not (path / META).exists():
+            raise ResultsError(f"{path} has no {META}: not a strol-bench results folder")
+        meta = cls._read_meta(path)
+        try:
+            config = BenchConfig.from_dict(meta["config"])
+        except (KeyError, TypeError, ValueError) as e:
+            raise ResultsError(f"{path / META} has an invalid config: {e}") from e
+        return cls(path, config, meta["config_hash"], meta)
+
+    # ------------------------------------------------------------------ records
+    def record_path(self, unit: Unit) -> Path:
+        return self.path / RECORDS / f"{unit.key}.json"
+
+    def done_keys(self) -> set[str]:
+        """Keys of the units whose record file exists (validated when read)."""
+        d = self.path / RECORDS
+        if not d.exists():
+            return set()
+        return {p.stem for p in d.glob("*.json") if not p.name.startswith(".")}
+
+    def missing_units(self) -> list[Unit]:
+        done = self.done_keys()
+        return [u for u in self.config.units() if u.key not in done]
+
+    def write_unit(self, unit: Unit, records: Sequence[dict]) -> None:
+        """Store a finished unit atomically."""
+        payload = {
+            "config_hash": self.config_hash,
+            "unit": {"experiment": unit.experiment, "seeds": list(unit.seeds)},
+            "records": list(records),
+        }
+        write_json_atomic(self.record_path(unit), payload)
+
+    def read_records(self) -> list[dict]:
+        """Every record, validated, in canonical order (experiment, seed, learner order)."""
+        units = {u.key: u for u in self.config.units()}
+        out: list[dict] = []
+        for p in sorted((self.path / RECORDS).glob("*.json")):
+            if p.name.startswith("."):
+                continue
+            unit = units.get(p.stem)
+            if unit is None:
+                raise ResultsError(f"{p} does not belong to this config's units: corrupt folder")
+            try:
+                payload = json.loads(p.read_text())
+                ok = payload["config_hash"] == self.config_hash
+                recs = payload["records"]
+                seeds = tuple(payload["unit"]["seeds"])
+            except (OSError, json.JSONDecodeError, KeyError, TypeError) as e:
+                raise ResultsError(f"{p} is corrupt ({e}); delete it to rerun that unit") from e
+            if not ok:
+                raise ResultsError(f"{p} was written by another config (hash differs)")
+            expected = {(s, lr) for s in unit.seeds for lr in self.config.learners}
+            got = [(r.get("seed"), r.get("learner")) for r in recs]
+            if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
+                raise ResultsError(f"{p} does not hold exactly its unit's runs; delete it to rerun")
+            out.extend(recs)
+        order = {lr: i for i, lr in enumerate(self.config.learners)}
+        exp_index = {(e.env, e.condition.name): i for i, e in enumerate(self.config.experiments)}
+        out.sort(
+            key=lambda r: (exp_index[(r["env"], r["condition"])], r["seed"], order[r["learner"]])
+        )
+        return out
+
+    def finish_session(self, started: str, wall_time_s: float, units_run: int, jobs: int) -> None:
+        """Append this session's wall time to meta.json and mark the folder complete if it is."""
+        self.meta.setdefault("sessions", []).append(
+            {"started": started, "wall_time_s": wall_time_s, "units_run": units_run, "jobs": jobs}
+        )
+        complete = not self.missing_units()
+        self.meta["status"] = "complete" if complete else "incomplete"
+        self.meta["wall_time_s"] = sum(s["wall_time_s"] for s in self.meta["sessions"])
+        write_json_atomic(self.path / META, self.meta)
+
+    # ------------------------------------------------------------------ long-format tables
+    def write_run_tables(self, records: Sequence[dict]) -> tuple[Path, Path]:
+        """runs.csv (one row per run × learner) and curves.csv (one row per step)."""
+        runs_path, curves_path = self.path / "runs.csv", self.path / "curves.csv"
+        max_steps = max((len(r["errors"]) for r in records), default=0)
+        head = ["env", "condition", "learner", "seed", *RUN_FIELDS, "steps", "terminated"]
+        head += [f"error_step_{k}" for k in range(max_steps)]
+        with open(runs_path, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(head)
+            for r in records:
+                errs = list(r["errors"]) + [math.nan] * (max_steps - len(r["errors"]))
+                w.writerow(
+                    [r["env"], r["condition"], r["learner"], r["seed"]]
+                    + [_fmt(r[k]) for k in RUN_FIELDS]
+                    + [r["steps"], int(bool(r["terminated"]))]
+                    + [_fmt(e) for e in errs]
+                )
+        with open(curves_path, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["env", "condition", "learner", "seed", "step", "error", "cos_error"])
+            for r in records:
+                for k, (e, c) in enumerate(zip(r["errors"], r["cos_errors"], strict=True)):
+                    w.writerow(
+                        [r["env"], r["condition"], r["learner"], r["seed"], k, _fmt(e), _fmt(c)]
+                    )
+        return runs_path, curves_path
+
+
+def _fmt(x: Any) -> str:
+    """Full-precision text for CSV (repr round-trips floats exactly)."""
+    if x is None:
+        return "nan"
+    return repr(float(x))
+
+
+def write_csv(path: Path, rows: Iterable[dict], columns: Sequence[str]) -> Path:
+    """Write dict rows with the given column order; floats at full precision."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([_cell(r.get(c)) for c in columns])
+    return path
+
+
+def _cell(v: Any) -> str:
+    if isinstance(v, bool):
+        return str(v).lower()
+    if isinstance(v, float):
+        return repr(v)
+    return "" if v is None else str(v)
