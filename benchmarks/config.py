@@ -110,6 +110,7 @@ class BenchConfig:
     learners: tuple[str, ...] = PAPER_LEARNERS
     reference: str = REFERENCE_LEARNER
     block: int = DEFAULT_BLOCK
+    learner_kwargs: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.experiments:
@@ -125,9 +126,16 @@ class BenchConfig:
             )
         if int(self.block) < 1:
             raise ValueError(f"block must be >= 1, got {self.block}")
+        unknown = sorted(set(self.learner_kwargs) - set(self.learners))
+        if unknown:
+            raise ValueError(f"learner_kwargs names learners not in the run: {unknown}")
         keys = [(e.env, e.condition.name) for e in self.experiments]
         if len(set(keys)) != len(keys):
             raise ValueError(f"each (env, condition) may appear once, got {keys}")
+
+    def kwargs_for(self, learner: str) -> dict[str, Any]:
+        """Constructor keyword arguments for ``learner`` (beyond the task)."""
+        return dict(self.learner_kwargs.get(learner, {}))
 
     def units(self) -> list[Unit]:
         """All units of work, in a fixed order (experiment, then seed)."""
@@ -145,6 +153,7 @@ class BenchConfig:
             "learners": list(self.learners),
             "reference": self.reference,
             "block": int(self.block),
+            "learner_kwargs": {k: dict(v) for k, v in sorted(self.learner_kwargs.items())},
         }
 
     @classmethod
@@ -158,6 +167,7 @@ class BenchConfig:
             learners=tuple(d["learners"]),
             reference=d["reference"],
             block=d["block"],
+            learner_kwargs=d.get("learner_kwargs", {}),
         )
 
     def hash(self, extra: dict[str, Any] | None = None) -> str:

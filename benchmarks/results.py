@@ -33,8 +33,8 @@ from strol_gym.benchmarks.config import BenchConfig, Unit, diff_configs
 
 META = "meta.json"
 RECORDS = "records"
-RUN_FIELDS = ("final_error", "cos_error", "regret")
-"""Scalar metrics of a run; lower is better for each."""
+RUN_FIELDS = ("error", "cos_error", "regret")
+"""Scalar metrics of a run (error = final ‖θ* − θ̂‖); lower is better for each."""
 
 PACKAGES = (
     "strol-gym",

@@ -1,0 +1,353 @@
+"""``strol-bench``: run the paper's comparison, one configuration, training, listings, reports.
+
+Every argument is checked before any work starts: a bad one exits with status 2 and a message
+naming the argument and its valid values (argparse's convention).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from strol_gym.benchmarks.conditions import (
+    CONDITION_NAMES,
+    ENV_PRESETS,
+    HUMANS,
+    PAPER_LEARNERS,
+    PRIORS,
+    REFERENCE_LEARNER,
+    custom_condition,
+    env_preset,
+    paper_condition,
+)
+from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment, paper_config
+from strol_gym.benchmarks.results import ResultsError
+
+ENV_CHOICES = tuple(ENV_PRESETS)
+
+
+# ---------------------------------------------------------------------- argument types
+def _positive_int(name: str):
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{name} must be an integer >= 1, got {text!r}"
+            ) from None
+        if v < 1:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {v}")
+        return v
+
+    return parse
+
+
+def _nonneg_int(name: str):
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{name} must be an integer >= 0, got {text!r}"
+            ) from None
+        if v < 0:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 0, got {v}")
+        return v
+
+    return parse
+
+
+def _fraction(name: str, allow_negative: bool = False):
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            v = math.nan
+        if not math.isfinite(v) or (v < 0 and not allow_negative):
+            rng = "a finite number" if allow_negative else "a finite number >= 0"
+            raise argparse.ArgumentTypeError(
+                f"{name} must be {rng} (a fraction of the action bound a_max), got {text!r}"
+            )
+        return v
+
+    return parse
+
+
+def _learner_list(text: str) -> list[str]:
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("learners must name at least one learner")
+    return names
+
+
+def check_learner_names(names: Sequence[str]) -> None:
+    """ValueError for a name that is neither registered nor an importable ``module:attr``."""
+    from strol_gym.learners.registry import list_learners
+
+    known = list_learners()
+    for name in names:
+        if name in known:
+            continue
+        if ":" in name:
+            module, _, attr = name.partition(":")
+            try:
+                getattr(importlib.import_module(module), attr)
+            except (ImportError, AttributeError) as e:
+                msg = f"learner {name!r}: cannot import {attr!r} from {module!r} ({e})"
+                raise ValueError(msg) from None
+            continue
+        raise ValueError(
+            f"unknown learner {name!r}; known learners: {', '.join(known)}, "
+            "or 'module:attr' naming a learner factory"
+        )
+
+
+# ---------------------------------------------------------------------- parser
+def _common_run_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", default=None, help="results folder (default results/<preset>)")
+    p.add_argument(
+        "--jobs",
+        type=_positive_int("--jobs"),
+        default=None,
+        help="worker processes (default: every available CPU); results do not depend on it",
+    )
+    p.add_argument("--seed", type=_nonneg_int("--seed"), default=0, help="first run seed (0)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="delete an existing results folder made with another config and start over",
+    )
+    p.add_argument(
+        "--block",
+        type=_positive_int("--block"),
+        default=DEFAULT_BLOCK,
+        help=f"run seeds per unit of work, batched together (default {DEFAULT_BLOCK})",
+    )
+    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="strol-bench",
+        description="Benchmark online reward learners on the StROL envs (paired runs, statistics, "
+        "tables and plots).",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser(
+        "paper",
+        help="the paper's Fig. 4 comparison: 5 learners x 4 conditions",
+        description="The paper's comparison (Gradient, One, MOF, e2e, StROL under the training, "
+        "clean, noisy-biased and uniform-prior conditions) for one or both envs.",
+    )
+    p.add_argument("--env", choices=(*ENV_CHOICES, "all"), default="all")
+    p.add_argument(
+        "--runs",
+        type=_positive_int("--runs"),
+        default=None,
+        help="runs per condition (default: the paper's, Robot 100, Highway 250)",
+    )
+    _common_run_options(p)
+
+    p = sub.add_parser(
+        "run",
+        help="one configuration: env, learners, a condition or explicit noise/bias/prior/human",
+        description="Run learners on one env under paper conditions (--condition, repeatable) "
+        "or one explicit condition (--sigma/--bias/--prior/--human/--beta).",
+    )
+    p.add_argument("--env", choices=ENV_CHOICES, required=True)
+    p.add_argument(
+        "--learners",
+        type=_learner_list,
+        default=list(PAPER_LEARNERS),
+        help="comma-separated registered names or module:attr (default: the paper's five)",
+    )
+    p.add_argument(
+        "--reference", default=None, help="learner compared with the others (default strol)"
+    )
+    p.add_argument(
+        "--condition",
+        action="append",
+        choices=CONDITION_NAMES,
+        help="a paper condition (repeatable); default training",
+    )
+    p.add_argument("--sigma", type=_fraction("--sigma"), help="noise σ, fraction of a_max")
+    p.add_argument("--bias", type=_fraction("--bias", allow_negative=True), help="bias ε")
+    p.add_argument("--prior", choices=PRIORS, help="where θ* comes from")
+    p.add_argument("--human", choices=HUMANS, help="simulated human model")
+    p.add_argument("--beta", type=_fraction("--beta"), help="Boltzmann rationality β")
+    p.add_argument("--name", default="custom", help="name of the explicit condition")
+    p.add_argument("--runs", type=_positive_int("--runs"), default=None)
+    p.add_argument(
+        "--corrections", type=_positive_int("--corrections"), default=None, help="steps/episode"
+    )
+    p.add_argument(
+        "--learner-kwargs",
+        default=None,
+        help='JSON: constructor kwargs per learner, e.g. \'{"strol": {"lam": 0.5}}\'',
+    )
+    _common_run_options(p)
+
+    p = sub.add_parser("train", help="train ĝ for StROL or e2e (Algorithm 1)")
+    from strol_gym.learners.training import add_train_arguments
+
+    add_train_arguments(p)
+
+    sub.add_parser("list", help="envs, learners and conditions")
+
+    p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
+    p.add_argument("folder", help="a results folder written by paper or run")
+    p.add_argument("--no-plots", action="store_true")
+    return parser
+
+
+# ---------------------------------------------------------------------- commands
+def _config_for_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> BenchConfig:
+    explicit = {k: getattr(args, k) for k in ("sigma", "bias", "prior", "human", "beta")}
+    given = {k: v for k, v in explicit.items() if v is not None}
+    if given and args.condition:
+        parser.error(
+            f"--condition cannot be combined with explicit {', '.join('--' + k for k in given)}"
+        )
+    if given:
+        if args.name in CONDITION_NAMES:
+            parser.error(f"--name must not be a paper condition name ({args.name!r})")
+        conds = [custom_condition(args.env, name=args.name, **given)]
+    else:
+        conds = [
+            paper_condition(args.env, c) for c in dict.fromkeys(args.condition or ["training"])
+        ]
+    runs = args.runs or env_preset(args.env).runs
+    exps = tuple(
+        Experiment(args.env, c, runs=runs, seed=args.seed, n_corrections=args.corrections)
+        for c in conds
+    )
+    kwargs = {}
+    if args.learner_kwargs:
+        try:
+            kwargs = json.loads(args.learner_kwargs)
+        except json.JSONDecodeError as e:
+            parser.error(f"--learner-kwargs must be JSON ({e})")
+        if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
+            parser.error('--learner-kwargs must map learner names to objects: {"strol": {...}}')
+    learners = list(dict.fromkeys(args.learners))
+    reference = args.reference or (
+        REFERENCE_LEARNER if REFERENCE_LEARNER in learners else learners[0]
+    )
+    return BenchConfig(exps, tuple(learners), reference, args.block, kwargs)
+
+
+def _run(args: argparse.Namespace, config: BenchConfig, out: Path) -> int:
+    from strol_gym.benchmarks.report import console_summary, write_reports
+    from strol_gym.benchmarks.runner import default_jobs, run_benchmark
+
+    jobs = args.jobs or default_jobs()
+    t0 = time.perf_counter()
+    rd = run_benchmark(config, out, jobs=jobs, quiet=args.quiet, force=args.force)
+    wall = time.perf_counter() - t0
+    analysis, plots = write_reports(rd, plots=not args.no_plots)
+    print(console_summary(analysis))
+    print(f"\nwall time {wall:.1f} s (jobs={jobs}); results in {rd.path}/")
+    print(f"summary: {rd.path / 'summary.md'}")
+    for p in plots:
+        if p.suffix == ".png":
+            print(f"plot: {p}")
+    return 0
+
+
+def cmd_paper(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    envs = list(ENV_CHOICES) if args.env == "all" else [args.env]
+    config = paper_config(envs, runs=args.runs, seed=args.seed, block=args.block)
+    out = Path(args.out or f"results/paper-{args.env}")
+    return _run(args, config, out)
+
+
+def cmd_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    try:
+        check_learner_names(args.learners)
+        config = _config_for_run(args, parser)
+    except ValueError as e:
+        parser.error(str(e))
+    names = "-".join(e.condition.name for e in config.experiments)
+    out = Path(args.out or f"results/run-{args.env}-{names}")
+    return _run(args, config, out)
+
+
+def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.learners.registry import list_learners
+
+    print("envs:")
+    for key, p in ENV_PRESETS.items():
+        print(
+            f"  {key:8s} {p.env_id}: {p.runs} runs, {p.n_corrections} corrections, "
+            f"primary metric {p.primary_metric}"
+        )
+    print("learners: " + ", ".join(list_learners()) + " (or module:attr)")
+    print("conditions:")
+    for key, p in ENV_PRESETS.items():
+        for c in p.conditions().values():
+            print(f"  {key:8s} {c.name:14s} {c.describe()}")
+    return 0
+
+
+def cmd_report(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.report import console_summary, write_reports
+    from strol_gym.benchmarks.results import ResultsDir
+
+    rd = ResultsDir.load(args.folder)
+    missing = rd.missing_units()
+    if missing:
+        print(f"note: {len(missing)} unit(s) of work are missing; the report covers finished runs")
+    analysis, plots = write_reports(rd, plots=not args.no_plots)
+    print(console_summary(analysis))
+    print(f"summary: {rd.path / 'summary.md'}")
+    for p in plots:
+        if p.suffix == ".png":
+            print(f"plot: {p}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.learners.training import run_train
+
+    run_train(args)
+    return 0
+
+
+COMMANDS = {
+    "paper": cmd_paper,
+    "run": cmd_run,
+    "train": cmd_train,
+    "list": cmd_list,
+    "report": cmd_report,
+}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``strol-bench`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return COMMANDS[args.command](args, parser)
+    except ResultsError as e:
+        print(f"strol-bench: error: {e}", file=sys.stderr)
+        return 2
+    except ValueError as e:
+        parser.exit(2, f"strol-bench: error: {e}\n")
+    except KeyboardInterrupt:
+        print(
+            "\ninterrupted: finished runs are saved; rerun the same command to resume",
+            file=sys.stderr,
+        )
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,371 @@
+"""From per-run records to summary.csv, stats.csv, anova.csv, summary.md and the H1/H2 verdicts.
+
+The analysis is a pure function of the records and the config, so ``strol-bench report`` can
+re-render a folder at any time and always produce the same tables.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from strol_gym.benchmarks import stats
+from strol_gym.benchmarks.conditions import CONDITION_NAMES, env_preset
+from strol_gym.benchmarks.config import BenchConfig
+from strol_gym.benchmarks.results import ResultsDir, write_csv
+
+METRICS: tuple[str, ...] = ("regret", "error", "cos_error")
+METRIC_LABELS = {
+    "error": "Error ‖θ* − θ̂‖₂ (raw, final)",
+    "cos_error": "Scale-free error 1 − cos(θ*, θ̂) (final)",
+    "regret": "Regret (eq. S1) of the plan for the final θ̂",
+}
+DISPLAY = {"gradient": "Gradient", "one": "One", "mof": "MOF", "e2e": "e2e", "strol": "StROL"}
+
+SUMMARY_COLUMNS = ("env", "condition", "learner", "metric", "mean", "std", "sem", "n")
+STATS_COLUMNS = (
+    "env",
+    "condition",
+    "metric",
+    "learner",
+    "baseline",
+    "test",
+    "n",
+    "mean_diff",
+    "ci95_low",
+    "ci95_high",
+    "statistic",
+    "df",
+    "p_raw",
+    "p_holm",
+    "effect_size",
+    "effect_size_name",
+    "wilcoxon_W",
+    "wilcoxon_p_raw",
+    "wilcoxon_p_holm",
+    "significant",
+    "plain_language",
+)
+ANOVA_COLUMNS = (
+    "env",
+    "condition",
+    "metric",
+    "n",
+    "k",
+    "F",
+    "df1",
+    "df2",
+    "p",
+    "eps_gg",
+    "df1_gg",
+    "df2_gg",
+    "p_gg",
+)
+
+
+def display(name: str) -> str:
+    """The paper's spelling of a learner name (user learners keep theirs)."""
+    return DISPLAY.get(name, name)
+
+
+@dataclasses.dataclass
+class Analysis:
+    """Everything the tables, plots and verdicts need."""
+
+    config: BenchConfig
+    summary: list[dict[str, Any]]
+    posthoc: list[dict[str, Any]]
+    anova: list[dict[str, Any]]
+    curves: dict[tuple[str, str, str], dict[str, np.ndarray]]
+    verdicts: list[dict[str, Any]]
+
+    def cell(self, env: str, cond: str, learner: str, metric: str) -> dict[str, Any] | None:
+        for r in self.summary:
+            key = (r["env"], r["condition"], r["learner"], r["metric"])
+            if key == (env, cond, learner, metric):
+                return r
+        return None
+
+    def test(self, env: str, cond: str, baseline: str, metric: str) -> dict[str, Any] | None:
+        for r in self.posthoc:
+            key = (r["env"], r["condition"], r["baseline"], r["metric"])
+            if key == (env, cond, baseline, metric):
+                return r
+        return None
+
+    def metrics_for(self, env: str) -> list[str]:
+        """The metrics with data for ``env`` (regret is NaN where a task has no planner)."""
+        return [
+            m for m in METRICS if any(r["env"] == env and r["metric"] == m for r in self.summary)
+        ]
+
+
+def _matrix(records: Sequence[dict], env: str, cond: str, learners: Sequence[str], key: str):
+    """(seeds, learners) array of ``key``; rows are run seeds in ascending order."""
+    by = {
+        (r["seed"], r["learner"]): r[key]
+        for r in records
+        if (r["env"], r["condition"]) == (env, cond)
+    }
+    seeds = sorted({s for s, _ in by})
+    return seeds, np.array([[_f(by[(s, lr)]) for lr in learners] for s in seeds], dtype=np.float64)
+
+
+def _f(v: Any) -> float:
+    return math.nan if v is None else float(v)
+
+
+def analyse(config: BenchConfig, records: Sequence[dict]) -> Analysis:
+    """Descriptives, RM-ANOVA and post-hoc tests per env × condition × metric; learning curves."""
+    learners = list(config.learners)
+    summary, posthoc, anova = [], [], []
+    curves: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}
+    for exp in config.experiments:
+        env, cond = exp.env, exp.condition.name
+        for metric in METRICS:
+            _, y = _matrix(records, env, cond, learners, metric)
+            if y.size == 0 or not np.isfinite(y).any():
+                continue
+            y = y[np.isfinite(y).all(axis=1)]  # listwise: paired tests need every learner's value
+            for j, lr in enumerate(learners):
+                summary.append(
+                    {"env": env, "condition": cond, "learner": lr, "metric": metric}
+                    | stats.describe(y[:, j])
+                )
+            a = stats.rm_anova(y)
+            anova.append({"env": env, "condition": cond, "metric": metric} | dataclasses.asdict(a))
+            if len(learners) > 1:
+                for row in stats.compare_to_reference(y, learners, config.reference):
+                    row = {"env": env, "condition": cond, "metric": metric, **row}
+                    row["plain_language"] = stats.plain_language(
+                        display(row["learner"]),
+                        display(row["baseline"]),
+                        row["mean_diff"],
+                        row["p_holm"],
+                    )
+                    posthoc.append(row)
+        for lr in learners:
+            errs = [
+                r["errors"]
+                for r in records
+                if (r["env"], r["condition"], r["learner"]) == (env, cond, lr)
+            ]
+            if not errs:
+                continue
+            width = max(len(e) for e in errs)
+            arr = np.full((len(errs), width), np.nan)
+            for i, e in enumerate(errs):
+                arr[i, : len(e)] = [_f(v) for v in e]
+            n = np.isfinite(arr).sum(axis=0)
+            mean = np.nanmean(arr, axis=0)
+            sd = np.array(
+                [np.nanstd(c, ddof=1) if k > 1 else np.nan for c, k in zip(arr.T, n, strict=True)]
+            )
+            curves[(env, cond, lr)] = {"mean": mean, "sem": sd / np.sqrt(np.maximum(n, 1)), "n": n}
+    analysis = Analysis(config, summary, posthoc, anova, curves, [])
+    analysis.verdicts = verdicts(analysis)
+    return analysis
+
+
+def verdicts(a: Analysis) -> list[dict[str, Any]]:
+    """H1 and H2 per env, on the env's primary metric (Robot: regret; Highway: error).
+
+    H1: in the training condition the reference learner is significantly lower than every
+    baseline (paired t, Holm p < 0.05). H2: in every other paper condition no baseline is
+    significantly lower than the reference (it is better or comparable).
+    Only stated when the config has the paper's conditions and the reference is StROL.
+    """
+    out = []
+    if a.config.reference != "strol" or len(a.config.learners) < 2:
+        return out
+    envs = list(dict.fromkeys(e.env for e in a.config.experiments))
+    for env in envs:
+        metric = env_preset(env).primary_metric
+        conds = [e.condition.name for e in a.config.experiments if e.env == env]
+        if "training" in conds:
+            tests = [a.test(env, "training", b, metric) for b in a.config.learners if b != "strol"]
+            tests = [t for t in tests if t is not None]
+            lower = [t for t in tests if t["significant"] and t["mean_diff"] < 0]
+            ok = bool(tests) and len(lower) == len(tests)
+            fails = [display(t["baseline"]) for t in tests if t not in lower]
+            out.append(
+                {
+                    "env": env,
+                    "hypothesis": "H1",
+                    "condition": "training",
+                    "metric": metric,
+                    "holds": ok,
+                    "detail": "StROL significantly lower than every baseline"
+                    if ok
+                    else f"not significantly lower than: {', '.join(fails)}",
+                }
+            )
+        for cond in conds:
+            if cond == "training" or cond not in CONDITION_NAMES:
+                continue
+            tests = [a.test(env, cond, b, metric) for b in a.config.learners if b != "strol"]
+            tests = [t for t in tests if t is not None]
+            worse = [
+                display(t["baseline"]) for t in tests if t["significant"] and t["mean_diff"] > 0
+            ]
+            better = [
+                display(t["baseline"]) for t in tests if t["significant"] and t["mean_diff"] < 0
+            ]
+            detail = (
+                f"better than {', '.join(better) or 'none'}; "
+                f"worse than {', '.join(worse) or 'none'}"
+            )
+            out.append(
+                {
+                    "env": env,
+                    "hypothesis": "H2",
+                    "condition": cond,
+                    "metric": metric,
+                    "holds": not worse,
+                    "detail": detail,
+                }
+            )
+    return out
+
+
+# ---------------------------------------------------------------------- rendering
+def _num(x: float, digits: int = 3) -> str:
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    return f"{x:.{digits}f}" if abs(x) >= 10**-digits or x == 0 else f"{x:.1e}"
+
+
+def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
+    """Markdown table: rows conditions, columns learners, 'mean ± std' with stars vs StROL."""
+    learners = list(a.config.learners)
+    conds = [e.condition.name for e in a.config.experiments if e.env == env]
+    head = "| condition | " + " | ".join(display(lr) for lr in learners) + " |"
+    lines = [head, "|---|" + "---|" * len(learners)]
+    for cond in conds:
+        cells = []
+        for lr in learners:
+            c = a.cell(env, cond, lr, metric)
+            if c is None:
+                cells.append("n/a")
+                continue
+            t = a.test(env, cond, lr, metric)
+            star = stats.stars(t["p_holm"]) if t else ""
+            cells.append(f"{_num(c['mean'])} ± {_num(c['std'])}{star}")
+        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = ()) -> str:
+    cfg = a.config
+    envs = list(dict.fromkeys(e.env for e in cfg.experiments))
+    out = ["# strol-bench summary", ""]
+    git = meta.get("git") or {}
+    out += [
+        f"- learners: {', '.join(display(lr) for lr in cfg.learners)}; post-hoc reference: "
+        f"{display(cfg.reference)}",
+        f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
+        f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
+        f"{_num(meta.get('wall_time_s', math.nan), 1)} s",
+        "- cells: mean ± std over runs; stars: StROL vs that baseline, paired t-test, "
+        "Holm-corrected across baselines (* p<0.05, ** p<0.01, *** p<0.001). Lower is better.",
+        "",
+    ]
+    if a.verdicts:
+        out += ["## Hypotheses", ""]
+        for v in a.verdicts:
+            word = "HOLDS" if v["holds"] else "FAILS"
+            out.append(
+                f"- **{v['hypothesis']} {v['env']} / {v['condition']} ({v['metric']}): "
+                f"{word}** — {v['detail']}"
+            )
+        out.append("")
+    for env in envs:
+        preset = env_preset(env)
+        out += [f"## {preset.env_id}", ""]
+        for e in cfg.experiments:
+            if e.env == env:
+                out.append(
+                    f"- {e.condition.name}: {e.condition.describe()}; {e.runs} runs "
+                    f"(seeds {e.seeds.start}–{e.seeds.stop - 1}), {e.corrections} corrections"
+                )
+        out.append("")
+        metrics = a.metrics_for(env)
+        primary = preset.primary_metric if preset.primary_metric in metrics else metrics[0]
+        for metric in [primary] + [m for m in metrics if m != primary]:
+            tag = " — primary metric" if metric == primary else ""
+            out += [f"### {METRIC_LABELS[metric]}{tag}", ""]
+            out += metric_table(a, env, metric)
+            out.append("")
+        out += [f"### Tests on {primary}", ""]
+        for e in cfg.experiments:
+            if e.env != env:
+                continue
+            cond = e.condition.name
+            an = next(
+                (
+                    r
+                    for r in a.anova
+                    if (r["env"], r["condition"], r["metric"]) == (env, cond, primary)
+                ),
+                None,
+            )
+            if an is not None:
+                line = stats.AnovaResult(**{k: an[k] for k in ANOVA_COLUMNS[3:]}).line()
+                out.append(f"- **{cond}**: repeated-measures ANOVA across learners: {line}")
+            for t in a.posthoc:
+                if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):
+                    wil = stats.format_p(t["wilcoxon_p_holm"])
+                    out.append(
+                        f"  - {t['plain_language']}; Δ = {_num(t['mean_diff'])} "
+                        f"[{_num(t['ci95_low'])}, {_num(t['ci95_high'])}], "
+                        f"d_z = {_num(t['effect_size'], 2)}, Wilcoxon {wil}"
+                    )
+        out.append("")
+    if plots:
+        out += ["## Plots", ""] + [f"- `{p}`" for p in plots] + [""]
+    return "\n".join(out)
+
+
+def write_reports(rd: ResultsDir, *, plots: bool = True) -> tuple[Analysis, list[Path]]:
+    """Read the records of ``rd`` and (re)write every table, summary.md and the plots."""
+    records = rd.read_records()
+    if not records:
+        raise ValueError(f"{rd.path} holds no finished runs yet")
+    rd.write_run_tables(records)
+    a = analyse(rd.config, records)
+    write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
+    write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
+    write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
+    paths: list[Path] = []
+    if plots:
+        from strol_gym.benchmarks import plots as plotting
+
+        paths = plotting.make_plots(a, rd.path / "plots")
+    (rd.path / "summary.md").write_text(summary_markdown(a, rd.meta, paths))
+    return a, paths
+
+
+def console_summary(a: Analysis) -> str:
+    """The primary-metric tables and the verdicts, for the terminal."""
+    out = []
+    for env in dict.fromkeys(e.env for e in a.config.experiments):
+        metrics = a.metrics_for(env)
+        if not metrics:
+            continue
+        primary = env_preset(env).primary_metric
+        primary = primary if primary in metrics else metrics[0]
+        out += [
+            f"{env_preset(env).env_id}: {METRIC_LABELS[primary]} (mean ± std, * = StROL vs "
+            "baseline, Holm p<0.05)"
+        ]
+        out += [*metric_table(a, env, primary), ""]
+    for v in a.verdicts:
+        out.append(
+            f"{v['hypothesis']} {v['env']}/{v['condition']} ({v['metric']}): "
+            f"{'holds' if v['holds'] else 'FAILS'} — {v['detail']}"
+        )
+    return "\n".join(out)

@@ -1,0 +1,328 @@
+"""The paired benchmark runner.
+
+Design (DESIGN.md, "Paired runs"): a run's seed fixes θ*, the start state and every noise draw.
+For every run seed, each learner gets ``env.reset(seed=run_seed)`` on an env built for the
+condition, wrapped in ``OnlineLearningWrapper(env, learner)``; each step the robot acts by
+``task.robot_policy(state, θ̂)`` for *that learner's* θ̂, scaled to the action space by
+``task.robot_action_bound``. The envs stay the source of the state: the runner only reads
+observations and info.
+
+Speed: a unit of work is a block of run seeds (``BenchConfig.block``) × every learner. Inside a
+unit the block's envs step in lockstep, so the robot policy (the Task planner for the Robot) is
+called once per step for the whole block instead of once per run. The block size is part of the
+config, never derived from ``--jobs``, so batched numerics see the same batches whatever the
+parallelism and results are identical across ``--jobs`` and across resumes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import hashlib
+import importlib
+import multiprocessing as mp
+import os
+import time
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from strol_gym.benchmarks.config import BenchConfig, Unit
+from strol_gym.benchmarks.results import ResultsDir
+
+
+# ---------------------------------------------------------------------- learners
+def resolve_learner(spec: str, task: Any, **kwargs: Any) -> Any:
+    """Build a learner from a registered name or a ``module:attr`` factory / class / object."""
+    import strol_gym
+    from strol_gym.learners.registry import list_learners
+
+    if spec in list_learners():
+        return strol_gym.make_learner(spec, task=task, **kwargs)
+    if ":" in spec:
+        module, _, attr = spec.partition(":")
+        try:
+            obj = getattr(importlib.import_module(module), attr)
+        except (ImportError, AttributeError) as e:
+            raise ValueError(
+                f"learner {spec!r}: cannot import {attr!r} from {module!r} ({e})"
+            ) from e
+        return strol_gym.make_learner(obj, task=task, **kwargs)
+    raise ValueError(
+        f"unknown learner {spec!r}; known learners: {', '.join(list_learners())}, "
+        "or 'module:attr' naming a learner factory"
+    )
+
+
+def learner_fingerprint(learner: Any) -> dict[str, Any]:
+    """What identifies a learner's behaviour: class, config and a hash of its weights file."""
+    fp: dict[str, Any] = {"class": f"{type(learner).__module__}.{type(learner).__qualname__}"}
+    config = getattr(learner, "config", None)
+    if callable(config):
+        fp["config"] = config()
+    ckpt = getattr(learner, "checkpoint", None)
+    if ckpt:
+        fp["weights_sha256"] = hashlib.sha256(Path(ckpt).read_bytes()).hexdigest()[:16]
+    return fp
+
+
+def check_learners(config: BenchConfig) -> dict[str, Any]:
+    """Build every learner for every env once (before any work) and return their fingerprints.
+
+    Raises ValueError for an unknown learner or one that cannot be built for an env's task.
+    """
+    import gymnasium as gym
+
+    import strol_gym  # noqa: F401  (registers the envs)
+
+    out: dict[str, Any] = {}
+    for env_key in dict.fromkeys(e.env for e in config.experiments):
+        exp = next(e for e in config.experiments if e.env == env_key)
+        env = gym.make(exp.env_id, **exp.env_kwargs())
+        try:
+            task = env.unwrapped.task
+            out[env_key] = {
+                lr: learner_fingerprint(resolve_learner(lr, task, **config.kwargs_for(lr)))
+                for lr in config.learners
+            }
+        finally:
+            env.close()
+    return out
+
+
+# ---------------------------------------------------------------------- one unit of work
+class _Worker:
+    """Per-process cache of envs and wrapped learners, so a unit does not rebuild them."""
+
+    def __init__(self, config: BenchConfig) -> None:
+        self.config = config
+        self._exp: int | None = None
+        self._envs: list[Any] = []
+        self._wrapped: dict[str, list[Any]] = {}
+
+    def _prepare(self, exp_index: int, n: int) -> None:
+        import gymnasium as gym
+        from strol_gym.wrappers import OnlineLearningWrapper
+
+        import strol_gym  # noqa: F401
+
+        if self._exp != exp_index:
+            self.close()
+            self._exp = exp_index
+        exp = self.config.experiments[exp_index]
+        while len(self._envs) < n:
+            env = gym.make(exp.env_id, **exp.env_kwargs())
+            self._envs.append(env)
+            task = env.unwrapped.task
+            for lr in self.config.learners:
+                learner = resolve_learner(lr, task, **self.config.kwargs_for(lr))
+                self._wrapped.setdefault(lr, []).append(OnlineLearningWrapper(env, learner))
+
+    def close(self) -> None:
+        for env in self._envs:
+            env.close()
+        self._envs, self._wrapped, self._exp = [], {}, None
+
+    def run_unit(self, unit: Unit) -> list[dict]:
+        """Every learner on every seed of ``unit``: a list of per-run records."""
+        exp = self.config.experiments[unit.experiment]
+        self._prepare(unit.experiment, len(unit.seeds))
+        out = []
+        for lr in self.config.learners:
+            wrapped = self._wrapped[lr][: len(unit.seeds)]
+            out += _run_block(
+                wrapped, list(unit.seeds), exp.corrections, exp.env, exp.condition.name, lr
+            )
+        return out
+
+
+def _state(obs: Any) -> np.ndarray:
+    return np.asarray(obs["state"] if isinstance(obs, dict) else obs, dtype=np.float64)
+
+
+def _cos_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
+    den = float(np.linalg.norm(theta_star) * np.linalg.norm(theta_hat))
+    return float(1.0 - theta_star @ theta_hat / den) if den > 0 else 1.0
+
+
+def _run_block(
+    wrapped: Sequence[Any], seeds: Sequence[int], steps: int, env: str, cond: str, lr: str
+) -> list[dict]:
+    """Lockstep episodes of one learner on one block of seeds (one wrapped env per seed)."""
+    task = wrapped[0].unwrapped.task
+    bound = np.asarray(task.robot_action_bound, dtype=np.float64)
+    b = len(seeds)
+    obs = [w.reset(seed=int(s))[0] for w, s in zip(wrapped, seeds, strict=True)]
+    x0 = [_state(o) for o in obs]
+    thetas = [[np.array(w.learner.theta, dtype=np.float64)] for w in wrapped]
+    alive = np.ones(b, dtype=bool)
+    last_info: list[dict] = [{} for _ in range(b)]
+    first_corr: list[Any] = [None] * b
+    terminated = np.zeros(b, dtype=bool)
+    n_steps = np.zeros(b, dtype=int)
+    for _ in range(steps):
+        idx = np.flatnonzero(alive)
+        if len(idx) == 0:
+            break
+        x = np.stack([_state(obs[i]) for i in idx])
+        th = np.stack([np.asarray(wrapped[i].learner.theta, dtype=np.float64) for i in idx])
+        u = np.asarray(task.robot_policy(x, th), dtype=np.float64).reshape(len(idx), -1)
+        action = np.clip(u / bound, -1.0, 1.0).astype(np.float32)
+        for j, i in enumerate(idx):
+            o, _, term, trunc, info = wrapped[i].step(action[j])
+            obs[i], last_info[i] = o, info
+            n_steps[i] += 1
+            thetas[i].append(np.array(wrapped[i].learner.theta, dtype=np.float64))
+            if first_corr[i] is None and info.get("is_correction", False):
+                first_corr[i] = np.asarray(info["correction"], dtype=np.float64).tolist()
+            if term or trunc:
+                alive[i] = False
+                terminated[i] = bool(term)
+    records = []
+    for i, seed in enumerate(seeds):
+        info = last_info[i]
+        star = np.asarray(info["theta_star"], dtype=np.float64)
+        errs = [float(np.linalg.norm(star - t)) for t in thetas[i]]
+        coss = [_cos_error(star, t) for t in thetas[i]]
+        regret = info.get("regret", np.nan)
+        records.append(
+            {
+                "env": env,
+                "condition": cond,
+                "learner": lr,
+                "seed": int(seed),
+                "error": errs[-1],
+                "cos_error": coss[-1],
+                "regret": float(regret) if regret is not None else float("nan"),
+                "errors": errs,
+                "cos_errors": coss,
+                "steps": int(n_steps[i]),
+                "terminated": bool(terminated[i]),
+                "theta_star": star.tolist(),
+                "theta_hat": thetas[i][-1].tolist(),
+                "x0": x0[i].tolist(),
+                "first_correction": first_corr[i],
+            }
+        )
+    return records
+
+
+# ---------------------------------------------------------------------- process pool plumbing
+_WORKER: _Worker | None = None
+
+
+def _init_worker(config_dict: dict) -> None:
+    global _WORKER
+    _limit_threads()
+    _WORKER = _Worker(BenchConfig.from_dict(config_dict))
+
+
+def _work(unit: Unit) -> tuple[Unit, list[dict]]:
+    assert _WORKER is not None
+    return unit, _WORKER.run_unit(unit)
+
+
+def _limit_threads() -> None:
+    """One intra-op thread per process: parallelism comes from --jobs, and reductions (torch,
+    BLAS) then run in one fixed order, so every process computes bit-identical numbers."""
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    with contextlib.suppress(ImportError):
+        import torch
+
+        torch.set_num_threads(1)
+
+
+@contextlib.contextmanager
+def _single_thread_torch() -> Iterator[None]:
+    try:
+        import torch
+    except ImportError:
+        yield
+        return
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def _iter_results(
+    config: BenchConfig, units: list[Unit], jobs: int
+) -> Iterator[tuple[Unit, list[dict]]]:
+    if jobs <= 1 or len(units) <= 1:
+        worker = _Worker(config)
+        try:
+            with _single_thread_torch():
+                for u in units:
+                    yield u, worker.run_unit(u)
+        finally:
+            worker.close()
+        return
+    ctx = mp.get_context("spawn")
+    with ctx.Pool(
+        min(jobs, len(units)), initializer=_init_worker, initargs=(config.to_dict(),)
+    ) as pool:
+        try:
+            yield from pool.imap_unordered(_work, units)
+        except BaseException:
+            pool.terminate()
+            raise
+
+
+def default_jobs() -> int:
+    """The CPUs this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
+def run_benchmark(
+    config: BenchConfig,
+    out: str | os.PathLike,
+    *,
+    jobs: int = 1,
+    quiet: bool = False,
+    force: bool = False,
+    on_unit: Callable[[Unit, int], None] | None = None,
+) -> ResultsDir:
+    """Run (or resume) ``config`` into the folder ``out``; returns the folder when all is done.
+
+    ``on_unit(unit, n_done)`` is called after each unit is stored (tests use it to simulate an
+    interruption). Learners are built once up front, so a bad learner fails before any work.
+    """
+    if int(jobs) < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    fingerprints = check_learners(config)
+    rd = ResultsDir.open(out, config, extra={"learners": fingerprints}, force=force)
+    todo = rd.missing_units()
+    started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    t0 = time.perf_counter()
+    total_runs = sum(e.runs for e in config.experiments)
+    done_runs = total_runs - sum(len(u.seeds) for u in todo)
+    bar = None
+    if not quiet:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(
+            total=total_runs, initial=done_runs, unit="run", desc="strol-bench", dynamic_ncols=True
+        )
+    n = 0
+    try:
+        for unit, records in _iter_results(config, todo, int(jobs)):
+            rd.write_unit(unit, records)
+            n += 1
+            if bar is not None:
+                exp = config.experiments[unit.experiment]
+                bar.set_postfix_str(f"{exp.env}/{exp.condition.name}", refresh=False)
+                bar.update(len(unit.seeds))
+            if on_unit is not None:
+                on_unit(unit, n)
+    finally:
+        if bar is not None:
+            bar.close()
+        rd.finish_session(started, time.perf_counter() - t0, n, int(jobs))
+    return rd
