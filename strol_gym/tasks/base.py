@@ -76,7 +76,15 @@ class Task(ABC):
     def g(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
         """The original learning rule (eq. P3) for linear rewards: φ(x_H) − φ(x_R)."""
         x_h = self.dynamics(x, u_h, u_r)
-        x_r = self.dynamics(x, np.zeros_like(u_h), u_r)
+        # x_R does not depend on u_H: compute it once per (x, u_R), not once per candidate u_H
+        # (eq. M6 evaluates g for many candidates); features(x_R) broadcasts in the difference.
+        x, u_r = np.asarray(x), np.asarray(u_r)
+        lead = np.broadcast_shapes(x.shape[:-1], u_r.shape[:-1])
+        x_r = self.dynamics(
+            np.broadcast_to(x, (*lead, x.shape[-1])),
+            np.zeros((*lead, np.shape(u_h)[-1])),
+            np.broadcast_to(u_r, (*lead, u_r.shape[-1])),
+        )
         return self.features(x_h) - self.features(x_r)
 
     def candidate_actions(self, rng: np.random.Generator, n: int, k: int) -> np.ndarray:
