@@ -1,0 +1,156 @@
+"""Checkpoints of ĝ: weights as a torch state_dict (plain tensors, loaded with
+``weights_only=True``, never a pickled object) plus a JSON sidecar that says what they are for.
+
+The sidecar (``<name>.json`` next to ``<name>.pt``) records the task (id, version, feature names,
+dims, α, action bound), the network input width and architecture, the kind ("strol" | "e2e"),
+the training config and seed, package versions, the final loss and the held-out Lyapunov
+check. Loading compares it with the Task and raises ValueError naming every difference.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from strol_gym.learners.network import CorrectionNet
+from strol_gym.tasks.base import Task
+
+FORMAT_VERSION = 1
+KINDS = ("strol", "e2e")
+PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
+
+
+def sidecar_path(path: str | Path) -> Path:
+    """The JSON sidecar beside a weights file."""
+    return Path(path).with_suffix(".json")
+
+
+def package_versions() -> dict[str, str]:
+    import gymnasium
+
+    import strol_gym
+
+    return {
+        "strol_gym": strol_gym.__version__,
+        "torch": torch.__version__,
+        "numpy": np.__version__,
+        "gymnasium": gymnasium.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def task_signature(task: Task) -> dict[str, Any]:
+    """What a checkpoint must agree on with the Task it is used for."""
+    sig = dict(task.describe())
+    sig["network_input_dim"] = int(task.network_input_dim)
+    return sig
+
+
+def save_checkpoint(
+    path: str | Path,
+    model: CorrectionNet,
+    task: Task,
+    kind: str,
+    config: dict[str, Any] | None = None,
+    extra: dict[str, Any] | None = None,
+) -> Path:
+    """Write ``path`` (weights) and its JSON sidecar. Returns the weights path."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    path = Path(path)
+    if path.suffix != ".pt":
+        raise ValueError(f"path must end in .pt, got {path}")
+    if model.in_dim != task.network_input_dim or model.out_dim != task.dim:
+        raise ValueError(
+            f"model maps {model.in_dim} -> {model.out_dim}, task {task.task_id} needs "
+            f"{task.network_input_dim} -> {task.dim}"
+        )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    weights = {k: v.detach().cpu().contiguous().clone() for k, v in model.state_dict().items()}
+    torch.save(weights, path)
+    meta = {
+        "format_version": FORMAT_VERSION,
+        "kind": kind,
+        "task": task_signature(task),
+        "network": model.arch(),
+        "training": config or {},
+        "versions": package_versions(),
+        **(extra or {}),
+    }
+    sidecar_path(path).write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+    return path
+
+
+def read_sidecar(path: str | Path) -> dict[str, Any]:
+    side = sidecar_path(path)
+    if not side.is_file():
+        raise FileNotFoundError(f"checkpoint sidecar {side} is missing (needed beside {path})")
+    return json.loads(side.read_text())
+
+
+def check_sidecar(meta: dict[str, Any], task: Task, kind: str | None = None) -> None:
+    """Raise ValueError listing every way ``meta`` disagrees with ``task`` (and ``kind``)."""
+    problems = []
+    if meta.get("format_version") != FORMAT_VERSION:
+        problems.append(f"format_version {meta.get('format_version')} != {FORMAT_VERSION}")
+    if kind is not None and meta.get("kind") != kind:
+        problems.append(f"kind: checkpoint has {meta.get('kind')!r}, expected {kind!r}")
+    have, want = meta.get("task", {}), task_signature(task)
+    for key in sorted(set(have) | set(want)):
+        if have.get(key) != want.get(key):
+            problems.append(f"{key}: checkpoint has {have.get(key)!r}, task has {want.get(key)!r}")
+    net = meta.get("network", {})
+    if net.get("out_dim") != task.dim:
+        problems.append(f"network out_dim {net.get('out_dim')} != task dim {task.dim}")
+    if problems:
+        raise ValueError("checkpoint does not match the task: " + "; ".join(problems))
+
+
+def load_checkpoint(
+    path: str | Path, task: Task, kind: str | None = None
+) -> tuple[CorrectionNet, dict[str, Any]]:
+    """Load a ĝ checked against ``task`` (and ``kind`` if given). Returns (model, sidecar)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no checkpoint at {path}")
+    meta = read_sidecar(path)
+    check_sidecar(meta, task, kind)
+    net = meta["network"]
+    model = CorrectionNet(net["in_dim"], net["out_dim"], net["hidden"], net["bound"])
+    weights = torch.load(path, map_location="cpu", weights_only=True)
+    model.load_state_dict(weights)
+    model.eval()
+    return model, meta
+
+
+def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DIR) -> Path:
+    """The shipped checkpoint whose sidecar names ``task.task_id`` and ``kind``.
+
+    Files are looked up by their sidecars, not by name; the convention for names is
+    ``<short task name>_<kind>.pt`` (``robot_strol.pt``).
+    """
+    directory = Path(directory)
+    found = []
+    for side in sorted(directory.glob("*.json")):
+        try:
+            meta = json.loads(side.read_text())
+        except (OSError, json.JSONDecodeError):
+            continue
+        if meta.get("kind") == kind and meta.get("task", {}).get("task_id") == task.task_id:
+            weights = side.with_suffix(".pt")
+            if weights.is_file():
+                found.append(weights)
+    if not found:
+        raise FileNotFoundError(
+            f"no pretrained {kind} ĝ for {task.task_id} in {directory}; train one with "
+            f"`python -m strol_gym.learners.training --task {task.task_id} --kind {kind} "
+            f"--out FILE.pt` and pass checkpoint=FILE.pt"
+        )
+    if len(found) > 1:
+        raise ValueError(f"several pretrained {kind} ĝ for {task.task_id}: {found}")
+    return found[0]

@@ -1,0 +1,114 @@
+"""StROL and e2e: learning rules that use a trained correction term ĝ (paper, Section IV-B).
+
+StROL: G = g + λ·ĝ (λ = 1 in the paper; λ = 0 is exactly Gradient). e2e: G = ĝ, the same
+network trained from scratch without the designer's g in the update. In both, ĝ is bounded by
+‖ĝ‖ ≤ ‖g‖ (see ``strol_gym.learners.network``). By default the learner loads the ĝ shipped for
+the task (``strol_gym/pretrained``), looked up by ``task.task_id``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from strol_gym.learners.checkpoint import find_pretrained, load_checkpoint
+from strol_gym.learners.network import CorrectionNet
+from strol_gym.learners.protocol import LinearRuleLearner
+from strol_gym.tasks.base import Task
+
+
+class CorrectionLearner(LinearRuleLearner):
+    """Shared machinery: holds ĝ and evaluates it on numpy batches (float64 bound)."""
+
+    kind: str = ""
+
+    def __init__(
+        self,
+        task: Task,
+        checkpoint: str | Path | None = None,
+        model: CorrectionNet | None = None,
+    ) -> None:
+        super().__init__(task)
+        if model is not None and checkpoint is not None:
+            raise ValueError("pass either checkpoint or model, not both")
+        if model is None:
+            path = Path(checkpoint) if checkpoint is not None else find_pretrained(task, self.kind)
+            model, meta = load_checkpoint(path, task, kind=self.kind)
+            self.checkpoint = str(path)
+            self.checkpoint_meta = meta
+        else:
+            if not isinstance(model, CorrectionNet):
+                raise ValueError(f"model must be a CorrectionNet, got {type(model).__name__}")
+            if model.in_dim != task.network_input_dim or model.out_dim != task.dim:
+                raise ValueError(
+                    f"model maps {model.in_dim} -> {model.out_dim}, task {task.task_id} needs "
+                    f"{task.network_input_dim} -> {task.dim}"
+                )
+            self.checkpoint = None
+            self.checkpoint_meta = None
+        self.model = model.eval()
+
+    def correction(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """ĝ for a batch, (B, s), (B, a), (B, a) -> (B, d), with ‖ĝ‖ < ‖g‖ row by row."""
+        return self._correction_and_g(x, u_h, u_r)[0]
+
+    def _correction_and_g(self, x, u_h, u_r) -> tuple[np.ndarray, np.ndarray]:
+        g = self.task.g(x, u_h, u_r)
+        z = torch.as_tensor(self.task.network_input(x, u_h, u_r), dtype=torch.float32)
+        with torch.no_grad():
+            g_hat = self.model(z, torch.as_tensor(g, dtype=torch.float64))
+        return g_hat.numpy(), g
+
+    def state_dict(self) -> dict[str, Any]:
+        state = super().state_dict()
+        state["model"] = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+        state["arch"] = self.model.arch()
+        return state
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        if state.get("arch") != self.model.arch():
+            raise ValueError(
+                f"state network {state.get('arch')} differs from this learner's {self.model.arch()}"
+            )
+        super().load_state_dict(state)
+        self.model.load_state_dict(state["model"])
+
+
+class StROLLearner(CorrectionLearner):
+    """StROL: θ̂ ← θ̂ + α·(g + λ·ĝ). ``lam`` = λ ≥ 0 (default 1, as trained)."""
+
+    name = "strol"
+    kind = "strol"
+
+    def __init__(
+        self,
+        task: Task,
+        lam: float = 1.0,
+        checkpoint: str | Path | None = None,
+        model: CorrectionNet | None = None,
+    ) -> None:
+        lam = float(lam)
+        if not (np.isfinite(lam) and lam >= 0):
+            raise ValueError(f"lam must be a finite number >= 0, got {lam}")
+        self.lam = lam
+        super().__init__(task, checkpoint=checkpoint, model=model)
+
+    def config(self) -> dict[str, Any]:
+        return {"lam": self.lam}
+
+    def direction(self, x, u_h, u_r, theta) -> np.ndarray:
+        g_hat, g = self._correction_and_g(x, u_h, u_r)
+        return g + self.lam * g_hat
+
+
+class E2ELearner(CorrectionLearner):
+    """e2e: θ̂ ← θ̂ + α·ĝ, the ablation that learns the rule from scratch (same network)."""
+
+    name = "e2e"
+    kind = "e2e"
+
+    def direction(self, x, u_h, u_r, theta) -> np.ndarray:
+        return self.correction(x, u_h, u_r)

@@ -1,0 +1,134 @@
+"""The interface every online reward learner implements, and a base class for rules of eq. P2.
+
+A learner holds a point estimate θ̂ of the human's reward weights and moves it after each human
+correction: θ̂ ← θ̂ + α·G(x, u_H, u_R). Learners work on one interaction (1-D arrays) or on a
+batch of independent interactions (arrays with a leading batch axis) alike, so a benchmark can
+run many simulated humans in one call.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from strol_gym.tasks.base import Task
+
+
+@runtime_checkable
+class OnlineRewardLearner(Protocol):
+    """What the wrapper and the benchmark need from a learner.
+
+    ``theta`` is (d,) for a single interaction or (B, d) for a batch. ``reset(None)`` starts from
+    the mean of the task's bimodal prior modes (``task.prior_modes.mean(0)``), the robot's θ̂0 in
+    the paper. ``state_dict`` / ``load_state_dict`` round-trip the learner exactly.
+    """
+
+    task: Task
+    theta: np.ndarray
+
+    def reset(self, theta0: np.ndarray | None = None) -> np.ndarray:
+        """Start a new interaction from ``theta0`` (default: the prior modes' mean)."""
+        ...
+
+    def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:
+        """Learn from one correction: state x, human action u_H, robot action u_R. Returns θ̂."""
+        ...
+
+    def state_dict(self) -> dict[str, Any]:
+        """Everything needed to restore the learner (arrays, tensors and plain values)."""
+        ...
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore a learner from ``state_dict()``."""
+        ...
+
+
+def _as_float_array(name: str, value: np.ndarray, width: int) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim not in (1, 2) or arr.shape[-1] != width:
+        raise ValueError(f"{name} must have shape ({width},) or (B, {width}), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return arr
+
+
+class LinearRuleLearner:
+    """Base for learners of the form θ̂ ← θ̂ + α·G, with G computed by ``direction``.
+
+    Subclasses implement ``direction(x, u_h, u_r, theta)`` on 2-D batches of equal length and
+    return G with shape (B, d). This class handles validation, batching, and state.
+    """
+
+    name: str = "rule"
+
+    def __init__(self, task: Task) -> None:
+        if not isinstance(task, Task):
+            raise ValueError(f"task must be a strol_gym Task, got {type(task).__name__}")
+        self.task = task
+        self.theta = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
+
+    # ------------------------------------------------------------------ interface
+    def reset(self, theta0: np.ndarray | None = None) -> np.ndarray:
+        if theta0 is None:
+            theta0 = np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
+        self.theta = _as_float_array("theta0", theta0, self.task.dim).copy()
+        return self.theta.copy()
+
+    def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:
+        task = self.task
+        x = _as_float_array("x", x, task.state_dim)
+        u_h = _as_float_array("u_h", u_h, task.action_dim)
+        u_r = np.zeros(task.action_dim) if u_r is None else u_r
+        u_r = _as_float_array("u_r", u_r, task.action_dim)
+        single = x.ndim == 1 and u_h.ndim == 1 and u_r.ndim == 1 and self.theta.ndim == 1
+        arrays = [np.atleast_2d(a) for a in (x, u_h, u_r, self.theta)]
+        try:
+            b = np.broadcast_shapes(*(a.shape[:1] for a in arrays))[0]
+        except ValueError:
+            lens = [a.shape[0] for a in arrays]
+            raise ValueError(
+                f"batch sizes of x, u_h, u_r and theta disagree: {lens} (each must be B or 1)"
+            ) from None
+        x2, uh2, ur2, th2 = (np.broadcast_to(a, (b, a.shape[1])) for a in arrays)
+        step = task.alpha * self.direction(x2, uh2, ur2, th2)
+        theta = th2 + step
+        self.theta = theta[0] if single else theta
+        return self.theta.copy()
+
+    def direction(
+        self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, theta: np.ndarray
+    ) -> np.ndarray:
+        """G for each sample, (B, d). Subclasses override."""
+        raise NotImplementedError
+
+    def config(self) -> dict[str, Any]:
+        """The constructor arguments besides the task (JSON-ready)."""
+        return {}
+
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "task_id": self.task.task_id,
+            "config": self.config(),
+            "theta": self.theta.copy(),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        if state.get("name") != self.name:
+            raise ValueError(f"state is for learner {state.get('name')!r}, not {self.name!r}")
+        if state.get("task_id") != self.task.task_id:
+            raise ValueError(
+                f"state is for task {state.get('task_id')!r}, this learner's task is "
+                f"{self.task.task_id!r}"
+            )
+        if state.get("config") != self.config():
+            raise ValueError(
+                f"state config {state.get('config')} differs from this learner's {self.config()}"
+            )
+        theta = np.asarray(state["theta"], dtype=np.float64)
+        self.theta = _as_float_array("theta", theta, self.task.dim).copy()
+
+    def __repr__(self) -> str:
+        cfg = ", ".join(f"{k}={v!r}" for k, v in self.config().items())
+        return f"{type(self).__name__}(task={self.task.task_id}{', ' if cfg else ''}{cfg})"

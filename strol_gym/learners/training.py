@@ -1,0 +1,348 @@
+"""Offline training of ĝ (the paper's Algorithm 1, loss eq. M7), for any Task.
+
+Each step draws a fresh batch, fully vectorised in numpy, and takes one Adam step in torch:
+
+1. x ~ ``task.sample_start``; θ* ~ ``task.prior`` (the Task's prior: bimodal for the paper).
+2. The robot's current estimate θ (Algorithm 1's "(x, θ, θ*) tuple"). Online, θ starts at the
+   prior modes' mean θ0 and walks toward θ*, so by default (``theta_sampling="path"``)
+   θ = θ0 + τ (θ* − θ0) + ν with τ ~ U[0, 1] and ν ~ N(0, ``theta_jitter``² I): the start, the
+   points between it and θ*, and some off-path estimates. ``"prior-mean"`` uses θ = θ0 only;
+   ``"prior"`` draws θ from the prior, independently of θ*.
+3. u_R: zeros by default (the learning rule sees u_R only through x_R = f(x, 0, u_R));
+   ``robot_action="uniform"`` draws it uniformly within ``task.robot_action_bound``.
+4. The nominal human: u* from eq. M6 over ``n_candidates`` admissible candidates
+   (``task.candidate_actions``, which always includes u = 0), or a Boltzmann-rational choice
+   (``human="boltzmann"``); then u_H = u* + δ, δ ~ N(ε a_max, (σ a_max)²) (``humans.perturb``).
+5. Loss (eq. M7, averaged): mean(α²‖g̃‖² − 2α e·g̃), e = θ* − θ, g̃ = g + ĝ (StROL) or ĝ (e2e).
+
+Adam (lr 1e-3, halved every 100 steps), batch 100, 500 steps for the Robot, as in the paper.
+Runs are seeded (numpy Generator for data, torch seed for the initial weights) and deterministic
+(torch deterministic algorithms and a fixed thread count during training).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from strol_gym.humans import boltzmann_correction, check_fraction, optimal_correction, perturb
+from strol_gym.learners.checkpoint import KINDS, save_checkpoint
+from strol_gym.learners.network import BOUNDS, DEFAULT_HIDDEN, CorrectionNet
+from strol_gym.tasks.base import Task
+
+THETA_SAMPLING = ("path", "prior-mean", "prior")
+ROBOT_ACTIONS = ("zero", "uniform")
+HUMANS = ("nominal", "boltzmann")
+KNOWN_TASKS = {
+    "StROL-Robot-v0": "strol_gym.tasks.robot:RobotTask",
+    "StROL-Highway-v0": "strol_gym.tasks.highway:HighwayTask",
+}
+SHORT_NAMES = {"robot": "StROL-Robot-v0", "highway": "StROL-Highway-v0"}
+NORM_SAMPLES = 4096
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainConfig:
+    """Everything that determines a training run (stored in the checkpoint sidecar)."""
+
+    kind: str = "strol"
+    steps: int = 500
+    batch: int = 100
+    sigma: float = 0.25
+    bias: float = 0.0
+    seed: int = 10_000
+    human: str = "nominal"
+    beta: float = 50.0
+    lr: float = 1e-3
+    lr_halve_every: int = 100
+    n_candidates: int = 256
+    theta_sampling: str = "path"
+    theta_jitter: float = 0.1
+    robot_action: str = "zero"
+    hidden: tuple[int, ...] = DEFAULT_HIDDEN
+    bound: str = "radial"
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        def choice(name: str, options: Sequence[str]) -> None:
+            if getattr(self, name) not in options:
+                raise ValueError(
+                    f"{name} must be one of {tuple(options)}, got {getattr(self, name)!r}"
+                )
+
+        def positive(name: str) -> None:
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)}")
+
+        choice("kind", KINDS)
+        choice("human", HUMANS)
+        choice("theta_sampling", THETA_SAMPLING)
+        choice("robot_action", ROBOT_ACTIONS)
+        choice("bound", BOUNDS)
+        for name in ("steps", "batch", "lr_halve_every", "n_candidates", "threads"):
+            positive(name)
+        check_fraction("sigma", self.sigma)
+        check_fraction("bias", self.bias, allow_negative=True)
+        for name in ("lr", "beta", "theta_jitter"):
+            v = float(getattr(self, name))
+            if not (np.isfinite(v) and v >= 0) or (name == "lr" and v == 0):
+                raise ValueError(
+                    f"{name} must be a finite number {'> 0' if name == 'lr' else '>= 0'}, got {v}"
+                )
+        if int(self.seed) < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed}")
+        object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["hidden"] = list(self.hidden)
+        return d
+
+
+# ---------------------------------------------------------------------------------------- data
+def sample_batch(task: Task, rng: np.random.Generator, n: int, config: TrainConfig) -> dict:
+    """One synthetic dataset D of Algorithm 1: n tuples (x, θ, θ*, u_R, u_H) and g, z, e."""
+    x = task.sample_start(rng, n)
+    theta_star = task.prior.sample(rng, n)
+    theta0 = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
+    if config.theta_sampling == "path":
+        tau = rng.uniform(0.0, 1.0, size=(n, 1))
+        nu = config.theta_jitter * rng.standard_normal((n, task.dim))
+        theta = theta0 + tau * (theta_star - theta0) + nu
+    elif config.theta_sampling == "prior":
+        theta = task.prior.sample(rng, n)
+    else:
+        theta = np.broadcast_to(theta0, (n, task.dim)).copy()
+    if config.robot_action == "uniform":
+        b = np.asarray(task.robot_action_bound, dtype=np.float64)
+        u_r = rng.uniform(-1.0, 1.0, size=(n, task.action_dim)) * b
+    else:
+        u_r = np.zeros((n, task.action_dim))
+    cand = task.candidate_actions(rng, n, config.n_candidates)
+    if config.human == "nominal":
+        u_star = optimal_correction(task, x, u_r, theta, theta_star, cand)
+    else:
+        u_star = boltzmann_correction(task, x, u_r, theta_star, cand, config.beta, rng)
+    u_h = perturb(task, u_star, config.sigma, config.bias, rng)
+    return {
+        "x": x,
+        "theta": theta,
+        "theta_star": theta_star,
+        "u_r": u_r,
+        "u_h": u_h,
+        "g": task.g(x, u_h, u_r),
+        "z": task.network_input(x, u_h, u_r),
+        "e": theta_star - theta,
+    }
+
+
+def lyapunov_term(alpha: float, e: np.ndarray, g_tilde: np.ndarray) -> np.ndarray:
+    """The left side of eq. M5 per sample: α²‖g̃‖² − 2α e·g̃ (< 0 means the error shrinks)."""
+    return alpha**2 * np.sum(g_tilde * g_tilde, axis=-1) - 2 * alpha * np.sum(e * g_tilde, axis=-1)
+
+
+def modified_rule(kind: str, g: torch.Tensor, g_hat: torch.Tensor) -> torch.Tensor:
+    """g̃ for a kind: g + ĝ (StROL, λ = 1 as trained) or ĝ (e2e)."""
+    return g + g_hat if kind == "strol" else g_hat
+
+
+@contextmanager
+def torch_determinism(seed: int, threads: int) -> Iterator[None]:
+    """Seed torch, fix the thread count and use deterministic kernels; restore on exit."""
+    prev_threads = torch.get_num_threads()
+    prev_det = torch.are_deterministic_algorithms_enabled()
+    torch.set_num_threads(threads)
+    torch.use_deterministic_algorithms(True)
+    try:
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            yield
+    finally:
+        torch.set_num_threads(prev_threads)
+        torch.use_deterministic_algorithms(prev_det)
+
+
+def _tensors(batch: dict, keys: Sequence[str]) -> list[torch.Tensor]:
+    return [torch.as_tensor(batch[k], dtype=torch.float32) for k in keys]
+
+
+# ---------------------------------------------------------------------------------------- train
+def train_correction(
+    task: Task, config: TrainConfig | None = None, *, quiet: bool = False, **overrides: Any
+) -> tuple[CorrectionNet, dict[str, Any]]:
+    """Train ĝ for ``task``. Keyword overrides set ``TrainConfig`` fields (kind, steps, batch,
+    sigma, bias, seed, human, ...). Returns (model, history) with history["loss"] per step,
+    history["seconds"] (wall time) and history["config"]."""
+    if not isinstance(task, Task):
+        raise ValueError(f"task must be a strol_gym Task, got {type(task).__name__}")
+    config = dataclasses.replace(config or TrainConfig(), **overrides)
+    from tqdm import tqdm
+
+    start = time.perf_counter()
+    rng = np.random.default_rng(config.seed)
+    norm = sample_batch(task, np.random.default_rng([config.seed, 1]), NORM_SAMPLES, config)
+    losses = np.empty(config.steps)
+    with torch_determinism(config.seed, config.threads):
+        model = CorrectionNet(task.network_input_dim, task.dim, config.hidden, config.bound)
+        z = torch.as_tensor(norm["z"], dtype=torch.float32)
+        model.in_mean.copy_(z.mean(0))
+        model.in_std.copy_(z.std(0).clamp_min(1e-6))
+        opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+        sched = torch.optim.lr_scheduler.StepLR(opt, step_size=config.lr_halve_every, gamma=0.5)
+        alpha = float(task.alpha)
+        bar = tqdm(range(config.steps), disable=quiet, desc=f"train {config.kind}", leave=False)
+        for step in bar:
+            z, g, e = _tensors(sample_batch(task, rng, config.batch, config), ("z", "g", "e"))
+            g_tilde = modified_rule(config.kind, g, model(z, g))
+            loss = (
+                alpha**2 * (g_tilde * g_tilde).sum(-1) - 2 * alpha * (e * g_tilde).sum(-1)
+            ).mean()
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            sched.step()
+            losses[step] = loss.item()
+            if step % 10 == 0 or step == config.steps - 1:
+                bar.set_postfix(loss=f"{losses[step]:+.4f}", refresh=False)
+        bar.close()
+    model.eval()
+    history = {
+        "loss": losses,
+        "seconds": time.perf_counter() - start,
+        "config": config.to_dict(),
+    }
+    return model, history
+
+
+def heldout_lyapunov(
+    task: Task,
+    model: CorrectionNet,
+    config: TrainConfig,
+    seed: int,
+    n: int = 10_000,
+) -> dict[str, float]:
+    """Mean eq. M5 term on fresh samples from the training distribution (another seed):
+    with the trained ĝ (g̃ = g + ĝ or ĝ) and with ĝ = 0 in StROL, i.e. Gradient (g̃ = g)."""
+    batch = sample_batch(task, np.random.default_rng(seed), n, config)
+    with torch.no_grad():
+        g_hat = model(
+            torch.as_tensor(batch["z"], dtype=torch.float32),
+            torch.as_tensor(batch["g"], dtype=torch.float64),
+        ).numpy()
+    g_tilde = batch["g"] + g_hat if config.kind == "strol" else g_hat
+    return {
+        "trained": float(lyapunov_term(task.alpha, batch["e"], g_tilde).mean()),
+        "gradient": float(lyapunov_term(task.alpha, batch["e"], batch["g"]).mean()),
+        "seed": int(seed),
+        "samples": int(n),
+    }
+
+
+# ---------------------------------------------------------------------------------------- CLI
+def resolve_task(spec: str) -> Task:
+    """A Task from an env id ("StROL-Robot-v0"), a short name ("robot") or "module:Class"."""
+    spec = SHORT_NAMES.get(spec, spec)
+    target = KNOWN_TASKS.get(spec, spec)
+    if ":" not in target:
+        raise ValueError(
+            f"task must be one of {sorted(KNOWN_TASKS) + sorted(SHORT_NAMES)} or 'module:Class', "
+            f"got {spec!r}"
+        )
+    module, _, attr = target.partition(":")
+    task = getattr(importlib.import_module(module), attr)()
+    if not isinstance(task, Task):
+        raise ValueError(f"{target} did not build a strol_gym Task")
+    return task
+
+
+def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Add the training options to ``parser`` (used by ``strol-bench train`` and this module)."""
+    d = TrainConfig()
+    a = parser.add_argument
+    a("--task", default="StROL-Robot-v0", help="env id, short name (robot) or module:Class")
+    a("--kind", choices=KINDS, default=d.kind, help="strol: g~ = g + ĝ; e2e: g~ = ĝ")
+    a("--out", default=None, help="weights path (.pt); default <task>_<kind>.pt here")
+    a("--steps", type=int, default=d.steps)
+    a("--batch", type=int, default=d.batch)
+    a("--sigma", type=float, default=d.sigma, help="human noise, fraction of a_max")
+    a("--bias", type=float, default=d.bias, help="human bias, fraction of a_max")
+    a("--seed", type=int, default=d.seed, help="keep disjoint from evaluation seeds (0, 1, ...)")
+    a("--human", choices=HUMANS, default=d.human)
+    a("--beta", type=float, default=d.beta, help="Boltzmann rationality (human=boltzmann)")
+    a("--lr", type=float, default=d.lr)
+    a("--lr-halve-every", type=int, default=d.lr_halve_every)
+    a("--candidates", type=int, default=d.n_candidates, help="candidate actions for eq. M6")
+    a("--theta-sampling", choices=THETA_SAMPLING, default=d.theta_sampling)
+    a("--theta-jitter", type=float, default=d.theta_jitter)
+    a("--robot-action", choices=ROBOT_ACTIONS, default=d.robot_action)
+    a("--bound", choices=BOUNDS, default=d.bound)
+    a("--threads", type=int, default=d.threads)
+    a("--heldout", type=int, default=10_000, help="held-out samples for the eq. M5 check")
+    a("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def run_train(args: argparse.Namespace) -> Path:
+    """Train, check on held-out samples (seed + 1), save weights + sidecar; print a summary."""
+    task = resolve_task(args.task)
+    config = TrainConfig(
+        kind=args.kind,
+        steps=args.steps,
+        batch=args.batch,
+        sigma=args.sigma,
+        bias=args.bias,
+        seed=args.seed,
+        human=args.human,
+        beta=args.beta,
+        lr=args.lr,
+        lr_halve_every=args.lr_halve_every,
+        n_candidates=args.candidates,
+        theta_sampling=args.theta_sampling,
+        theta_jitter=args.theta_jitter,
+        robot_action=args.robot_action,
+        bound=args.bound,
+        threads=args.threads,
+    )
+    if args.heldout < 1:
+        raise ValueError(f"heldout must be >= 1, got {args.heldout}")
+    model, history = train_correction(task, config, quiet=args.quiet)
+    check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)
+    short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
+    out = Path(args.out) if args.out else Path(f"{short}_{config.kind}.pt")
+    prior = task.prior
+    extra = {
+        "final_loss": float(history["loss"][-10:].mean()),
+        "train_seconds": round(float(history["seconds"]), 3),
+        "prior": {"name": getattr(prior, "name", type(prior).__name__), "repr": repr(prior)},
+        "heldout_lyapunov": check,
+    }
+    save_checkpoint(out, model, task, config.kind, config.to_dict(), extra)
+    print(
+        f"{task.task_id} {config.kind}: {config.steps} steps x {config.batch} in "
+        f"{history['seconds']:.2f} s; final loss {extra['final_loss']:+.5f}\n"
+        f"held-out eq. M5 term (seed {check['seed']}, n={check['samples']}): "
+        f"trained {check['trained']:+.5f} vs Gradient (ĝ = 0) {check['gradient']:+.5f}\n"
+        f"saved {out} and {out.with_suffix('.json')}"
+    )
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="python -m strol_gym.learners.training",
+        description="Train StROL's correction term ĝ (Algorithm 1) for a task.",
+    )
+    run_train(add_train_arguments(parser).parse_args(argv))
+
+
+if __name__ == "__main__":
+    main()
