@@ -75,6 +75,30 @@ def boltzmann_correction(
     return candidates[np.arange(len(candidates)), idx]
 
 
+def driver_correction(
+    task: Task,
+    x: np.ndarray,
+    u_r: np.ndarray,
+    theta_star: np.ndarray,
+    candidates: np.ndarray,
+    horizon: int,
+) -> np.ndarray:
+    """A short-horizon driver, batched: the candidate u that, held for ``horizon`` steps of
+    ``task.dynamics`` while the robot holds u_R, maximises Σ_t θ*·φ(x_t). Ignores θ̂.
+
+    Shapes: x (B, s), u_r (B, a), theta_star (B, d), candidates (B, K, a) -> (B, a).
+    """
+    if int(horizon) < 1:
+        raise ValueError(f"horizon must be an integer >= 1, got {horizon}")
+    xs = x[:, None, :]
+    ur = u_r[:, None, :]
+    total = np.zeros(candidates.shape[:2])
+    for _ in range(int(horizon)):
+        xs = task.dynamics(xs, candidates, ur)
+        total += np.einsum("bkd,bd->bk", task.features(xs), theta_star)
+    return candidates[np.arange(len(candidates)), np.argmax(total, axis=1)]
+
+
 def perturb(
     task: Task, u: np.ndarray, sigma: float, bias: float, rng: np.random.Generator
 ) -> np.ndarray:
@@ -148,4 +172,38 @@ class BoltzmannHuman:
         return perturb(self.task, u, self.sigma, self.bias, self.rng)[0]
 
 
-HUMAN_MODELS = {"nominal": NominalHuman, "boltzmann": BoltzmannHuman}
+class DriverHuman:
+    """A human who acts for itself (not to teach): the short-horizon θ*-maximiser of
+    ``driver_correction`` over random admissible candidates, then δ. Ignores θ̂."""
+
+    def __init__(
+        self,
+        task: Task,
+        theta_star: np.ndarray,
+        rng: np.random.Generator,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        horizon: int = 4,
+        n_candidates: int = 64,
+    ) -> None:
+        self.task = task
+        self.theta_star = np.asarray(theta_star, dtype=np.float64)
+        self.rng = rng
+        self.sigma = check_fraction("sigma", sigma)
+        self.bias = check_fraction("bias", bias, allow_negative=True)
+        if int(horizon) < 1:
+            raise ValueError(f"horizon must be an integer >= 1, got {horizon}")
+        self.horizon = int(horizon)
+        if int(n_candidates) < 1:
+            raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
+        self.n_candidates = int(n_candidates)
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        cand = self.task.candidate_actions(self.rng, 1, self.n_candidates)
+        u = driver_correction(
+            self.task, x[None], u_r[None], self.theta_star[None], cand, self.horizon
+        )
+        return perturb(self.task, u, self.sigma, self.bias, self.rng)[0]
+
+
+HUMAN_MODELS = {"nominal": NominalHuman, "boltzmann": BoltzmannHuman, "driver": DriverHuman}

@@ -1,0 +1,317 @@
+"""The Highway setting: a human car behind a robot car on a two-lane highway (highway-env frame).
+
+Frame and units are highway-env's: x (m) along the road, y (m) across it, positive to the
+driver's *right*; the left lane's centre is y = 0 and the right lane's is y = 4 (lane width 4 m).
+Heading h (rad) is measured from the +x axis, positive turning right; speed v in m/s.
+
+State x = (x_R, y_R, v_R, h_R, x_H, y_H, v_H, h_H): the robot car, then the human car.
+Action u = (acceleration m/s², front-wheel steering rad) for either car.
+
+The transition f(x, u_H, u_R) is one policy step (``dt`` seconds, a single integration step,
+i.e. highway-env's simulation frequency equals its policy frequency) of highway-env's kinematic
+bicycle model, ``highway_env.vehicle.kinematics.Vehicle.step``, for both cars, written once and
+batched. The env drives both cars with highway-env's own vehicles; a test checks the two agree.
+
+Features φ(x) (each divided by a documented scale so values are O(1)); T = ``headway`` = 2 s is
+a look-ahead at constant velocity, so that one step's acceleration or steering shows in φ:
+
+- ``gap``: −| d − d_min | / 20 m, where d is the distance between the two cars' centres
+  predicted T seconds ahead (each car at its current velocity vector) and d_min = 10 m (two car
+  lengths). Maximal when the human holds a short following distance: tailgating.
+- ``speed``: (v_H − 25 m/s) / 5 m/s, the *human* car's speed. The paper names the robot car's
+  speed, but u_H cannot change the robot's speed within a step, so g's speed component would be
+  zero: the human's own speed is what its acceleration shows.
+- ``lane_change``: ℓ = (y_H + T v_H sin h_H) / 4 m is the human car's lateral position T seconds
+  ahead, in lanes (0 = left lane centre, 1 = right lane centre); φ = 1 − |ℓ − 1|, i.e. ℓ up to
+  the right lane's centre and falling beyond it, so driving off the road is not rewarded.
+
+Prior modes (DESIGN.md, over (gap, speed, lane_change)): "tailgate" (1.0, 1.0, 0.1) and "pass on
+the right" (0.1, −1.0, 1.0), kept numerically as given so the prior (and hence the size of the
+errors) matches the paper's. With these signs a tailgater closes the gap at speed and keeps its
+lane; the lane-changer moves to the right lane and weights its own speed negatively, i.e. it
+eases off while changing lane rather than pushing (see docs/highway.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import ClassVar
+
+import numpy as np
+
+from strol_gym.priors import MixturePrior, Prior
+from strol_gym.tasks.base import Task
+
+HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, -1.0, 1.0]])
+"""Prior modes over (gap, speed, lane_change): "tailgate" and "pass on the right"."""
+MODE_NAMES = ("tailgate", "pass on the right")
+
+# highway-env's Vehicle constants (highway_env.vehicle.kinematics.Vehicle); a test checks them.
+CAR_LENGTH = 5.0
+CAR_WIDTH = 2.0
+MAX_SPEED = 40.0
+MIN_SPEED = -40.0
+LANE_WIDTH = 4.0
+N_LANES = 2
+
+
+def _default_prior() -> Prior:
+    return MixturePrior(HIGHWAY_MODES, jitter=0.1)
+
+
+def _car_step(
+    px: np.ndarray,
+    py: np.ndarray,
+    v: np.ndarray,
+    h: np.ndarray,
+    acc: np.ndarray,
+    steer: np.ndarray,
+    dt: float,
+    length: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One ``Vehicle.step`` on separate component arrays (the fast path for ``dynamics``)."""
+    if np.any(np.abs(v) > MAX_SPEED):
+        acc = np.where(
+            v > MAX_SPEED,
+            np.minimum(acc, MAX_SPEED - v),
+            np.where(v < MIN_SPEED, np.maximum(acc, MIN_SPEED - v), acc),
+        )
+    beta = np.arctan(0.5 * np.tan(steer))
+    hb = h + beta
+    return (
+        px + v * np.cos(hb) * dt,
+        py + v * np.sin(hb) * dt,
+        v + acc * dt,
+        h + v * np.sin(beta) / (length / 2) * dt,
+    )
+
+
+def bicycle_step(s: np.ndarray, u: np.ndarray, dt: float, length: float = CAR_LENGTH) -> np.ndarray:
+    """highway-env's ``Vehicle.step`` (kinematic bicycle, forward Euler), batched.
+
+    s (..., 4) = (x, y, v, h), u (..., 2) = (acceleration, steering) -> (..., 4). Same operation
+    order as highway-env, including its speed clip (acceleration limited once |v| > 40 m/s).
+    Collision impacts are not modelled: the env ends the episode on a collision.
+    """
+    s, u = np.asarray(s, dtype=np.float64), np.asarray(u, dtype=np.float64)
+    parts = _car_step(s[..., 0], s[..., 1], s[..., 2], s[..., 3], u[..., 0], u[..., 1], dt, length)
+    return np.stack(np.broadcast_arrays(*parts), axis=-1)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class HighwayTask(Task):
+    """Two cars on a two-lane highway; the robot learns the human driver's weights θ*.
+
+    Geometry and scales are fields so a variant can be built with ``dataclasses.replace``;
+    ``describe()`` records them, so a ĝ trained for one variant is not loaded for another.
+    """
+
+    task_id: ClassVar[str] = "StROL-Highway-v0"
+    version: ClassVar[int] = 0
+    feature_names: ClassVar[tuple[str, ...]] = ("gap", "speed", "lane_change")
+    state_dim: ClassVar[int] = 8
+    action_dim: ClassVar[int] = 2
+
+    prior: Prior = dataclasses.field(default_factory=_default_prior)
+    alpha: float = 1.0
+    dt: float = 0.5  # s per policy step (highway-env simulation = policy frequency = 2 Hz)
+    max_acceleration: float = 5.0  # m/s², highway-env's ContinuousAction default range
+    max_steering: float = 0.02  # rad: a lane change takes about 3 s at 25 m/s
+    headway: float = 2.0  # s, the look-ahead T of the gap and lane_change features
+    min_gap: float = 10.0  # m, d_min
+    gap_scale: float = 20.0  # m
+    speed_ref: float = 25.0  # m/s
+    speed_scale: float = 5.0  # m/s
+    heading_scale: float = 0.1  # rad (network input only)
+    start_gap: tuple[float, float] = (15.0, 40.0)  # m, centre to centre, human behind
+    start_speed: tuple[float, float] = (20.0, 30.0)  # m/s, both cars
+    start_x: tuple[float, float] = (50.0, 100.0)  # m, the human car's x (meaningless offset)
+
+    def __post_init__(self) -> None:
+        for name in ("alpha", "dt", "max_acceleration", "max_steering", "headway"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v}")
+        for name in ("gap_scale", "speed_scale", "heading_scale"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("start_gap", "start_speed", "start_x"):
+            lo, hi = getattr(self, name)
+            if not lo <= hi:
+                raise ValueError(f"{name} must be (low, high) with low <= high, got {(lo, hi)}")
+        if self.start_gap[0] <= CAR_LENGTH:
+            raise ValueError(f"start_gap must start above the car length {CAR_LENGTH} m")
+
+    # ----------------------------------------------------------------- Task interface
+    @property
+    def action_bound(self) -> np.ndarray:
+        return np.array([self.max_acceleration, self.max_steering])
+
+    @property
+    def prior_modes(self) -> np.ndarray:
+        return HIGHWAY_MODES
+
+    @property
+    def feature_scale(self) -> np.ndarray:
+        # Each feature is already divided by its typical range (20 m, 5 m/s, one lane).
+        return np.ones(3)
+
+    @property
+    def lane_centers(self) -> np.ndarray:
+        """y of each lane's centre, left lane first (highway-env's straight road)."""
+        return np.arange(N_LANES) * LANE_WIDTH
+
+    def features(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        t = self.headway
+        vr, hr, vh, hh = x[..., 2], x[..., 3], x[..., 6], x[..., 7]
+        vh_sin = vh * np.sin(hh)
+        dx = (x[..., 0] + t * vr * np.cos(hr)) - (x[..., 4] + t * vh * np.cos(hh))
+        dy = (x[..., 1] + t * vr * np.sin(hr)) - (x[..., 5] + t * vh_sin)
+        out = np.empty((*x.shape[:-1], 3))
+        out[..., 0] = -np.abs(np.hypot(dx, dy) - self.min_gap) / self.gap_scale
+        out[..., 1] = (vh - self.speed_ref) / self.speed_scale
+        lane = (x[..., 5] + t * vh_sin - self.lane_centers[0]) / LANE_WIDTH
+        out[..., 2] = 1.0 - np.abs(lane - 1.0)
+        return out
+
+    def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        u_h = np.asarray(u_h, dtype=np.float64)
+        u_r = np.asarray(u_r, dtype=np.float64)
+        out = np.empty((*np.broadcast_shapes(x.shape[:-1], u_h.shape[:-1], u_r.shape[:-1]), 8))
+        # Each car on its own broadcast shape: the robot's part is not repeated per candidate u_H.
+        for i, u in ((0, u_r), (4, u_h)):
+            parts = _car_step(
+                x[..., i],
+                x[..., i + 1],
+                x[..., i + 2],
+                x[..., i + 3],
+                u[..., 0],
+                u[..., 1],
+                self.dt,
+                CAR_LENGTH,
+            )
+            for k, p in enumerate(parts):
+                out[..., i + k] = p
+        return out
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Both cars in the left lane, the human behind by a random gap, random speeds.
+
+        Small lateral offsets (robot ±0.5 m, human ±1 m, inside the 4 m lane) and headings
+        (robot ±0.02 rad, human ±0.05 rad) make every network input vary across starts.
+        """
+        u = rng.uniform(size=(n, 8))
+
+        def lerp(col: int, lo: float, hi: float) -> np.ndarray:
+            return lo + (hi - lo) * u[:, col]
+
+        x = np.empty((n, 8))
+        x[:, 4] = lerp(0, *self.start_x)
+        x[:, 0] = x[:, 4] + lerp(1, *self.start_gap)
+        x[:, 2] = lerp(2, *self.start_speed)
+        x[:, 6] = lerp(3, *self.start_speed)
+        x[:, 1] = lerp(4, -0.5, 0.5)
+        x[:, 5] = lerp(5, -1.0, 1.0)
+        x[:, 3] = lerp(6, -0.02, 0.02)
+        x[:, 7] = lerp(7, -0.05, 0.05)
+        return x
+
+    def network_input(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """Scale-free relative quantities (absolute x on the road means nothing), width 10:
+
+        (x_R − x_H)/20 m, (y_R − y_H)/4 m, y_R/4 m, y_H/4 m, (v_R − 25)/5, (v_H − 25)/5,
+        h_R/0.1 rad, h_H/0.1 rad, u_H/a_max (2).
+        """
+        x = np.asarray(x, dtype=np.float64)
+        u_h = np.asarray(u_h, dtype=np.float64)
+        lead = np.broadcast_shapes(x.shape[:-1], u_h.shape[:-1])
+        x = np.broadcast_to(x, (*lead, 8))
+        out = np.empty((*lead, 10))
+        out[..., 0] = (x[..., 0] - x[..., 4]) / self.gap_scale
+        out[..., 1] = (x[..., 1] - x[..., 5]) / LANE_WIDTH
+        out[..., 2] = x[..., 1] / LANE_WIDTH
+        out[..., 3] = x[..., 5] / LANE_WIDTH
+        out[..., 4] = (x[..., 2] - self.speed_ref) / self.speed_scale
+        out[..., 5] = (x[..., 6] - self.speed_ref) / self.speed_scale
+        out[..., 6] = x[..., 3] / self.heading_scale
+        out[..., 7] = x[..., 7] / self.heading_scale
+        out[..., 8:] = np.broadcast_to(u_h, (*lead, 2)) / self.action_bound
+        return out
+
+    def describe(self) -> dict:
+        d = super().describe()
+        d["geometry"] = {
+            f.name: (list(v) if isinstance(v, tuple) else v)
+            for f in dataclasses.fields(self)
+            if f.name not in ("prior", "alpha")
+            for v in [getattr(self, f.name)]
+        }
+        return d
+
+    # ----------------------------------------------------------------- default robot policy
+    def robot_policy(self, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        """The benchmark's robot car: keep its lane and speed, change lane to avoid a collision.
+
+        (B, 8), (B, 3) -> (B, 2) in task units. The robot predicts the human car with θ̂: the
+        ``driver`` model (humans.driver_correction: the constant action that maximises θ̂·φ over
+        ``POLICY_HORIZON`` steps) held over the horizon. It then scores six manoeuvres (target
+        lane left / right x hold / raise / lower speed by 5 m/s), each flown by a lane- and
+        speed-tracking controller over the horizon, by cost = lateral distance travelled (m)
+        + 0.5 x speed change (m/s) + 1000 if the predicted cars come within a car length plus
+        2 m longitudinally and 3 m laterally. The first action of the cheapest manoeuvre is
+        returned. So it stays put unless it expects a collision, and it yields the lane the
+        human is expected to take: right-lane passers keep it left, tailgaters send it right.
+        """
+        from strol_gym.humans import driver_correction
+
+        x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+        theta_hat = np.atleast_2d(np.asarray(theta_hat, dtype=np.float64))
+        b = len(x)
+        grid = np.stack(np.meshgrid(np.linspace(-1, 1, 5), np.linspace(-1, 1, 5)), -1)
+        grid = grid.reshape(-1, 2) * self.action_bound
+        zeros = np.zeros((b, 2))
+        u_pred = driver_correction(
+            self, x, zeros, theta_hat, np.broadcast_to(grid, (b, *grid.shape)), POLICY_HORIZON
+        )
+        lanes = self.lane_centers
+        targets = np.array([(ly, dv) for ly in lanes for dv in (0.0, 5.0, -5.0)])  # (M, 2)
+        m = len(targets)
+        xs = np.repeat(x[:, None, :], m, axis=1)  # (B, M, 8)
+        y_goal = np.broadcast_to(targets[:, 0], (b, m))
+        v_goal = x[:, None, 2] + targets[None, :, 1]
+        cost = np.zeros((b, m))
+        first = None
+        for _ in range(POLICY_HORIZON):
+            u_r = self._track(xs[..., :4], y_goal, v_goal)
+            if first is None:
+                first = u_r
+            nxt = self.dynamics(xs, u_pred[:, None, :], u_r)
+            cost += np.abs(nxt[..., 1] - xs[..., 1]) + 0.5 * np.abs(nxt[..., 2] - xs[..., 2])
+            close = (np.abs(nxt[..., 0] - nxt[..., 4]) < CAR_LENGTH + 2.0) & (
+                np.abs(nxt[..., 1] - nxt[..., 5]) < 3.0
+            )
+            cost += 1000.0 * close
+            xs = nxt
+        best = np.argmin(cost, axis=1)
+        return first[np.arange(b), best]
+
+    def _track(self, s: np.ndarray, y_goal: np.ndarray, v_goal: np.ndarray) -> np.ndarray:
+        """Lane- and speed-tracking controller (..., 4) -> (..., 2), within the action bound.
+
+        Desired heading steers the lateral error out at 0.5 /s (capped at 0.1 rad); the steering
+        that reaches it in one step inverts the bicycle model's heading rate.
+        """
+        v = np.maximum(s[..., 2], 1.0)
+        h_goal = np.clip(np.arctan2(0.5 * (y_goal - s[..., 1]), v), -0.1, 0.1)
+        sin_beta = (h_goal - s[..., 3]) * (CAR_LENGTH / 2) / (v * self.dt)
+        beta = np.arcsin(np.clip(sin_beta, -0.5, 0.5))
+        steer = np.arctan(2.0 * np.tan(beta))
+        acc = (v_goal - s[..., 2]) / self.dt
+        u = np.stack([acc, steer], axis=-1)
+        return np.clip(u, -self.action_bound, self.action_bound)
+
+
+POLICY_HORIZON = 6
+"""Steps (3 s) over which the default robot policy predicts the human and scores manoeuvres."""
