@@ -13,6 +13,8 @@ import dataclasses
 import math
 from typing import Any
 
+from strol_gym.humans import HUMAN_MODELS
+
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
 """The paper's five rules, in the order its figures use."""
 
@@ -20,19 +22,23 @@ REFERENCE_LEARNER = "strol"
 """The learner every post-hoc test compares against the others."""
 
 PRIORS = ("bimodal", "uniform")
-HUMANS = ("nominal", "boltzmann")
+HUMANS: tuple[str, ...] = tuple(HUMAN_MODELS)
+"""Human model names the envs accept; a condition's ``None`` means the env's own default."""
 CONDITION_NAMES = ("training", "clean", "noisy-biased", "uniform-prior")
 
 
 @dataclasses.dataclass(frozen=True)
 class Condition:
-    """A simulated-human setting: σ, ε (fractions of a_max), prior, human model (and its β)."""
+    """A simulated-human setting: σ, ε (fractions of a_max), prior, human model (and its β).
+
+    ``human=None`` leaves the env's default human model (the eq. M6 teacher for the Robot).
+    """
 
     name: str
     sigma: float
     bias: float = 0.0
     prior: str = "bimodal"
-    human: str = "nominal"
+    human: str | None = None
     beta: float | None = None
 
     def __post_init__(self) -> None:
@@ -44,7 +50,7 @@ class Condition:
             raise ValueError(f"bias must be a finite number, got {self.bias}")
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
-        if self.human not in HUMANS:
+        if self.human is not None and self.human not in HUMANS:
             raise ValueError(f"human must be one of {HUMANS}, got {self.human!r}")
         if self.beta is not None and not (math.isfinite(self.beta) and self.beta >= 0):
             raise ValueError(f"beta must be a finite number >= 0, got {self.beta}")
@@ -53,19 +59,17 @@ class Condition:
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments for ``gymnasium.make`` (the env contract in CONVENTIONS.md)."""
-        kw: dict[str, Any] = {
-            "sigma": self.sigma,
-            "bias": self.bias,
-            "prior": self.prior,
-            "human": self.human,
-        }
+        kw: dict[str, Any] = {"sigma": self.sigma, "bias": self.bias, "prior": self.prior}
+        if self.human is not None:
+            kw["human"] = self.human
         if self.beta is not None:
             kw["beta"] = self.beta
         return kw
 
     def describe(self) -> str:
         """One line for tables: σ, ε, prior, human."""
-        h = self.human if self.beta is None else f"{self.human} (β={self.beta:g})"
+        h = self.human or "env-default"
+        h = h if self.beta is None else f"{h} (β={self.beta:g})"
         return f"σ={self.sigma:g}, ε={self.bias:g}, {self.prior} prior, {h} human"
 
 
@@ -134,7 +138,7 @@ def custom_condition(
     sigma: float | None = None,
     bias: float = 0.0,
     prior: str = "bimodal",
-    human: str = "nominal",
+    human: str | None = None,
     beta: float | None = None,
 ) -> Condition:
     """An explicit condition; σ defaults to the env's training noise."""

@@ -1,0 +1,83 @@
+"""strol-bench argument checking: bad input fails with status 2 before any work starts."""
+
+from __future__ import annotations
+
+import pytest
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.conditions import Condition, env_preset, paper_condition
+from strol_gym.benchmarks.config import BenchConfig, Experiment, paper_config
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["run", "--env", "robot", "--learners", "gradient,nope"], "unknown learner 'nope'"),
+        (["run", "--env", "robot", "--learners", "no_such_mod:thing"], "cannot import"),
+        (["run", "--env", "robot", "--sigma", "-0.1"], "--sigma must be a finite number >= 0"),
+        (["run", "--env", "robot", "--sigma", "nan"], "--sigma must be a finite number >= 0"),
+        (["run", "--env", "robot", "--condition", "windy"], "invalid choice: 'windy'"),
+        (["run", "--env", "boat"], "invalid choice: 'boat'"),
+        (["paper", "--runs", "0"], "--runs must be an integer >= 1"),
+        (["paper", "--jobs", "0"], "--jobs must be an integer >= 1"),
+        (["paper", "--env", "moon"], "invalid choice: 'moon'"),
+        (
+            ["run", "--env", "robot", "--condition", "clean", "--sigma", "0.1"],
+            "--condition cannot be combined",
+        ),
+        (
+            ["run", "--env", "robot", "--learners", "gradient,one", "--reference", "strol"],
+            "reference",
+        ),
+        (
+            ["run", "--env", "robot", "--learner-kwargs", "{bad json"],
+            "--learner-kwargs must be JSON",
+        ),
+    ],
+)
+def test_bad_arguments_exit_2_before_work(argv, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exc:
+        cli.main([*argv, "--out", str(out), "--quiet"])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_list_names_everything(capsys):
+    assert cli.main(["list"]) == 0
+    text = capsys.readouterr().out
+    for word in ("StROL-Robot-v0", "StROL-Highway-v0", "gradient", "strol", "noisy-biased"):
+        assert word in text
+
+
+def test_paper_conditions_follow_design_table():
+    robot, highway = env_preset("robot"), env_preset("highway")
+    assert (robot.runs, robot.n_corrections, robot.training_sigma) == (100, 5, 0.25)
+    assert (highway.runs, highway.n_corrections, highway.training_sigma) == (250, 10, 0.10)
+    assert paper_condition("robot", "training") == Condition("training", 0.25, 0.0, "bimodal")
+    assert paper_condition("highway", "noisy-biased") == Condition("noisy-biased", 0.5, 0.5)
+    assert paper_condition("robot", "uniform-prior").prior == "uniform"
+    assert paper_condition("highway", "uniform-prior").sigma == 0.10
+    assert paper_condition("robot", "clean").env_kwargs() == {
+        "sigma": 0.0,
+        "bias": 0.0,
+        "prior": "bimodal",
+    }
+    with pytest.raises(ValueError, match="condition must be one of"):
+        paper_condition("robot", "windy")
+    with pytest.raises(ValueError, match="sigma"):
+        Condition("x", sigma=-1.0)
+
+
+def test_config_round_trip_and_units():
+    cfg = paper_config(["robot", "highway"], runs=7, block=3)
+    assert len(cfg.experiments) == 8
+    again = BenchConfig.from_dict(cfg.to_dict())
+    assert again.to_dict() == cfg.to_dict() and again.hash() == cfg.hash()
+    units = cfg.units()
+    assert [u.seeds for u in units[:3]] == [(0, 1, 2), (3, 4, 5), (6,)]
+    assert len(units) == 8 * 3
+    exp = Experiment("robot", paper_condition("robot", "clean"), runs=2, seed=5)
+    assert list(exp.seeds) == [5, 6] and exp.env_kwargs()["max_episode_steps"] == 5
+    with pytest.raises(ValueError, match="runs must be >= 1"):
+        Experiment("robot", paper_condition("robot", "clean"), runs=0)
