@@ -3,7 +3,7 @@ learner reduces ‖θ* − θ̂‖ over a few corrections (the benchmark runs th
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
@@ -21,13 +21,15 @@ def simulate_errors(
     bias: float = 0.0,
     seed: int = 0,
     n_candidates: int = DEFAULT_CANDIDATES,
+    robot_policy: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """Final error ‖θ* − θ̂‖ per run for each learner, (n_runs,) each.
 
     Every learner sees the same θ* ~ task.prior, start states, candidate sets and noise draws
     (one Generator seeded with ``seed`` per learner: paired runs). The human is eq. M6 with
-    δ ~ N(ε a_max, (σ a_max)²); θ̂ starts at the prior modes' mean; u_R = 0, and the state
-    moves by ``task.dynamics`` after each correction.
+    δ ~ N(ε a_max, (σ a_max)²); θ̂ starts at the prior modes' mean; u_R is
+    ``robot_policy(x, θ̂)`` (for example ``task.robot_policy``), or 0 when it is None; the state
+    moves by ``task.dynamics(x, u_H, u_R)`` after each correction.
     """
     if n_runs < 1 or n_corrections < 0:
         raise ValueError(f"need n_runs >= 1 and n_corrections >= 0, got {n_runs}, {n_corrections}")
@@ -40,6 +42,8 @@ def simulate_errors(
         theta = np.broadcast_to(learner.reset(), (n_runs, task.dim)).copy()
         learner.reset(theta)
         for _ in range(n_corrections):
+            if robot_policy is not None:
+                u_r = np.asarray(robot_policy(x, theta), dtype=np.float64)
             cand = task.candidate_actions(rng, n_runs, n_candidates)
             u_star = optimal_correction(task, x, u_r, theta, theta_star, cand)
             u_h = perturb(task, u_star, sigma, bias, rng)
