@@ -12,24 +12,31 @@ i.e. highway-env's simulation frequency equals its policy frequency) of highway-
 bicycle model, ``highway_env.vehicle.kinematics.Vehicle.step``, for both cars, written once and
 batched. The env drives both cars with highway-env's own vehicles; a test checks the two agree.
 
-Features φ(x) (each divided by a documented scale so values are O(1)); T = ``headway`` = 2 s is
-a look-ahead at constant velocity, so that one step's acceleration or steering shows in φ:
+Features φ(x), each divided by a documented scale so values are O(1). T = ``headway`` = 2 s is a
+look-ahead at constant velocity (each car keeps its current speed and heading), so that one
+step's acceleration or steering shows in φ; "T ahead" below means at that predicted position.
 
-- ``gap``: −| d − d_min | / 20 m, where d is the distance between the two cars' centres
-  predicted T seconds ahead (each car at its current velocity vector) and d_min = 10 m (two car
-  lengths). Maximal when the human holds a short following distance: tailgating.
-- ``speed``: (v_H − 25 m/s) / 5 m/s, the *human* car's speed. The paper names the robot car's
-  speed, but u_H cannot change the robot's speed within a step, so g's speed component would be
-  zero: the human's own speed is what its acceleration shows.
-- ``lane_change``: ℓ = (y_H + T v_H sin h_H) / 4 m is the human car's lateral position T seconds
-  ahead, in lanes (0 = left lane centre, 1 = right lane centre); φ = 1 − |ℓ − 1|, i.e. ℓ up to
-  the right lane's centre and falling beyond it, so driving off the road is not rewarded.
+- ``gap`` = −[ max(b − d_min, k (d_min − b)) + κ |a| ] / 20 m: how far the human car is from the
+  *tailgating slot* d_min = 10 m (two car lengths, centre to centre) behind the robot car in its
+  lane, T ahead. b = x_R − x_H is how far the human is behind (signed: negative once it has
+  passed), a = y_R − y_H how far it is beside; k = 4 makes closer than d_min (and passing) cost
+  four times as much per metre as farther, κ = 2 makes a metre sideways cost two metres. 0 at
+  the slot, about −0.25 ... −1.5 at the start (15–40 m behind).
+- ``speed`` = (v_H − 25 m/s) / 5 m/s, the *human* car's speed. The paper names the robot car's
+  speed, but u_H cannot change the robot's speed, so g's speed component would always be 0; the
+  human's own speed is what its acceleration shows.
+- ``lane_change`` = 1 − |ℓ − 1|, ℓ = (y_H + T v_H sin h_H) / 4 m the human car's lateral
+  position T ahead in lanes (0 = left lane centre, 1 = right lane centre): it rises as the car
+  heads into the right lane and falls beyond that lane's centre (leaving the road is not a
+  lane change). Its heading is what moves it within a step, as the paper's "heading direction
+  indicating whether the human will change lane".
 
-Prior modes (DESIGN.md, over (gap, speed, lane_change)): "tailgate" (1.0, 1.0, 0.1) and "pass on
-the right" (0.1, −1.0, 1.0), kept numerically as given so the prior (and hence the size of the
-errors) matches the paper's. With these signs a tailgater closes the gap at speed and keeps its
-lane; the lane-changer moves to the right lane and weights its own speed negatively, i.e. it
-eases off while changing lane rather than pushing (see docs/highway.md).
+Prior modes over (gap, speed, lane_change) (DESIGN.md gives the authors' numbers, "tailgate"
+(1.0, 1.0, 0.1) and "pass on the right" (0.1, −1.0, 1.0), in *their* feature signs): "tailgate"
+(1.0, 1.0, 0.1) keeps its lane and closes in to the slot; "pass on the right" (0.1, 1.0, 1.0)
+ignores the gap, prefers speed and changes lane, as the paper's text describes. The speed sign
+of the passer is flipped because our speed feature is the human's own speed: with −1.0 a
+θ*-maximising driver brakes towards a standstill instead of passing (docs/highway.md).
 """
 
 from __future__ import annotations
@@ -42,7 +49,7 @@ import numpy as np
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task
 
-HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, -1.0, 1.0]])
+HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
 """Prior modes over (gap, speed, lane_change): "tailgate" and "pass on the right"."""
 MODE_NAMES = ("tailgate", "pass on the right")
 
@@ -120,6 +127,8 @@ class HighwayTask(Task):
     headway: float = 2.0  # s, the look-ahead T of the gap and lane_change features
     min_gap: float = 10.0  # m, d_min
     gap_scale: float = 20.0  # m
+    lane_weight: float = 2.0  # κ: a lateral metre counts as κ metres of following distance
+    close_penalty: float = 4.0  # k: slope of the gap feature below d_min, relative to above
     speed_ref: float = 25.0  # m/s
     speed_scale: float = 5.0  # m/s
     heading_scale: float = 0.1  # rad (network input only)
@@ -132,7 +141,7 @@ class HighwayTask(Task):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v}")
-        for name in ("gap_scale", "speed_scale", "heading_scale"):
+        for name in ("gap_scale", "speed_scale", "heading_scale", "lane_weight", "close_penalty"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
         for name in ("start_gap", "start_speed", "start_x"):
@@ -163,17 +172,32 @@ class HighwayTask(Task):
 
     def features(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
+        return self._phi(*(x[..., i] for i in range(8)))
+
+    def _phi(self, *c: np.ndarray) -> np.ndarray:
+        """φ from the eight state components as separate (broadcastable) arrays."""
+        xr, yr, vr, hr, xh, yh, vh, hh = c
         t = self.headway
-        vr, hr, vh, hh = x[..., 2], x[..., 3], x[..., 6], x[..., 7]
         vh_sin = vh * np.sin(hh)
-        dx = (x[..., 0] + t * vr * np.cos(hr)) - (x[..., 4] + t * vh * np.cos(hh))
-        dy = (x[..., 1] + t * vr * np.sin(hr)) - (x[..., 5] + t * vh_sin)
-        out = np.empty((*x.shape[:-1], 3))
-        out[..., 0] = -np.abs(np.hypot(dx, dy) - self.min_gap) / self.gap_scale
+        # T seconds ahead: how far the human is behind the robot (signed) and beside it
+        behind = (xr + t * vr * np.cos(hr)) - (xh + t * vh * np.cos(hh))
+        beside = (yr + t * vr * np.sin(hr)) - (yh + t * vh_sin)
+        short = self.min_gap - behind
+        slot = np.maximum(-short, self.close_penalty * short) + self.lane_weight * np.abs(beside)
+        lane = (yh + t * vh_sin - self.lane_centers[0]) / LANE_WIDTH
+        out = np.empty((*np.broadcast_shapes(slot.shape, vh.shape, lane.shape), 3))
+        out[..., 0] = slot
+        out[..., 0] /= -self.gap_scale
         out[..., 1] = (vh - self.speed_ref) / self.speed_scale
-        lane = (x[..., 5] + t * vh_sin - self.lane_centers[0]) / LANE_WIDTH
         out[..., 2] = 1.0 - np.abs(lane - 1.0)
         return out
+
+    def _step_car(self, x: np.ndarray, i: int, u: np.ndarray | None) -> tuple[np.ndarray, ...]:
+        """One car's (x, y, v, h) after a step; car i = 0 (robot) or 4 (human); u None = 0."""
+        acc, steer = (0.0, 0.0) if u is None else (u[..., 0], u[..., 1])
+        return _car_step(
+            x[..., i], x[..., i + 1], x[..., i + 2], x[..., i + 3], acc, steer, self.dt, CAR_LENGTH
+        )
 
     def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
@@ -181,20 +205,22 @@ class HighwayTask(Task):
         u_r = np.asarray(u_r, dtype=np.float64)
         out = np.empty((*np.broadcast_shapes(x.shape[:-1], u_h.shape[:-1], u_r.shape[:-1]), 8))
         # Each car on its own broadcast shape: the robot's part is not repeated per candidate u_H.
-        for i, u in ((0, u_r), (4, u_h)):
-            parts = _car_step(
-                x[..., i],
-                x[..., i + 1],
-                x[..., i + 2],
-                x[..., i + 3],
-                u[..., 0],
-                u[..., 1],
-                self.dt,
-                CAR_LENGTH,
-            )
-            for k, p in enumerate(parts):
-                out[..., i + k] = p
+        for k, p in enumerate((*self._step_car(x, 0, u_r), *self._step_car(x, 4, u_h))):
+            out[..., k] = p
         return out
+
+    def g(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """φ(f(x, u_H, u_R)) − φ(f(x, 0, u_R)), as in ``Task.g``; same values, computed per car
+        so eq. M6's candidate search does not rebuild the robot car's state per candidate."""
+        x = np.asarray(x, dtype=np.float64)
+        u_h = np.asarray(u_h, dtype=np.float64)
+        u_r = np.asarray(u_r, dtype=np.float64)
+        lead = np.broadcast_shapes(x.shape[:-1], u_h.shape[:-1], u_r.shape[:-1])
+        robot = self._step_car(x, 0, u_r)
+        out = self._phi(*robot, *self._step_car(x, 4, u_h)) - self._phi(
+            *robot, *self._step_car(x, 4, None)
+        )
+        return np.broadcast_to(out, (*lead, 3))
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Both cars in the left lane, the human behind by a random gap, random speeds.

@@ -1,0 +1,437 @@
+"""StROL-Highway-v0: a robot car learns the driving style of the human car behind it."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from highway_env.envs.common.abstract import AbstractEnv
+from highway_env.road.road import Road, RoadNetwork
+from highway_env.vehicle.graphics import VehicleGraphics
+from highway_env.vehicle.kinematics import Vehicle
+
+from strol_gym.humans import HUMAN_MODELS, Human, check_fraction
+from strol_gym.priors import Prior, make_prior
+from strol_gym.tasks.highway import N_LANES, HighwayTask
+
+ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
+HumanFactory = Callable[[HighwayTask, np.ndarray, np.random.Generator], Human]
+
+
+class HumanVehicle(Vehicle):
+    """A highway-env kinematic vehicle whose controls come from a ``Human``.
+
+    ``decide`` asks the human for u_H = (acceleration, steering) given the state, the robot's
+    action and the robot's current estimate θ̂, and stores it as the vehicle's action, which
+    ``Vehicle.step`` then integrates. Noise and bias are already inside u_H (the human adds them).
+    """
+
+    def __init__(
+        self,
+        road: Road,
+        position: np.ndarray,
+        heading: float = 0.0,
+        speed: float = 0.0,
+        human: Human | None = None,
+    ) -> None:
+        super().__init__(road, position, heading, speed)
+        self.human = human
+
+    def decide(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        if self.human is None:
+            raise RuntimeError("HumanVehicle has no human to decide its action")
+        u = np.asarray(self.human.act(x, u_r, theta_hat), dtype=np.float64).reshape(-1)
+        if u.shape != (2,) or not np.isfinite(u).all():
+            raise ValueError(f"the human's action must be 2 finite numbers, got {u}")
+        self.act({"acceleration": float(u[0]), "steering": float(u[1])})
+        return u
+
+
+class HighwayEnv(AbstractEnv):
+    """StROL-Highway-v0: a human car with hidden driving preferences θ* behind a robot car.
+
+    ## Description
+
+    The paper's **Highway** setting (StROL, RA-L 2024, "Simulations") on highway-env's road,
+    vehicles and renderer. A straight two-lane highway (highway-env frame: x along the road,
+    y to the driver's right; left lane centre y = 0, right lane centre y = 4 m). The robot car
+    (green, the agent) drives ahead of the human car (blue); both start in the left lane. The
+    human car is a :class:`HumanVehicle` driven by a simulated human with hidden reward weights
+    θ* over three features φ(x). During the first ``n_corrections`` steps the human's action
+    u_H is its *correction*, from which an online learner (``strol_gym.wrappers``) updates the
+    robot's estimate θ̂; afterwards u_H = 0 (the human car holds its speed and heading). Both
+    cars move by highway-env's kinematic bicycle model (``Vehicle.step``), one integration step
+    of ``task.dt`` = 0.5 s per env step (simulation frequency = policy frequency = 2 Hz).
+
+    Features (``HighwayTask``; "T ahead" = predicted 2 s ahead with each car keeping its speed
+    and heading; values are O(1)):
+
+    - ``gap`` = −[max(b − 10 m, 4 (10 m − b)) + 2 |a|] / 20 m: distance of the human car from
+      the tailgating slot 10 m behind the robot car in its lane, T ahead; b = x_R − x_H (how far
+      behind, signed), a = y_R − y_H (how far beside). 0 at the slot; −0.25 ... −1.5 at start.
+    - ``speed`` = (v_H − 25 m/s) / 5 m/s: the human car's speed (so g depends on u_H).
+    - ``lane_change`` = 1 − |ℓ − 1|, ℓ = (y_H + T v_H sin h_H) / 4 m: the human car's lateral
+      position T ahead in lanes (0 = left lane centre, 1 = right lane centre).
+
+    Human models: ``"nominal"`` (eq. M6: the correction that moves θ̂ closest to θ*, the
+    model ĝ is trained on), ``"boltzmann"`` (P(u) ∝ exp(β θ*·g)), ``"driver"`` (the constant
+    action that maximises Σ θ*·φ over a 2 s horizon of the kinematic model), or your own.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``: the robot car's (acceleration, steering), scaled by
+    ``task.robot_action_bound`` = (5 m/s², 0.02 rad). Out-of-range actions are clipped; a NaN
+    or infinite action raises ``ValueError``.
+
+    ## Observation Space
+
+    ``Dict`` of float32 Boxes (the space never changes):
+
+    - ``"state"`` (8,): exactly the Task state x = (x_R, y_R, v_R, h_R, x_H, y_H, v_H, h_H) in
+      m, m, m/s, rad (robot car first).
+    - ``"correction"`` (2,): u_H, the human car's (acceleration m/s², steering rad) this step,
+      noise and bias included; zeros when the human does not correct (and after reset).
+    - ``"theta_hat"`` (3,): the robot's current estimate θ̂ (see ``set_theta_hat``).
+
+    Built directly from the two vehicles: no highway-env observation type runs in the loop.
+
+    ## Rewards
+
+    R(x', θ*) = θ*·φ(x'), the human's reward of the state reached. ``info`` carries
+    ``"features"`` (name -> value), ``"phi"``, ``"correction"`` (u_H), ``"robot_action"`` (u_R as
+    applied, task units), ``"theta_star"`` (for evaluation only), ``"theta_hat"``,
+    ``"is_correction"`` and ``"crashed"``.
+
+    ## Starting State
+
+    Drawn from ``env.np_random`` at reset, in this order: θ* from the prior; the start state
+    (``HighwayTask.sample_start``: human car at x ∈ [50, 100] m, robot car 15–40 m ahead, both
+    at 20–30 m/s, in the left lane within ±0.5 m (robot) / ±1 m (human) of its centre, headings
+    within ±0.02 / ±0.05 rad); the seed of the human's own generator. So two envs reset with
+    the same seed give the same θ*, start and human noise draws (paired runs). θ̂ starts at
+    the mean of the bimodal prior's modes, (0.55, 1.0, 0.55), unless ``set_theta_hat`` is
+    called. ``reset(options={"theta_star": ..., "state": ...})`` overrides either draw (the
+    draws still happen, so pairing is kept).
+
+    ## Episode End
+
+    Terminated when the cars collide (highway-env's collision check). Truncated after
+    ``max_episode_steps`` steps (default: ``n_corrections``). Leaving the road is not terminal.
+
+    ## Arguments
+
+    - ``sigma`` (float ≥ 0, default 0): noise, δ ~ N(ε a_max, (σ a_max)²) per action axis.
+    - ``bias`` (finite float, default 0): ε, as a fraction of a_max.
+    - ``prior`` ("bimodal" | "uniform" | a ``Prior`` | array of modes, default "bimodal"):
+      P(θ*). "bimodal": modes "tailgate" (1.0, 1.0, 0.1) and "pass on the right"
+      (0.1, 1.0, 1.0) with N(0, 0.1²) jitter (see ``strol_gym.tasks.highway`` for the signs);
+      "uniform": [−1, 1]³.
+    - ``human`` ("nominal" | "boltzmann" | "driver" | callable ``(task, theta_star, rng) ->
+      Human``, default "nominal").
+    - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
+    - ``n_corrections`` (int ≥ 0, default 10): steps during which the human corrects.
+    - ``max_episode_steps`` (int ≥ 1 or None, default None = ``n_corrections``).
+    - ``render_mode`` (None | "human" | "rgb_array"); ``width``, ``height`` (int in
+      [16, 4096], default 600 x 150): frame size in pixels. Headless "rgb_array" needs
+      ``SDL_VIDEODRIVER=offscreen`` (set by default if unset; "dummy" renders blank frames).
+    - ``task`` (``HighwayTask`` or None): a variant of the setting (its prior is replaced by
+      ``prior``).
+
+    ## Version History
+
+    - v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
+    KWARGS: ClassVar[tuple[str, ...]] = (
+        "sigma",
+        "bias",
+        "prior",
+        "human",
+        "beta",
+        "n_corrections",
+        "max_episode_steps",
+        "render_mode",
+        "width",
+        "height",
+        "task",
+    )
+
+    def __init__(
+        self,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        prior: str | Prior | Any = "bimodal",
+        human: str | HumanFactory = "nominal",
+        beta: float = 50.0,
+        n_corrections: int = 10,
+        max_episode_steps: int | None = None,
+        render_mode: str | None = None,
+        width: int = 600,
+        height: int = 150,
+        task: HighwayTask | None = None,
+        **unknown: Any,
+    ) -> None:
+        if unknown:
+            raise ValueError(
+                f"unknown argument(s) {sorted(unknown)}; StROL-Highway-v0 takes {self.KWARGS}"
+            )
+        if task is None:
+            task = HighwayTask()
+        elif not isinstance(task, HighwayTask):
+            raise ValueError(f"task must be a HighwayTask or None, got {type(task).__name__}")
+        self.task: HighwayTask = task.with_prior(make_prior(prior, task.prior_modes))
+        self.sigma = check_fraction("sigma", sigma)
+        self.bias = check_fraction("bias", bias, allow_negative=True)
+        if not (isinstance(human, str) and human in HUMAN_MODELS) and not (
+            callable(human) and not isinstance(human, str)
+        ):
+            raise ValueError(
+                f"human must be one of {sorted(HUMAN_MODELS)} or a callable "
+                f"(task, theta_star, rng) -> Human; got {human!r}"
+            )
+        self.human_model = human
+        beta = float(beta)
+        if not (np.isfinite(beta) and beta >= 0):
+            raise ValueError(f"beta must be a finite number >= 0, got {beta}")
+        self.beta = beta
+        self.n_corrections = _int_arg("n_corrections", n_corrections, 0)
+        if max_episode_steps is None:
+            max_episode_steps = max(self.n_corrections, 1)
+        self.max_episode_steps = _int_arg("max_episode_steps", max_episode_steps, 1)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode must be None or one of {self.metadata['render_modes']}, "
+                f"got {render_mode!r}"
+            )
+        width = _int_arg("width", width, 16, 4096)
+        height = _int_arg("height", height, 16, 4096)
+        freq = 1.0 / self.task.dt
+        self._network = RoadNetwork.straight_road_network(
+            lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None
+        )
+        self.theta_star = self.task.prior.mean.copy()
+        self.theta_hat = self._default_theta_hat()
+        self.human: Human | None = None
+        self.robot_vehicle: Vehicle | None = None
+        self.human_vehicle: HumanVehicle | None = None
+        self._x = np.zeros(self.task.state_dim)
+        super().__init__(
+            config={
+                "simulation_frequency": freq,
+                "policy_frequency": freq,
+                "screen_width": width,
+                "screen_height": height,
+                "centering_position": [0.7, 0.5],
+                "scaling": 5.5 * width / 600,
+            },
+            render_mode=render_mode,
+        )
+
+    # ------------------------------------------------------------------ spaces, θ̂
+    def define_spaces(self) -> None:
+        """Fixed spaces; highway-env's observation and action types are not used."""
+        box = lambda n: spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)  # noqa: E731
+        self.observation_space = spaces.Dict(
+            {
+                "state": box(self.task.state_dim),
+                "correction": box(self.task.action_dim),
+                "theta_hat": box(self.task.dim),
+            }
+        )
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(self.task.action_dim,), dtype=np.float32)
+        self.observation_type = None
+        self.action_type = None
+
+    def _default_theta_hat(self) -> np.ndarray:
+        return np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
+
+    def set_theta_hat(self, theta_hat: np.ndarray) -> None:
+        """The robot's current estimate θ̂: the nominal human teaches relative to it, and the
+        next observation carries it. Reset restores the bimodal prior modes' mean."""
+        th = np.asarray(theta_hat, dtype=np.float64).reshape(-1)
+        if th.shape != (self.task.dim,) or not np.isfinite(th).all():
+            raise ValueError(f"theta_hat must be {self.task.dim} finite numbers, got {theta_hat}")
+        self.theta_hat = th.copy()
+
+    # ------------------------------------------------------------------ reset / step
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        gym.Env.reset(self, seed=seed)
+        options = dict(options or {})
+        bad = set(options) - {"theta_star", "state"}
+        if bad:
+            raise ValueError(f"unknown reset option(s) {sorted(bad)}; valid: theta_star, state")
+        self.time = self.steps = 0
+        self.done = False
+        rng = self.np_random
+        theta_star = self.task.prior.sample(rng, 1)[0]
+        x0 = self.task.sample_start(rng, 1)[0]
+        human_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
+        if "theta_star" in options:
+            theta_star = _vector("theta_star", options["theta_star"], self.task.dim)
+        if "state" in options:
+            x0 = _vector("state", options["state"], self.task.state_dim)
+        self.theta_star = theta_star
+        self.theta_hat = self._default_theta_hat()
+        self.human = self._make_human(theta_star, human_rng)
+        self._build_scene(x0)
+        self._x = self._read_state()
+        zeros = np.zeros(self.task.action_dim)
+        phi = self.task.features(self._x)
+        obs = self._obs(zeros)
+        info = self._make_info(phi, zeros, zeros, False)
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
+
+    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
+        if isinstance(self.human_model, str):
+            cls = HUMAN_MODELS[self.human_model]
+            kw: dict[str, Any] = {"sigma": self.sigma, "bias": self.bias}
+            if self.human_model == "boltzmann":
+                kw["beta"] = self.beta
+            return cls(self.task, theta_star, rng, **kw)
+        human = self.human_model(self.task, theta_star, rng)
+        if not isinstance(human, Human):
+            raise ValueError(
+                "human callable must return an object with act(x, u_r, theta_hat) and "
+                f"theta_star, got {type(human).__name__}"
+            )
+        return human
+
+    def _build_scene(self, x0: np.ndarray) -> None:
+        self.road = Road(
+            network=self._network,
+            np_random=self.np_random,
+            record_history=self.config["show_trajectories"],
+        )
+        robot = Vehicle(self.road, x0[0:2], heading=float(x0[3]), speed=float(x0[2]))
+        robot.color = VehicleGraphics.EGO_COLOR
+        human = HumanVehicle(
+            self.road, x0[4:6], heading=float(x0[7]), speed=float(x0[6]), human=self.human
+        )
+        human.color = VehicleGraphics.BLUE
+        self.road.vehicles = [robot, human]
+        self.controlled_vehicles = [robot]
+        self.robot_vehicle, self.human_vehicle = robot, human
+
+    def _read_state(self) -> np.ndarray:
+        r, h = self.robot_vehicle, self.human_vehicle
+        return np.array(
+            [
+                r.position[0],
+                r.position[1],
+                r.speed,
+                r.heading,
+                h.position[0],
+                h.position[1],
+                h.speed,
+                h.heading,
+            ],
+            dtype=np.float64,
+        )
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (self.task.action_dim,):
+            raise ValueError(f"action must have shape ({self.task.action_dim},), got {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"action must be finite, got {action}")
+        u_r = np.clip(a, -1.0, 1.0) * self.task.robot_action_bound
+        is_correction = self.steps < self.n_corrections
+        if is_correction:
+            u_h = self.human_vehicle.decide(self._x, u_r, self.theta_hat)
+        else:
+            u_h = np.zeros(self.task.action_dim)
+            self.human_vehicle.act({"acceleration": 0.0, "steering": 0.0})
+        self.robot_vehicle.act({"acceleration": float(u_r[0]), "steering": float(u_r[1])})
+        self.road.step(self.task.dt)
+        self.steps += 1
+        self.time += self.task.dt
+        self._x = self._read_state()
+        phi = self.task.features(self._x)
+        reward = float(phi @ self.theta_star)
+        terminated = self._is_terminated()
+        truncated = (not terminated) and self._is_truncated()
+        obs = self._obs(u_h)
+        info = self._make_info(phi, u_h, u_r, is_correction)
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, terminated, truncated, info
+
+    def _obs(self, u_h: np.ndarray) -> dict[str, np.ndarray]:
+        return {
+            "state": self._x.astype(np.float32),
+            "correction": np.asarray(u_h, dtype=np.float32),
+            "theta_hat": self.theta_hat.astype(np.float32),
+        }
+
+    def _make_info(
+        self, phi: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, is_correction: bool
+    ) -> dict[str, Any]:
+        return {
+            "features": dict(zip(self.task.feature_names, phi.tolist(), strict=True)),
+            "phi": phi,
+            "correction": np.array(u_h, dtype=np.float64),
+            "robot_action": np.array(u_r, dtype=np.float64),
+            "theta_star": self.theta_star.copy(),
+            "theta_hat": self.theta_hat.copy(),
+            "is_correction": bool(is_correction),
+            "crashed": bool(self.robot_vehicle.crashed or self.human_vehicle.crashed),
+        }
+
+    # highway-env's hooks, kept meaningful for code that calls them
+    def _reset(self) -> None:
+        self._build_scene(self.task.sample_start(self.np_random, 1)[0])
+
+    def _reward(self, action: np.ndarray) -> float:
+        return float(self.task.reward(self._read_state(), self.theta_star))
+
+    def _is_terminated(self) -> bool:
+        return bool(self.robot_vehicle.crashed or self.human_vehicle.crashed)
+
+    def _is_truncated(self) -> bool:
+        return self.steps >= self.max_episode_steps
+
+    # ------------------------------------------------------------------ render, pickle
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; "
+                'make the env with render_mode="rgb_array" or "human"'
+            )
+            return None
+        if self.render_mode == "rgb_array":
+            os.environ.setdefault("SDL_VIDEODRIVER", "offscreen")
+            if os.environ["SDL_VIDEODRIVER"] == "dummy":
+                gym.logger.warn(
+                    "SDL_VIDEODRIVER=dummy makes highway-env skip drawing (blank frames); "
+                    "use SDL_VIDEODRIVER=offscreen"
+                )
+        return super().render()
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        state["viewer"] = None
+        state["_record_video_wrapper"] = None
+        return state
+
+
+def _int_arg(name: str, value: Any, low: int, high: int | None = None) -> int:
+    """An integer argument in [low, high], else ValueError naming it and the range."""
+    ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
+    if ok and value >= low and (high is None or value <= high):
+        return int(value)
+    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
+    raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
+
+
+def _vector(name: str, value: Any, n: int) -> np.ndarray:
+    v = np.asarray(value, dtype=np.float64).reshape(-1)
+    if v.shape != (n,) or not np.isfinite(v).all():
+        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
+    return v.copy()
