@@ -1,0 +1,113 @@
+"""OnlineLearningWrapper: applies an online reward learner to a strol-gym env."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from strol_gym.learners.protocol import OnlineRewardLearner
+from strol_gym.learners.registry import make_learner
+
+
+def _cosine_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
+    """1 − cos(θ*, θ̂); 1.0 (no directional information) when either vector is zero."""
+    ns, nh = np.linalg.norm(theta_star), np.linalg.norm(theta_hat)
+    if ns == 0 or nh == 0:
+        return 1.0
+    return float(1.0 - np.dot(theta_star, theta_hat) / (ns * nh))
+
+
+class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Let a learner update θ̂ from the human's corrections as the episode runs.
+
+    Each step, when ``info["is_correction"]`` is true, the learner sees x (the previous
+    observation's ``"state"``), u_H (this observation's ``"correction"``) and u_R
+    (``info["robot_action"]``) and returns θ̂. The wrapper hands θ̂ to the env with
+    ``env.unwrapped.set_theta_hat`` (so the human's next correction and the env's observation
+    use it) and writes it into ``obs["theta_hat"]`` and ``info["theta_hat"]``. The observation
+    space does not change.
+
+    Args:
+        env: a strol-gym env (``env.unwrapped.task`` is its Task).
+        learner: a learner object or a registered name ("gradient", "one", "mof", "e2e",
+            "strol", ...), built with ``make_learner(name, task=env.unwrapped.task, **kwargs)``.
+        learner_kwargs: keyword arguments for ``make_learner`` when ``learner`` is a name.
+        replace_reward: if true, the reward becomes θ̂·φ(x') with the updated θ̂ (the robot's
+            own belief), and ``info["true_reward"]`` keeps the env's R(x', θ*).
+
+    At the end of an episode (terminated or truncated) ``info`` also holds ``"error"`` =
+    ‖θ* − θ̂‖, ``"cosine_error"`` = 1 − cos(θ*, θ̂) (1.0 when θ̂ = 0) and ``"regret"`` =
+    ``task.regret(θ̂, θ*, x0)`` from the episode's start state x0 (NaN when the task has no
+    planner).
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        learner: str | OnlineRewardLearner = "strol",
+        learner_kwargs: dict[str, Any] | None = None,
+        replace_reward: bool = False,
+    ) -> None:
+        gym.utils.RecordConstructorArgs.__init__(
+            self, learner=learner, learner_kwargs=learner_kwargs, replace_reward=replace_reward
+        )
+        gym.Wrapper.__init__(self, env)
+        base = env.unwrapped
+        if not hasattr(base, "task") or not hasattr(base, "set_theta_hat"):
+            raise ValueError(
+                "env must be a strol-gym env (env.unwrapped needs .task and .set_theta_hat), "
+                f"got {type(base).__name__}"
+            )
+        self.learner = make_learner(learner, task=base.task, **(learner_kwargs or {}))
+        self.replace_reward = bool(replace_reward)
+        self._x: np.ndarray | None = None
+        self._x0: np.ndarray | None = None
+
+    @property
+    def task(self):
+        return self.env.unwrapped.task
+
+    def _publish(self, obs: dict, info: dict) -> None:
+        theta = np.asarray(self.learner.theta, dtype=np.float64)
+        self.env.unwrapped.set_theta_hat(theta)
+        space = self.observation_space["theta_hat"]
+        obs["theta_hat"] = theta.astype(space.dtype)
+        info["theta_hat"] = theta.copy()
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        obs, info = self.env.reset(seed=seed, options=options)
+        obs, info = dict(obs), dict(info)
+        self.learner.reset()
+        self._publish(obs, info)
+        self._x = np.asarray(obs["state"], dtype=np.float64).copy()
+        self._x0 = self._x.copy()
+        return obs, info
+
+    def step(self, action):
+        if self._x is None:
+            raise gym.error.ResetNeeded("call reset() before step()")
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        obs, info = dict(obs), dict(info)
+        if info.get("is_correction", False):
+            self.learner.update(
+                self._x,
+                np.asarray(obs["correction"], dtype=np.float64),
+                np.asarray(info["robot_action"], dtype=np.float64),
+            )
+        self._publish(obs, info)
+        theta_hat = info["theta_hat"]
+        if self.replace_reward:
+            info["true_reward"] = reward
+            reward = float(np.dot(theta_hat, np.asarray(info["phi"], dtype=np.float64)))
+        if terminated or truncated:
+            theta_star = np.asarray(info["theta_star"], dtype=np.float64)
+            info["error"] = float(np.linalg.norm(theta_star - theta_hat))
+            info["cosine_error"] = _cosine_error(theta_star, theta_hat)
+            try:
+                info["regret"] = float(self.task.regret(theta_hat, theta_star, self._x0)[0])
+            except NotImplementedError:
+                info["regret"] = float("nan")
+        self._x = np.asarray(obs["state"], dtype=np.float64).copy()
+        return obs, reward, terminated, truncated, info
