@@ -212,3 +212,16 @@ def test_robot_env_through_make_vec_and_pickle():
     clone = pickle.loads(pickle.dumps(env))
     assert _episode(env, 4)[2]["error"] == _episode(clone, 4)[2]["error"]
     assert strol_gym.make_learner("gradient", task=env.unwrapped.task).task is env.unwrapped.task
+
+
+HAS_HIGHWAY = importlib.util.find_spec("strol_gym.envs.highway") is not None
+
+
+@pytest.mark.skipif(not HAS_HIGHWAY, reason="StROL-Highway-v0 not built yet")
+def test_highway_env_through_make():
+    env = OnlineLearningWrapper(gym.make("StROL-Highway-v0"), "mof")
+    _, _, info = _episode(env, 0)
+    assert np.isfinite(info["error"]) and np.isfinite(info["cosine_error"])
+    assert "regret" in info
+    np.testing.assert_allclose(info["theta_hat"], env.learner.theta)
+    env.close()
