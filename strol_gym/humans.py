@@ -83,18 +83,20 @@ def driver_correction(
     candidates: np.ndarray,
     horizon: int,
 ) -> np.ndarray:
-    """A short-horizon driver, batched: the candidate u that, held for ``horizon`` steps of
-    ``task.dynamics`` while the robot holds u_R, maximises Σ_t θ*·φ(x_t). Ignores θ̂.
+    """A short-horizon driver, batched: the candidate u maximising Σ_{t=1..horizon} θ*·φ(x_t)
+    when u (and the robot's u_R) act for the first step and both coast (zero action) after it.
+    Acting for itself, not to teach: it ignores θ̂. Coasting, rather than repeating u, lets a
+    car value "steer now, then hold the wheel" without the plan turning it around.
 
     Shapes: x (B, s), u_r (B, a), theta_star (B, d), candidates (B, K, a) -> (B, a).
     """
     if int(horizon) < 1:
         raise ValueError(f"horizon must be an integer >= 1, got {horizon}")
-    xs = x[:, None, :]
-    ur = u_r[:, None, :]
-    total = np.zeros(candidates.shape[:2])
-    for _ in range(int(horizon)):
-        xs = task.dynamics(xs, candidates, ur)
+    xs = task.dynamics(x[:, None, :], candidates, u_r[:, None, :])
+    total = np.einsum("bkd,bd->bk", task.features(xs), theta_star)
+    zero = np.zeros((1, 1, candidates.shape[-1]))
+    for _ in range(int(horizon) - 1):
+        xs = task.dynamics(xs, zero, zero)
         total += np.einsum("bkd,bd->bk", task.features(xs), theta_star)
     return candidates[np.arange(len(candidates)), np.argmax(total, axis=1)]
 

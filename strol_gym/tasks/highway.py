@@ -278,17 +278,20 @@ class HighwayTask(Task):
 
     # ----------------------------------------------------------------- default robot policy
     def robot_policy(self, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
-        """The benchmark's robot car: keep its lane and speed, change lane to avoid a collision.
+        """The benchmark's robot car: keep right at its speed, but yield to a human who passes.
 
-        (B, 8), (B, 3) -> (B, 2) in task units. The robot predicts the human car with θ̂: the
-        ``driver`` model (humans.driver_correction: the constant action that maximises θ̂·φ over
-        ``POLICY_HORIZON`` steps) held over the horizon. It then scores six manoeuvres (target
-        lane left / right x hold / raise / lower speed by 5 m/s), each flown by a lane- and
-        speed-tracking controller over the horizon, by cost = lateral distance travelled (m)
-        + 0.5 x speed change (m/s) + 1000 if the predicted cars come within a car length plus
-        2 m longitudinally and 3 m laterally. The first action of the cheapest manoeuvre is
-        returned. So it stays put unless it expects a collision, and it yields the lane the
-        human is expected to take: right-lane passers keep it left, tailgaters send it right.
+        (B, 8), (B, 3) -> (B, 2) in task units. The robot prefers the right lane (the keep-right
+        rule: it leaves the left lane to overtaking traffic) at its current speed; it holds on
+        to the left lane when it expects the human to pass there on the right. It scores four
+        manoeuvres, (stay in the current lane | go to the right lane) x (hold speed | slow by
+        5 m/s), each flown by a lane- and speed-tracking controller for ``POLICY_HORIZON`` steps
+        while the human is predicted with θ̂ by the ``driver`` model (receding horizon: each
+        predicted step is ``humans.driver_correction`` over a 5 x 5 action grid, reacting to
+        the robot's manoeuvre). Cost per step: distance from the right lane's centre (lanes)
+        + 0.5 x speed change (m/s) + 1000 if the predicted cars are closer than two car lengths
+        longitudinally and 3 m laterally. The first action of the cheapest manoeuvre is returned.
+        So θ̂ matters: a predicted tailgater follows it into the right lane, a predicted
+        right-hand passer makes it keep the left lane.
         """
         from strol_gym.humans import driver_correction
 
@@ -297,31 +300,32 @@ class HighwayTask(Task):
         b = len(x)
         grid = np.stack(np.meshgrid(np.linspace(-1, 1, 5), np.linspace(-1, 1, 5)), -1)
         grid = grid.reshape(-1, 2) * self.action_bound
-        zeros = np.zeros((b, 2))
-        u_pred = driver_correction(
-            self, x, zeros, theta_hat, np.broadcast_to(grid, (b, *grid.shape)), POLICY_HORIZON
-        )
         lanes = self.lane_centers
-        targets = np.array([(ly, dv) for ly in lanes for dv in (0.0, 5.0, -5.0)])  # (M, 2)
-        m = len(targets)
-        xs = np.repeat(x[:, None, :], m, axis=1)  # (B, M, 8)
-        y_goal = np.broadcast_to(targets[:, 0], (b, m))
-        v_goal = x[:, None, 2] + targets[None, :, 1]
-        cost = np.zeros((b, m))
+        here = lanes[np.argmin(np.abs(x[:, 1:2] - lanes), axis=1)]
+        y_goal = np.stack([here, here, np.full(b, lanes[-1]), np.full(b, lanes[-1])], axis=1)
+        v_goal = x[:, 2:3] + np.array([0.0, -5.0, 0.0, -5.0])
+        m = y_goal.shape[1]
+        xs = np.repeat(x[:, None, :], m, axis=1).reshape(b * m, 8)
+        y_goal, v_goal = y_goal.reshape(-1), v_goal.reshape(-1)
+        th = np.repeat(theta_hat, m, axis=0)
+        cand = np.broadcast_to(grid, (b * m, *grid.shape))
+        cost = np.zeros(b * m)
         first = None
         for _ in range(POLICY_HORIZON):
-            u_r = self._track(xs[..., :4], y_goal, v_goal)
+            u_r = self._track(xs[:, :4], y_goal, v_goal)
             if first is None:
                 first = u_r
-            nxt = self.dynamics(xs, u_pred[:, None, :], u_r)
-            cost += np.abs(nxt[..., 1] - xs[..., 1]) + 0.5 * np.abs(nxt[..., 2] - xs[..., 2])
-            close = (np.abs(nxt[..., 0] - nxt[..., 4]) < CAR_LENGTH + 2.0) & (
-                np.abs(nxt[..., 1] - nxt[..., 5]) < 3.0
+            u_h = driver_correction(self, xs, u_r, th, cand, DRIVER_HORIZON)
+            nxt = self.dynamics(xs, u_h, u_r)
+            cost += np.abs(nxt[:, 1] - lanes[-1]) / LANE_WIDTH
+            cost += 0.5 * np.abs(nxt[:, 2] - xs[:, 2])
+            close = (np.abs(nxt[:, 0] - nxt[:, 4]) < 2 * CAR_LENGTH) & (
+                np.abs(nxt[:, 1] - nxt[:, 5]) < 3.0
             )
             cost += 1000.0 * close
             xs = nxt
-        best = np.argmin(cost, axis=1)
-        return first[np.arange(b), best]
+        best = np.argmin(cost.reshape(b, m), axis=1)
+        return first.reshape(b, m, 2)[np.arange(b), best]
 
     def _track(self, s: np.ndarray, y_goal: np.ndarray, v_goal: np.ndarray) -> np.ndarray:
         """Lane- and speed-tracking controller (..., 4) -> (..., 2), within the action bound.
@@ -339,5 +343,7 @@ class HighwayTask(Task):
         return np.clip(u, -self.action_bound, self.action_bound)
 
 
-POLICY_HORIZON = 6
-"""Steps (3 s) over which the default robot policy predicts the human and scores manoeuvres."""
+POLICY_HORIZON = 8
+"""Steps (4 s) over which the default robot policy predicts the human and scores manoeuvres."""
+DRIVER_HORIZON = 4
+"""Steps (2 s) of the driver model the robot policy predicts the human with (as ``DriverHuman``)."""
