@@ -46,7 +46,7 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def __init__(
         self,
         env: gym.Env,
-        learner: str | OnlineRewardLearner = "strol",
+        learner: str | OnlineRewardLearner,
         learner_kwargs: dict[str, Any] | None = None,
         replace_reward: bool = False,
     ) -> None:
