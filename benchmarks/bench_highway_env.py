@@ -1,0 +1,94 @@
+"""Speed of StROL-Highway-v0 (env steps/s, rendering off), human controller included.
+
+    .venv/bin/python benchmarks/bench_highway_env.py [--steps 5000] [--repeats 3] [--compare]
+
+Rows: the default env (eq. M6 "nominal" human with 512 candidates, 10-step episodes, resets
+included), the human correcting on every step (no resets), the "boltzmann" and "driver" humans,
+and the batched default robot policy (calls/s and states/s for a block of 100). Each figure is
+the best of ``--repeats`` timed runs with random actions. ``--compare`` also times highway-env's
+own ``highway-fast-v0`` for reference. Target: ≥ 1,000 steps/s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+
+import strol_gym
+from strol_gym.envs.highway import HighwayEnv
+
+
+def steps_per_second(env: gym.Env, steps: int, repeats: int) -> float:
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, size=(steps, *env.action_space.shape)).astype(np.float32)
+    best = 0.0
+    for r in range(repeats):
+        env.reset(seed=r)
+        start = time.perf_counter()
+        for a in actions:
+            _, _, term, trunc, _ = env.step(a)
+            if term or trunc:
+                env.reset()
+        best = max(best, steps / (time.perf_counter() - start))
+    return best
+
+
+def best_rate(fn: Callable[[], object], n: int, repeats: int) -> float:
+    best = 0.0
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(n):
+            fn()
+        best = max(best, n / (time.perf_counter() - start))
+    return best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--steps", type=int, default=5000)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--compare", action="store_true", help="also time highway-fast-v0")
+    args = parser.parse_args()
+    long = 10**9
+    rows = {
+        "default (nominal human, 10-step episodes)": gym.make("StROL-Highway-v0"),
+        "nominal human correcting every step": HighwayEnv(
+            n_corrections=long, max_episode_steps=long
+        ),
+        "boltzmann human, 10-step episodes": gym.make("StROL-Highway-v0", human="boltzmann"),
+        "driver human, 10-step episodes": gym.make("StROL-Highway-v0", human="driver"),
+        "sigma=0.5, bias=0.5 (nominal)": gym.make("StROL-Highway-v0", sigma=0.5, bias=0.5),
+    }
+    for name, env in rows.items():
+        print(f"{name:45s} {steps_per_second(env, args.steps, args.repeats):8.0f} steps/s")
+        env.close()
+
+    task = strol_gym.HighwayTask()
+    rng = np.random.default_rng(1)
+    x, th = task.sample_start(rng, 100), task.prior.sample(rng, 100)
+    rate = best_rate(lambda: task.robot_policy(x, th), 10, args.repeats)
+    print(
+        f"{'robot_policy, block of 100 states':45s} {rate:8.1f} calls/s ({100 * rate:.0f} states/s)"
+    )
+
+    if args.compare:
+        import highway_env  # noqa: F401
+
+        env = gym.make("highway-fast-v0")
+        env.reset(seed=0)
+        n = min(args.steps, 300)
+        start = time.perf_counter()
+        for _ in range(n):
+            *_, term, trunc, _ = env.step(env.action_space.sample())
+            if term or trunc:
+                env.reset()
+        rate = n / (time.perf_counter() - start)
+        print(f"{'highway-env highway-fast-v0 (reference)':45s} {rate:8.0f} steps/s")
+
+
+if __name__ == "__main__":
+    main()
