@@ -89,7 +89,8 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
             ax.set_title(cond, fontsize=10)
             if c == 0:
                 ax.set_ylabel(f"{env_preset(env).env_id}\n{SHORT[metric]}", fontsize=9)
-    fig.suptitle("mean ± SEM; * StROL vs baseline, paired t, Holm p<0.05", fontsize=9)
+    ref = display(a.config.reference)
+    fig.suptitle(f"mean ± SEM; * {ref} vs that learner, paired t, Holm p<0.05", fontsize=9)
     fig.tight_layout()
     return _save(fig, out, stem)
 

@@ -270,7 +270,8 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
         f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
         f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
         f"{_num(meta.get('wall_time_s', math.nan), 1)} s",
-        "- cells: mean ± std over runs; stars: StROL vs that baseline, paired t-test, "
+        f"- cells: mean ± std over runs; stars: {display(cfg.reference)} vs that learner, "
+        "paired t-test, "
         "Holm-corrected across baselines (* p<0.05, ** p<0.01, *** p<0.001). Lower is better.",
         "",
     ]
@@ -358,9 +359,10 @@ def console_summary(a: Analysis) -> str:
             continue
         primary = env_preset(env).primary_metric
         primary = primary if primary in metrics else metrics[0]
+        ref = display(a.config.reference)
         out += [
-            f"{env_preset(env).env_id}: {METRIC_LABELS[primary]} (mean ± std, * = StROL vs "
-            "baseline, Holm p<0.05)"
+            f"{env_preset(env).env_id}: {METRIC_LABELS[primary]} (mean ± std, * = {ref} vs that "
+            "learner, paired t, Holm p<0.05)"
         ]
         out += [*metric_table(a, env, primary), ""]
     for v in a.verdicts:
