@@ -220,7 +220,9 @@ class HighwayTask(Task):
         out = self._phi(*robot, *self._step_car(x, 4, u_h)) - self._phi(
             *robot, *self._step_car(x, 4, None)
         )
-        return np.broadcast_to(out, (*lead, 3))
+        if out.shape != (*lead, 3):
+            out = np.broadcast_to(out, (*lead, 3)).copy()
+        return out
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Both cars in the left lane, the human behind by a random gap, random speeds.
