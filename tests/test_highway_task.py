@@ -182,3 +182,33 @@ def test_eq_m6_human_is_batched_over_the_highway_task():
     after = np.linalg.norm(star - (th0 + TASK.alpha * TASK.g(x, u, np.zeros((16, 2)))), axis=1)
     assert (after <= np.linalg.norm(star - th0, axis=1) + 1e-12).all()
     assert after.mean() < 0.8 * np.linalg.norm(star - th0, axis=1).mean()
+
+
+@pytest.mark.parametrize("kind", ["strol", "e2e"])
+def test_shipped_correction_terms_load_and_match_the_training_condition(kind):
+    import strol_gym
+
+    learner = strol_gym.make_learner(kind, task=TASK)
+    meta = learner.checkpoint_meta
+    assert learner.checkpoint.endswith(f"highway_{kind}.pt")
+    assert meta["task"]["task_id"] == "StROL-Highway-v0"
+    training = meta["training"]
+    assert (training["sigma"], training["bias"], training["steps"], training["batch"]) == (
+        0.1,
+        0.0,
+        1000,
+        100,
+    )
+    assert training["seed"] >= 10_000  # disjoint from evaluation seeds 0, 1, ...
+    assert meta["prior"]["name"] == "bimodal"
+
+
+def test_shipped_strol_beats_gradient_in_the_training_condition():
+    """Paper H1, checked at Task level (eq. M6 human, σ = 0.1, 10 corrections, paired runs)."""
+    import strol_gym
+    from strol_gym.learners.simulate import simulate_errors
+
+    learners = {k: strol_gym.make_learner(k, task=TASK) for k in ("gradient", "strol")}
+    errors = simulate_errors(TASK, learners, n_runs=200, n_corrections=10, sigma=0.1, seed=0)
+    diff = errors["strol"] - errors["gradient"]
+    assert diff.mean() < 0 and np.mean(diff < 0) > 0.5
