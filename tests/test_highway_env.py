@@ -234,7 +234,7 @@ def test_rgb_array_renders_a_non_blank_frame_headless():
 def run_episode(human: str, mode: int, seed: int, learn: bool) -> tuple[np.ndarray, np.ndarray]:
     """States of a 10-step episode with the robot holding its lane and speed; θ̂ by Gradient."""
     env = make(human=human)
-    start = env.task.sample_start(np.random.default_rng(seed), 1)[0]
+    start = env.task.sample_episode_start(np.random.default_rng(seed), 1)[0]
     start[[1, 3, 5, 7]] = 0.0  # both cars straight in the left lane's centre
     obs, info = env.reset(seed=seed, options={"theta_star": HIGHWAY_MODES[mode], "state": start})
     learner = strol_gym.make_learner("gradient", task=env.task)

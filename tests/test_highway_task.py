@@ -76,7 +76,7 @@ def test_dynamics_and_g_broadcast_like_the_base_task():
 
 def test_every_feature_of_g_depends_on_the_human_action():
     rng = np.random.default_rng(2)
-    x = TASK.sample_start(rng, 50)
+    x = TASK.sample_episode_start(rng, 50)
     x[:, 6] = x[:, 2]  # same speeds, at least 20 m behind: the slot is ahead even T later
     x[:, 0] = np.maximum(x[:, 0], x[:, 4] + 20.0)
     x[:, 5] = x[:, 7] = 0.0  # centred, straight: steering right heads into the right lane
@@ -91,7 +91,7 @@ def test_every_feature_of_g_depends_on_the_human_action():
 
 
 def test_features_are_order_one_at_start_and_zero_at_the_slot():
-    x = TASK.sample_start(np.random.default_rng(3), 1000)
+    x = TASK.sample_episode_start(np.random.default_rng(3), 1000)
     phi = TASK.features(x)
     assert np.abs(phi).max() < 2.5
     slot = np.array([100.0 + TASK.min_gap, 0.0, 25.0, 0.0, 100.0, 0.0, 25.0, 0.0])
@@ -158,7 +158,7 @@ def test_robot_policy_batched_bounded_and_yields_to_the_predicted_human():
 
 def test_driver_follows_theta_in_one_decision():
     rng = np.random.default_rng(7)
-    x = TASK.sample_start(rng, 30)
+    x = TASK.sample_episode_start(rng, 30)
     x[:, 3] = x[:, 7] = 0.0
     x[:, 1] = x[:, 5] = 0.0
     cand = np.broadcast_to(TASK.candidate_actions(rng, 1, 200), (30, 201, 2))

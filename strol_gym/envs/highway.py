@@ -109,13 +109,13 @@ class HighwayEnv(AbstractEnv):
     ## Starting State
 
     Drawn from ``env.np_random`` at reset, in this order: θ* from the prior; the start state
-    (``HighwayTask.sample_start``: human car at x ∈ [50, 100] m, robot car 15–40 m ahead, both
-    at 20–30 m/s, in the left lane within ±0.5 m (robot) / ±1 m (human) of its centre, headings
-    within ±0.02 / ±0.05 rad); the seed of the human's own generator. So two envs reset with
-    the same seed give the same θ*, start and human noise draws (paired runs). θ̂ starts at
-    the mean of the bimodal prior's modes, (0.55, 1.0, 0.55), unless ``set_theta_hat`` is
-    called. ``reset(options={"theta_star": ..., "state": ...})`` overrides either draw (the
-    draws still happen, so pairing is kept).
+    (``HighwayTask.sample_episode_start``: human car at x ∈ [50, 100] m, robot car 15–40 m
+    ahead, both at 20–30 m/s, in the left lane within ±0.5 m (robot) / ±1 m (human) of its
+    centre, headings within ±0.02 / ±0.05 rad); the seed of the human's own generator. So two
+    envs reset with the same seed give the same θ*, start and human noise draws (paired runs).
+    θ̂ starts at the mean of the bimodal prior's modes, (0.55, 1.0, 0.55), unless
+    ``set_theta_hat`` is called. ``reset(options={"theta_star": ..., "state": ...})`` overrides
+    either draw (the draws still happen, so pairing is kept).
 
     ## Episode End
 
@@ -269,7 +269,7 @@ class HighwayEnv(AbstractEnv):
         self.done = False
         rng = self.np_random
         theta_star = self.task.prior.sample(rng, 1)[0]
-        x0 = self.task.sample_start(rng, 1)[0]
+        x0 = self.task.sample_episode_start(rng, 1)[0]
         human_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
         if "theta_star" in options:
             theta_star = _vector("theta_star", options["theta_star"], self.task.dim)
@@ -386,7 +386,7 @@ class HighwayEnv(AbstractEnv):
 
     # highway-env's hooks, kept meaningful for code that calls them
     def _reset(self) -> None:
-        self._build_scene(self.task.sample_start(self.np_random, 1)[0])
+        self._build_scene(self.task.sample_episode_start(self.np_random, 1)[0])
 
     def _reward(self, action: np.ndarray) -> float:
         return float(self.task.reward(self._read_state(), self.theta_star))

@@ -224,12 +224,59 @@ class HighwayTask(Task):
             out = np.broadcast_to(out, (*lead, 3)).copy()
         return out
 
-    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """Both cars in the left lane, the human behind by a random gap, random speeds.
+    def sample_episode_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Where an episode of the env starts: both cars in the left lane, the human behind.
 
-        Small lateral offsets (robot ±0.5 m, human ±1 m, inside the 4 m lane) and headings
-        (robot ±0.02 rad, human ±0.05 rad) make every network input vary across starts.
+        Gap ``start_gap`` (15–40 m), speeds ``start_speed`` (20–30 m/s), small lateral offsets
+        (robot ±0.5 m, human ±1 m, inside the 4 m lane) and headings (±0.02 / ±0.05 rad).
         """
+        return self._draw(
+            rng,
+            n,
+            self.start_gap,
+            (-0.5, 0.5),
+            (-1.0, 1.0),
+            (-0.02, 0.02),
+            (-0.05, 0.05),
+            self.start_speed,
+            self.start_speed,
+        )
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """States an interaction visits, for training ĝ (``learners.training``) and Task-level
+        simulation: broader than an episode's start (``sample_episode_start``).
+
+        The corrections move the human car far from where it started within 10 steps (the eq.
+        M6 teacher's car drifts by up to ±10 m sideways, 20–35 m/s, up to ±0.2 rad; the robot
+        policy moves the robot to the right lane), and a ĝ trained on start states alone
+        extrapolates badly there: its error grows again after a few corrections. So: human
+        −10 to 60 m behind (ahead after passing), robot y ∈ [−1, 5] m, human y ∈ [−6, 10] m,
+        speeds 15–35 m/s, headings ±0.1 (robot) / ±0.2 rad (human).
+        """
+        return self._draw(
+            rng,
+            n,
+            (-10.0, 60.0),
+            (-1.0, 5.0),
+            (-6.0, 10.0),
+            (-0.1, 0.1),
+            (-0.2, 0.2),
+            (15.0, 35.0),
+            (15.0, 35.0),
+        )
+
+    def _draw(
+        self,
+        rng: np.random.Generator,
+        n: int,
+        behind: tuple[float, float],
+        y_r: tuple[float, float],
+        y_h: tuple[float, float],
+        h_r: tuple[float, float],
+        h_h: tuple[float, float],
+        v_r: tuple[float, float],
+        v_h: tuple[float, float],
+    ) -> np.ndarray:
         u = rng.uniform(size=(n, 8))
 
         def lerp(col: int, lo: float, hi: float) -> np.ndarray:
@@ -237,13 +284,13 @@ class HighwayTask(Task):
 
         x = np.empty((n, 8))
         x[:, 4] = lerp(0, *self.start_x)
-        x[:, 0] = x[:, 4] + lerp(1, *self.start_gap)
-        x[:, 2] = lerp(2, *self.start_speed)
-        x[:, 6] = lerp(3, *self.start_speed)
-        x[:, 1] = lerp(4, -0.5, 0.5)
-        x[:, 5] = lerp(5, -1.0, 1.0)
-        x[:, 3] = lerp(6, -0.02, 0.02)
-        x[:, 7] = lerp(7, -0.05, 0.05)
+        x[:, 0] = x[:, 4] + lerp(1, *behind)
+        x[:, 2] = lerp(2, *v_r)
+        x[:, 6] = lerp(3, *v_h)
+        x[:, 1] = lerp(4, *y_r)
+        x[:, 5] = lerp(5, *y_h)
+        x[:, 3] = lerp(6, *h_r)
+        x[:, 7] = lerp(7, *h_h)
         return x
 
     def network_input(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
