@@ -13,6 +13,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task
 
@@ -22,6 +23,7 @@ START = np.array([0.20, 0.20, 0.60])
 ROBOT_MODES = np.array([[0.8, -0.8], [-0.8, 0.8]])
 WORKSPACE_LOW = np.array([0.0, -0.6, 0.0])
 WORKSPACE_HIGH = np.array([0.8, 0.4, 0.7])
+_PLANAR_MASK = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
 
 
 def _default_prior() -> Prior:
@@ -69,17 +71,36 @@ class RobotTask(Task):
         return -np.stack([d_plate, d_cup], axis=-1)
 
     def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning."""
+        """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning (0 at the kinks).
+
+        Written with few numpy calls because the planner calls it once per iteration.
+        """
         x = np.asarray(x, dtype=np.float64)
-        dp = np.zeros(x.shape)
-        dp[..., :2] = x[..., :2] - self.plate[:2]
-        dp /= np.maximum(np.linalg.norm(dp, axis=-1, keepdims=True), 1e-9)
-        dc = x - self.cup
-        dc /= np.maximum(np.linalg.norm(dc, axis=-1, keepdims=True), 1e-9)
-        return -np.stack([dp, dc], axis=-2)
+        objects = np.stack([self.plate, self.cup])  # row 0 is planar: its z is masked out
+        diff = (objects - x[..., None, :]) * _PLANAR_MASK  # (..., 2, 3) = −∂φ/∂x · distance
+        dist = np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
+        return diff / np.maximum(dist, 1e-12)[..., None]
 
     def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
         return np.clip(x + u_r + u_h, self.workspace_low, self.workspace_high)
+
+    def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """Plans maximising Σ_{t=1..T} θ·φ(x_t): (B, 2), (B, 3) -> (B, T+1, 3), T = plan_steps.
+
+        Per-axis step ≤ ``plan_step_bound``; waypoints stay inside the workspace box during the
+        optimisation (strol_gym.planning). Deterministic: starts are seeded internally.
+        """
+        return plan_linear_reward(
+            self.features,
+            self.feature_jacobian,
+            theta,
+            x0,
+            steps=self.plan_steps,
+            step_bound=self.plan_step_bound,
+            low=self.workspace_low,
+            high=self.workspace_high,
+            targets=np.stack([self.plate, self.cup]),
+        )
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         return rng.uniform(self.workspace_low, self.workspace_high, size=(n, 3))
