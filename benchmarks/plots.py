@@ -80,7 +80,8 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
                 s = stats.stars(t["p_holm"]) if t else ""
                 if s:
                     y = mean[i] + np.nan_to_num(sem[i]) + 0.03 * abs(top)
-                    ax.text(xs[i], y, s, ha="center", va="bottom", fontsize=9)
+                    color = "black" if t["mean_diff"] < 0 else "#b00000"
+                    ax.text(xs[i], y, s, ha="center", va="bottom", fontsize=9, color=color)
             ax.set_ylim(
                 min(0.0, np.nanmin(mean - np.nan_to_num(sem))), 1.15 * top if top > 0 else 1
             )
@@ -90,7 +91,11 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
             if c == 0:
                 ax.set_ylabel(f"{env_preset(env).env_id}\n{SHORT[metric]}", fontsize=9)
     ref = display(a.config.reference)
-    fig.suptitle(f"mean ± SEM; * {ref} vs that learner, paired t, Holm p<0.05", fontsize=9)
+    fig.suptitle(
+        f"mean ± SEM; * {ref} differs from that learner (paired t, Holm p<0.05): black = {ref} "
+        f"lower, red = {ref} higher",
+        fontsize=9,
+    )
     fig.tight_layout()
     return _save(fig, out, stem)
 

@@ -323,11 +323,12 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                     out.append(
                         f"  - {t['plain_language']}; Δ = {_num(t['mean_diff'])} "
                         f"[{_num(t['ci95_low'])}, {_num(t['ci95_high'])}], "
-                        f"d_z = {_num(t['effect_size'], 2)}, Wilcoxon {wil}"
+                        f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}"
                     )
         out.append("")
     if plots:
-        out += ["## Plots", ""] + [f"- `{p}`" for p in plots] + [""]
+        out += ["## Plots", ""] + [f"- ![{p.stem}]({p})" for p in plots if p.suffix == ".png"]
+        out.append("")
     return "\n".join(out)
 
 
@@ -346,7 +347,8 @@ def write_reports(rd: ResultsDir, *, plots: bool = True) -> tuple[Analysis, list
         from strol_gym.benchmarks import plots as plotting
 
         paths = plotting.make_plots(a, rd.path / "plots")
-    (rd.path / "summary.md").write_text(summary_markdown(a, rd.meta, paths))
+    rel = [p.relative_to(rd.path) for p in paths]
+    (rd.path / "summary.md").write_text(summary_markdown(a, rd.meta, rel))
     return a, paths
 
 
