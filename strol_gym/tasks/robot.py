@@ -21,8 +21,13 @@ PLATE = np.array([0.35, 0.10, 0.00])
 CUP = np.array([0.70, -0.45, 0.10])
 START = np.array([0.20, 0.20, 0.60])
 ROBOT_MODES = np.array([[0.8, -0.8], [-0.8, 0.8]])
-WORKSPACE_LOW = np.array([0.0, -0.6, 0.0])
-WORKSPACE_HIGH = np.array([0.8, 0.4, 0.7])
+# The box the end effector moves in. The authors' point robot used [0, 0.8] x [-0.6, 0.4] x
+# [0, 0.7]; a real Panda cannot reach all of that with its gripper pointing down (its far
+# corners are ~1 m from any base position, and points next to the base are inside its inner
+# dead zone). This box keeps the plate, the cup and the paper's start inside and is reachable
+# from the base position that strol_gym.envs.robot uses (docs/robot.md, docs/fidelity.md).
+WORKSPACE_LOW = np.array([0.15, -0.55, 0.0])
+WORKSPACE_HIGH = np.array([0.75, 0.35, 0.7])
 _PLANAR_MASK = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
 
 
