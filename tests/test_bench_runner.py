@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from strol_gym.benchmarks.config import paper_config
+from strol_gym.benchmarks.config import BenchConfig, paper_config
 from strol_gym.benchmarks.results import ResultsDir
 from strol_gym.benchmarks.runner import _Worker, run_benchmark
 
@@ -25,7 +25,7 @@ def _records(path):
     return out
 
 
-@pytest.mark.parametrize("env", ["highway"])
+@pytest.mark.parametrize("env", ["robot", "highway"])
 def test_learners_in_a_run_share_theta_star_start_and_noise(env):
     cfg = paper_config(
         [env], runs=3, learners=("gradient", GRADIENT_COPY, "one"), block=3, reference="gradient"
@@ -109,3 +109,21 @@ def test_resume_after_interruption_matches_uninterrupted(small_config, uninterru
     meta = json.loads((out / "meta.json").read_text())
     assert meta["status"] == "complete" and len(meta["sessions"]) == 2
     assert ResultsDir.load(out).missing_units() == []
+
+
+def test_strol_with_lambda_zero_reproduces_gradient_run_for_run():
+    """StROL with λ = 0 is Gradient's rule: on paired draws every number must coincide."""
+    cfg = paper_config(
+        ["robot"], runs=2, learners=("gradient", "strol"), block=2, reference="strol"
+    )
+    cfg = BenchConfig(cfg.experiments[:1], cfg.learners, "strol", 2, {"strol": {"lam": 0.0}})
+    worker = _Worker(cfg)
+    try:
+        recs = worker.run_unit(cfg.units()[0])
+    finally:
+        worker.close()
+    by = {(r["seed"], r["learner"]): r for r in recs}
+    for s in (0, 1):
+        g, st = by[(s, "gradient")], by[(s, "strol")]
+        for key in ("errors", "theta_hat", "regret", "first_correction", "x0", "theta_star"):
+            assert st[key] == g[key], key
