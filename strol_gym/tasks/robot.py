@@ -9,6 +9,7 @@ x' = clip(x + u_R + u_H, workspace), the kinematics that the MuJoCo env tracks w
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import ClassVar
 
 import numpy as np
@@ -69,11 +70,16 @@ class RobotTask(Task):
         # Both features are distances in metres across the same workspace: one scale.
         return np.ones(2)
 
+    @functools.cached_property
+    def _objects(self) -> np.ndarray:
+        """(2, 3): the plate (row 0, whose z is masked out: planar distance) and the cup."""
+        return np.stack([self.plate, self.cup])
+
     def features(self, x: np.ndarray) -> np.ndarray:
+        # Few numpy calls: the env, the humans' candidate search and the planner call this often.
         x = np.asarray(x, dtype=np.float64)
-        d_plate = np.linalg.norm(x[..., :2] - self.plate[:2], axis=-1)
-        d_cup = np.linalg.norm(x - self.cup, axis=-1)
-        return -np.stack([d_plate, d_cup], axis=-1)
+        diff = (self._objects - x[..., None, :]) * _PLANAR_MASK  # (..., 2, 3)
+        return -np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
 
     def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning (0 at the kinks).
@@ -81,13 +87,12 @@ class RobotTask(Task):
         Written with few numpy calls because the planner calls it once per iteration.
         """
         x = np.asarray(x, dtype=np.float64)
-        objects = np.stack([self.plate, self.cup])  # row 0 is planar: its z is masked out
-        diff = (objects - x[..., None, :]) * _PLANAR_MASK  # (..., 2, 3) = −∂φ/∂x · distance
+        diff = (self._objects - x[..., None, :]) * _PLANAR_MASK  # (..., 2, 3) = −∂φ/∂x · dist
         dist = np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
         return diff / np.maximum(dist, 1e-12)[..., None]
 
     def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
-        return np.clip(x + u_r + u_h, self.workspace_low, self.workspace_high)
+        return np.minimum(np.maximum(x + u_r + u_h, self.workspace_low), self.workspace_high)
 
     def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """Plans maximising Σ_{t=1..T} θ·φ(x_t): (B, 2), (B, 3) -> (B, T+1, 3), T = plan_steps.
