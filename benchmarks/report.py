@@ -26,7 +26,19 @@ METRIC_LABELS = {
 }
 DISPLAY = {"gradient": "Gradient", "one": "One", "mof": "MOF", "e2e": "e2e", "strol": "StROL"}
 
-SUMMARY_COLUMNS = ("env", "condition", "learner", "metric", "mean", "std", "sem", "n")
+SUMMARY_COLUMNS = (
+    "env",
+    "condition",
+    "learner",
+    "metric",
+    "mean",
+    "std",
+    "sem",
+    "n",
+    "median",
+    "q1",
+    "q3",
+)
 STATS_COLUMNS = (
     "env",
     "condition",
@@ -47,6 +59,7 @@ STATS_COLUMNS = (
     "wilcoxon_W",
     "wilcoxon_p_raw",
     "wilcoxon_p_holm",
+    "hodges_lehmann",
     "significant",
     "plain_language",
 )
@@ -185,50 +198,37 @@ def verdicts(a: Analysis) -> list[dict[str, Any]]:
     envs = list(dict.fromkeys(e.env for e in a.config.experiments))
     for env in envs:
         metric = env_preset(env).primary_metric
-        conds = [e.condition.name for e in a.config.experiments if e.env == env]
-        if "training" in conds:
-            tests = [a.test(env, "training", b, metric) for b in a.config.learners if b != "strol"]
-            tests = [t for t in tests if t is not None]
-            lower = [t for t in tests if t["significant"] and t["mean_diff"] < 0]
-            ok = bool(tests) and len(lower) == len(tests)
-            fails = [display(t["baseline"]) for t in tests if t not in lower]
-            out.append(
-                {
-                    "env": env,
-                    "hypothesis": "H1",
-                    "condition": "training",
-                    "metric": metric,
-                    "holds": ok,
-                    "detail": "StROL significantly lower than every baseline"
-                    if ok
-                    else f"not significantly lower than: {', '.join(fails)}",
-                }
-            )
-        for cond in conds:
-            if cond == "training" or cond not in CONDITION_NAMES:
+        for e in a.config.experiments:
+            cond = e.condition.name
+            if e.env != env or cond not in CONDITION_NAMES:
                 continue
             tests = [a.test(env, cond, b, metric) for b in a.config.learners if b != "strol"]
             tests = [t for t in tests if t is not None]
-            worse = [
-                display(t["baseline"]) for t in tests if t["significant"] and t["mean_diff"] > 0
-            ]
-            better = [
-                display(t["baseline"]) for t in tests if t["significant"] and t["mean_diff"] < 0
-            ]
-            detail = (
-                f"better than {', '.join(better) or 'none'}; "
-                f"worse than {', '.join(worse) or 'none'}"
-            )
-            out.append(
-                {
-                    "env": env,
-                    "hypothesis": "H2",
-                    "condition": cond,
-                    "metric": metric,
-                    "holds": not worse,
-                    "detail": detail,
-                }
-            )
+            if not tests:
+                continue
+            v: dict[str, Any] = {"env": env, "condition": cond, "metric": metric}
+            v["hypothesis"] = "H1" if cond == "training" else "H2"
+            for test in ("t", "wilcoxon"):
+                dirs = {display(t["baseline"]): stats.direction(t, test) for t in tests}
+                better = [b for b, d in dirs.items() if d < 0]
+                worse = [b for b, d in dirs.items() if d > 0]
+                if v["hypothesis"] == "H1":
+                    holds = len(better) == len(dirs)
+                    detail = (
+                        "StROL significantly lower than every baseline"
+                        if holds
+                        else "not significantly lower than "
+                        + ", ".join(b for b in dirs if b not in better)
+                    )
+                else:
+                    holds = not worse
+                    detail = (
+                        f"better than {', '.join(better) or 'none'}; "
+                        f"worse than {', '.join(worse) or 'none'}"
+                    )
+                key = "" if test == "t" else "_wilcoxon"
+                v["holds" + key], v["detail" + key] = holds, detail
+            out.append(v)
     return out
 
 
@@ -237,6 +237,23 @@ def _num(x: float, digits: int = 3) -> str:
     if x is None or not math.isfinite(x):
         return "n/a"
     return f"{x:.{digits}f}" if abs(x) >= 10**-digits or x == 0 else f"{x:.1e}"
+
+
+def median_table(a: Analysis, env: str, metric: str) -> list[str]:
+    """Markdown table of medians [Q1, Q3] (heavy-tailed metrics such as regret)."""
+    learners = list(a.config.learners)
+    conds = [e.condition.name for e in a.config.experiments if e.env == env]
+    lines = ["| condition | " + " | ".join(display(lr) for lr in learners) + " |"]
+    lines.append("|---|" + "---|" * len(learners))
+    for cond in conds:
+        cells = []
+        for lr in learners:
+            c = a.cell(env, cond, lr, metric)
+            cells.append(
+                "n/a" if c is None else f"{_num(c['median'])} [{_num(c['q1'])}, {_num(c['q3'])}]"
+            )
+        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
@@ -279,9 +296,11 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
         out += ["## Hypotheses", ""]
         for v in a.verdicts:
             word = "HOLDS" if v["holds"] else "FAILS"
+            wil = "holds" if v["holds_wilcoxon"] else "fails"
             out.append(
                 f"- **{v['hypothesis']} {v['env']} / {v['condition']} ({v['metric']}): "
-                f"{word}** — {v['detail']}"
+                f"{word}** (paired t, Holm) — {v['detail']}. Wilcoxon signed-rank (Holm): "
+                f"{wil} — {v['detail_wilcoxon']}"
             )
         out.append("")
     for env in envs:
@@ -301,6 +320,10 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
             out += [f"### {METRIC_LABELS[metric]}{tag}", ""]
             out += metric_table(a, env, metric)
             out.append("")
+            if metric == primary:
+                out += [f"Median [Q1, Q3] of {metric}:", ""]
+                out += median_table(a, env, metric)
+                out.append("")
         out += [f"### Tests on {primary}", ""]
         for e in cfg.experiments:
             if e.env != env:

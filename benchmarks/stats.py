@@ -24,18 +24,23 @@ ALPHA = 0.05
 
 
 def describe(values: np.ndarray) -> dict[str, float]:
-    """Mean, sample std (ddof = 1), SEM and n of the finite values."""
+    """Mean, sample std (ddof = 1), SEM, n, and median with quartiles, of the finite values."""
     v = np.asarray(values, dtype=np.float64)
     v = v[np.isfinite(v)]
     n = len(v)
+    nan = math.nan
     if n == 0:
-        return {"mean": math.nan, "std": math.nan, "sem": math.nan, "n": 0}
-    std = float(v.std(ddof=1)) if n > 1 else math.nan
+        return {"mean": nan, "std": nan, "sem": nan, "n": 0, "median": nan, "q1": nan, "q3": nan}
+    std = float(v.std(ddof=1)) if n > 1 else nan
+    q1, med, q3 = (float(q) for q in np.percentile(v, [25, 50, 75]))
     return {
         "mean": float(v.mean()),
         "std": std,
-        "sem": std / math.sqrt(n) if n > 1 else math.nan,
+        "sem": std / math.sqrt(n) if n > 1 else nan,
         "n": n,
+        "median": med,
+        "q1": q1,
+        "q3": q3,
     }
 
 
@@ -140,6 +145,8 @@ class PairedTest:
     wilcoxon_w: float
     p_wilcoxon: float
     d_z: float
+    hl_diff: float
+    """Hodges–Lehmann estimate (median of the Walsh averages): the Wilcoxon test's location."""
 
 
 def paired_test(ref: np.ndarray, base: np.ndarray) -> PairedTest:
@@ -153,14 +160,14 @@ def paired_test(ref: np.ndarray, base: np.ndarray) -> PairedTest:
     n = len(d)
     nan = math.nan
     if n < 2:
-        return PairedTest(n, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan)
+        return PairedTest(n, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan)
     mean, sd = float(d.mean()), float(d.std(ddof=1))
     df = n - 1.0
     if sd == 0.0:
         if mean == 0.0:
-            return PairedTest(n, 0.0, 0.0, 0.0, df, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+            return PairedTest(n, 0.0, 0.0, 0.0, df, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
         inf = math.copysign(math.inf, mean)
-        return PairedTest(n, mean, 0.0, inf, df, 0.0, mean, mean, 0.0, nan, inf)
+        return PairedTest(n, mean, 0.0, inf, df, 0.0, mean, mean, 0.0, nan, inf, mean)
     se = sd / math.sqrt(n)
     t = mean / se
     p_t = float(2.0 * sps.t.sf(abs(t), df))
@@ -170,7 +177,15 @@ def paired_test(ref: np.ndarray, base: np.ndarray) -> PairedTest:
     else:
         res = sps.wilcoxon(d, zero_method="wilcox", alternative="two-sided")
         w, p_w = float(res.statistic), float(res.pvalue)
-    return PairedTest(n, mean, sd, t, df, p_t, mean - half, mean + half, w, p_w, mean / sd)
+    hl = hodges_lehmann(d)
+    return PairedTest(n, mean, sd, t, df, p_t, mean - half, mean + half, w, p_w, mean / sd, hl)
+
+
+def hodges_lehmann(d: np.ndarray) -> float:
+    """Median of the Walsh averages (d_i + d_j)/2, i ≤ j: the one-sample HL location estimate."""
+    d = np.asarray(d, dtype=np.float64)
+    i, j = np.triu_indices(len(d))
+    return float(np.median(0.5 * (d[i] + d[j])))
 
 
 def format_p(p: float) -> str:
@@ -229,10 +244,27 @@ def compare_to_reference(
                 "wilcoxon_W": t.wilcoxon_w,
                 "wilcoxon_p_raw": t.p_wilcoxon,
                 "wilcoxon_p_holm": float(pwh),
+                "hodges_lehmann": t.hl_diff,
                 "significant": bool(math.isfinite(ph) and ph < ALPHA),
             }
         )
     return rows
+
+
+def direction(row: dict, test: str = "t", alpha: float = ALPHA) -> int:
+    """−1 if the reference is significantly lower than the baseline, +1 if higher, 0 if neither.
+
+    ``test="t"``: Holm-corrected paired t and the mean difference; ``"wilcoxon"``:
+    Holm-corrected signed-rank test and the Hodges–Lehmann estimate.
+    """
+    p, est = (
+        (row["p_holm"], row["mean_diff"])
+        if test == "t"
+        else (row["wilcoxon_p_holm"], row["hodges_lehmann"])
+    )
+    if not (math.isfinite(p) and p < alpha and math.isfinite(est)) or est == 0:
+        return 0
+    return -1 if est < 0 else 1
 
 
 def stars(p: float) -> str:
