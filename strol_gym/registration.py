@@ -5,7 +5,8 @@ from __future__ import annotations
 import gymnasium as gym
 
 ENV_SPECS: dict[str, dict] = {
-    "StROL-Robot-v0": {"entry_point": "strol_gym.envs.robot:RobotEnv", "max_episode_steps": None},
+    # Robot: gymnasium's TimeLimit ends episodes (10 steps unless make(..., max_episode_steps=N)).
+    "StROL-Robot-v0": {"entry_point": "strol_gym.envs.robot:RobotEnv", "max_episode_steps": 10},
     "StROL-Highway-v0": {
         "entry_point": "strol_gym.envs.highway:HighwayEnv",
         "max_episode_steps": None,
@@ -17,4 +18,8 @@ def register_envs() -> None:
     """Register every env id once; a second call (or a re-import) changes nothing."""
     for env_id, spec in ENV_SPECS.items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=spec["entry_point"])
+            gym.register(
+                id=env_id,
+                entry_point=spec["entry_point"],
+                max_episode_steps=spec["max_episode_steps"],
+            )

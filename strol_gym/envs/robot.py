@@ -399,7 +399,6 @@ class RobotEnv(gym.Env):
       included); zeros when the human does not correct (and after reset).
     - ``"theta_hat"`` (2,): the robot's current estimate θ̂ (see ``set_theta_hat``).
     - ``"phi"`` (2,): φ(x), the features of the state.
-    - ``"time"`` (1,): the fraction of the episode elapsed, steps / max_episode_steps.
 
     ## Rewards
 
@@ -420,7 +419,9 @@ class RobotEnv(gym.Env):
 
     ## Episode End
 
-    Never terminates. Truncated after ``max_episode_steps`` steps (default 10).
+    Never terminates. Truncated after 10 steps: ``gymnasium.make`` wraps the env in a
+    ``TimeLimit`` (``gymnasium.make("StROL-Robot-v0", max_episode_steps=N)`` changes it). An
+    env constructed directly truncates only if given ``max_episode_steps``.
 
     ## Arguments
 
@@ -433,7 +434,9 @@ class RobotEnv(gym.Env):
       default "nominal" = the eq. M6 teacher ``strol_gym.humans.NominalHuman``).
     - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
     - ``n_corrections`` (int ≥ 0, default 5): steps during which the human corrects.
-    - ``max_episode_steps`` (int ≥ 1, default 10).
+    - ``max_episode_steps`` (int ≥ 1 or None): through ``gymnasium.make`` this is gymnasium's
+      own TimeLimit argument (registered default 10); given to ``RobotEnv`` directly, the env
+      truncates itself after that many steps (default None: never).
     - ``render_mode`` (None | "human" | "rgb_array"); ``width``, ``height`` (int in
       [16, 4096], default 480 x 360). Headless "rgb_array" uses ``MUJOCO_GL=egl`` (set when
       this module imports MuJoCo first and there is no display) or osmesa; "human" needs a
@@ -469,7 +472,7 @@ class RobotEnv(gym.Env):
         human: str | HumanFactory = "nominal",
         beta: float = 50.0,
         n_corrections: int = 5,
-        max_episode_steps: int = 10,
+        max_episode_steps: int | None = None,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -500,7 +503,9 @@ class RobotEnv(gym.Env):
             raise ValueError(f"beta must be a finite number >= 0, got {beta}")
         self.beta = beta
         self.n_corrections = _int_arg("n_corrections", n_corrections, 0)
-        self.max_episode_steps = _int_arg("max_episode_steps", max_episode_steps, 1)
+        if max_episode_steps is not None:
+            max_episode_steps = _int_arg("max_episode_steps", max_episode_steps, 1)
+        self.max_episode_steps = max_episode_steps
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(
                 f"render_mode must be None or one of {self.metadata['render_modes']}, "
@@ -524,7 +529,6 @@ class RobotEnv(gym.Env):
                 "correction": spaces.Box(-np.inf, np.inf, shape=(a,), dtype=f32),
                 "theta_hat": spaces.Box(-np.inf, np.inf, shape=(d,), dtype=f32),
                 "phi": spaces.Box(-np.inf, 0.0, shape=(d,), dtype=f32),
-                "time": spaces.Box(0.0, 1.0, shape=(1,), dtype=f32),
             }
         )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(a,), dtype=f32)
@@ -638,7 +642,7 @@ class RobotEnv(gym.Env):
         self._x = self._ik.ee
         phi = self.task.features(self._x)
         reward = float(phi @ self.theta_star)
-        truncated = self.steps >= self.max_episode_steps
+        truncated = self.max_episode_steps is not None and self.steps >= self.max_episode_steps
         obs = self._obs(u_h, phi)
         info = self._make_info(phi, u_h, u_r, is_correction, target, ik_error)
         if self.render_mode == "human":
@@ -651,7 +655,6 @@ class RobotEnv(gym.Env):
             "correction": u_h.astype(np.float32),
             "theta_hat": self.theta_hat.astype(np.float32),
             "phi": phi.astype(np.float32),
-            "time": np.array([self.steps / self.max_episode_steps], dtype=np.float32),
         }
 
     def _make_info(
