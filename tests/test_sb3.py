@@ -2,17 +2,9 @@
 
 from __future__ import annotations
 
-import importlib.util
-
 import gymnasium as gym
 import numpy as np
-import pytest
 from strol_gym.wrappers import OnlineLearningWrapper
-
-pytestmark = pytest.mark.skipif(
-    importlib.util.find_spec("strol_gym.envs.robot") is None,
-    reason="StROL-Robot-v0 (strol_gym.envs.robot) not built yet",
-)
 
 
 def test_ppo_trains_on_wrapped_robot_env():

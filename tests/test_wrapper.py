@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import pickle
 from functools import partial
 from typing import ClassVar
@@ -19,7 +18,6 @@ from strol_gym import NominalHuman, RobotTask
 from strol_gym.learners.rules import GradientLearner
 
 CONTRACT_ID = "StROLTest-Contract-v0"
-HAS_ROBOT = importlib.util.find_spec("strol_gym.envs.robot") is not None
 
 
 class ContractEnv(gym.Env):
@@ -175,13 +173,9 @@ def test_wrapper_rejects_foreign_envs():
         OnlineLearningWrapper(gym.make(CONTRACT_ID), "gradient").step(np.zeros(3, np.float32))
 
 
-# ------------------------------------------------------------------ the real Robot env
-robot = pytest.mark.skipif(
-    not HAS_ROBOT, reason="StROL-Robot-v0 (strol_gym.envs.robot) not built yet"
-)
+# ------------------------------------------------------------------ the real envs
 
 
-@robot
 @pytest.mark.parametrize("name", ["gradient", "strol"])
 def test_robot_env_through_make(name):
     env = OnlineLearningWrapper(gym.make("StROL-Robot-v0", max_episode_steps=8), name)
@@ -189,10 +183,11 @@ def test_robot_env_through_make(name):
     assert np.isfinite(info["error"]) and np.isfinite(info["regret"])
     assert env.observation_space.contains(obs)
     np.testing.assert_allclose(obs["theta_hat"], env.learner.theta, rtol=1e-6)
+    np.testing.assert_array_equal(env.unwrapped.theta_hat, env.learner.theta)  # the human's θ̂
+    assert not np.array_equal(env.learner.theta, env.unwrapped.task.prior_modes.mean(0))
     env.close()
 
 
-@robot
 def test_robot_env_through_make_vec_and_pickle():
     venv = gym.make_vec(
         "StROL-Robot-v0",
@@ -214,10 +209,6 @@ def test_robot_env_through_make_vec_and_pickle():
     assert strol_gym.make_learner("gradient", task=env.unwrapped.task).task is env.unwrapped.task
 
 
-HAS_HIGHWAY = importlib.util.find_spec("strol_gym.envs.highway") is not None
-
-
-@pytest.mark.skipif(not HAS_HIGHWAY, reason="StROL-Highway-v0 not built yet")
 def test_highway_env_through_make():
     env = OnlineLearningWrapper(gym.make("StROL-Highway-v0"), "mof")
     _, _, info = _episode(env, 0)
