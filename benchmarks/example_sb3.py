@@ -14,6 +14,7 @@ import argparse
 
 import gymnasium as gym
 import numpy as np
+import torch
 from stable_baselines3 import PPO
 from strol_gym.wrappers import OnlineLearningWrapper
 
@@ -33,6 +34,8 @@ def main() -> None:
     parser.add_argument("--eval-episodes", type=int, default=5)
     args = parser.parse_args()
 
+    # Small MLPs on CPU: one torch thread is faster than several (and avoids oversubscription).
+    torch.set_num_threads(1)
     env = make_env(args.learner, args.belief_reward, args.episode_steps)
     model = PPO("MultiInputPolicy", env, n_steps=256, batch_size=64, seed=args.seed, verbose=0)
     model.learn(total_timesteps=args.steps, progress_bar=False)
