@@ -95,6 +95,17 @@ def write_json_atomic(path: Path, obj: Any) -> None:
     os.replace(tmp, path)
 
 
+def _explain(diff: str) -> str:
+    """Plain words for the non-obvious parts of a config difference."""
+    if diff.startswith("extra.code:"):
+        return "the strol-gym code (tasks, envs, humans, learners, weights, runner) has changed"
+    if diff.startswith("extra.learners"):
+        return f"a learner's class, settings or weights changed ({diff})"
+    if diff.startswith("extra.numeric_packages"):
+        return f"a numeric package version changed ({diff})"
+    return diff
+
+
 def _now() -> str:
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
@@ -146,6 +157,7 @@ class ResultsDir:
                 if meta.get("config_hash") != chash:
                     diffs = diff_configs(meta.get("config", {}), config.to_dict())
                     diffs += diff_configs(meta.get("extra", {}), extra or {}, "extra")
+                    diffs = [_explain(d) for d in diffs]
                     detail = "; ".join(diffs[:8]) or "config hash differs"
                     raise ResultsError(
                         f"{path} holds results of a different configuration ({detail}). "

@@ -22,6 +22,7 @@ import hashlib
 import importlib
 import multiprocessing as mp
 import os
+import signal
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -53,6 +54,39 @@ def resolve_learner(spec: str, task: Any, **kwargs: Any) -> Any:
         f"unknown learner {spec!r}; known learners: {', '.join(list_learners())}, "
         "or 'module:attr' naming a learner factory"
     )
+
+
+CODE_SUFFIXES = (".py", ".xml", ".npz", ".pt", ".json", ".stl", ".obj")
+
+
+def code_fingerprint() -> str:
+    """SHA-256 of the code and data that produce records: the strol_gym package (tasks, envs,
+    humans, learners, weights, assets), its wrappers and this runner.
+
+    Part of the config hash, so a results folder is never resumed with other code: a resumed
+    run would otherwise mix records from two versions. Report-only modules are left out, so
+    re-rendering with newer tables or plots still works.
+    """
+    import strol_gym.wrappers
+
+    import strol_gym
+
+    h = hashlib.sha256()
+    roots = [Path(strol_gym.__file__).parent, Path(strol_gym.wrappers.__file__).parent]
+    files: list[tuple[str, Path]] = []
+    for root in roots:
+        for f in root.rglob("*"):
+            if f.is_file() and f.suffix in CODE_SUFFIXES and "__pycache__" not in f.parts:
+                files.append((f"{root.name}/{f.relative_to(root).as_posix()}", f))
+    here = Path(__file__).resolve().parent
+    for name in ("runner.py", "config.py", "conditions.py"):
+        files.append((f"benchmarks/{name}", here / name))
+    for rel, f in sorted(files):
+        h.update(rel.encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+NUMERIC_PACKAGES = ("numpy", "scipy", "torch", "gymnasium", "mujoco", "highway-env")
 
 
 def learner_fingerprint(learner: Any) -> dict[str, Any]:
@@ -247,6 +281,8 @@ _WORKER: _Worker | None = None
 
 def _init_worker(config_dict: dict) -> None:
     global _WORKER
+    # Ctrl-C is the parent's to handle: it stops the pool; finished units are already stored.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _limit_threads()
     _WORKER = _Worker(BenchConfig.from_dict(config_dict))
 
@@ -329,8 +365,15 @@ def run_benchmark(
     """
     if int(jobs) < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
-    fingerprints = check_learners(config)
-    rd = ResultsDir.open(out, config, extra={"learners": fingerprints}, force=force)
+    from strol_gym.benchmarks.results import package_versions
+
+    versions = package_versions()
+    extra = {
+        "learners": check_learners(config),
+        "code": code_fingerprint(),
+        "numeric_packages": {k: versions.get(k) for k in NUMERIC_PACKAGES},
+    }
+    rd = ResultsDir.open(out, config, extra=extra, force=force)
     todo = rd.missing_units()
     started = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     t0 = time.perf_counter()
