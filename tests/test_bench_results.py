@@ -139,3 +139,12 @@ def test_tables_and_summary(tmp_path):
     with open(tmp_path / "r" / "curves.csv") as f:
         assert len(list(csv.DictReader(f))) == 4 * 6 * 3 * 2
     assert analyse(rd.config, rd.read_records()).summary == a.summary
+
+
+def test_changed_code_or_weights_block_resume(tmp_path):
+    ResultsDir.open(tmp_path / "r", _config(), extra={"code": "aaa", "learners": {"w": 1}})
+    with pytest.raises(ResultsError, match=r"strol-gym code .* has changed"):
+        ResultsDir.open(tmp_path / "r", _config(), extra={"code": "bbb", "learners": {"w": 1}})
+    with pytest.raises(ResultsError, match="learner's class, settings or weights changed"):
+        ResultsDir.open(tmp_path / "r", _config(), extra={"code": "aaa", "learners": {"w": 2}})
+    ResultsDir.open(tmp_path / "r", _config(), extra={"code": "aaa", "learners": {"w": 1}})
