@@ -58,7 +58,7 @@ class MOFLearner(LinearRuleLearner):
     contain u_H when noise pushed u_H past a_max), plus u_H itself, so score ≤ 1. w ranges
     over ``n_hypotheses`` fixed unit directions, the ±axes and the direction of g(x, u_H, u_R).
     The input is accepted when score ≥ ``threshold`` (default 0.9: on the Robot task it accepts
-    ~98 % of noise-free eq. M6 corrections, ~85 % at σ = 0.25 and ~45 % of uniformly random
+    ~99 % of noise-free eq. M6 corrections, ~85 % at σ = 0.25 and ~45 % of uniformly random
     actions).
 
     The score is scale free: a small correction that moves the features the way some θ wants
