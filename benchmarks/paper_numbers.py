@@ -1,0 +1,93 @@
+"""The numbers the authors report (DESIGN.md; mean ± std), to set beside ours. A reference to
+compare against, never a target: they come from the authors' released code, which differs from
+the paper and from us (unbounded ĝ, greedy evaluation human, unpaired runs; docs/fidelity.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from strol_gym.benchmarks.report import Analysis, display
+
+PAPER: dict[tuple[str, str], dict[str, dict[str, tuple[float, float]]]] = {
+    ("robot", "regret"): {
+        "training": {
+            "gradient": (0.18, 0.37),
+            "one": (0.20, 0.38),
+            "mof": (0.12, 0.29),
+            "e2e": (3.69, 0.89),
+            "strol": (0.001, 0.004),
+        },
+        "clean": {
+            "gradient": (0.10, 0.26),
+            "one": (0.14, 0.33),
+            "mof": (0.06, 0.18),
+            "e2e": (3.86, 0.95),
+            "strol": (0.01, 0.08),
+        },
+        "noisy-biased": {
+            "gradient": (0.77, 0.84),
+            "one": (0.44, 0.68),
+            "mof": (0.47, 0.59),
+            "e2e": (3.25, 1.36),
+            "strol": (0.16, 0.83),
+        },
+        "uniform-prior": {
+            "gradient": (0.17, 0.47),
+            "one": (0.18, 0.50),
+            "mof": (0.18, 0.46),
+            "e2e": (1.12, 1.48),
+            "strol": (0.12, 0.34),
+        },
+    },
+    ("highway", "error"): {
+        "training": {
+            "gradient": (0.59, 0.36),
+            "one": (0.51, 0.37),
+            "mof": (0.58, 0.36),
+            "e2e": (0.48, 0.08),
+            "strol": (0.31, 0.06),
+        },
+        "clean": {
+            "gradient": (0.55, 0.36),
+            "one": (0.53, 0.35),
+            "mof": (0.56, 0.37),
+            "e2e": (0.48, 0.08),
+            "strol": (0.30, 0.08),
+        },
+        "noisy-biased": {
+            "gradient": (1.18, 0.48),
+            "one": (1.18, 0.41),
+            "mof": (1.08, 0.48),
+            "e2e": (1.18, 0.60),
+            "strol": (1.09, 0.60),
+        },
+        "uniform-prior": {
+            "gradient": (1.08, 0.43),
+            "one": (1.10, 0.45),
+            "mof": (1.02, 0.42),
+            "e2e": (0.98, 0.40),
+            "strol": (1.02, 0.42),
+        },
+    },
+}
+
+
+def side_by_side(a: Analysis, env: str, metric: str, learners: Sequence[str]) -> list[str]:
+    """Markdown: rows condition × source (ours / paper), columns learners, mean ± std."""
+    paper = PAPER.get((env, metric), {})
+    lines = ["| condition | source | " + " | ".join(display(lr) for lr in learners) + " |"]
+    lines.append("|---|---|" + "---|" * len(learners))
+    for cond in [e.condition.name for e in a.config.experiments if e.env == env]:
+        ours = []
+        for lr in learners:
+            c = a.cell(env, cond, lr, metric)
+            t = a.test(env, cond, lr, metric)
+            star = ("*" if t["significant"] else "") if t else ""
+            ours.append("n/a" if c is None else f"{c['mean']:.3f} ± {c['std']:.3f}{star}")
+        lines.append(f"| {cond} | ours | " + " | ".join(ours) + " |")
+        if cond in paper:
+            ref = [paper[cond].get(lr) for lr in learners]
+            cells = ["—" if r is None else f"{r[0]:g} ± {r[1]:g}" for r in ref]
+            lines.append(f"| {cond} | paper | " + " | ".join(cells) + " |")
+    return lines
