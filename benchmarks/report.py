@@ -324,6 +324,16 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                 out += [f"Median [Q1, Q3] of {metric}:", ""]
                 out += median_table(a, env, metric)
                 out.append("")
+        from strol_gym.benchmarks.paper_numbers import PAPER, side_by_side
+
+        if (env, primary) in PAPER and set(cfg.learners) >= {"gradient", "strol"}:
+            out += [
+                f"### {primary} beside the authors' reported numbers (DESIGN.md; their released "
+                "code, not a target)",
+                "",
+                *side_by_side(a, env, primary, cfg.learners),
+                "",
+            ]
         out += [f"### Tests on {primary}", ""]
         for e in cfg.experiments:
             if e.env != env:
