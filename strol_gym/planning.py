@@ -50,6 +50,23 @@ def straight_line_starts(x0: np.ndarray, targets: np.ndarray, steps: int, bound:
     return np.diff(reach, axis=2, prepend=0.0)
 
 
+def _positions(x0: np.ndarray, n_starts: int, steps: int) -> np.ndarray:
+    """A (B, S, T+1, s) plan buffer whose row 0 is x0 (it never changes)."""
+    pos = np.empty((x0.shape[0], n_starts, steps + 1, x0.shape[1]))
+    pos[..., 0, :] = x0[:, None, :]
+    return pos
+
+
+def _project(pos: np.ndarray, delta: np.ndarray, bound: float, lo: np.ndarray, hi: np.ndarray):
+    """Write the feasible waypoints for raw increments ``delta`` into ``pos``; return the
+    feasible increments (see the module docstring)."""
+    way = pos[..., 1:, :]
+    np.cumsum(np.minimum(np.maximum(delta, -bound), bound), axis=-2, out=way)
+    way += pos[..., :1, :]
+    np.minimum(np.maximum(way, lo, out=way), hi, out=way)
+    return way - pos[..., :-1, :]
+
+
 def plan_linear_reward(
     features: FeatureFn,
     jacobian: JacobianFn,
@@ -61,15 +78,20 @@ def plan_linear_reward(
     low: np.ndarray,
     high: np.ndarray,
     targets: np.ndarray | None = None,
+    away: bool = True,
     n_random: int = 12,
     n_iters: int = 60,
     lr: float = 0.5,
+    prune_after: int = 20,
+    keep: int = 4,
 ) -> np.ndarray:
     """Plans maximising Σ_{t=1..T} θ·φ(x_t) from x0: theta (B, d), x0 (B, s) -> (B, T+1, s).
 
-    Starts: the zero plan, a straight line towards and one away from each of ``targets``
-    (k, s) (points worth heading to, e.g. objects), and ``n_random`` seeded random plans.
-    ``lr`` is the first Adam step as a fraction of ``step_bound``. Row 0 of each plan is x0.
+    Starts: the zero plan, a straight line towards (and, if ``away``, one away from) each of
+    ``targets`` (k, s) (points worth heading to, e.g. objects), and ``n_random`` seeded random
+    plans.
+    ``lr`` is the first Adam step as a fraction of ``step_bound``. After ``prune_after``
+    iterations only the ``keep`` best starts per row go on. Row 0 of each plan is x0.
     A start outside the box is allowed: the box is widened per row to contain it, so that the
     plan's steps stay bounded.
     """
@@ -90,39 +112,47 @@ def plan_linear_reward(
     starts = [np.zeros((b, 1, steps, s))]
     if targets is not None and len(targets):
         toward = straight_line_starts(x0, np.atleast_2d(targets), steps, step_bound)
-        starts += [toward, -toward]
+        starts += [toward, -toward] if away else [toward]
     if n_random:
         rand = np.random.default_rng(PLANNER_SEED).uniform(-1, 1, size=(n_random, steps, s))
         starts.append(np.broadcast_to(step_bound * rand, (b, n_random, steps, s)))
     delta = np.concatenate(starts, axis=1)  # (B, S, T, s)
 
-    # pos[..., 0, :] is x0 and never changes; pos[..., 1:, :] are the waypoints.
-    pos = np.empty((*delta.shape[:2], steps + 1, s))
-    pos[..., 0, :] = x0[:, None, :]
-    x0b = pos[..., :1, :]
-    way = pos[..., 1:, :]
-
-    def project(d: np.ndarray) -> np.ndarray:
-        np.cumsum(np.minimum(np.maximum(d, -step_bound), step_bound), axis=-2, out=way)
-        np.add(way, x0b, out=way)
-        np.minimum(np.maximum(way, lo, out=way), hi, out=way)
-        return way - pos[..., :-1, :]
-
-    delta = project(delta)
+    th_row = theta[:, None, None, :]
     th = theta[:, None, None, None, :]  # (B, 1, 1, 1, d) @ jacobians (B, S, T, d, s)
     # ∂/∂Δ_t = Σ_{τ≥t} ∂R/∂x_τ: a reverse cumulative sum, as one matmul with a triangle.
     upper = np.triu(np.ones((steps, steps)))
+
+    def value_of(way: np.ndarray) -> np.ndarray:
+        return np.sum(features(way) * th_row, axis=(-2, -1))  # (B, S)
+
+    pos = _positions(x0, delta.shape[1], steps)
+    delta = _project(pos, delta, step_bound, lo, hi)
+    initial = pos.copy()  # ascent is not monotone: a start can beat its own end point
+    initial_value = value_of(initial[..., 1:, :])
     m = np.zeros_like(delta)
     v = np.zeros_like(delta)
     for k in range(n_iters):
-        grad = upper @ np.matmul(th, jacobian(way))[..., 0, :]  # (B, S, T, s)
+        if k == prune_after and delta.shape[1] > keep:
+            # Continue with the most promising starts only: most of the cost is in the starts.
+            score = np.maximum(value_of(pos[..., 1:, :]), initial_value)
+            best = np.argsort(-score, axis=1, kind="stable")[:, :keep]
+            rows = np.arange(b)[:, None]
+            delta, m, v = delta[rows, best], m[rows, best], v[rows, best]
+            initial, initial_value = initial[rows, best], initial_value[rows, best]
+            pos = _positions(x0, keep, steps)
+            delta = _project(pos, delta, step_bound, lo, hi)
+        grad = upper @ np.matmul(th, jacobian(pos[..., 1:, :]))[..., 0, :]  # (B, S, T, s)
         m *= _BETA1
         m += (1 - _BETA1) * grad
         v *= _BETA2
         v += (1 - _BETA2) * grad * grad
         c1, c2 = 1 - _BETA1 ** (k + 1), 1 - _BETA2 ** (k + 1)
         step = step_bound * lr * (1.0 - k / n_iters) / c1
-        delta = project(delta + step * m / (np.sqrt(v / c2) + _EPS))
+        delta = _project(pos, delta + step * m / (np.sqrt(v / c2) + _EPS), step_bound, lo, hi)
 
-    value = np.sum(features(way) * theta[:, None, None, :], axis=(-2, -1))  # (B, S)
+    value = value_of(pos[..., 1:, :])
+    worse = initial_value > value
+    pos[worse] = initial[worse]
+    value[worse] = initial_value[worse]
     return pos[np.arange(b), np.argmax(value, axis=1)]

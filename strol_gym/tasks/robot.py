@@ -109,8 +109,20 @@ class RobotTask(Task):
             step_bound=self.plan_step_bound,
             low=self.workspace_low,
             high=self.workspace_high,
-            targets=np.stack([self.plate, self.cup]),
+            targets=self._plan_targets,
+            away=False,
+            n_random=8,
         )
+
+    @functools.cached_property
+    def _plan_targets(self) -> np.ndarray:
+        """Where the planner's straight-line starts head: the cup, the plate at the table and
+        at the box's top (its feature ignores height), and the box's 8 corners (the far points
+        that "stay away" weights want). Without them the ascent can settle in a worse corner."""
+        lo, hi = self.workspace_low, self.workspace_high
+        plate_top = np.array([*self.plate[:2], hi[2]])
+        corners = np.array([[(lo, hi)[(i >> k) & 1][k] for k in range(3)] for i in range(8)])
+        return np.vstack([self.plate, plate_top, self.cup, corners])
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         return rng.uniform(self.workspace_low, self.workspace_high, size=(n, 3))
