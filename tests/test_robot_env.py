@@ -388,3 +388,27 @@ def test_prior_argument_reaches_theta_star():
     env = make(prior="uniform")
     draws = np.array([env.reset(seed=s)[1]["theta_star"] for s in range(30)])
     assert (np.abs(draws) <= 1).all() and draws.std() > 0.3
+
+
+def test_a_task_with_another_box_builds_its_own_seed_table():
+    task = RobotTask(
+        workspace_low=np.array([0.2, -0.5, 0.05]), workspace_high=np.array([0.7, 0.3, 0.6])
+    )
+    env = RobotEnv(task=task, n_corrections=0)
+    obs, _ = env.reset(seed=0)
+    assert (obs["state"] >= task.workspace_low - 1e-3).all()
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        *_, info = env.step(rng.uniform(-1, 1, 3))
+        assert info["ik_error"] < 1e-3
+        assert (info["target"] <= task.workspace_high).all()
+
+
+def test_pickle_after_rendering():
+    env = make(render_mode="rgb_array", width=64, height=48)
+    env.reset(seed=0)
+    env.render()
+    clone = pickle.loads(pickle.dumps(env))
+    assert clone.render().shape == (48, 64, 3)
+    clone.close()
+    env.close()
