@@ -17,6 +17,15 @@ import numpy as np
 from strol_gym.priors import Prior
 
 
+def _jsonable(value: object) -> object:
+    """Arrays and tuples as lists, numpy scalars as Python numbers: for JSON records."""
+    if isinstance(value, np.ndarray | tuple | list):
+        return np.asarray(value).tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Task(ABC):
     """Base class for a StROL setting. Subclasses are frozen dataclasses, so they pickle.
@@ -115,6 +124,13 @@ class Task(ABC):
             "action_dim": self.action_dim,
             "alpha": self.alpha,
             "action_bound": self.action_bound.tolist(),
+            # Every other field (object positions, workspace, scales...): a checkpoint trained
+            # for one geometry must not load silently for another.
+            "geometry": {
+                f.name: _jsonable(getattr(self, f.name))
+                for f in dataclasses.fields(self)
+                if f.name not in ("prior", "alpha")
+            },
         }
 
     def network_input(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:

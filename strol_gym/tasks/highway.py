@@ -315,16 +315,6 @@ class HighwayTask(Task):
         out[..., 8:] = np.broadcast_to(u_h, (*lead, 2)) / self.action_bound
         return out
 
-    def describe(self) -> dict:
-        d = super().describe()
-        d["geometry"] = {
-            f.name: (list(v) if isinstance(v, tuple) else v)
-            for f in dataclasses.fields(self)
-            if f.name not in ("prior", "alpha")
-            for v in [getattr(self, f.name)]
-        }
-        return d
-
     # ----------------------------------------------------------------- default robot policy
     def robot_policy(self, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
         """The benchmark's robot car: keep right at its speed, but yield to a human who passes.
