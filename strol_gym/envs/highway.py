@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -14,12 +13,12 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.humans import HUMAN_MODELS, Human, check_fraction
-from strol_gym.priors import Prior, make_prior
+from strol_gym.envs.interaction import CorrectionEnvMixin, HumanFactory, int_arg
+from strol_gym.humans import Human
+from strol_gym.priors import Prior
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
 ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
-HumanFactory = Callable[[HighwayTask, np.ndarray, np.random.Generator], Human]
 
 
 class HumanVehicle(Vehicle):
@@ -51,7 +50,7 @@ class HumanVehicle(Vehicle):
         return u
 
 
-class HighwayEnv(AbstractEnv):
+class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
     """StROL-Highway-v0: a human car with hidden driving preferences θ* behind a robot car.
 
     ## Description
@@ -147,19 +146,6 @@ class HighwayEnv(AbstractEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
-    KWARGS: ClassVar[tuple[str, ...]] = (
-        "sigma",
-        "bias",
-        "prior",
-        "human",
-        "beta",
-        "n_corrections",
-        "max_episode_steps",
-        "render_mode",
-        "width",
-        "height",
-        "task",
-    )
 
     def __init__(
         self,
@@ -176,40 +162,25 @@ class HighwayEnv(AbstractEnv):
         task: HighwayTask | None = None,
         **unknown: Any,
     ) -> None:
-        if unknown:
-            raise ValueError(
-                f"unknown argument(s) {sorted(unknown)}; StROL-Highway-v0 takes {self.KWARGS}"
-            )
-        if task is None:
-            task = HighwayTask()
-        elif not isinstance(task, HighwayTask):
-            raise ValueError(f"task must be a HighwayTask or None, got {type(task).__name__}")
-        self.task: HighwayTask = task.with_prior(make_prior(prior, task.prior_modes))
-        self.sigma = check_fraction("sigma", sigma)
-        self.bias = check_fraction("bias", bias, allow_negative=True)
-        if not (isinstance(human, str) and human in HUMAN_MODELS) and not (
-            callable(human) and not isinstance(human, str)
-        ):
-            raise ValueError(
-                f"human must be one of {sorted(HUMAN_MODELS)} or a callable "
-                f"(task, theta_star, rng) -> Human; got {human!r}"
-            )
-        self.human_model = human
-        beta = float(beta)
-        if not (np.isfinite(beta) and beta >= 0):
-            raise ValueError(f"beta must be a finite number >= 0, got {beta}")
-        self.beta = beta
-        self.n_corrections = _int_arg("n_corrections", n_corrections, 0)
+        self._configure(
+            "StROL-Highway-v0",
+            task,
+            HighwayTask,
+            unknown,
+            sigma=sigma,
+            bias=bias,
+            prior=prior,
+            human=human,
+            beta=beta,
+            n_corrections=n_corrections,
+            render_mode=render_mode,
+        )
+        self.task: HighwayTask
         if max_episode_steps is None:
             max_episode_steps = max(self.n_corrections, 1)
-        self.max_episode_steps = _int_arg("max_episode_steps", max_episode_steps, 1)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be None or one of {self.metadata['render_modes']}, "
-                f"got {render_mode!r}"
-            )
-        width = _int_arg("width", width, 16, 4096)
-        height = _int_arg("height", height, 16, 4096)
+        self.max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
+        width = int_arg("width", width, 16, 4096)
+        height = int_arg("height", height, 16, 4096)
         freq = 1.0 / self.task.dt
         self._network = RoadNetwork.straight_road_network(
             lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None
@@ -247,34 +218,20 @@ class HighwayEnv(AbstractEnv):
         self.observation_type = None
         self.action_type = None
 
-    def _default_theta_hat(self) -> np.ndarray:
-        return np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
-
-    def set_theta_hat(self, theta_hat: np.ndarray) -> None:
-        """The robot's current estimate θ̂: the nominal human teaches relative to it, and the
-        next observation carries it. Reset restores the bimodal prior modes' mean."""
-        th = np.asarray(theta_hat, dtype=np.float64).reshape(-1)
-        if th.shape != (self.task.dim,) or not np.isfinite(th).all():
-            raise ValueError(f"theta_hat must be {self.task.dim} finite numbers, got {theta_hat}")
-        self.theta_hat = th.copy()
-
     # ------------------------------------------------------------------ reset / step
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         gym.Env.reset(self, seed=seed)
-        options = dict(options or {})
-        bad = set(options) - {"theta_star", "state"}
-        if bad:
-            raise ValueError(f"unknown reset option(s) {sorted(bad)}; valid: theta_star, state")
+        theta_override, x_override = self._reset_overrides(options)
         self.time = self.steps = 0
         self.done = False
         rng = self.np_random
         theta_star = self.task.prior.sample(rng, 1)[0]
         x0 = self.task.sample_episode_start(rng, 1)[0]
         human_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
-        if "theta_star" in options:
-            theta_star = _vector("theta_star", options["theta_star"], self.task.dim)
-        if "state" in options:
-            x0 = _vector("state", options["state"], self.task.state_dim)
+        if theta_override is not None:
+            theta_star = theta_override
+        if x_override is not None:
+            x0 = x_override
         self.theta_star = theta_star
         self.theta_hat = self._default_theta_hat()
         self.human = self._make_human(theta_star, human_rng)
@@ -287,21 +244,6 @@ class HighwayEnv(AbstractEnv):
         if self.render_mode == "human":
             self.render()
         return obs, info
-
-    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
-        if isinstance(self.human_model, str):
-            cls = HUMAN_MODELS[self.human_model]
-            kw: dict[str, Any] = {"sigma": self.sigma, "bias": self.bias}
-            if self.human_model == "boltzmann":
-                kw["beta"] = self.beta
-            return cls(self.task, theta_star, rng, **kw)
-        human = self.human_model(self.task, theta_star, rng)
-        if not isinstance(human, Human):
-            raise ValueError(
-                "human callable must return an object with act(x, u_r, theta_hat) and "
-                f"theta_star, got {type(human).__name__}"
-            )
-        return human
 
     def _build_scene(self, x0: np.ndarray) -> None:
         self.road = Road(
@@ -336,12 +278,7 @@ class HighwayEnv(AbstractEnv):
         )
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (self.task.action_dim,):
-            raise ValueError(f"action must have shape ({self.task.action_dim},), got {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action must be finite, got {action}")
-        u_r = np.clip(a, -1.0, 1.0) * self.task.robot_action_bound
+        u_r = self._robot_action(action)
         is_correction = self.steps < self.n_corrections
         if is_correction:
             u_h = self.human_vehicle.decide(self._x, u_r, self.theta_hat)
@@ -373,16 +310,9 @@ class HighwayEnv(AbstractEnv):
     def _make_info(
         self, phi: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, is_correction: bool
     ) -> dict[str, Any]:
-        return {
-            "features": dict(zip(self.task.feature_names, phi.tolist(), strict=True)),
-            "phi": phi,
-            "correction": np.array(u_h, dtype=np.float64),
-            "robot_action": np.array(u_r, dtype=np.float64),
-            "theta_star": self.theta_star.copy(),
-            "theta_hat": self.theta_hat.copy(),
-            "is_correction": bool(is_correction),
-            "crashed": bool(self.robot_vehicle.crashed or self.human_vehicle.crashed),
-        }
+        info = self._info(phi, u_h, u_r, is_correction)
+        info["crashed"] = bool(self.robot_vehicle.crashed or self.human_vehicle.crashed)
+        return info
 
     # highway-env's hooks, kept meaningful for code that calls them
     def _reset(self) -> None:
@@ -419,19 +349,3 @@ class HighwayEnv(AbstractEnv):
         state["viewer"] = None
         state["_record_video_wrapper"] = None
         return state
-
-
-def _int_arg(name: str, value: Any, low: int, high: int | None = None) -> int:
-    """An integer argument in [low, high], else ValueError naming it and the range."""
-    ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
-    if ok and value >= low and (high is None or value <= high):
-        return int(value)
-    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
-    raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
-
-
-def _vector(name: str, value: Any, n: int) -> np.ndarray:
-    v = np.asarray(value, dtype=np.float64).reshape(-1)
-    if v.shape != (n,) or not np.isfinite(v).all():
-        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
-    return v.copy()

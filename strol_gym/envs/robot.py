@@ -6,7 +6,6 @@ import functools
 import importlib.resources
 import importlib.util
 import os
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -23,11 +22,10 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.humans import HUMAN_MODELS, Human, check_fraction
-from strol_gym.priors import Prior, make_prior
+from strol_gym.envs.interaction import CorrectionEnvMixin, HumanFactory, int_arg
+from strol_gym.humans import Human
+from strol_gym.priors import Prior
 from strol_gym.tasks.robot import RobotTask
-
-HumanFactory = Callable[[RobotTask, np.ndarray, np.random.Generator], Human]
 
 # ---------------------------------------------------------------------------------- geometry
 TABLE_TOP = 0.75
@@ -356,7 +354,7 @@ def seed_table(task: RobotTask) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------- the env
-class RobotEnv(gym.Env):
+class RobotEnv(CorrectionEnvMixin, gym.Env):
     """StROL-Robot-v0: a Franka Panda whose end effector a human corrects toward a plate or cup.
 
     ## Description
@@ -452,19 +450,6 @@ class RobotEnv(gym.Env):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 5}
-    KWARGS: ClassVar[tuple[str, ...]] = (
-        "sigma",
-        "bias",
-        "prior",
-        "human",
-        "beta",
-        "n_corrections",
-        "max_episode_steps",
-        "render_mode",
-        "width",
-        "height",
-        "task",
-    )
 
     def __init__(
         self,
@@ -481,41 +466,26 @@ class RobotEnv(gym.Env):
         task: RobotTask | None = None,
         **unknown: Any,
     ) -> None:
-        if unknown:
-            raise ValueError(
-                f"unknown argument(s) {sorted(unknown)}; StROL-Robot-v0 takes {self.KWARGS}"
-            )
-        if task is None:
-            task = RobotTask()
-        elif not isinstance(task, RobotTask):
-            raise ValueError(f"task must be a RobotTask or None, got {type(task).__name__}")
-        self.task: RobotTask = task.with_prior(make_prior(prior, task.prior_modes))
-        self.sigma = check_fraction("sigma", sigma)
-        self.bias = check_fraction("bias", bias, allow_negative=True)
-        if not (isinstance(human, str) and human in HUMAN_MODELS) and not (
-            callable(human) and not isinstance(human, str)
-        ):
-            raise ValueError(
-                f"human must be one of {sorted(HUMAN_MODELS)} or a callable "
-                f"(task, theta_star, rng) -> Human; got {human!r}"
-            )
-        self.human_model = human
-        beta = float(beta)
-        if not (np.isfinite(beta) and beta >= 0):
-            raise ValueError(f"beta must be a finite number >= 0, got {beta}")
-        self.beta = beta
-        self.n_corrections = _int_arg("n_corrections", n_corrections, 0)
+        self._configure(
+            "StROL-Robot-v0",
+            task,
+            RobotTask,
+            unknown,
+            sigma=sigma,
+            bias=bias,
+            prior=prior,
+            human=human,
+            beta=beta,
+            n_corrections=n_corrections,
+            render_mode=render_mode,
+        )
+        self.task: RobotTask
         if max_episode_steps is not None:
-            max_episode_steps = _int_arg("max_episode_steps", max_episode_steps, 1)
+            max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
         self.max_episode_steps = max_episode_steps
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(
-                f"render_mode must be None or one of {self.metadata['render_modes']}, "
-                f"got {render_mode!r}"
-            )
         self.render_mode = render_mode
-        self.width = _int_arg("width", width, 16, 4096)
-        self.height = _int_arg("height", height, 16, 4096)
+        self.width = int_arg("width", width, 16, 4096)
+        self.height = int_arg("height", height, 16, 4096)
 
         t = self.task
         d, s, a = t.dim, t.state_dim, t.action_dim
@@ -534,10 +504,8 @@ class RobotEnv(gym.Env):
             }
         )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(a,), dtype=f32)
-        self._u_scale = np.asarray(t.robot_action_bound, dtype=np.float64)
         self._zeros = np.zeros(a)
         self.theta_star = t.prior.mean.copy()
-        self.theta_hat = self._default_theta_hat()
         self.human: Human | None = None
         self.steps = 0
         self._x = np.zeros(s)
@@ -558,17 +526,6 @@ class RobotEnv(gym.Env):
             mujoco.mj_kinematics(self.model, self.data)
         self.data.ctrl[:N_ARM] = self._ik.q
 
-    def _default_theta_hat(self) -> np.ndarray:
-        return np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
-
-    def set_theta_hat(self, theta_hat: np.ndarray) -> None:
-        """The robot's current estimate θ̂: the nominal human teaches relative to it, and the
-        next observation carries it. Reset restores the bimodal prior modes' mean."""
-        th = np.asarray(theta_hat, dtype=np.float64).reshape(-1)
-        if th.shape != (self.task.dim,) or not np.isfinite(th).all():
-            raise ValueError(f"theta_hat must be {self.task.dim} finite numbers, got {theta_hat}")
-        self.theta_hat = th.copy()
-
     def move_to(self, x: np.ndarray) -> np.ndarray:
         """Put the end effector at ``x`` (task frame) from the nearest IK seed; returns the real
         position reached."""
@@ -582,18 +539,14 @@ class RobotEnv(gym.Env):
     # ------------------------------------------------------------------ reset / step
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         super().reset(seed=seed)
-        options = dict(options or {})
-        bad = set(options) - {"theta_star", "state"}
-        if bad:
-            raise ValueError(f"unknown reset option(s) {sorted(bad)}; valid: theta_star, state")
+        theta_override, x_override = self._reset_overrides(options)
         rng = self.np_random
         theta_star = self.task.prior.sample(rng, 1)[0]
         x0 = self.task.sample_start(rng, 1)[0]
-        if "theta_star" in options:
-            theta_star = _vector("theta_star", options["theta_star"], self.task.dim)
-        if "state" in options:
-            x0 = _vector("state", options["state"], self.task.state_dim)
-            x0 = np.clip(x0, self.task.workspace_low, self.task.workspace_high)
+        if theta_override is not None:
+            theta_star = theta_override
+        if x_override is not None:
+            x0 = np.clip(x_override, self.task.workspace_low, self.task.workspace_high)
         self.theta_star = theta_star
         self.theta_hat = self._default_theta_hat()
         self.human = self._make_human(theta_star, rng)
@@ -606,30 +559,10 @@ class RobotEnv(gym.Env):
             self.render()
         return obs, info
 
-    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
-        if isinstance(self.human_model, str):
-            cls = HUMAN_MODELS[self.human_model]
-            kw: dict[str, Any] = {"sigma": self.sigma, "bias": self.bias}
-            if self.human_model == "boltzmann":
-                kw["beta"] = self.beta
-            return cls(self.task, theta_star, rng, **kw)
-        human = self.human_model(self.task, theta_star, rng)
-        if not isinstance(human, Human):
-            raise ValueError(
-                "human callable must return an object with act(x, u_r, theta_hat) and "
-                f"theta_star, got {type(human).__name__}"
-            )
-        return human
-
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (3,):
-            raise ValueError(f"action must have shape (3,), got {np.shape(action)}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"action must be finite, got {action}")
+        u_r = self._robot_action(action)
         if self.human is None:
             raise RuntimeError("call reset() before step()")
-        u_r = np.minimum(np.maximum(a, -1.0), 1.0) * self._u_scale
         is_correction = self.steps < self.n_corrections
         if is_correction:
             u_h = np.asarray(self.human.act(self._x, u_r, self.theta_hat), dtype=np.float64)
@@ -668,17 +601,10 @@ class RobotEnv(gym.Env):
         target: np.ndarray,
         ik_error: float,
     ) -> dict[str, Any]:
-        return {
-            "features": dict(zip(self.task.feature_names, phi.tolist(), strict=True)),
-            "phi": phi,
-            "correction": u_h.copy(),
-            "robot_action": u_r.copy(),
-            "theta_star": self.theta_star.copy(),
-            "theta_hat": self.theta_hat.copy(),
-            "is_correction": is_correction,
-            "target": target,
-            "ik_error": ik_error,
-        }
+        info = self._info(phi, u_h, u_r, is_correction)
+        info["target"] = target
+        info["ik_error"] = ik_error
+        return info
 
     # ------------------------------------------------------------------ render, close, pickle
     def render(self) -> np.ndarray | None:
@@ -734,22 +660,6 @@ class RobotEnv(gym.Env):
         self._renderer = None
         self._viewer = None
         self._build(qpos)
-
-
-def _int_arg(name: str, value: Any, low: int, high: int | None = None) -> int:
-    """An integer argument in [low, high], else ValueError naming it and the range."""
-    ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
-    if ok and value >= low and (high is None or value <= high):
-        return int(value)
-    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
-    raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
-
-
-def _vector(name: str, value: Any, n: int) -> np.ndarray:
-    v = np.asarray(value, dtype=np.float64).reshape(-1)
-    if v.shape != (n,) or not np.isfinite(v).all():
-        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
-    return v.copy()
 
 
 if __name__ == "__main__":
