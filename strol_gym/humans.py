@@ -109,10 +109,12 @@ def perturb(
     return u + bias * a + sigma * a * rng.standard_normal(u.shape)
 
 
-class NominalHuman:
-    """The eq. M6 teacher: picks the correction that moves θ̂ closest to θ*, then adds δ.
+class SimulatedHuman:
+    """Shared machinery of the simulated humans: each step it draws fresh candidate actions,
+    picks one with ``choose`` and adds δ. Subclasses differ only in ``choose``.
 
-    It needs the robot's current estimate θ̂; the env passes it (see ``set_theta_hat``).
+    The number of random draws per step does not depend on θ̂, so learners given one seed see
+    the same candidates and noise (paired runs).
     """
 
     def __init__(
@@ -133,15 +135,29 @@ class NominalHuman:
             raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
         self.n_candidates = int(n_candidates)
 
+    def choose(
+        self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray, candidates: np.ndarray
+    ) -> np.ndarray:
+        """The noise-free action among ``candidates`` (1, K, a) for a batch of one: (1, a)."""
+        raise NotImplementedError
+
     def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
         cand = self.task.candidate_actions(self.rng, 1, self.n_candidates)
-        u = optimal_correction(
-            self.task, x[None], u_r[None], theta_hat[None], self.theta_star[None], cand
-        )
+        u = self.choose(x[None], u_r[None], theta_hat[None], cand)
         return perturb(self.task, u, self.sigma, self.bias, self.rng)[0]
 
 
-class BoltzmannHuman:
+class NominalHuman(SimulatedHuman):
+    """The eq. M6 teacher: picks the correction that moves θ̂ closest to θ*, then adds δ.
+
+    It needs the robot's current estimate θ̂; the env passes it (see ``set_theta_hat``).
+    """
+
+    def choose(self, x, u_r, theta_hat, candidates):
+        return optimal_correction(self.task, x, u_r, theta_hat, self.theta_star[None], candidates)
+
+
+class BoltzmannHuman(SimulatedHuman):
     """A noisily-rational human: P(u) ∝ exp(β θ*·g(x, u, u_R)). Ignores θ̂; δ is added on top."""
 
     def __init__(
@@ -154,27 +170,17 @@ class BoltzmannHuman:
         beta: float = 50.0,
         n_candidates: int = DEFAULT_CANDIDATES,
     ) -> None:
-        self.task = task
-        self.theta_star = np.asarray(theta_star, dtype=np.float64)
-        self.rng = rng
-        self.sigma = check_fraction("sigma", sigma)
-        self.bias = check_fraction("bias", bias, allow_negative=True)
+        super().__init__(task, theta_star, rng, sigma, bias, n_candidates)
         if not (np.isfinite(beta) and beta >= 0):
             raise ValueError(f"beta must be a finite number >= 0, got {beta}")
         self.beta = float(beta)
-        if int(n_candidates) < 1:
-            raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
-        self.n_candidates = int(n_candidates)
 
-    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
-        cand = self.task.candidate_actions(self.rng, 1, self.n_candidates)
-        u = boltzmann_correction(
-            self.task, x[None], u_r[None], self.theta_star[None], cand, self.beta, self.rng
-        )
-        return perturb(self.task, u, self.sigma, self.bias, self.rng)[0]
+    def choose(self, x, u_r, theta_hat, candidates):
+        th = self.theta_star[None]
+        return boltzmann_correction(self.task, x, u_r, th, candidates, self.beta, self.rng)
 
 
-class DriverHuman:
+class DriverHuman(SimulatedHuman):
     """A human who acts for itself (not to teach): the short-horizon θ*-maximiser of
     ``driver_correction`` over random admissible candidates, then δ. Ignores θ̂."""
 
@@ -188,24 +194,14 @@ class DriverHuman:
         horizon: int = 4,
         n_candidates: int = 64,
     ) -> None:
-        self.task = task
-        self.theta_star = np.asarray(theta_star, dtype=np.float64)
-        self.rng = rng
-        self.sigma = check_fraction("sigma", sigma)
-        self.bias = check_fraction("bias", bias, allow_negative=True)
+        super().__init__(task, theta_star, rng, sigma, bias, n_candidates)
         if int(horizon) < 1:
             raise ValueError(f"horizon must be an integer >= 1, got {horizon}")
         self.horizon = int(horizon)
-        if int(n_candidates) < 1:
-            raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
-        self.n_candidates = int(n_candidates)
 
-    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
-        cand = self.task.candidate_actions(self.rng, 1, self.n_candidates)
-        u = driver_correction(
-            self.task, x[None], u_r[None], self.theta_star[None], cand, self.horizon
-        )
-        return perturb(self.task, u, self.sigma, self.bias, self.rng)[0]
+    def choose(self, x, u_r, theta_hat, candidates):
+        th = self.theta_star[None]
+        return driver_correction(self.task, x, u_r, th, candidates, self.horizon)
 
 
 HUMAN_MODELS = {"nominal": NominalHuman, "boltzmann": BoltzmannHuman, "driver": DriverHuman}
