@@ -75,7 +75,7 @@ def main() -> None:
     for name, kw in rows:
         rate = env_steps_per_second(args.steps, args.repeats, **kw)
         print(f"  {name:42s} {rate:9,.0f} env steps/s")
-    print("RobotTask.plan (10 waypoints, projected Adam ascent, 20 starts)")
+    print(f"RobotTask.plan ({RobotTask().plan_steps} waypoints, projected Adam, multi-start)")
     for batch in (1, 100):
         rate, ms = plans_per_second(batch, 1.0, args.repeats)
         print(f"  B={batch:<3d} {rate:9,.0f} plans/s  ({ms:.2f} ms per call)")
