@@ -5,11 +5,11 @@ from __future__ import annotations
 import gymnasium as gym
 
 ENV_SPECS: dict[str, dict] = {
-    # Robot: gymnasium's TimeLimit ends episodes (10 steps unless make(..., max_episode_steps=N)).
+    # gymnasium's TimeLimit ends episodes: 10 steps unless make(..., max_episode_steps=N).
     "StROL-Robot-v0": {"entry_point": "strol_gym.envs.robot:RobotEnv", "max_episode_steps": 10},
     "StROL-Highway-v0": {
         "entry_point": "strol_gym.envs.highway:HighwayEnv",
-        "max_episode_steps": None,
+        "max_episode_steps": 10,
     },
 }
 

@@ -276,3 +276,16 @@ def test_gradient_error_falls_over_a_clean_episode(mode):
         assert (np.diff(errors) <= 1e-9).all()
         finals.append(errors[-1] / errors[0])
     assert np.mean(finals) < 0.9
+
+
+def test_make_max_episode_steps_sets_the_episode_length():
+    for n in (3, 10, 14):
+        env = gym.make("StROL-Highway-v0", max_episode_steps=n)
+        env.reset(seed=0)
+        steps, done = 0, False
+        while not done:
+            _, _, term, trunc, _ = env.step(np.zeros(2, dtype=np.float32))
+            steps += 1
+            done = term or trunc
+        assert steps == n or term
+    assert gym.make("StROL-Highway-v0").spec.max_episode_steps == 10

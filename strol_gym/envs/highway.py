@@ -119,7 +119,8 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
     ## Episode End
 
     Terminated when the cars collide (highway-env's collision check). Truncated after
-    ``max_episode_steps`` steps (default: ``n_corrections``). Leaving the road is not terminal.
+    ``max_episode_steps`` steps (10 through ``gymnasium.make``, the paper's 10 learning steps).
+    Leaving the road is not terminal.
 
     ## Arguments
 
@@ -133,7 +134,10 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
       Human``, default "nominal").
     - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
     - ``n_corrections`` (int ≥ 0, default 10): steps during which the human corrects.
-    - ``max_episode_steps`` (int ≥ 1 or None, default None = ``n_corrections``).
+    - ``max_episode_steps`` (int ≥ 1 or None): through ``gymnasium.make`` this is gymnasium's
+      own TimeLimit argument (registered default 10, the paper's 10 learning steps); given to
+      ``HighwayEnv`` directly, the env truncates itself after that many steps (default None:
+      never).
     - ``render_mode`` (None | "human" | "rgb_array"); ``width``, ``height`` (int in
       [16, 4096], default 600 x 150): frame size in pixels. Headless "rgb_array" needs
       ``SDL_VIDEODRIVER=offscreen`` (set by default if unset; "dummy" renders blank frames).
@@ -176,9 +180,9 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
             render_mode=render_mode,
         )
         self.task: HighwayTask
-        if max_episode_steps is None:
-            max_episode_steps = max(self.n_corrections, 1)
-        self.max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
+        if max_episode_steps is not None:
+            max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
+        self.max_episode_steps = max_episode_steps
         width = int_arg("width", width, 16, 4096)
         height = int_arg("height", height, 16, 4096)
         freq = 1.0 / self.task.dt
@@ -325,7 +329,7 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
         return bool(self.robot_vehicle.crashed or self.human_vehicle.crashed)
 
     def _is_truncated(self) -> bool:
-        return self.steps >= self.max_episode_steps
+        return self.max_episode_steps is not None and self.steps >= self.max_episode_steps
 
     # ------------------------------------------------------------------ render, pickle
     def render(self) -> np.ndarray | None:
