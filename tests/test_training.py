@@ -137,7 +137,7 @@ def test_checkpoint_mismatch_says_what_differs(short_run, tmp_path):
     with pytest.raises(ValueError, match="kind: checkpoint has 'strol', expected 'e2e'"):
         E2ELearner(TASK, checkpoint=path)
     moved_cup = RobotTask(cup=np.array([0.6, -0.4, 0.1]))
-    with pytest.raises(ValueError, match="geometry: checkpoint has"):
+    with pytest.raises(ValueError, match=r"geometry\.cup: checkpoint has \[0\.7, -0\.45"):
         load_checkpoint(path, moved_cup)
     meta = json.loads(path.with_suffix(".json").read_text())
     meta["task"]["feature_names"] = ["a", "b"]

@@ -102,8 +102,17 @@ def check_sidecar(meta: dict[str, Any], task: Task, kind: str | None = None) -> 
         problems.append(f"kind: checkpoint has {meta.get('kind')!r}, expected {kind!r}")
     have, want = meta.get("task", {}), task_signature(task)
     for key in sorted(set(have) | set(want)):
-        if have.get(key) != want.get(key):
-            problems.append(f"{key}: checkpoint has {have.get(key)!r}, task has {want.get(key)!r}")
+        a, b = have.get(key), want.get(key)
+        if a == b:
+            continue
+        if isinstance(a, dict) and isinstance(b, dict):  # name only the fields that differ
+            for sub in sorted(set(a) | set(b)):
+                if a.get(sub) != b.get(sub):
+                    problems.append(
+                        f"{key}.{sub}: checkpoint has {a.get(sub)!r}, task has {b.get(sub)!r}"
+                    )
+        else:
+            problems.append(f"{key}: checkpoint has {a!r}, task has {b!r}")
     net = meta.get("network", {})
     if net.get("out_dim") != task.dim:
         problems.append(f"network out_dim {net.get('out_dim')} != task dim {task.dim}")
