@@ -23,24 +23,10 @@ from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
+from strol_gym.benchmarks.timing import env_steps_per_second
 
 import strol_gym
 from strol_gym.envs.highway import HighwayEnv
-
-
-def steps_per_second(env: gym.Env, steps: int, repeats: int) -> float:
-    rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, size=(steps, *env.action_space.shape)).astype(np.float32)
-    best = 0.0
-    for r in range(repeats):
-        env.reset(seed=r)
-        start = time.perf_counter()
-        for a in actions:
-            _, _, term, trunc, _ = env.step(a)
-            if term or trunc:
-                env.reset()
-        best = max(best, steps / (time.perf_counter() - start))
-    return best
 
 
 def best_rate(fn: Callable[[], object], n: int, repeats: int) -> float:
@@ -77,7 +63,7 @@ def main() -> None:
         "sigma=0.5, bias=0.5 (nominal)": gym.make("StROL-Highway-v0", sigma=0.5, bias=0.5),
     }
     for name, env in rows.items():
-        print(f"{name:45s} {steps_per_second(env, args.steps, args.repeats):8.0f} steps/s")
+        print(f"{name:45s} {env_steps_per_second(env, args.steps, args.repeats):8.0f} steps/s")
         env.close()
 
     task = strol_gym.HighwayTask()

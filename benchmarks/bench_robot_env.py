@@ -23,26 +23,17 @@ import time  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
+from strol_gym.benchmarks.timing import env_steps_per_second  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
 from strol_gym.tasks.robot import RobotTask  # noqa: E402
 
 
-def env_steps_per_second(steps: int, repeats: int, **kwargs) -> float:
+def robot_steps_per_second(steps: int, repeats: int, **kwargs) -> float:
     env = gym.make("StROL-Robot-v0", **kwargs)
-    rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, size=(steps, 3)).astype(np.float32)
-    best = 0.0
-    for r in range(repeats):
-        env.reset(seed=r)
-        start = time.perf_counter()
-        for a in actions:
-            _, _, term, trunc, _ = env.step(a)
-            if term or trunc:
-                env.reset()
-        best = max(best, steps / (time.perf_counter() - start))
+    rate = env_steps_per_second(env, steps, repeats)
     env.close()
-    return best
+    return rate
 
 
 def plans_per_second(batch: int, seconds: float, repeats: int) -> tuple[float, float]:
@@ -73,7 +64,7 @@ def main() -> None:
     ]
     print("StROL-Robot-v0, rendering off, one core")
     for name, kw in rows:
-        rate = env_steps_per_second(args.steps, args.repeats, **kw)
+        rate = robot_steps_per_second(args.steps, args.repeats, **kw)
         print(f"  {name:42s} {rate:9,.0f} env steps/s")
     print(f"RobotTask.plan ({RobotTask().plan_steps} waypoints, projected Adam, multi-start)")
     for batch in (1, 100):
