@@ -7,7 +7,6 @@ naming the argument and its valid values (argparse's convention).
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import math
 import sys
@@ -18,13 +17,12 @@ from pathlib import Path
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
     ENV_PRESETS,
-    HUMANS,
     PAPER_LEARNERS,
     PRIORS,
     REFERENCE_LEARNER,
     custom_condition,
     env_preset,
-    paper_condition,
+    make_condition,
 )
 from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment, paper_config
 from strol_gym.benchmarks.results import ResultsError
@@ -88,28 +86,39 @@ def _learner_list(text: str) -> list[str]:
 
 def check_learner_names(names: Sequence[str]) -> None:
     """ValueError for a name that is neither registered nor an importable ``module:attr``."""
-    from strol_gym.learners.registry import list_learners
+    from strol_gym.learners.registry import LEARNERS
 
-    known = list_learners()
     for name in names:
-        if name in known:
-            continue
-        if ":" in name:
-            module, _, attr = name.partition(":")
-            try:
-                getattr(importlib.import_module(module), attr)
-            except (ImportError, AttributeError) as e:
-                msg = f"learner {name!r}: cannot import {attr!r} from {module!r} ({e})"
-                raise ValueError(msg) from None
-            continue
-        raise ValueError(
-            f"unknown learner {name!r}; known learners: {', '.join(known)}, "
-            "or 'module:attr' naming a learner factory"
-        )
+        LEARNERS.check_name(name)
+
+
+def _json_mapping(name: str):
+    def parse(text: str) -> dict:
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object ({e})") from None
+        if not isinstance(value, dict):
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object, got {text!r}")
+        return value
+
+    return parse
+
+
+def _plugin_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import a module (or a .py file) that registers your own learners, humans, Tasks "
+        "or conditions (repeatable); see docs/extending.md",
+    )
 
 
 # ---------------------------------------------------------------------- parser
 def _common_run_options(p: argparse.ArgumentParser) -> None:
+    _plugin_option(p)
     p.add_argument("--out", default=None, help="results folder (default results/<preset>)")
     p.add_argument(
         "--jobs",
@@ -175,14 +184,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--condition",
         action="append",
-        choices=CONDITION_NAMES,
-        help="a paper condition (repeatable); default training",
+        help="a registered condition (the paper's: " + ", ".join(CONDITION_NAMES) + ") or "
+        "module:attr (repeatable); default training",
     )
     p.add_argument("--sigma", type=_fraction("--sigma"), help="noise σ, fraction of a_max")
     p.add_argument("--bias", type=_fraction("--bias", allow_negative=True), help="bias ε")
     p.add_argument("--prior", choices=PRIORS, help="where θ* comes from")
-    p.add_argument("--human", choices=HUMANS, help="simulated human model")
-    p.add_argument("--beta", type=_fraction("--beta"), help="Boltzmann rationality β")
+    p.add_argument("--human", help="simulated human: a registered name or module:attr")
+    p.add_argument("--beta", type=_fraction("--beta"), help="rationality β (if the human takes it)")
+    p.add_argument(
+        "--human-kwargs", type=_json_mapping("--human-kwargs"), help="JSON: the human's own kwargs"
+    )
+    p.add_argument("--task", default=None, help="a Task name or module:attr (default: the env's)")
     p.add_argument("--name", default="custom", help="name of the explicit condition")
     p.add_argument("--runs", type=_positive_int("--runs"), default=None)
     p.add_argument(
@@ -199,8 +212,10 @@ def build_parser() -> argparse.ArgumentParser:
     from strol_gym.learners.training import add_train_arguments
 
     add_train_arguments(p)
+    _plugin_option(p)
 
-    sub.add_parser("list", help="envs, learners and conditions")
+    p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
+    _plugin_option(p)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -210,23 +225,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 # ---------------------------------------------------------------------- commands
 def _config_for_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> BenchConfig:
-    explicit = {k: getattr(args, k) for k in ("sigma", "bias", "prior", "human", "beta")}
+    keys = ("sigma", "bias", "prior", "human", "beta", "human_kwargs")
+    explicit = {k: getattr(args, k) for k in keys}
     given = {k: v for k, v in explicit.items() if v is not None}
     if given and args.condition:
-        parser.error(
-            f"--condition cannot be combined with explicit {', '.join('--' + k for k in given)}"
-        )
+        flags = ", ".join("--" + k.replace("_", "-") for k in given)
+        parser.error(f"--condition cannot be combined with explicit {flags}")
     if given:
         if args.name in CONDITION_NAMES:
             parser.error(f"--name must not be a paper condition name ({args.name!r})")
         conds = [custom_condition(args.env, name=args.name, **given)]
     else:
-        conds = [
-            paper_condition(args.env, c) for c in dict.fromkeys(args.condition or ["training"])
-        ]
+        conds = [make_condition(args.env, c) for c in dict.fromkeys(args.condition or ["training"])]
     runs = args.runs or env_preset(args.env).runs
     exps = tuple(
-        Experiment(args.env, c, runs=runs, seed=args.seed, n_corrections=args.corrections)
+        Experiment(
+            args.env, c, runs=runs, seed=args.seed, n_corrections=args.corrections, task=args.task
+        )
         for c in conds
     )
     kwargs = {}
@@ -281,7 +296,7 @@ def cmd_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from strol_gym.learners.registry import list_learners
+    from strol_gym.registry import registries
 
     print("envs:")
     for key, p in ENV_PRESETS.items():
@@ -289,10 +304,14 @@ def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
             f"  {key:8s} {p.env_id}: {p.runs} runs, {p.n_corrections} corrections, "
             f"primary metric {p.primary_metric}"
         )
-    print("learners: " + ", ".join(list_learners()) + " (or module:attr)")
-    print("conditions:")
-    for key, p in ENV_PRESETS.items():
-        for c in p.conditions().values():
+    for kind, reg in registries().items():
+        user = set(reg.user_names())
+        names = [f"{n} (yours)" if n in user else n for n in reg.names()]
+        print(f"{kind}s: " + ", ".join(names) + " (or module:attr)")
+    print("conditions in detail:")
+    for key in ENV_PRESETS:
+        for name in registries()["condition"].names():
+            c = make_condition(key, name)
             print(f"  {key:8s} {c.name:14s} {c.describe()}")
     return 0
 
@@ -335,6 +354,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        from strol_gym.registry import import_plugin
+
+        for plugin in getattr(args, "plugin", None) or ():
+            import_plugin(plugin)
         return COMMANDS[args.command](args, parser)
     except ResultsError as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)

@@ -159,6 +159,11 @@ class NominalHuman(SimulatedHuman):
     def choose(self, x, u_r, theta_hat, candidates):
         return optimal_correction(self.task, x, u_r, theta_hat, self.theta_star[None], candidates)
 
+    @staticmethod
+    def batch_choice(task, x, u_r, theta_hat, theta_star, candidates, rng, *, beta=50.0):
+        """``choose`` for a batch of humans with their own θ* (training's synthetic data)."""
+        return optimal_correction(task, x, u_r, theta_hat, theta_star, candidates)
+
 
 class BoltzmannHuman(SimulatedHuman):
     """A noisily-rational human: P(u) ∝ exp(β θ*·g(x, u, u_R)). Ignores θ̂; δ is added on top."""
@@ -181,6 +186,11 @@ class BoltzmannHuman(SimulatedHuman):
     def choose(self, x, u_r, theta_hat, candidates):
         th = self.theta_star[None]
         return boltzmann_correction(self.task, x, u_r, th, candidates, self.beta, self.rng)
+
+    @staticmethod
+    def batch_choice(task, x, u_r, theta_hat, theta_star, candidates, rng, *, beta=50.0):
+        """``choose`` for a batch of humans with their own θ* (training's synthetic data)."""
+        return boltzmann_correction(task, x, u_r, theta_star, candidates, beta, rng)
 
 
 class DriverHuman(SimulatedHuman):

@@ -98,9 +98,7 @@ class Registry:
             raise ValueError(
                 f"{self.kind} name must be a non-empty string without ':' or ',', got {name!r}"
             )
-        if name in self.builtin:
-            raise ValueError(f"{name!r} is a built-in {self.kind}; choose another name")
-        if name in self.table and not replace:
+        if name in self.table and (not replace or name in self.builtin):
             raise ValueError(f"a {self.kind} named {name!r} is already registered")
         if isinstance(piece, str):
             if ":" not in piece:
@@ -114,7 +112,9 @@ class Registry:
     def unregister(self, name: str) -> None:
         """Remove a user entry (built-ins stay)."""
         if name not in self.table:
-            raise ValueError(f"no {self.kind} named {name!r}; known: {', '.join(self.table)}")
+            raise ValueError(
+                f"no {self.kind} named {name!r}; known {self.kind}s: {', '.join(self.table)}"
+            )
         if name in self.builtin:
             raise ValueError(f"{name!r} is a built-in {self.kind} and cannot be removed")
         del self.table[name]
@@ -132,7 +132,7 @@ class Registry:
         if ":" in spec:
             return import_spec(spec, self.kind)
         raise ValueError(
-            f"unknown {self.kind} {spec!r}; known: {', '.join(self.table)}, "
+            f"unknown {self.kind} {spec!r}; known {self.kind}s: {', '.join(self.table)}, "
             f"or 'module:attr'{self.hint}"
         )
 
@@ -196,3 +196,22 @@ def install_specs(specs: dict[str, dict[str, str]]) -> None:
             if current is not None and (current == spec or spec_of(current) == spec):
                 continue
             reg.register(name, spec, replace=True)
+
+
+def import_plugin(spec: str) -> None:
+    """Import a module of user pieces (which registers them): a module name, or a ``.py`` file
+    whose folder then joins ``sys.path`` (so worker processes import it by the same name)."""
+    from pathlib import Path
+
+    path = Path(spec)
+    if spec.endswith(".py"):
+        if not path.is_file():
+            raise ValueError(f"plugin {spec!r}: no such file")
+        folder = str(path.resolve().parent)
+        if folder not in sys.path:
+            sys.path.insert(0, folder)
+        spec = path.stem
+    try:
+        importlib.import_module(spec)
+    except Exception as e:
+        raise ValueError(f"plugin {spec!r} failed to import: {type(e).__name__}: {e}") from e

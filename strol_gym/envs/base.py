@@ -35,6 +35,7 @@ from strol_gym.humans import (
     make_human,
 )
 from strol_gym.priors import Prior, make_prior
+from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
 
 RESET_OPTIONS = ("theta_star", "state")
@@ -70,7 +71,7 @@ class CorrectionEnv:
     def _configure(
         self,
         env_id: str,
-        task: Task | None,
+        task: Task | str | None,
         task_cls: type[Task],
         unknown: dict[str, Any],
         *,
@@ -89,12 +90,7 @@ class CorrectionEnv:
             takes = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
             takes = [p for p in takes if p not in ("unknown", "kwargs")]
             raise ValueError(f"unknown argument(s) {sorted(unknown)}; {env_id} takes {takes}")
-        if task is None:
-            task = task_cls()
-        elif not isinstance(task, task_cls):
-            raise ValueError(
-                f"task must be a {task_cls.__name__} or None, got {type(task).__name__}"
-            )
+        task = task_cls() if task is None else make_task(task, of=task_cls)
         self.task = task.with_prior(make_prior(prior, task.prior_modes))
         self.sigma = check_fraction("sigma", sigma)
         self.bias = check_fraction("bias", bias, allow_negative=True)

@@ -136,8 +136,8 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     - ``render_mode`` (None | "human" | "rgb_array"); ``width``, ``height`` (int in
       [16, 4096], default 600 x 150): frame size in pixels. Headless "rgb_array" needs
       ``SDL_VIDEODRIVER=offscreen`` (set by default if unset; "dummy" renders blank frames).
-    - ``task`` (``HighwayTask`` or None): a variant of the setting (its prior is replaced by
-      ``prior``).
+    - ``task`` (a ``HighwayTask``, its registered name or "module:attr", or None): a variant
+      of the setting (its prior is replaced by ``prior``).
 
     ## Version History
 
@@ -158,7 +158,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         render_mode: str | None = None,
         width: int = 600,
         height: int = 150,
-        task: HighwayTask | None = None,
+        task: HighwayTask | str | None = None,
         human_kwargs: dict[str, Any] | None = None,
         **unknown: Any,
     ) -> None:

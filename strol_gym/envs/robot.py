@@ -110,8 +110,9 @@ class RobotEnv(CorrectionEnv, gym.Env):
       [16, 4096], default 480 x 360). Headless "rgb_array" uses ``MUJOCO_GL=egl`` (set when
       ``strol_gym.envs`` is imported before MuJoCo and there is no display) or osmesa;
       "human" needs a display.
-    - ``task`` (``RobotTask`` or None): a variant of the setting (its prior is replaced by
-      ``prior``). A workspace box other than the default builds its IK seed table once (~5 s).
+    - ``task`` (a ``RobotTask``, its registered name or "module:attr", or None): a variant of
+      the setting (its prior is replaced by ``prior``). A workspace box other than the default
+      builds its IK seed table once (~5 s).
 
     ## Version History
 
@@ -132,7 +133,7 @@ class RobotEnv(CorrectionEnv, gym.Env):
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
-        task: RobotTask | None = None,
+        task: RobotTask | str | None = None,
         human_kwargs: dict[str, Any] | None = None,
         **unknown: Any,
     ) -> None:
@@ -165,7 +166,7 @@ class RobotEnv(CorrectionEnv, gym.Env):
                 (t.workspace_high + margin).astype(f32),
                 dtype=f32,
             ),
-            spaces.Box(-np.inf, 0.0, shape=(t.dim,), dtype=f32),
+            spaces.Box(-np.inf, t.feature_high, shape=(t.dim,), dtype=f32),
         )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(t.action_dim,), dtype=f32)
         self._zeros = np.zeros(t.action_dim)
