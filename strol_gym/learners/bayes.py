@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from strol_gym.learners.protocol import LinearRuleLearner, _as_float_array, batch_inputs
-from strol_gym.priors import MixturePrior
+from strol_gym.priors import HedgedPrior
 from strol_gym.tasks.base import Task
 
 LIKELIHOODS = ("reward", "teacher")
@@ -47,8 +47,9 @@ class BayesLearner(LinearRuleLearner):
     **Prior** (``prior="designer"``, default): the designer's bimodal prior, the one StROL's ĝ
     was trained with (modes ``task.prior_modes``, jitter ``mode_jitter`` = 0.1 as in the paper),
     mixed with weight ``broad_weight`` with a broad Gaussian N(θ0, s² I), θ0 the modes' mean and
-    s the largest |mode entry|: the designer's hedge that this human may fit neither mode. It
-    is *not* the distribution θ* is drawn from in the benchmark's uniform-prior condition.
+    s the largest |mode entry| (``strol_gym.priors.HedgedPrior``): the designer's hedge that
+    this human may fit neither mode. It is *not* the distribution θ* is drawn from in the
+    benchmark's uniform-prior condition.
     ``prior="task"`` uses ``task.prior`` instead (the true θ* distribution: an oracle).
     ``broad_weight=0`` gives the designer's bimodal prior alone.
 
@@ -60,9 +61,10 @@ class BayesLearner(LinearRuleLearner):
     **Estimate.** θ̂ = the posterior mean. ``reset(θ0)`` shifts the prior sample so its mean is
     θ0 (default: the modes' mean, the paper's θ̂0 for every learner).
 
-    **Randomness** comes from ``seed`` alone: the prior sample and the resampling draws restart
-    from ``seed`` at every ``reset``, so a run is a deterministic function of its inputs, and
-    paired runs see the same particles.
+    **Randomness** comes from ``seed`` alone: the prior sample from Generator(seed) at every
+    ``reset``, the resampling draws of the t-th update from Generator([seed, t]), shared by
+    every row of a batch. So a run is a deterministic function of its inputs, a batch row
+    equals the same interaction run alone, and paired runs see the same particles.
     """
 
     name = "bayes"
@@ -142,23 +144,20 @@ class BayesLearner(LinearRuleLearner):
         task = self.task
         if self.prior == "task":
             return np.asarray(task.prior.sample(rng, n), dtype=np.float64)
-        modes = np.asarray(task.prior_modes, dtype=np.float64)
-        out = MixturePrior(modes, jitter=self.mode_jitter).sample(rng, n)
-        broad = rng.random(n) < self.broad_weight
-        scale = float(np.abs(modes).max())
-        out[broad] = modes.mean(0) + scale * rng.standard_normal((int(broad.sum()), task.dim))
-        return out
+        prior = HedgedPrior(task.prior_modes, self.mode_jitter, self.broad_weight)
+        return prior.sample(rng, n)
 
     def reset(self, theta0: np.ndarray | None = None) -> np.ndarray:
         task = self.task
         if theta0 is None:
             theta0 = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
         theta0 = _as_float_array("theta0", theta0, task.dim).copy()
-        self._rng = np.random.default_rng(self.seed)
-        cloud = self.sample_prior(self._rng, self.n_particles)
+        rng = np.random.default_rng(self.seed)
+        self._updates = 0
+        cloud = self.sample_prior(rng, self.n_particles)
         cloud += -cloud.mean(axis=0)
         self._particles = theta0[..., None, :] + cloud  # (N, d) or (B, N, d)
-        idx = self._rng.integers(0, len(self.betas), size=self.n_particles)
+        idx = rng.integers(0, len(self.betas), size=self.n_particles)
         self._beta_idx = np.broadcast_to(idx, self._particles.shape[:-1]).copy()
         self._logw = np.zeros(self._particles.shape[:-1])
         self.theta = theta0
@@ -206,6 +205,7 @@ class BayesLearner(LinearRuleLearner):
             self._beta_idx = np.broadcast_to(self._beta_idx, (b, n)).copy()
             self._logw = np.broadcast_to(self._logw, (b, n)).copy()
         logw = self._logw + self.log_likelihood(x2, uh2, ur2, th2)
+        self._updates += 1
         logw -= logw.max(axis=1, keepdims=True)
         w = np.exp(logw)
         w /= w.sum(axis=1, keepdims=True)
@@ -222,7 +222,9 @@ class BayesLearner(LinearRuleLearner):
     def _resample(self, rows: np.ndarray, w: np.ndarray) -> None:
         """Systematic resampling of ``rows`` (weights w, (R, N)), then a Gaussian jitter."""
         n = self.n_particles
-        u = (self._rng.random((len(rows), 1)) + np.arange(n)) / n
+        rng = np.random.default_rng([self.seed, self._updates])
+        offset, eps = rng.random(), rng.standard_normal((n, self.task.dim))
+        u = np.broadcast_to((offset + np.arange(n)) / n, (len(rows), n))
         cdf = np.cumsum(w, axis=1)
         cdf[:, -1] = 1.0
         # One searchsorted for all rows: row r's CDF and points are shifted into [r, r + 1].
@@ -234,7 +236,7 @@ class BayesLearner(LinearRuleLearner):
         mean = np.einsum("rn,rnd->rd", w, self._particles[rows])
         var = np.einsum("rn,rnd->rd", w, (self._particles[rows] - mean[:, None]) ** 2)
         sd = self.bandwidth * np.sqrt(var)
-        parts = parts + sd[:, None] * self._rng.standard_normal(parts.shape)
+        parts = parts + sd[:, None] * eps
         self._particles[rows] = parts
         self._beta_idx[rows] = take(self._beta_idx[rows], idx, axis=1)
         self._logw[rows] = -np.log(n)
@@ -253,7 +255,7 @@ class BayesLearner(LinearRuleLearner):
             particles=self._particles.copy(),
             beta_idx=self._beta_idx.copy(),
             logw=self._logw.copy(),
-            rng=self._rng.bit_generator.state,
+            updates=self._updates,
         )
         return state
 
@@ -262,8 +264,7 @@ class BayesLearner(LinearRuleLearner):
         self._particles = np.asarray(state["particles"], dtype=np.float64).copy()
         self._beta_idx = np.asarray(state["beta_idx"]).copy()
         self._logw = np.asarray(state["logw"], dtype=np.float64).copy()
-        self._rng = np.random.default_rng()
-        self._rng.bit_generator.state = state["rng"]
+        self._updates = int(state["updates"])
 
 
 def teacher_bayes(task: Task, **kwargs: Any) -> BayesLearner:

@@ -2,7 +2,8 @@
 
 Each step draws a fresh batch, fully vectorised in numpy, and takes one Adam step in torch:
 
-1. x ~ ``task.sample_start``; θ* ~ ``task.prior`` (the Task's prior: bimodal for the paper).
+1. x ~ ``task.sample_start``; θ* ~ ``task.prior`` (the Task's prior: bimodal for the paper), or
+   ``HedgedPrior`` over its modes with ``prior="hedged"``.
 2. The robot's current estimate θ (Algorithm 1's "(x, θ, θ*) tuple"). Online, θ starts at the
    prior modes' mean θ0 and walks toward θ*, so by default (``theta_sampling="path"``)
    θ = θ0 + τ (θ* − θ0) + ν with τ ~ U[0, 1] and ν ~ N(0, ``theta_jitter``² I): the start, the
@@ -51,11 +52,13 @@ from strol_gym.learners.checkpoint import (
     save_checkpoint,
 )
 from strol_gym.learners.network import BOUNDS, DEFAULT_HIDDEN, CorrectionNet
+from strol_gym.priors import HedgedPrior, Prior
 from strol_gym.tasks.base import Task
 
 THETA_SAMPLING = ("path", "prior-mean", "prior")
 ROBOT_ACTIONS = ("zero", "uniform")
 HUMANS = ("nominal", "boltzmann")
+TRAIN_PRIORS = ("task", "hedged")
 KNOWN_TASKS = {
     "StROL-Robot-v0": "strol_gym.tasks.robot:RobotTask",
     "StROL-Highway-v0": "strol_gym.tasks.highway:HighwayTask",
@@ -86,6 +89,7 @@ class TrainConfig:
     bound: str = "radial"
     threads: int = 1
     unroll: int = 1
+    prior: str = "task"
 
     def __post_init__(self) -> None:
         def choice(name: str, options: Sequence[str]) -> None:
@@ -103,6 +107,7 @@ class TrainConfig:
         choice("theta_sampling", THETA_SAMPLING)
         choice("robot_action", ROBOT_ACTIONS)
         choice("bound", BOUNDS)
+        choice("prior", TRAIN_PRIORS)
         for name in ("steps", "batch", "lr_halve_every", "n_candidates", "threads"):
             positive(name)
         if isinstance(self.unroll, bool) or int(self.unroll) != self.unroll or self.unroll < 1:
@@ -128,10 +133,16 @@ class TrainConfig:
 
 
 # ---------------------------------------------------------------------------------------- data
+def training_prior(task: Task, config: TrainConfig) -> Prior:
+    """Where training draws θ*: ``task.prior`` (the paper: the bimodal prior), or
+    ``HedgedPrior`` over the task's modes (``prior="hedged"``, the designer's hedge)."""
+    return task.prior if config.prior == "task" else HedgedPrior(task.prior_modes)
+
+
 def sample_batch(task: Task, rng: np.random.Generator, n: int, config: TrainConfig) -> dict:
     """One synthetic dataset D of Algorithm 1: n tuples (x, θ, θ*, u_R, u_H) and g, z, e."""
     x = task.sample_start(rng, n)
-    theta_star = task.prior.sample(rng, n)
+    theta_star = training_prior(task, config).sample(rng, n)
     theta0 = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
     if config.theta_sampling == "path":
         tau = rng.uniform(0.0, 1.0, size=(n, 1))
@@ -430,6 +441,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     a("--robot-action", choices=ROBOT_ACTIONS, default=d.robot_action)
     a("--bound", choices=BOUNDS, default=d.bound)
     a("--threads", type=int, default=d.threads)
+    a(
+        "--prior",
+        choices=TRAIN_PRIORS,
+        default=d.prior,
+        help="θ* from the task's prior, or the hedged designer's prior (priors.HedgedPrior)",
+    )
     a("--heldout", type=int, default=10_000, help="held-out samples for the eq. M5 check")
     a("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -456,6 +473,7 @@ def run_train(args: argparse.Namespace) -> Path:
         bound=args.bound,
         threads=args.threads,
         unroll=args.unroll,
+        prior=args.prior,
     )
     if args.heldout < 1:
         raise ValueError(f"heldout must be >= 1, got {args.heldout}")
@@ -463,7 +481,7 @@ def run_train(args: argparse.Namespace) -> Path:
     check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)
     short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
     out = Path(args.out) if args.out else Path(f"{short}_{config.kind}.pt")
-    prior = task.prior
+    prior = training_prior(task, config)
     extra = {
         "final_loss": float(history["loss"][-10:].mean()),
         "prior": {"name": getattr(prior, "name", type(prior).__name__), "repr": repr(prior)},
