@@ -226,6 +226,11 @@ def _train_step(
     z, g, e = _tensors(batch, ("z", "g", "e"))
     g_tilde = modified_rule(kind, g, model(z, g))
     loss = (alpha**2 * (g_tilde * g_tilde).sum(-1) - 2 * alpha * (e * g_tilde).sum(-1)).mean()
+    return _adam_step(opt, loss)
+
+
+def _adam_step(opt: torch.optim.Optimizer, loss: torch.Tensor) -> float:
+    """Backpropagate ``loss``, take one optimiser step; returns the loss as a float."""
     opt.zero_grad(set_to_none=True)
     loss.backward()
     opt.step()
@@ -279,11 +284,7 @@ def _unrolled_step(
     """One Adam step on the K-step loss; the data depend on the model, so they are drawn here."""
     batch = sample_batch(task, rng, config.batch, config)
     theta0, theta = unroll(task, model, config, batch, rng)
-    loss = unrolled_loss(batch["theta_star"], theta0, theta)
-    opt.zero_grad(set_to_none=True)
-    loss.backward()
-    opt.step()
-    return float(loss.item())
+    return _adam_step(opt, unrolled_loss(batch["theta_star"], theta0, theta))
 
 
 def _losses(
