@@ -17,16 +17,11 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.robot import (
-    IK_TOL,
-    N_ARM,
-    SEED_GRID,
-    PandaIK,
-    RobotEnv,
-    _grid,
-    build_model,
-    seed_table,
-)
+from strol_gym.envs.panda import N_ARM
+from strol_gym.envs.panda_ik import IK_TOL, PandaIK
+from strol_gym.envs.robot import RobotEnv
+from strol_gym.envs.robot_scene import TABLE_TOP, build_model
+from strol_gym.envs.robot_seeds import SEED_GRID, _grid, seed_table
 from strol_gym.humans import NominalHuman
 from strol_gym.priors import FixedPrior
 from strol_gym.tasks.robot import RobotTask
@@ -290,7 +285,7 @@ def test_seed_table_reaches_its_grid():
     task = RobotTask()
     table, pts = seed_table(task), _grid(task)
     assert table.shape == (*SEED_GRID, N_ARM) and not np.isnan(table).any()
-    ik = PandaIK(build_model(task))
+    ik = PandaIK(build_model(task), lift=TABLE_TOP)
     rng = np.random.default_rng(0)
     for idx in zip(*(rng.integers(0, n, 40) for n in SEED_GRID), strict=True):
         ik.set_q(table[idx])

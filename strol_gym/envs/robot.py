@@ -2,20 +2,7 @@
 
 from __future__ import annotations
 
-import functools
-import importlib.resources
-import importlib.util
-import os
-from pathlib import Path
 from typing import Any, ClassVar
-
-# MuJoCo picks its OpenGL backend when it is first imported: default to headless EGL when there
-# is no display (set MUJOCO_GL yourself to override, e.g. osmesa).
-if "MUJOCO_GL" not in os.environ and not (
-    os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-):
-    os.environ["MUJOCO_GL"] = "egl"
-    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import gymnasium as gym
 import mujoco
@@ -23,337 +10,15 @@ import numpy as np
 from gymnasium import spaces
 
 from strol_gym.envs.interaction import CorrectionEnvMixin, HumanFactory, int_arg
+from strol_gym.envs.panda import N_ARM, Q_HOME, has_display
+from strol_gym.envs.panda_ik import IK_ITERS, PandaIK
+from strol_gym.envs.robot_scene import TABLE_TOP, build_model
+from strol_gym.envs.robot_seeds import seed_table
 from strol_gym.humans import Human
 from strol_gym.priors import Prior
 from strol_gym.tasks.robot import RobotTask
 
-# ---------------------------------------------------------------------------------- geometry
-TABLE_TOP = 0.75
-"""World height of the table top, i.e. of the task frame's origin (metres)."""
-BASE_IN_TASK = np.array([0.05, -0.10, 0.10])
-"""The Panda's base in the task frame: 10 cm behind the workspace's near face, centred on its
-y range and on a 10 cm pedestal. Chosen (by a reachability search over base positions) so that
-IK reaches every point of RobotTask's workspace box, the gripper pointing down (median tilt 3°
-over a grid of the box, 90th percentile 8°, up to ~50° next to the base and at the far bottom
-corners)."""
-Q_HOME = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 0.0, 0.785])
-"""Gripper down: joint 6 of this model is offset by −π/2 from the real Panda's."""
-N_ARM = 7
-FINGER_OPEN = 0.04
-EE_SITE = "end_effector"
-SEED_GRID = (9, 11, 8)
-"""IK seed table resolution over the workspace box (x, y, z)."""
 
-# ---------------------------------------------------------------------------------- IK
-IK_ITERS = 6
-"""Damped-least-squares iterations per env step (stops early below IK_TOL)."""
-IK_TOL = 2e-4
-"""Position tolerance of the IK, metres."""
-IK_DAMPING = 0.02
-IK_ORIENT_GAIN = 0.3
-"""Gain of the gripper-down term, which acts only in the null space of the position task."""
-IK_POSTURE_GAIN = 0.1
-"""Gain of the pull towards the seed table's posture (null space of the position task)."""
-IK_RECOVER = 5.0
-"""Restart from the reference posture when the error exceeds IK_RECOVER x IK_TOL."""
-
-
-def franka_assets_dir() -> Path:
-    """gymnasium-robotics' shipped Franka Panda model files (Apache-2.0)."""
-    spec = importlib.util.find_spec("gymnasium_robotics")
-    if spec is None or spec.origin is None:
-        raise ImportError(
-            "StROL-Robot-v0 needs gymnasium-robotics (pip install gymnasium-robotics)"
-        )
-    path = Path(spec.origin).parent / "envs" / "assets" / "kitchen_franka" / "franka_assets"
-    if not (path / "chain.xml").exists():
-        raise FileNotFoundError(f"Franka Panda model files not found in {path}")
-    return path
-
-
-def _fmt(v: Any) -> str:
-    return " ".join(f"{float(a):.6g}" for a in np.atleast_1d(v))
-
-
-def _look_at(eye: np.ndarray, target: np.ndarray) -> str:
-    """MuJoCo camera xyaxes for a camera at ``eye`` looking at ``target`` (z up)."""
-    f = (target - eye) / np.linalg.norm(target - eye)
-    x = np.cross(f, [0.0, 0.0, 1.0])
-    x /= np.linalg.norm(x)
-    return _fmt(np.concatenate([x, np.cross(x, f)]))
-
-
-def scene_xml(task: RobotTask, offwidth: int = 640, offheight: int = 480) -> str:
-    """The MJCF of the scene for ``task``, built at runtime around the Franka model files."""
-    template = importlib.resources.files("strol_gym").joinpath("assets/robot_scene.xml")
-    lift = np.array([0.0, 0.0, TABLE_TOP])
-    low, high = task.workspace_low, task.workspace_high
-    base = BASE_IN_TASK + lift
-    table_lo = np.minimum(low, BASE_IN_TASK)[:2] - 0.15
-    table_hi = high[:2] + 0.15
-    center = 0.5 * (low + high) + lift
-    eye = center + np.array([1.55, -1.05, 0.75])
-    values = {
-        "FRANKA": str(franka_assets_dir()),
-        "OFFWIDTH": str(int(offwidth)),
-        "OFFHEIGHT": str(int(offheight)),
-        "CAM_POS": _fmt(eye),
-        "CAM_XYAXES": _look_at(eye, center - np.array([0.0, 0.0, 0.12])),
-        "TABLE_POS": _fmt([*(0.5 * (table_lo + table_hi)), 0.5 * TABLE_TOP]),
-        "TABLE_SIZE": _fmt([*(0.5 * (table_hi - table_lo)), 0.5 * TABLE_TOP]),
-        "PEDESTAL_POS": _fmt(base - [0.0, 0.0, 0.5 * BASE_IN_TASK[2]]),
-        "PEDESTAL_SIZE": _fmt([0.09, max(0.5 * BASE_IN_TASK[2], 1e-3)]),
-        "PLATE_POS": _fmt(task.plate + lift + [0.0, 0.0, 0.005]),
-        "CUP_POS": _fmt([*task.cup[:2], TABLE_TOP + 0.5 * max(task.cup[2], 0.02)]),
-        "CUP_SIZE": _fmt([0.04, 0.5 * max(task.cup[2], 0.02)]),
-        "BOX_POS": _fmt(center),
-        "BOX_SIZE": _fmt(0.5 * (high - low)),
-        "BASE_POS": _fmt(base),
-    }
-    xml = template.read_text()
-    for key, value in values.items():
-        xml = xml.replace("{" + key + "}", value)
-    return xml
-
-
-@functools.lru_cache(maxsize=8)
-def _compiled_xml_model(xml: str) -> mujoco.MjModel:
-    model = mujoco.MjModel.from_xml_string(xml)
-    arm = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"panda0_link{i}") for i in range(8)]
-    model.body_gravcomp[arm] = 1.0  # so that mj_step (if a user calls it) holds the arm up
-    model.mat_reflectance[:] = 0.0  # reflections cost ~8x frame rate and add nothing here
-    return model
-
-
-def build_model(task: RobotTask, offwidth: int = 640, offheight: int = 480) -> mujoco.MjModel:
-    """The compiled scene. Cached per process: envs never modify their model."""
-    return _compiled_xml_model(scene_xml(task, offwidth, offheight))
-
-
-class PandaIK:
-    """Kinematic control of the Panda's end effector: damped-least-squares IK on the arm joints.
-
-    The position task has priority. Two secondary terms act in its null space: "gripper
-    down" (the orientation of ``Q_HOME``) and a pull towards a reference posture (the IK seed
-    table's configuration nearest the target), which keeps the arm on one continuous IK branch
-    away from its joint limits. If an update still misses the target (the arm folded into a
-    joint limit), the IK restarts from the reference posture. Joint limits are respected.
-    Positions here are in the task frame.
-    """
-
-    def __init__(
-        self,
-        model: mujoco.MjModel,
-        seeds: np.ndarray | None = None,
-        low: np.ndarray | None = None,
-        high: np.ndarray | None = None,
-    ) -> None:
-        self.model = model
-        self.data = mujoco.MjData(model)
-        self.site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, EE_SITE)
-        self.q = self.data.qpos[:N_ARM]  # a view: writing it moves the arm
-        self.lo = model.jnt_range[:N_ARM, 0].copy()
-        self.hi = model.jnt_range[:N_ARM, 1].copy()
-        self.lift = np.array([0.0, 0.0, TABLE_TOP])
-        self._jp = np.zeros((3, model.nv))
-        self._jr = np.zeros((3, model.nv))
-        self._y = np.zeros(3)
-        self._damp = IK_DAMPING**2 * np.eye(3)
-        self.seeds = seeds
-        if seeds is not None:
-            self._seed_low = np.asarray(low, dtype=np.float64)
-            self._seed_step = (np.asarray(high) - self._seed_low) / (np.array(seeds.shape[:3]) - 1)
-            self._seed_max = np.array(seeds.shape[:3]) - 1
-        self.data.qpos[N_ARM:] = FINGER_OPEN
-        self.set_q(Q_HOME)
-        # The rotation error to "gripper as in Q_HOME" is linear in the site's xmat (9,):
-        # e = ½ (z × z_d + x × x_d) = −½ ([z_d]× z + [x_d]× x).
-        rd = self.data.site_xmat[self.site].reshape(3, 3).copy()
-        self._orient = np.zeros((3, 9))
-        self._orient[:, 2::3] = -0.5 * _skew(rd[:, 2])  # columns of xmat: z is entries 2, 5, 8
-        self._orient[:, 0::3] = -0.5 * _skew(rd[:, 0])
-
-    def set_q(self, q: np.ndarray) -> None:
-        self.q[:] = q
-        mujoco.mj_kinematics(self.model, self.data)
-
-    @property
-    def ee(self) -> np.ndarray:
-        """The end-effector position in the task frame (a copy)."""
-        return self.data.site_xpos[self.site] - self.lift
-
-    def tilt_deg(self) -> float:
-        """Angle between the gripper axis and straight down, degrees."""
-        z = self.data.site_xmat[self.site][8]
-        return float(np.degrees(np.arccos(np.clip(-z, -1.0, 1.0))))
-
-    def reference(self, target: np.ndarray) -> np.ndarray | None:
-        """The seed table's configuration nearest ``target`` (task frame), if there is a table."""
-        if self.seeds is None:
-            return None
-        idx = np.rint((target - self._seed_low) / self._seed_step).astype(int)
-        np.minimum(np.maximum(idx, 0), self._seed_max, out=idx)
-        q = self.seeds[idx[0], idx[1], idx[2]]
-        return None if np.isnan(q[0]) else q
-
-    def solve(self, target: np.ndarray, iters: int = IK_ITERS, tol: float = IK_TOL) -> float:
-        """Move the arm so that the end effector reaches ``target`` (task frame).
-
-        Returns the remaining position error (m).
-        """
-        world = target + self.lift
-        ref = self.reference(target)
-        err = self._solve(world, iters, tol, ref)
-        if err > IK_RECOVER * tol and ref is not None:
-            q_prev = self.q.copy()
-            self.set_q(ref)
-            err_ref = self._solve(world, 8 * iters, tol, ref)
-            if err_ref < err:
-                err = err_ref
-            else:
-                self.set_q(q_prev)
-        return err
-
-    def _solve(
-        self,
-        target: np.ndarray,
-        iters: int,
-        tol: float,
-        ref: np.ndarray | None,
-        orient_gain: float = IK_ORIENT_GAIN,
-    ) -> float:
-        """``iters`` IK iterations towards ``target`` (world frame); returns the error."""
-        m, d, q = self.model, self.data, self.q
-        x = d.site_xpos[self.site]
-        xmat = d.site_xmat[self.site]
-        jp, jr = self._jp[:, :N_ARM], self._jr[:, :N_ARM]
-        for _ in range(iters):
-            ep = target - x
-            if ep @ ep < tol * tol:
-                break
-            mujoco.mj_comPos(m, d)
-            mujoco.mj_jacSite(m, d, self._jp, self._jr, self.site)
-            # Secondary motion s, projected into the position task's null space:
-            # dq = J⁺ e + (I − J⁺J) s = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s).
-            s = orient_gain * (jr.T @ (self._orient @ xmat))
-            if ref is not None:
-                s += IK_POSTURE_GAIN * (ref - q)
-            q_new = q + self._step(jp, s, ep)
-            blocked = (q_new < self.lo) | (q_new > self.hi)
-            if blocked.any():  # joints at a limit drop out; the others take over their share
-                free = ~blocked
-                s *= free
-                q_new = q + self._step(jp * free, s, ep)
-            np.minimum(np.maximum(q_new, self.lo), self.hi, out=q)
-            mujoco.mj_kinematics(m, d)
-        ep = target - x
-        return float(np.sqrt(ep @ ep))
-
-    def _step(self, jp: np.ndarray, s: np.ndarray, ep: np.ndarray) -> np.ndarray:
-        """dq = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s), via MuJoCo's Cholesky (no numpy.linalg cost)."""
-        a = jp @ jp.T
-        a += self._damp
-        mujoco.mju_cholFactor(a, 0.0)
-        mujoco.mju_cholSolve(self._y, a, ep - jp @ s)
-        return s + jp.T @ self._y
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-# ---------------------------------------------------------------------------------- IK seeds
-def _grid(task: RobotTask, shape: tuple[int, int, int] = SEED_GRID) -> np.ndarray:
-    axes = [np.linspace(task.workspace_low[k], task.workspace_high[k], shape[k]) for k in range(3)]
-    return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
-
-
-def build_seed_table(task: RobotTask, shape: tuple[int, int, int] = SEED_GRID) -> np.ndarray:
-    """Joint configurations reaching a grid over the workspace box, shape (*shape, 7).
-
-    A flood fill from the home pose: each node is solved starting from a solved neighbour, so
-    neighbouring nodes lie on one continuous IK branch; failed nodes are retried from their
-    other neighbours. Used to start the IK at reset (any start in the box is near a node).
-    Takes a few seconds; the default task's table ships in strol_gym/assets.
-    """
-    ik = PandaIK(build_model(task))
-    pts = _grid(task, shape)
-    table = np.full((*shape, N_ARM), np.nan)
-    err = np.full(shape, np.inf)
-    ik.set_q(Q_HOME)
-    start = np.unravel_index(np.argmin(np.linalg.norm(pts - ik.ee, axis=-1)), shape)
-
-    def neighbours(idx: tuple[int, ...]):
-        for ax in range(3):
-            for s in (-1, 1):
-                j = list(idx)
-                j[ax] += s
-                if 0 <= j[ax] < shape[ax]:
-                    yield tuple(j)
-
-    def attempt(idx: tuple[int, ...], q0: np.ndarray) -> None:
-        ik.set_q(q0)
-        e = ik.solve(pts[idx], iters=60, tol=1e-5)
-        if e > 1e-4:  # the gripper-down term may block the position: solve for it alone
-            ik.set_q(q0)
-            e = ik._solve(pts[idx] + ik.lift, 240, 1e-5, None, orient_gain=0.0)
-        if e < err[idx]:
-            table[idx], err[idx] = ik.q.copy(), e
-
-    frontier, seen = [(start, Q_HOME)], {start}
-    while frontier:
-        nxt = []
-        for idx, q0 in frontier:
-            attempt(idx, q0)
-            for j in neighbours(idx):
-                if j not in seen:
-                    seen.add(j)
-                    nxt.append((j, table[idx]))
-        frontier = nxt
-    for _ in range(3):
-        for idx in zip(*np.nonzero(err > 1e-3), strict=True):
-            for j in neighbours(idx):
-                if err[j] < 1e-3:
-                    attempt(idx, table[j])
-    return table
-
-
-def _seed_table_path() -> Path:
-    return Path(str(importlib.resources.files("strol_gym").joinpath("assets/robot_ik_seeds.npz")))
-
-
-def save_seed_table(task: RobotTask | None = None, path: Path | None = None) -> Path:
-    """Regenerate the shipped IK seed table (``python -m strol_gym.envs.robot``)."""
-    task = task or RobotTask()
-    path = path or _seed_table_path()
-    table = build_seed_table(task)
-    np.savez_compressed(
-        path, q=table, low=task.workspace_low, high=task.workspace_high, base=BASE_IN_TASK
-    )
-    return path
-
-
-@functools.lru_cache(maxsize=8)
-def _seed_table_cached(low: tuple, high: tuple) -> np.ndarray:
-    path = _seed_table_path()
-    if path.exists():
-        with np.load(path) as f:
-            if (
-                np.allclose(f["low"], low)
-                and np.allclose(f["high"], high)
-                and np.allclose(f["base"], BASE_IN_TASK)
-            ):
-                return f["q"]
-    task = RobotTask(workspace_low=np.array(low), workspace_high=np.array(high))
-    return build_seed_table(task)
-
-
-def seed_table(task: RobotTask) -> np.ndarray:
-    """The IK seed table for ``task``'s box: shipped for the default box, else built once."""
-    return _seed_table_cached(tuple(task.workspace_low), tuple(task.workspace_high))
-
-
-# ---------------------------------------------------------------------------------- the env
 class RobotEnv(CorrectionEnvMixin, gym.Env):
     """StROL-Robot-v0: a Franka Panda whose end effector a human corrects toward a plate or cup.
 
@@ -439,8 +104,8 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
       truncates itself after that many steps (default None: never).
     - ``render_mode`` (None | "human" | "rgb_array"); ``width``, ``height`` (int in
       [16, 4096], default 480 x 360). Headless "rgb_array" uses ``MUJOCO_GL=egl`` (set when
-      this module imports MuJoCo first and there is no display) or osmesa; "human" needs a
-      display.
+      ``strol_gym.envs`` is imported before MuJoCo and there is no display) or osmesa;
+      "human" needs a display.
     - ``task`` (``RobotTask`` or None): a variant of the setting (its prior is replaced by
       ``prior``). A workspace box other than the default builds its IK seed table once (~5 s).
 
@@ -519,7 +184,9 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
         off_w, off_h = max(640, self.width), max(480, self.height)
         self.model = build_model(self.task, off_w, off_h)
         seeds = seed_table(self.task)
-        self._ik = PandaIK(self.model, seeds, self.task.workspace_low, self.task.workspace_high)
+        self._ik = PandaIK(
+            self.model, seeds, self.task.workspace_low, self.task.workspace_high, lift=TABLE_TOP
+        )
         self.data = self._ik.data
         if qpos is not None:
             self.data.qpos[:] = qpos
@@ -624,9 +291,7 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
             self._renderer.update_scene(self.data, camera="overview")
             return self._renderer.render()
         if self._viewer is None:
-            if os.name == "posix" and not (
-                os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-            ):
+            if not has_display():
                 # GLFW would abort the whole process; fail politely instead.
                 raise RuntimeError(
                     'render_mode="human" needs a display (DISPLAY is not set); '
@@ -660,7 +325,3 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
         self._renderer = None
         self._viewer = None
         self._build(qpos)
-
-
-if __name__ == "__main__":
-    print(f"wrote {save_seed_table()}")

@@ -1,0 +1,74 @@
+"""The Franka Panda from gymnasium-robotics' shipped model files, for any strol-gym MuJoCo env.
+
+Where the files are, the arm's constants (joint count, home pose, end-effector site), compiling
+a scene that includes them (cached, gravity-compensated) and the small MJCF formatting helpers
+scene builders share. The Robot env's table scene (``robot_scene``) and the user-study env
+build on it.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import os
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+Q_HOME = np.array([0.0, -0.785, 0.0, -2.356, 0.0, 0.0, 0.785])
+"""Gripper down: joint 6 of this model is offset by −π/2 from the real Panda's."""
+N_ARM = 7
+"""Arm joints; they come first in ``qpos`` (the two finger joints follow)."""
+FINGER_OPEN = 0.04
+EE_SITE = "end_effector"
+ARM_BODIES = tuple(f"panda0_link{i}" for i in range(8))
+"""The arm's bodies (link0 is the base), named as in the model files' chain.xml."""
+
+
+def has_display() -> bool:
+    """Whether an on-screen window can open (a viewer without one would abort the process)."""
+    return os.name != "posix" or bool(
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
+    )
+
+
+def franka_assets_dir() -> Path:
+    """gymnasium-robotics' shipped Franka Panda model files (Apache-2.0)."""
+    spec = importlib.util.find_spec("gymnasium_robotics")
+    if spec is None or spec.origin is None:
+        raise ImportError(
+            "strol-gym's MuJoCo envs need gymnasium-robotics (pip install gymnasium-robotics)"
+        )
+    path = Path(spec.origin).parent / "envs" / "assets" / "kitchen_franka" / "franka_assets"
+    if not (path / "chain.xml").exists():
+        raise FileNotFoundError(f"Franka Panda model files not found in {path}")
+    return path
+
+
+def fmt(v: Any) -> str:
+    """Numbers as an MJCF attribute value ("x y z")."""
+    return " ".join(f"{float(a):.6g}" for a in np.atleast_1d(v))
+
+
+def look_at(eye: np.ndarray, target: np.ndarray) -> str:
+    """MuJoCo camera xyaxes for a camera at ``eye`` looking at ``target`` (z up)."""
+    f = (target - eye) / np.linalg.norm(target - eye)
+    x = np.cross(f, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    return fmt(np.concatenate([x, np.cross(x, f)]))
+
+
+@functools.lru_cache(maxsize=8)
+def compile_model(xml: str) -> mujoco.MjModel:
+    """Compile an MJCF that includes the Panda; cached per process, so never modify the result.
+
+    The arm bodies get gravity compensation, so ``mj_step`` (if a user calls it) holds the arm
+    up; reflections are off (they cost ~8x frame rate and add nothing here).
+    """
+    model = mujoco.MjModel.from_xml_string(xml)
+    arm = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in ARM_BODIES]
+    model.body_gravcomp[arm] = 1.0
+    model.mat_reflectance[:] = 0.0
+    return model

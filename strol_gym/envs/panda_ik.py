@@ -1,0 +1,157 @@
+"""Kinematic control of the Panda's end effector (damped-least-squares IK), for any scene that
+includes gymnasium-robotics' Panda (``panda``). Positions are in a task frame: the world frame
+shifted by ``lift``.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from strol_gym.envs.panda import EE_SITE, FINGER_OPEN, N_ARM, Q_HOME
+
+IK_ITERS = 6
+"""Damped-least-squares iterations per env step (stops early below IK_TOL)."""
+IK_TOL = 2e-4
+"""Position tolerance of the IK, metres."""
+IK_DAMPING = 0.02
+IK_ORIENT_GAIN = 0.3
+"""Gain of the gripper-down term, which acts only in the null space of the position task."""
+IK_POSTURE_GAIN = 0.1
+"""Gain of the pull towards the seed table's posture (null space of the position task)."""
+IK_RECOVER = 5.0
+"""Restart from the reference posture when the error exceeds IK_RECOVER x IK_TOL."""
+
+
+class PandaIK:
+    """Kinematic control of the Panda's end effector: damped-least-squares IK on the arm joints.
+
+    The position task has priority. Two secondary terms act in its null space: "gripper
+    down" (the orientation of ``Q_HOME``) and a pull towards a reference posture (the IK seed
+    table's configuration nearest the target), which keeps the arm on one continuous IK branch
+    away from its joint limits. If an update still misses the target (the arm folded into a
+    joint limit), the IK restarts from the reference posture. Joint limits are respected.
+    Positions here are in the task frame, whose origin is ``lift`` metres above the world's;
+    ``seeds`` is a table of joint configurations over the box [low, high] (``robot_seeds``).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        seeds: np.ndarray | None = None,
+        low: np.ndarray | None = None,
+        high: np.ndarray | None = None,
+        lift: float = 0.0,
+    ) -> None:
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, EE_SITE)
+        self.q = self.data.qpos[:N_ARM]  # a view: writing it moves the arm
+        self.lo = model.jnt_range[:N_ARM, 0].copy()
+        self.hi = model.jnt_range[:N_ARM, 1].copy()
+        self.lift = np.array([0.0, 0.0, lift])
+        self._jp = np.zeros((3, model.nv))
+        self._jr = np.zeros((3, model.nv))
+        self._y = np.zeros(3)
+        self._damp = IK_DAMPING**2 * np.eye(3)
+        self.seeds = seeds
+        if seeds is not None:
+            self._seed_low = np.asarray(low, dtype=np.float64)
+            self._seed_step = (np.asarray(high) - self._seed_low) / (np.array(seeds.shape[:3]) - 1)
+            self._seed_max = np.array(seeds.shape[:3]) - 1
+        self.data.qpos[N_ARM:] = FINGER_OPEN
+        self.set_q(Q_HOME)
+        # The rotation error to "gripper as in Q_HOME" is linear in the site's xmat (9,):
+        # e = ½ (z × z_d + x × x_d) = −½ ([z_d]× z + [x_d]× x).
+        rd = self.data.site_xmat[self.site].reshape(3, 3).copy()
+        self._orient = np.zeros((3, 9))
+        self._orient[:, 2::3] = -0.5 * _skew(rd[:, 2])  # columns of xmat: z is entries 2, 5, 8
+        self._orient[:, 0::3] = -0.5 * _skew(rd[:, 0])
+
+    def set_q(self, q: np.ndarray) -> None:
+        self.q[:] = q
+        mujoco.mj_kinematics(self.model, self.data)
+
+    @property
+    def ee(self) -> np.ndarray:
+        """The end-effector position in the task frame (a copy)."""
+        return self.data.site_xpos[self.site] - self.lift
+
+    def tilt_deg(self) -> float:
+        """Angle between the gripper axis and straight down, degrees."""
+        z = self.data.site_xmat[self.site][8]
+        return float(np.degrees(np.arccos(np.clip(-z, -1.0, 1.0))))
+
+    def reference(self, target: np.ndarray) -> np.ndarray | None:
+        """The seed table's configuration nearest ``target`` (task frame), if there is a table."""
+        if self.seeds is None:
+            return None
+        idx = np.rint((target - self._seed_low) / self._seed_step).astype(int)
+        np.minimum(np.maximum(idx, 0), self._seed_max, out=idx)
+        q = self.seeds[idx[0], idx[1], idx[2]]
+        return None if np.isnan(q[0]) else q
+
+    def solve(self, target: np.ndarray, iters: int = IK_ITERS, tol: float = IK_TOL) -> float:
+        """Move the arm so that the end effector reaches ``target`` (task frame).
+
+        Returns the remaining position error (m).
+        """
+        world = target + self.lift
+        ref = self.reference(target)
+        err = self._solve(world, iters, tol, ref)
+        if err > IK_RECOVER * tol and ref is not None:
+            q_prev = self.q.copy()
+            self.set_q(ref)
+            err_ref = self._solve(world, 8 * iters, tol, ref)
+            if err_ref < err:
+                err = err_ref
+            else:
+                self.set_q(q_prev)
+        return err
+
+    def _solve(
+        self,
+        target: np.ndarray,
+        iters: int,
+        tol: float,
+        ref: np.ndarray | None,
+        orient_gain: float = IK_ORIENT_GAIN,
+    ) -> float:
+        """``iters`` IK iterations towards ``target`` (world frame); returns the error."""
+        m, d, q = self.model, self.data, self.q
+        x = d.site_xpos[self.site]
+        xmat = d.site_xmat[self.site]
+        jp, jr = self._jp[:, :N_ARM], self._jr[:, :N_ARM]
+        for _ in range(iters):
+            ep = target - x
+            if ep @ ep < tol * tol:
+                break
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_jacSite(m, d, self._jp, self._jr, self.site)
+            # Secondary motion s, projected into the position task's null space:
+            # dq = J⁺ e + (I − J⁺J) s = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s).
+            s = orient_gain * (jr.T @ (self._orient @ xmat))
+            if ref is not None:
+                s += IK_POSTURE_GAIN * (ref - q)
+            q_new = q + self._step(jp, s, ep)
+            blocked = (q_new < self.lo) | (q_new > self.hi)
+            if blocked.any():  # joints at a limit drop out; the others take over their share
+                free = ~blocked
+                s *= free
+                q_new = q + self._step(jp * free, s, ep)
+            np.minimum(np.maximum(q_new, self.lo), self.hi, out=q)
+            mujoco.mj_kinematics(m, d)
+        ep = target - x
+        return float(np.sqrt(ep @ ep))
+
+    def _step(self, jp: np.ndarray, s: np.ndarray, ep: np.ndarray) -> np.ndarray:
+        """dq = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s), via MuJoCo's Cholesky (no numpy.linalg cost)."""
+        a = jp @ jp.T
+        a += self._damp
+        mujoco.mju_cholFactor(a, 0.0)
+        mujoco.mju_cholSolve(self._y, a, ep - jp @ s)
+        return s + jp.T @ self._y
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
