@@ -115,3 +115,42 @@ def make_prior(spec: str | Prior | Sequence[Sequence[float]], task_modes: np.nda
     if modes.shape[1] != task_modes.shape[1]:
         raise ValueError(f"prior modes need {task_modes.shape[1]} columns, got shape {modes.shape}")
     return MixturePrior(modes, name="custom")
+
+
+@dataclass(frozen=True)
+class HedgedPrior:
+    """The designer's bimodal prior with a hedge: with probability ``broad_weight`` θ comes from
+    a broad Gaussian N(mean of the modes, s² I) instead, s = the largest |mode entry| (unless
+    ``broad_scale`` is given). It says "probably one of these modes, but maybe neither"; it is
+    not the uniform distribution the benchmark's uniform-prior condition draws θ* from."""
+
+    modes: np.ndarray
+    jitter: float = 0.1
+    broad_weight: float = 0.2
+    broad_scale: float | None = None
+    name: str = "hedged"
+    dim: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        bimodal = MixturePrior(self.modes, self.jitter)
+        if not (np.isfinite(self.broad_weight) and 0.0 <= self.broad_weight <= 1.0):
+            raise ValueError(f"broad_weight must be in [0, 1], got {self.broad_weight!r}")
+        scale = self.broad_scale
+        scale = float(np.abs(bimodal.modes).max()) if scale is None else float(scale)
+        if not (np.isfinite(scale) and scale >= 0):
+            raise ValueError(f"broad_scale must be a finite number >= 0, got {self.broad_scale!r}")
+        object.__setattr__(self, "modes", bimodal.modes)
+        object.__setattr__(self, "broad_scale", scale)
+        object.__setattr__(self, "dim", bimodal.dim)
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.modes.mean(axis=0)
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        out = MixturePrior(self.modes, self.jitter).sample(rng, n)
+        broad = rng.random(n) < self.broad_weight
+        out[broad] = self.mean + self.broad_scale * rng.standard_normal(
+            (int(broad.sum()), self.dim)
+        )
+        return out

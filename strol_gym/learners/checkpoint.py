@@ -21,7 +21,9 @@ from strol_gym.learners.network import CorrectionNet
 from strol_gym.tasks.base import Task
 
 FORMAT_VERSION = 1
-KINDS = ("strol", "e2e")
+KINDS = ("strol", "e2e", "strol-unrolled")
+THETA_KINDS = ("strol-unrolled",)
+"""Kinds whose ĝ also sees the robot's current estimate θ̂ (appended to the task's input)."""
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 
 
@@ -42,6 +44,22 @@ def package_versions() -> dict[str, str]:
         "gymnasium": gymnasium.__version__,
         "python": platform.python_version(),
     }
+
+
+def input_dim(task: Task, kind: str) -> int:
+    """The width of ĝ's input for ``kind``: the task's network input (+ d for θ̂ kinds)."""
+    return int(task.network_input_dim) + (task.dim if kind in THETA_KINDS else 0)
+
+
+def model_input(
+    task: Task, kind: str, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, theta: np.ndarray
+) -> np.ndarray:
+    """What ĝ of ``kind`` sees: ``task.network_input(x, u_h, u_r)``, then θ̂ for θ̂ kinds."""
+    z = task.network_input(x, u_h, u_r)
+    if kind in THETA_KINDS:
+        theta = np.broadcast_to(theta, (*z.shape[:-1], task.dim))
+        z = np.concatenate([z, theta], axis=-1)
+    return z
 
 
 def task_signature(task: Task) -> dict[str, Any]:
@@ -65,10 +83,10 @@ def save_checkpoint(
     path = Path(path)
     if path.suffix != ".pt":
         raise ValueError(f"path must end in .pt, got {path}")
-    if model.in_dim != task.network_input_dim or model.out_dim != task.dim:
+    if model.in_dim != input_dim(task, kind) or model.out_dim != task.dim:
         raise ValueError(
-            f"model maps {model.in_dim} -> {model.out_dim}, task {task.task_id} needs "
-            f"{task.network_input_dim} -> {task.dim}"
+            f"model maps {model.in_dim} -> {model.out_dim}, a {kind} ĝ for task {task.task_id} "
+            f"needs {input_dim(task, kind)} -> {task.dim}"
         )
     path.parent.mkdir(parents=True, exist_ok=True)
     weights = {k: v.detach().cpu().contiguous().clone() for k, v in model.state_dict().items()}
@@ -116,6 +134,9 @@ def check_sidecar(meta: dict[str, Any], task: Task, kind: str | None = None) -> 
     net = meta.get("network", {})
     if net.get("out_dim") != task.dim:
         problems.append(f"network out_dim {net.get('out_dim')} != task dim {task.dim}")
+    want_in = input_dim(task, meta.get("kind") if kind is None else kind)
+    if meta.get("kind") in KINDS and net.get("in_dim") != want_in:
+        problems.append(f"network in_dim {net.get('in_dim')} != {want_in}")
     if problems:
         raise ValueError("checkpoint does not match the task: " + "; ".join(problems))
 
@@ -128,7 +149,10 @@ def load_checkpoint(
     if not path.is_file():
         raise FileNotFoundError(f"no checkpoint at {path}")
     meta = read_sidecar(path)
-    check_sidecar(meta, task, kind)
+    try:
+        check_sidecar(meta, task, kind)
+    except ValueError as e:
+        raise ValueError(f"{path}: {e}") from None
     net = meta["network"]
     model = CorrectionNet(net["in_dim"], net["out_dim"], net["hidden"], net["bound"])
     weights = torch.load(path, map_location="cpu", weights_only=True)

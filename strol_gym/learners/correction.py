@@ -1,8 +1,9 @@
 """StROL and e2e: learning rules that use a trained correction term ĝ (paper, Section IV-B).
 
 StROL: G = g + λ·ĝ (λ = 1 in the paper; λ = 0 is exactly Gradient). e2e: G = ĝ, the same
-network trained from scratch without the designer's g in the update. In both, ĝ is bounded by
-‖ĝ‖ ≤ ‖g‖ (see ``strol_gym.learners.network``). By default the learner loads the ĝ shipped for
+network trained from scratch without the designer's g in the update. strol-unrolled: G = g + ĝ
+with ĝ also conditioned on θ̂ and trained through K unrolled corrections. In all, ĝ is bounded
+by ‖ĝ‖ ≤ ‖g‖ (see ``strol_gym.learners.network``). By default the learner loads the ĝ shipped for
 the task (``strol_gym/pretrained``), looked up by ``task.task_id``.
 """
 
@@ -16,7 +17,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from strol_gym.learners.checkpoint import find_pretrained, load_checkpoint
+from strol_gym.learners.checkpoint import find_pretrained, input_dim, load_checkpoint, model_input
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.protocol import LinearRuleLearner
 from strol_gym.tasks.base import Task
@@ -59,22 +60,28 @@ class CorrectionLearner(LinearRuleLearner):
         else:
             if not isinstance(model, CorrectionNet):
                 raise ValueError(f"model must be a CorrectionNet, got {type(model).__name__}")
-            if model.in_dim != task.network_input_dim or model.out_dim != task.dim:
+            want = input_dim(task, self.kind)
+            if model.in_dim != want or model.out_dim != task.dim:
                 raise ValueError(
-                    f"model maps {model.in_dim} -> {model.out_dim}, task {task.task_id} needs "
-                    f"{task.network_input_dim} -> {task.dim}"
+                    f"model maps {model.in_dim} -> {model.out_dim}, a {self.kind} ĝ for task "
+                    f"{task.task_id} needs {want} -> {task.dim}"
                 )
             self.checkpoint = None
             self.checkpoint_meta = None
         self.model = model.eval()
 
-    def correction(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
-        """ĝ for a batch, (B, s), (B, a), (B, a) -> (B, d), with ‖ĝ‖ < ‖g‖ row by row."""
-        return self._correction_and_g(x, u_h, u_r)[0]
+    def correction(
+        self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, theta: np.ndarray | None = None
+    ) -> np.ndarray:
+        """ĝ for a batch, (B, s), (B, a), (B, a) -> (B, d), with ‖ĝ‖ < ‖g‖ row by row.
+        ``theta`` (B, d), the current estimate, is needed by kinds that condition on it."""
+        return self._correction_and_g(x, u_h, u_r, theta)[0]
 
-    def _correction_and_g(self, x, u_h, u_r) -> tuple[np.ndarray, np.ndarray]:
+    def _correction_and_g(self, x, u_h, u_r, theta=None) -> tuple[np.ndarray, np.ndarray]:
         g = self.task.g(x, u_h, u_r)
-        z = torch.as_tensor(self.task.network_input(x, u_h, u_r), dtype=torch.float32)
+        theta = self.theta if theta is None else theta
+        z = model_input(self.task, self.kind, x, u_h, u_r, theta)
+        z = torch.as_tensor(z, dtype=torch.float32)
         with torch.no_grad(), _one_thread():
             g_hat = self.model(z, torch.as_tensor(g, dtype=torch.float64))
         return g_hat.numpy(), g
@@ -117,7 +124,7 @@ class StROLLearner(CorrectionLearner):
         return {"lam": self.lam}
 
     def direction(self, x, u_h, u_r, theta) -> np.ndarray:
-        g_hat, g = self._correction_and_g(x, u_h, u_r)
+        g_hat, g = self._correction_and_g(x, u_h, u_r, theta)
         return g + self.lam * g_hat
 
 
@@ -129,3 +136,17 @@ class E2ELearner(CorrectionLearner):
 
     def direction(self, x, u_h, u_r, theta) -> np.ndarray:
         return self.correction(x, u_h, u_r)
+
+
+class UnrolledStROLLearner(StROLLearner):
+    """strol-unrolled: θ̂ ← θ̂ + α·(g + λ·ĝ(x, u_H, θ̂)), λ = ``lam`` (default 1, as trained).
+
+    The same rule as StROL, but ĝ also sees the current estimate θ̂, and it was trained through
+    K unrolled corrections (``--kind strol-unrolled --unroll K``): the loss is the error after K
+    updates, with the eq. M6 human re-choosing its correction from the current θ̂ at each step
+    (docs/training.md). Assumes the human resembles that training human: eq. M6 with the
+    training noise, θ* from the designer's bimodal prior. ‖ĝ‖ ≤ ‖g‖ holds as for StROL.
+    """
+
+    name = "strol-unrolled"
+    kind = "strol-unrolled"

@@ -53,6 +53,33 @@ def _as_float_array(name: str, value: np.ndarray, width: int) -> np.ndarray:
     return arr
 
 
+def batch_inputs(
+    task: Task, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None, theta: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
+    """Validate one update's inputs and broadcast them to 2-D batches of one length B.
+
+    Returns (x (B, s), u_h (B, a), u_r (B, a), theta (B, d), single), where ``single`` says
+    that every input was 1-D (the learner then returns a (d,) estimate). u_r None means 0.
+    Raises ValueError naming the argument for a wrong shape, NaN / inf or mismatched batches.
+    """
+    x = _as_float_array("x", x, task.state_dim)
+    u_h = _as_float_array("u_h", u_h, task.action_dim)
+    u_r = np.zeros(task.action_dim) if u_r is None else u_r
+    u_r = _as_float_array("u_r", u_r, task.action_dim)
+    theta = np.asarray(theta, dtype=np.float64)
+    single = x.ndim == 1 and u_h.ndim == 1 and u_r.ndim == 1 and theta.ndim == 1
+    arrays = [np.atleast_2d(a) for a in (x, u_h, u_r, theta)]
+    try:
+        b = np.broadcast_shapes(*(a.shape[:1] for a in arrays))[0]
+    except ValueError:
+        lens = [a.shape[0] for a in arrays]
+        raise ValueError(
+            f"batch sizes of x, u_h, u_r and theta disagree: {lens} (each must be B or 1)"
+        ) from None
+    x2, uh2, ur2, th2 = (np.broadcast_to(a, (b, a.shape[1])) for a in arrays)
+    return x2, uh2, ur2, th2, single
+
+
 class LinearRuleLearner:
     """Base for learners of the form θ̂ ← θ̂ + α·G, with G computed by ``direction``.
 
@@ -76,23 +103,8 @@ class LinearRuleLearner:
         return self.theta.copy()
 
     def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:
-        task = self.task
-        x = _as_float_array("x", x, task.state_dim)
-        u_h = _as_float_array("u_h", u_h, task.action_dim)
-        u_r = np.zeros(task.action_dim) if u_r is None else u_r
-        u_r = _as_float_array("u_r", u_r, task.action_dim)
-        single = x.ndim == 1 and u_h.ndim == 1 and u_r.ndim == 1 and self.theta.ndim == 1
-        arrays = [np.atleast_2d(a) for a in (x, u_h, u_r, self.theta)]
-        try:
-            b = np.broadcast_shapes(*(a.shape[:1] for a in arrays))[0]
-        except ValueError:
-            lens = [a.shape[0] for a in arrays]
-            raise ValueError(
-                f"batch sizes of x, u_h, u_r and theta disagree: {lens} (each must be B or 1)"
-            ) from None
-        x2, uh2, ur2, th2 = (np.broadcast_to(a, (b, a.shape[1])) for a in arrays)
-        step = task.alpha * self.direction(x2, uh2, ur2, th2)
-        theta = th2 + step
+        x2, uh2, ur2, th2, single = batch_inputs(self.task, x, u_h, u_r, self.theta)
+        theta = th2 + self.task.alpha * self.direction(x2, uh2, ur2, th2)
         self.theta = theta[0] if single else theta
         return self.theta.copy()
 

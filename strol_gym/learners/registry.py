@@ -22,6 +22,10 @@ _REGISTRY: dict[str, Factory | str] = {
     "mof": "strol_gym.learners.rules:MOFLearner",
     "e2e": "strol_gym.learners.correction:E2ELearner",
     "strol": "strol_gym.learners.correction:StROLLearner",
+    "bayes": "strol_gym.learners.bayes:BayesLearner",
+    "bayes-teacher": "strol_gym.learners.bayes:teacher_bayes",
+    "strol-adaptive": "strol_gym.learners.adaptive:AdaptiveStROLLearner",
+    "strol-unrolled": "strol_gym.learners.correction:UnrolledStROLLearner",
 }
 
 _DISPLAY: dict[str, str] = {

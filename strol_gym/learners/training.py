@@ -2,7 +2,8 @@
 
 Each step draws a fresh batch, fully vectorised in numpy, and takes one Adam step in torch:
 
-1. x ~ ``task.sample_start``; θ* ~ ``task.prior`` (the Task's prior: bimodal for the paper).
+1. x ~ ``task.sample_start``; θ* ~ ``task.prior`` (the Task's prior: bimodal for the paper), or
+   ``HedgedPrior`` over its modes with ``prior="hedged"``.
 2. The robot's current estimate θ (Algorithm 1's "(x, θ, θ*) tuple"). Online, θ starts at the
    prior modes' mean θ0 and walks toward θ*, so by default (``theta_sampling="path"``)
    θ = θ0 + τ (θ* − θ0) + ν with τ ~ U[0, 1] and ν ~ N(0, ``theta_jitter``² I): the start, the
@@ -17,6 +18,12 @@ Each step draws a fresh batch, fully vectorised in numpy, and takes one Adam ste
    per sample with ``make_human`` (σ, ε, β, ``human_kwargs``) and asked for its correction;
    a human class with a batched ``batch_choice`` is asked once per batch instead.
 5. Loss (eq. M7, averaged): mean(α²‖g̃‖² − 2α e·g̃), e = θ* − θ, g̃ = g + ĝ (StROL) or ĝ (e2e).
+
+With ``unroll`` = K > 1 the loss is the error after K updates instead of one (Algorithm 1
+generalised): θ_{k+1} = θ_k + α g̃_k, the human re-choosing its correction (eq. M6) from the
+current θ_k at each step and the state moving by f(x, u_H, u_R); the loss is
+mean(‖θ* − θ_K‖² − ‖θ* − θ_0‖²), which for K = 1 is exactly eq. M7. Gradients flow through
+θ_k (and, for ``kind="strol-unrolled"``, through ĝ's θ̂ input); the human's choice is data.
 
 Adam (lr 1e-3, halved every 100 steps), batch 100, 500 steps for the Robot, as in the paper.
 Runs are seeded (numpy Generator for data, torch seed for the initial weights) and deterministic
@@ -40,13 +47,21 @@ import numpy as np
 import torch
 
 from strol_gym.humans import HUMANS, check_fraction, human_factory, make_human, perturb
-from strol_gym.learners.checkpoint import KINDS, save_checkpoint
+from strol_gym.learners.checkpoint import (
+    KINDS,
+    THETA_KINDS,
+    input_dim,
+    model_input,
+    save_checkpoint,
+)
 from strol_gym.learners.network import BOUNDS, DEFAULT_HIDDEN, CorrectionNet
+from strol_gym.priors import HedgedPrior, Prior
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
 
 THETA_SAMPLING = ("path", "prior-mean", "prior")
 ROBOT_ACTIONS = ("zero", "uniform")
+TRAIN_PRIORS = ("task", "hedged")
 NORM_SAMPLES = 4096
 
 
@@ -71,6 +86,8 @@ class TrainConfig:
     hidden: tuple[int, ...] = DEFAULT_HIDDEN
     bound: str = "radial"
     threads: int = 1
+    unroll: int = 1
+    prior: str = "task"
     human_kwargs: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
@@ -91,8 +108,13 @@ class TrainConfig:
         choice("theta_sampling", THETA_SAMPLING)
         choice("robot_action", ROBOT_ACTIONS)
         choice("bound", BOUNDS)
+        choice("prior", TRAIN_PRIORS)
         for name in ("steps", "batch", "lr_halve_every", "n_candidates", "threads"):
             positive(name)
+        if isinstance(self.unroll, bool) or int(self.unroll) != self.unroll or self.unroll < 1:
+            raise ValueError(
+                f"unroll (K, the unrolled updates) must be an integer >= 1, got {self.unroll!r}"
+            )
         check_fraction("sigma", self.sigma)
         check_fraction("bias", self.bias, allow_negative=True)
         for name in ("lr", "beta", "theta_jitter"):
@@ -114,10 +136,16 @@ class TrainConfig:
 
 
 # ---------------------------------------------------------------------------------------- data
+def training_prior(task: Task, config: TrainConfig) -> Prior:
+    """Where training draws θ*: ``task.prior`` (the paper: the bimodal prior), or
+    ``HedgedPrior`` over the task's modes (``prior="hedged"``, the designer's hedge)."""
+    return task.prior if config.prior == "task" else HedgedPrior(task.prior_modes)
+
+
 def sample_batch(task: Task, rng: np.random.Generator, n: int, config: TrainConfig) -> dict:
     """One synthetic dataset D of Algorithm 1: n tuples (x, θ, θ*, u_R, u_H) and g, z, e."""
     x = task.sample_start(rng, n)
-    theta_star = task.prior.sample(rng, n)
+    theta_star = training_prior(task, config).sample(rng, n)
     theta0 = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
     if config.theta_sampling == "path":
         tau = rng.uniform(0.0, 1.0, size=(n, 1))
@@ -132,26 +160,7 @@ def sample_batch(task: Task, rng: np.random.Generator, n: int, config: TrainConf
         u_r = rng.uniform(-1.0, 1.0, size=(n, task.action_dim)) * b
     else:
         u_r = np.zeros((n, task.action_dim))
-    factory = human_factory(config.human)
-    batched = getattr(factory, "batch_choice", None)
-    if batched is not None:
-        cand = task.candidate_actions(rng, n, config.n_candidates)
-        u_star = batched(task, x, u_r, theta, theta_star, cand, rng, beta=config.beta)
-        u_h = perturb(task, u_star, config.sigma, config.bias, rng)
-    else:
-        u_h = np.empty((n, task.action_dim))
-        for i in range(n):
-            human = make_human(
-                factory,
-                task,
-                theta_star[i],
-                rng,
-                sigma=config.sigma,
-                bias=config.bias,
-                beta=config.beta,
-                **(config.human_kwargs or {}),
-            )
-            u_h[i] = human.act(x[i], u_r[i], theta[i])
+    u_h = human_correction(task, config, rng, x, u_r, theta, theta_star)
     return {
         "x": x,
         "theta": theta,
@@ -159,9 +168,42 @@ def sample_batch(task: Task, rng: np.random.Generator, n: int, config: TrainConf
         "u_r": u_r,
         "u_h": u_h,
         "g": task.g(x, u_h, u_r),
-        "z": task.network_input(x, u_h, u_r),
+        "z": model_input(task, config.kind, x, u_h, u_r, theta),
         "e": theta_star - theta,
     }
+
+
+def human_correction(
+    task: Task,
+    config: TrainConfig,
+    rng: np.random.Generator,
+    x: np.ndarray,
+    u_r: np.ndarray,
+    theta: np.ndarray,
+    theta_star: np.ndarray,
+) -> np.ndarray:
+    """The training human's u_H for a batch: a human class with ``batch_choice`` (eq. M6,
+    Boltzmann) over fresh candidates, + δ; any other human built per sample (``make_human``)."""
+    factory = human_factory(config.human)
+    batched = getattr(factory, "batch_choice", None)
+    if batched is not None:
+        cand = task.candidate_actions(rng, len(x), config.n_candidates)
+        u_star = batched(task, x, u_r, theta, theta_star, cand, rng, beta=config.beta)
+        return perturb(task, u_star, config.sigma, config.bias, rng)
+    u_h = np.empty((len(x), task.action_dim))
+    for i in range(len(x)):
+        human = make_human(
+            factory,
+            task,
+            theta_star[i],
+            rng,
+            sigma=config.sigma,
+            bias=config.bias,
+            beta=config.beta,
+            **(config.human_kwargs or {}),
+        )
+        u_h[i] = human.act(x[i], u_r[i], theta[i])
+    return u_h
 
 
 def lyapunov_term(alpha: float, e: np.ndarray, g_tilde: np.ndarray) -> np.ndarray:
@@ -170,8 +212,8 @@ def lyapunov_term(alpha: float, e: np.ndarray, g_tilde: np.ndarray) -> np.ndarra
 
 
 def modified_rule(kind: str, g: torch.Tensor, g_hat: torch.Tensor) -> torch.Tensor:
-    """g̃ for a kind: g + ĝ (StROL, λ = 1 as trained) or ĝ (e2e)."""
-    return g + g_hat if kind == "strol" else g_hat
+    """g̃ for a kind: ĝ (e2e) or g + ĝ (StROL and strol-unrolled, λ = 1 as trained)."""
+    return g_hat if kind == "e2e" else g + g_hat
 
 
 @contextmanager
@@ -202,10 +244,90 @@ def _train_step(
     z, g, e = _tensors(batch, ("z", "g", "e"))
     g_tilde = modified_rule(kind, g, model(z, g))
     loss = (alpha**2 * (g_tilde * g_tilde).sum(-1) - 2 * alpha * (e * g_tilde).sum(-1)).mean()
+    return _adam_step(opt, loss)
+
+
+def _adam_step(opt: torch.optim.Optimizer, loss: torch.Tensor) -> float:
+    """Backpropagate ``loss``, take one optimiser step; returns the loss as a float."""
     opt.zero_grad(set_to_none=True)
     loss.backward()
     opt.step()
     return float(loss.item())
+
+
+def unroll(
+    task: Task,
+    model: CorrectionNet | None,
+    config: TrainConfig,
+    batch: dict,
+    rng: np.random.Generator,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """K = ``config.unroll`` updates from ``batch`` (its u_H is the first correction; later
+    ones come from ``human_correction`` at the current θ_k). Returns (θ_0, θ_K) as float32
+    tensors; θ_K carries gradients into ``model``. ``model=None`` means ĝ = 0 (Gradient)."""
+    alpha = float(task.alpha)
+    x, u_r, u_h, theta_star = batch["x"], batch["u_r"], batch["u_h"], batch["theta_star"]
+    theta0 = torch.as_tensor(batch["theta"], dtype=torch.float32)
+    theta = theta0
+    for k in range(config.unroll):
+        if k > 0:
+            th = theta.detach().double().numpy()
+            u_h = human_correction(task, config, rng, x, u_r, th, theta_star)
+        g = torch.as_tensor(task.g(x, u_h, u_r), dtype=torch.float32)
+        if model is None:
+            g_tilde = g
+        else:
+            z = torch.as_tensor(task.network_input(x, u_h, u_r), dtype=torch.float32)
+            if config.kind in THETA_KINDS:  # as checkpoint.model_input, with θ_k differentiable
+                z = torch.cat([z, theta], dim=-1)
+            g_tilde = modified_rule(config.kind, g, model(z, g))
+        theta = theta + alpha * g_tilde
+        x = task.dynamics(x, u_h, u_r)
+    return theta0, theta
+
+
+def unrolled_loss(theta_star: np.ndarray, theta0: torch.Tensor, theta: torch.Tensor):
+    """mean(‖θ* − θ_K‖² − ‖θ* − θ_0‖²): eq. M7 for K = 1, the K-step error otherwise."""
+    star = torch.as_tensor(theta_star, dtype=torch.float32)
+    return (((star - theta) ** 2).sum(-1) - ((star - theta0) ** 2).sum(-1)).mean()
+
+
+def _unrolled_step(
+    model: CorrectionNet,
+    opt: torch.optim.Optimizer,
+    task: Task,
+    config: TrainConfig,
+    rng: np.random.Generator,
+) -> float:
+    """One Adam step on the K-step loss; the data depend on the model, so they are drawn here."""
+    batch = sample_batch(task, rng, config.batch, config)
+    theta0, theta = unroll(task, model, config, batch, rng)
+    return _adam_step(opt, unrolled_loss(batch["theta_star"], theta0, theta))
+
+
+def _losses(
+    model: CorrectionNet,
+    opt: torch.optim.Optimizer,
+    task: Task,
+    config: TrainConfig,
+    rng: np.random.Generator,
+) -> Iterator[float]:
+    """Take ``config.steps`` Adam steps, yielding each step's loss."""
+    if config.unroll > 1:  # each batch depends on the model: no prefetching
+        for _ in range(config.steps):
+            yield _unrolled_step(model, opt, task, config, rng)
+        return
+    # Draw the next batch in a worker thread while torch trains on this one. One worker uses
+    # the Generator in order, so the data are the same as drawn serially.
+    alpha = float(task.alpha)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        draw = partial(sample_batch, task, rng, config.batch, config)
+        pending = pool.submit(draw)
+        for step in range(config.steps):
+            batch = pending.result()
+            if step + 1 < config.steps:
+                pending = pool.submit(draw)
+            yield _train_step(model, opt, config.kind, alpha, batch)
 
 
 def train_correction(
@@ -224,27 +346,18 @@ def train_correction(
     norm = sample_batch(task, np.random.default_rng([config.seed, 1]), NORM_SAMPLES, config)
     losses = np.empty(config.steps)
     with torch_determinism(config.seed, config.threads):
-        model = CorrectionNet(task.network_input_dim, task.dim, config.hidden, config.bound)
+        model = CorrectionNet(input_dim(task, config.kind), task.dim, config.hidden, config.bound)
         z = torch.as_tensor(norm["z"], dtype=torch.float32)
         model.in_mean.copy_(z.mean(0))
         model.in_std.copy_(z.std(0).clamp_min(1e-6))
         opt = torch.optim.Adam(model.parameters(), lr=config.lr)
         sched = torch.optim.lr_scheduler.StepLR(opt, step_size=config.lr_halve_every, gamma=0.5)
-        alpha = float(task.alpha)
         bar = tqdm(range(config.steps), disable=quiet, desc=f"train {config.kind}", leave=False)
-        # Draw the next batch in a worker thread while torch trains on this one. One worker
-        # uses the Generator in order, so the data are the same as drawn serially.
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            draw = partial(sample_batch, task, rng, config.batch, config)
-            pending = pool.submit(draw)
-            for step in bar:
-                batch = pending.result()
-                if step + 1 < config.steps:
-                    pending = pool.submit(draw)
-                losses[step] = _train_step(model, opt, config.kind, alpha, batch)
-                sched.step()
-                if step % 10 == 0 or step == config.steps - 1:
-                    bar.set_postfix(loss=f"{losses[step]:+.4f}", refresh=False)
+        for step, loss in zip(bar, _losses(model, opt, task, config, rng), strict=False):
+            losses[step] = loss
+            sched.step()
+            if step % 10 == 0 or step == config.steps - 1:
+                bar.set_postfix(loss=f"{loss:+.4f}", refresh=False)
         bar.close()
     model.eval()
     history = {
@@ -270,13 +383,29 @@ def heldout_lyapunov(
             torch.as_tensor(batch["z"], dtype=torch.float32),
             torch.as_tensor(batch["g"], dtype=torch.float64),
         ).numpy()
-    g_tilde = batch["g"] + g_hat if config.kind == "strol" else g_hat
+    g_tilde = modified_rule(config.kind, batch["g"], g_hat)
     return {
         "trained": float(lyapunov_term(task.alpha, batch["e"], g_tilde).mean()),
         "gradient": float(lyapunov_term(task.alpha, batch["e"], batch["g"]).mean()),
         "seed": int(seed),
         "samples": int(n),
     }
+
+
+def heldout_unrolled(
+    task: Task, model: CorrectionNet, config: TrainConfig, seed: int, n: int = 10_000
+) -> dict[str, float]:
+    """Mean error ‖θ* − θ_K‖ after K = ``config.unroll`` updates on fresh samples (another
+    seed), with the trained ĝ and with ĝ = 0 (Gradient); both see the same first draws."""
+    out: dict[str, float] = {}
+    for label, net in (("trained", model), ("gradient", None)):
+        rng = np.random.default_rng(seed)
+        batch = sample_batch(task, rng, n, config)
+        with torch.no_grad():
+            _, theta = unroll(task, net, config, batch, rng)
+        err = np.linalg.norm(batch["theta_star"] - theta.double().numpy(), axis=-1)
+        out[label] = float(err.mean())
+    return {**out, "unroll": int(config.unroll), "seed": int(seed), "samples": int(n)}
 
 
 # ---------------------------------------------------------------------------------------- CLI
@@ -305,7 +434,20 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
         default="StROL-Robot-v0",
         help="a registered Task name (robot), an env id or module:attr",
     )
-    a("--kind", choices=KINDS, default=d.kind, help="strol: g~ = g + ĝ; e2e: g~ = ĝ")
+    a(
+        "--kind",
+        choices=KINDS,
+        default=d.kind,
+        help="strol: g~ = g + ĝ; e2e: g~ = ĝ; strol-unrolled: g~ = g + ĝ(x, u_H, θ̂)",
+    )
+    a(
+        "-K",
+        "--unroll",
+        type=int,
+        default=d.unroll,
+        metavar="K",
+        help="loss = error after K unrolled updates (K = 1: eq. M7)",
+    )
     a("--out", default=None, help="weights path (.pt); default <task>_<kind>.pt here")
     a("--steps", type=int, default=d.steps)
     a("--batch", type=int, default=d.batch)
@@ -323,6 +465,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     a("--robot-action", choices=ROBOT_ACTIONS, default=d.robot_action)
     a("--bound", choices=BOUNDS, default=d.bound)
     a("--threads", type=int, default=d.threads)
+    a(
+        "--prior",
+        choices=TRAIN_PRIORS,
+        default=d.prior,
+        help="θ* from the task's prior, or the hedged designer's prior (priors.HedgedPrior)",
+    )
     a("--heldout", type=int, default=10_000, help="held-out samples for the eq. M5 check")
     a("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -348,6 +496,8 @@ def run_train(args: argparse.Namespace) -> Path:
         robot_action=args.robot_action,
         bound=args.bound,
         threads=args.threads,
+        unroll=args.unroll,
+        prior=args.prior,
         human_kwargs=args.human_kwargs,
     )
     if args.heldout < 1:
@@ -356,19 +506,30 @@ def run_train(args: argparse.Namespace) -> Path:
     check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)
     short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
     out = Path(args.out) if args.out else Path(f"{short}_{config.kind}.pt")
-    prior = task.prior
+    prior = training_prior(task, config)
     extra = {
         "final_loss": float(history["loss"][-10:].mean()),
         "prior": {"name": getattr(prior, "name", type(prior).__name__), "repr": repr(prior)},
         "heldout_lyapunov": check,
     }
+    if config.unroll > 1:
+        extra["heldout_unrolled"] = heldout_unrolled(
+            task, model, config, seed=config.seed + 1, n=min(args.heldout, 2000)
+        )
     save_checkpoint(out, model, task, config.kind, config.to_dict(), extra)
     print(
         f"{task.task_id} {config.kind}: {config.steps} steps x {config.batch} in "
         f"{history['seconds']:.2f} s; final loss {extra['final_loss']:+.5f}\n"
         f"held-out eq. M5 term (seed {check['seed']}, n={check['samples']}): "
         f"trained {check['trained']:+.5f} vs Gradient (ĝ = 0) {check['gradient']:+.5f}\n"
-        f"saved {out} and {out.with_suffix('.json')}"
+        + (
+            f"held-out error after K = {config.unroll} updates: trained "
+            f"{extra['heldout_unrolled']['trained']:.4f} vs Gradient "
+            f"{extra['heldout_unrolled']['gradient']:.4f}\n"
+            if config.unroll > 1
+            else ""
+        )
+        + f"saved {out} and {out.with_suffix('.json')}"
     )
     return out
 
