@@ -64,6 +64,16 @@ def spec_of(obj: Any) -> str | None:
     return f"{module}:{qualname}" if found is obj else None
 
 
+def _names(entry: Any, piece: Any) -> bool:
+    """Whether a lazy ``"module:attr"`` entry names ``piece`` (without importing anything new)."""
+    if not isinstance(entry, str) or isinstance(piece, str):
+        return False
+    module, _, attr = entry.partition(":")
+    return getattr(piece, "__module__", None) == module and (
+        getattr(piece, "__qualname__", None) == attr
+    )
+
+
 class Registry:
     """Names -> pieces of one kind, over a built-in table (shared, not copied).
 
@@ -98,6 +108,11 @@ class Registry:
             raise ValueError(
                 f"{self.kind} name must be a non-empty string without ':' or ',', got {name!r}"
             )
+        current = self.table.get(name)
+        same = current is not None and (current is piece or _names(current, piece))
+        if same and name not in self.builtin:
+            self.table[name] = piece  # the same piece again (e.g. a worker importing the module
+            return  # behind a spec it was sent, which registers itself on import)
         if name in self.table and (not replace or name in self.builtin):
             raise ValueError(f"a {self.kind} named {name!r} is already registered")
         if isinstance(piece, str):
