@@ -92,19 +92,6 @@ def check_learner_names(names: Sequence[str]) -> None:
         LEARNERS.check_name(name)
 
 
-def _json_mapping(name: str):
-    def parse(text: str) -> dict:
-        try:
-            value = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise argparse.ArgumentTypeError(f"{name} must be a JSON object ({e})") from None
-        if not isinstance(value, dict):
-            raise argparse.ArgumentTypeError(f"{name} must be a JSON object, got {text!r}")
-        return value
-
-    return parse
-
-
 def _plugin_option(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--plugin",
@@ -165,6 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _common_run_options(p)
 
+    from strol_gym.learners.training import add_train_arguments, json_object_arg
+
     p = sub.add_parser(
         "run",
         help="one configuration: env, learners, a condition or explicit noise/bias/prior/human",
@@ -193,7 +182,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--human", help="simulated human: a registered name or module:attr")
     p.add_argument("--beta", type=_fraction("--beta"), help="rationality β (if the human takes it)")
     p.add_argument(
-        "--human-kwargs", type=_json_mapping("--human-kwargs"), help="JSON: the human's own kwargs"
+        "--human-kwargs",
+        type=json_object_arg("--human-kwargs"),
+        help="JSON: the human's own kwargs",
     )
     p.add_argument("--task", default=None, help="a Task name or module:attr (default: the env's)")
     p.add_argument("--name", default="custom", help="name of the explicit condition")
@@ -209,8 +200,6 @@ def build_parser() -> argparse.ArgumentParser:
     _common_run_options(p)
 
     p = sub.add_parser("train", help="train ĝ for StROL or e2e (Algorithm 1)")
-    from strol_gym.learners.training import add_train_arguments
-
     add_train_arguments(p)
     _plugin_option(p)
 

@@ -415,14 +415,19 @@ def resolve_task(spec: str) -> Task:
     return make_task(spec)
 
 
-def _json_object(text: str) -> dict[str, Any]:
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise argparse.ArgumentTypeError(f"must be a JSON object ({e})") from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(f"must be a JSON object, got {text!r}")
-    return value
+def json_object_arg(name: str):
+    """An argparse type: a JSON object (keyword arguments), else an error naming ``name``."""
+
+    def parse(text: str) -> dict[str, Any]:
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object ({e})") from None
+        if not isinstance(value, dict):
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object, got {text!r}")
+        return value
+
+    return parse
 
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -456,7 +461,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     a("--seed", type=int, default=d.seed, help="keep disjoint from evaluation seeds (0, 1, ...)")
     a("--human", default=d.human, help="a registered human's name or module:attr")
     a("--beta", type=float, default=d.beta, help="rationality β (humans that declare it)")
-    a("--human-kwargs", type=_json_object, default=None, help="JSON: the human's own kwargs")
+    a(
+        "--human-kwargs",
+        type=json_object_arg("--human-kwargs"),
+        default=None,
+        help="JSON: the human's own kwargs",
+    )
     a("--lr", type=float, default=d.lr)
     a("--lr-halve-every", type=int, default=d.lr_halve_every)
     a("--candidates", type=int, default=d.n_candidates, help="candidate actions for eq. M6")
