@@ -17,6 +17,7 @@ from pathlib import Path
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
     ENV_PRESETS,
+    PAPER_ENVS,
     PAPER_LEARNERS,
     PRIORS,
     REFERENCE_LEARNER,
@@ -26,8 +27,6 @@ from strol_gym.benchmarks.conditions import (
 )
 from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment, paper_config
 from strol_gym.benchmarks.results import ResultsError
-
-ENV_CHOICES = tuple(ENV_PRESETS)
 
 
 # ---------------------------------------------------------------------- argument types
@@ -143,7 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="The paper's comparison (Gradient, One, MOF, e2e, StROL under the training, "
         "clean, noisy-biased and uniform-prior conditions) for one or both envs.",
     )
-    p.add_argument("--env", choices=(*ENV_CHOICES, "all"), default="all")
+    p.add_argument("--env", choices=(*PAPER_ENVS, "all"), default="all")
     p.add_argument(
         "--runs",
         type=_positive_int("--runs"),
@@ -160,7 +159,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Run learners on one env under paper conditions (--condition, repeatable) "
         "or one explicit condition (--sigma/--bias/--prior/--human/--beta).",
     )
-    p.add_argument("--env", choices=ENV_CHOICES, required=True)
+    p.add_argument(
+        "--env", required=True, help=f"{', '.join(PAPER_ENVS)} or a registered env preset"
+    )
     p.add_argument(
         "--learners",
         type=_learner_list,
@@ -267,7 +268,7 @@ def _run(args: argparse.Namespace, config: BenchConfig, out: Path) -> int:
 
 
 def cmd_paper(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    envs = list(ENV_CHOICES) if args.env == "all" else [args.env]
+    envs = list(PAPER_ENVS) if args.env == "all" else [args.env]
     config = paper_config(envs, runs=args.runs, seed=args.seed, block=args.block)
     out = Path(args.out or f"results/paper-{args.env}")
     return _run(args, config, out)
@@ -287,16 +288,17 @@ def cmd_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.registry import registries
 
-    print("envs:")
+    for kind, reg in registries().items():
+        user = set(reg.user_names())
+        names = [f"{n} (yours)" if n in user else n for n in reg.names()]
+        tail = "" if reg.decode is not None else " (or module:attr)"
+        print(f"{kind}s: " + ", ".join(names) + tail)
+    print("envs in detail:")
     for key, p in ENV_PRESETS.items():
         print(
             f"  {key:8s} {p.env_id}: {p.runs} runs, {p.n_corrections} corrections, "
             f"primary metric {p.primary_metric}"
         )
-    for kind, reg in registries().items():
-        user = set(reg.user_names())
-        names = [f"{n} (yours)" if n in user else n for n in reg.names()]
-        print(f"{kind}s: " + ", ".join(names) + " (or module:attr)")
     print("conditions in detail:")
     for key in ENV_PRESETS:
         for name in registries()["condition"].names():

@@ -87,9 +87,14 @@ class Condition:
         return f"σ={self.sigma:g}, ε={self.bias:g}, {self.prior} prior, {h} human"
 
 
+PRIMARY_METRICS = ("regret", "error", "cos_error")
+
+
 @dataclasses.dataclass(frozen=True)
 class EnvPreset:
-    """What the paper fixes per environment: id, run count, correction steps, primary metric."""
+    """What the benchmark fixes per environment: id, run count, correction steps, the training
+    condition's noise and the primary metric. ``env_id`` may be ``"module:Env-v0"`` (gymnasium
+    then imports ``module`` first, which is how a worker process finds a user's env)."""
 
     key: str
     env_id: str
@@ -97,6 +102,24 @@ class EnvPreset:
     n_corrections: int
     training_sigma: float
     primary_metric: str
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.key, str) or not self.key or ":" in self.key:
+            raise ValueError(f"key must be a non-empty string without ':', got {self.key!r}")
+        if not isinstance(self.env_id, str) or not self.env_id:
+            raise ValueError(f"env_id must be a gymnasium env id, got {self.env_id!r}")
+        for name in ("runs", "n_corrections"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+        if not (math.isfinite(self.training_sigma) and self.training_sigma >= 0):
+            raise ValueError(
+                f"training_sigma must be a finite number >= 0, got {self.training_sigma}"
+            )
+        if self.primary_metric not in PRIMARY_METRICS:
+            raise ValueError(
+                f"primary_metric must be one of {PRIMARY_METRICS}, got {self.primary_metric!r}"
+            )
 
     def conditions(self) -> dict[str, Condition]:
         """The paper's four conditions for this env (DESIGN.md's table), in figure order."""
@@ -123,11 +146,36 @@ ENV_PRESETS: dict[str, EnvPreset] = {
 }
 
 
+PAPER_ENVS: tuple[str, ...] = tuple(ENV_PRESETS)
+"""The paper's envs (``strol-bench paper``); ``register_env_preset`` adds more for ``run``."""
+
+
+def _check_preset(key: str, preset: object) -> None:
+    if not isinstance(preset, EnvPreset) or preset.key != key:
+        raise ValueError(f"env {key!r} must be an EnvPreset with key {key!r}, got {preset!r}")
+
+
+ENVS = Registry(
+    "env",
+    ENV_PRESETS,
+    check=_check_preset,
+    encode=dataclasses.asdict,
+    decode=lambda d: EnvPreset(**d),
+)
+
+
+def register_env_preset(preset: EnvPreset) -> None:
+    """Make an env available to ``strol-bench run --env KEY`` (and ``list``)."""
+    if not isinstance(preset, EnvPreset):
+        raise ValueError(f"preset must be an EnvPreset, got {preset!r}")
+    ENVS.register(preset.key, preset)
+
+
 def env_preset(key: str) -> EnvPreset:
-    """The preset for ``key`` ("robot" | "highway"); ValueError listing the valid keys."""
+    """The preset for ``key`` ("robot", "highway" or a registered one); ValueError listing them."""
     try:
         return ENV_PRESETS[key]
-    except KeyError:
+    except (KeyError, TypeError):
         raise ValueError(f"env must be one of {sorted(ENV_PRESETS)}, got {key!r}") from None
 
 

@@ -21,7 +21,7 @@ from strol_gym.benchmarks.conditions import (
     is_paper_condition,
 )
 
-from strol_gym.registry import user_specs
+from strol_gym.registry import install_specs, user_specs
 
 DEFAULT_BLOCK = 25
 """Run seeds per unit of work. Fixed by the config, never by --jobs, so that batched numerics see
@@ -133,7 +133,7 @@ class BenchConfig:
     reference: str = REFERENCE_LEARNER
     block: int = DEFAULT_BLOCK
     learner_kwargs: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
-    plugins: dict[str, dict[str, str]] = dataclasses.field(default_factory=dict)
+    plugins: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
     """User-registered pieces the run uses, as ``{kind: {name: "module:attr"}}``: what a worker
     process registers before it builds anything (``with_user_specs``)."""
 
@@ -171,6 +171,7 @@ class BenchConfig:
         """This config with ``plugins`` set to the user registrations it uses, and the names
         of those that cannot reach a worker process (lambdas, closures, interactive code)."""
         used = {
+            "env": [e.env for e in self.experiments],
             "learner": self.learners,
             "human": [e.condition.human for e in self.experiments if e.condition.human],
             "task": [e.task for e in self.experiments if e.task],
@@ -208,6 +209,7 @@ class BenchConfig:
             raise ValueError(
                 f"unknown results schema {d.get('schema')!r}, expected {SCHEMA_VERSION}"
             )
+        install_specs(d.get("plugins", {}))  # a worker learns the user's names first
         return cls(
             experiments=tuple(Experiment.from_dict(e) for e in d["experiments"]),
             learners=tuple(d["learners"]),

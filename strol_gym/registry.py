@@ -88,12 +88,18 @@ class Registry:
         *,
         check: Callable[[str, Any], None] | None = None,
         hint: str = "",
+        encode: Callable[[Any], Any] | None = None,
+        decode: Callable[[Any], Any] | None = None,
     ) -> None:
         self.kind = kind
         self.table = table
         self.builtin = tuple(table)
         self._check = check
         self.hint = hint
+        self.encode = encode
+        self.decode = decode
+        """Pieces that are plain data (env presets) travel as ``encode(piece)`` (JSON) and are
+        rebuilt with ``decode``; every other piece travels as its ``"module:attr"``."""
 
     def names(self) -> list[str]:
         """Registered names, built-ins first, in registration order."""
@@ -109,7 +115,11 @@ class Registry:
                 f"{self.kind} name must be a non-empty string without ':' or ',', got {name!r}"
             )
         current = self.table.get(name)
-        same = current is not None and (current is piece or _names(current, piece))
+        same = current is not None and (
+            current is piece
+            or _names(current, piece)
+            or (self.decode is not None and type(current) is type(piece) and current == piece)
+        )
         if same and name not in self.builtin:
             self.table[name] = piece  # the same piece again (e.g. a worker importing the module
             return  # behind a spec it was sent, which registers itself on import)
@@ -158,6 +168,7 @@ class Registry:
 
 
 _REGISTRIES: dict[str, Callable[[], Registry]] = {
+    "env": lambda: importlib.import_module("strol_gym.benchmarks.conditions").ENVS,
     "learner": lambda: importlib.import_module("strol_gym.learners.registry").LEARNERS,
     "human": lambda: importlib.import_module("strol_gym.humans").HUMANS,
     "task": lambda: importlib.import_module("strol_gym.tasks").TASKS,
@@ -166,7 +177,7 @@ _REGISTRIES: dict[str, Callable[[], Registry]] = {
 
 
 def registries() -> dict[str, Registry]:
-    """Every registry by kind: learner, human, task, condition."""
+    """Every registry by kind: env (benchmark presets), learner, human, task, condition."""
     return {kind: get() for kind, get in _REGISTRIES.items()}
 
 
@@ -179,7 +190,7 @@ def resolve(kind: str, spec: str) -> Any:
 
 def user_specs(
     used: dict[str, Iterable[str]] | None = None,
-) -> tuple[dict[str, dict[str, str]], list[str]]:
+) -> tuple[dict[str, dict[str, Any]], list[str]]:
     """The user entries as importable specs ``{kind: {name: "module:attr"}}``, and the names
     that cannot travel to another process (each as "kind 'name'").
 
@@ -192,7 +203,8 @@ def user_specs(
         for name in reg.user_names():
             if wanted is not None and name not in wanted:
                 continue
-            spec = spec_of(reg.table[name])
+            entry = reg.table[name]
+            spec = reg.encode(entry) if reg.encode is not None else spec_of(entry)
             if spec is None:
                 stuck.append(f"{kind} {name!r}")
             else:
@@ -200,17 +212,17 @@ def user_specs(
     return specs, stuck
 
 
-def install_specs(specs: dict[str, dict[str, str]]) -> None:
-    """Register ``user_specs`` output in this process (a worker); names already there with
-    the same spec are left alone."""
+def install_specs(specs: dict[str, dict[str, Any]]) -> None:
+    """Register ``user_specs`` output in this process (a worker). A name this process already
+    has is left as it is: a worker starts without them, and the parent keeps its own."""
     regs = registries()
     for kind, entries in specs.items():
+        if kind not in regs:
+            raise ValueError(f"unknown kind of piece {kind!r}; known: {list(regs)}")
         reg = regs[kind]
         for name, spec in entries.items():
-            current = reg.table.get(name)
-            if current is not None and (current == spec or spec_of(current) == spec):
-                continue
-            reg.register(name, spec, replace=True)
+            if name not in reg.table:
+                reg.register(name, spec if reg.decode is None else reg.decode(spec))
 
 
 def import_plugin(spec: str) -> None:

@@ -16,7 +16,7 @@ from strol_gym.benchmarks.config import BenchConfig, Experiment, paper_config
         (["run", "--env", "robot", "--sigma", "-0.1"], "--sigma must be a finite number >= 0"),
         (["run", "--env", "robot", "--sigma", "nan"], "--sigma must be a finite number >= 0"),
         (["run", "--env", "robot", "--condition", "windy"], "unknown condition 'windy'"),
-        (["run", "--env", "boat"], "invalid choice: 'boat'"),
+        (["run", "--env", "boat"], "env must be one of ['highway', 'robot'], got 'boat'"),
         (["paper", "--runs", "0"], "--runs must be an integer >= 1"),
         (["paper", "--jobs", "0"], "--jobs must be an integer >= 1"),
         (["paper", "--env", "moon"], "invalid choice: 'moon'"),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -10,10 +12,13 @@ from registry_pieces import HalfGradient, NearCupTask, shy_human
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.conditions import (
     CONDITIONS,
+    ENVS,
     Condition,
+    EnvPreset,
     custom_condition,
     make_condition,
     register_condition,
+    register_env_preset,
 )
 from strol_gym.benchmarks.config import BenchConfig, Experiment
 from strol_gym.benchmarks.runner import _Worker, run_benchmark
@@ -36,18 +41,22 @@ def registered():
     register_human("shy", shy_human)
     register_task("near-cup", NearCupTask)
     register_condition("shy-clean", Condition("shy-clean", sigma=0.0, human="shy"))
+    register_env_preset(EnvPreset("robot-3", "StROL-Robot-v0", 20, 3, 0.1, "error"))
     yield
-    for reg, name in ((LEARNERS, "half"), (HUMANS, "shy"), (TASKS, "near-cup")):
-        reg.unregister(name)
+    for reg, name in ((LEARNERS, "half"), (HUMANS, "shy"), (TASKS, "near-cup"), (ENVS, "robot-3")):
+        if name in reg:
+            reg.unregister(name)
     CONDITIONS.unregister("shy-clean")
 
 
 def test_every_registry_lists_its_built_ins_and_rejects_unknown_names():
     regs = registries()
-    assert set(regs) == {"learner", "human", "task", "condition"}
+    assert set(regs) == {"env", "learner", "human", "task", "condition"}
     assert regs["learner"].names()[:5] == ["gradient", "one", "mof", "e2e", "strol"]
     assert "nominal" in regs["human"] and "robot" in regs["task"]
     for kind, reg in regs.items():
+        if kind == "env":
+            continue  # presets are data, looked up by key (env_preset)
         with pytest.raises(ValueError, match=f"unknown {kind} 'nope'; known {kind}s: "):
             reg.get("nope")
         with pytest.raises(ValueError, match="already registered"):
@@ -96,23 +105,25 @@ def test_a_custom_human_trains_by_name(registered):
 
 
 def test_user_entries_travel_to_a_fresh_worker_as_specs(registered):
-    exp = Experiment("robot", custom_condition("robot", human="shy"), runs=1, task="near-cup")
+    exp = Experiment("robot-3", custom_condition("robot-3", human="shy"), runs=1, task="near-cup")
     config, stuck = BenchConfig((exp,), ("gradient", "half"), "gradient").with_user_specs()
     assert stuck == []
     assert config.plugins == {
+        "env": {"robot-3": dataclasses.asdict(ENVS.table["robot-3"])},
         "learner": {"half": f"{PIECES}:HalfGradient"},
         "human": {"shy": f"{PIECES}:shy_human"},
         "task": {"near-cup": f"{PIECES}:NearCupTask"},
     }
     shipped = config.to_dict()
     # A fresh process knows none of the user's names: simulate it by removing them.
-    for reg, name in ((LEARNERS, "half"), (HUMANS, "shy"), (TASKS, "near-cup")):
+    for reg, name in ((LEARNERS, "half"), (HUMANS, "shy"), (TASKS, "near-cup"), (ENVS, "robot-3")):
         reg.unregister(name)
     worker = _Worker(BenchConfig.from_dict(shipped))
     records = worker.run_unit(worker.config.units()[0])
     worker.close()
     assert {r["learner"] for r in records} == {"gradient", "half"}
-    assert "half" in LEARNERS and "shy" in HUMANS and "near-cup" in TASKS
+    assert {r["steps"] for r in records} == {3}  # the preset's correction count
+    assert "half" in LEARNERS and "shy" in HUMANS and "near-cup" in TASKS and "robot-3" in ENVS
 
 
 def test_a_lambda_cannot_reach_workers_and_the_error_says_so(tmp_path):
