@@ -240,5 +240,7 @@ def import_plugin(spec: str) -> None:
         spec = path.stem
     try:
         importlib.import_module(spec)
-    except Exception as e:
+    except SystemExit as e:
+        raise ValueError(f"plugin {spec!r} called sys.exit({e.code}) on import") from e
+    except Exception as e:  # a user module may raise anything on import
         raise ValueError(f"plugin {spec!r} failed to import: {type(e).__name__}: {e}") from e

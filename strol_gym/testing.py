@@ -21,7 +21,7 @@ from strol_gym.tasks.base import Task
 
 __all__ = ["check_human", "check_learner", "check_task"]
 
-_SEED = 20_000  # contract 6: seeds for checks of this kind live in 20000-29999
+_SEED = 1_390  # a diagnostics seed (the project keeps 1000-1399 for diagnostics)
 
 
 def _fail(what: str, detail: str) -> None:

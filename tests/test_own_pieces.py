@@ -70,7 +70,7 @@ env = gym.make("StROL-Robot-v0", human="shy", task="near-cup", sigma=0.2,
 assert type(env.unwrapped.task).__name__ == "NearCupTask"
 assert env.unwrapped.human_model == "shy"
 env = OnlineLearningWrapper(env, "half-step")
-obs, info = env.reset(seed=20_000)
+obs, info = env.reset(seed=1_391)
 assert env.unwrapped.human.shyness == 0.3 and env.unwrapped.human.sigma == 0.2
 assert type(env.learner).__name__ == "HalfStep"
 done = False

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -156,3 +157,24 @@ def test_cli_list_shows_plugins_and_run_takes_user_names(tmp_path, capsys):
         main(["run", "--env", "robot", "--condition", "windy", "--runs", "1"])
     assert e.value.code == 2
     assert "unknown condition 'windy'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("source", "message"),
+    [
+        ("raise RuntimeError('boom')", "failed to import: RuntimeError: boom"),
+        ("def broken(:\n", "failed to import: SyntaxError"),
+        ("import sys\nsys.exit(3)", r"called sys.exit\(3\) on import"),
+    ],
+)
+def test_a_bad_plugin_exits_2_with_a_message(tmp_path, capsys, source, message):
+    plugin = tmp_path / f"bad_plugin_{len(source)}.py"
+    plugin.write_text(source)
+    with pytest.raises(SystemExit) as e:
+        main(["list", "--plugin", str(plugin)])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and re.search(message, err)
+    with pytest.raises(SystemExit):
+        main(["list", "--plugin", str(tmp_path / "missing.py")])
+    assert "no such file" in capsys.readouterr().err
