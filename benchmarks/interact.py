@@ -1,0 +1,170 @@
+"""``strol-bench interact``: a person pushes the study arm in MuJoCo's viewer; the robot learns.
+
+The pipeline is the simulated users' own: each control step the viewer's perturbation (Ctrl +
+right-drag on the arm) is read *after* ``viewer.sync()`` (``sync`` zeroes ``xfrc_applied`` and
+then writes the mouse's force), handed to the env with ``hold_wrench``, and the env steps:
+15 N threshold, u_H, the learner's update in ``OnlineLearningWrapper``, replanning. Every
+session is logged (``session_log``) and can be replayed with ``strol-bench replay``.
+
+The viewer sits behind :class:`Viewer` (``sync``, ``is_running``, ``set_texts``, ``close``), so
+tests inject a fake that writes a wrench the way the real one does.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from strol_gym.benchmarks.session_log import SessionLogger
+from strol_gym.envs.panda import has_display
+from strol_gym.wrappers import OnlineLearningWrapper
+
+NO_DISPLAY = (
+    "interact needs a display (DISPLAY is not set): run it on a virtual one with "
+    "`xvfb-run -a strol-bench interact ...`, or use the headless simulated users, "
+    'gymnasium.make("StROL-Study-v0", human="nominal")'
+)
+
+
+class Viewer(Protocol):
+    """What interact needs of ``mujoco.viewer.launch_passive``'s handle."""
+
+    def sync(self) -> None: ...
+
+    def is_running(self) -> bool: ...
+
+    def set_texts(self, texts: Any) -> None: ...
+
+    def close(self) -> None: ...
+
+
+ViewerFactory = Callable[[mujoco.MjModel, mujoco.MjData], Viewer]
+
+
+def passive_viewer(model: mujoco.MjModel, data: mujoco.MjData) -> Viewer:
+    """MuJoCo's passive viewer (needs a display)."""
+    if not has_display():
+        raise ValueError(NO_DISPLAY)
+    from mujoco import viewer
+
+    return viewer.launch_passive(model, data)
+
+
+def read_perturbation(
+    model: mujoco.MjModel, data: mujoco.MjData, site: int, oriented: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The person's push as a wrench at the cup, then cleared from ``xfrc_applied``.
+
+    The viewer writes its perturbation into ``xfrc_applied`` of the selected body (force at
+    the body's centre of mass, and torque). Summed over bodies and moved to the cup site:
+    F = Σ F_b, τ = Σ τ_b + (c_b − p_cup) × F_b. Task 1's corrections are positions: its torque
+    is dropped (the env would count ‖τ‖ / 0.1 m towards the threshold). The perturbation is
+    cleared so that the env's own application of it (on the hand) is the only one.
+    """
+    xfrc = data.xfrc_applied
+    force = xfrc[:, :3].sum(axis=0)
+    torque = np.zeros(3)
+    if oriented:
+        lever = data.xipos - data.site_xpos[site]
+        torque = xfrc[:, 3:].sum(axis=0) + np.cross(lever, xfrc[:, :3]).sum(axis=0)
+    xfrc[:] = 0.0
+    return force.copy(), torque
+
+
+def overlay(task: Any, info: dict[str, Any], felt: float) -> list[tuple]:
+    """Viewer text: θ̂, correction time, features, the felt force (top left)."""
+    theta = np.asarray(info["theta_hat"])
+    phi = np.asarray(info["phi"])
+    labels = ["time", "pushing", "corrections", "correction time"]
+    values = [
+        f"{info['time']:.1f} s",
+        f"{felt:.1f} N" + (" (correcting)" if info["correction_active"] else ""),
+        str(info["corrections"]),
+        f"{info['correction_time']:.2f} s",
+    ]
+    for name, t, p in zip(task.feature_names, theta, phi, strict=True):
+        labels.append(f"{name}: θ̂ / φ")
+        values.append(f"{t:+.3f} / {p:+.3f}")
+    font = mujoco.mjtFontScale.mjFONTSCALE_150
+    return [(font, mujoco.mjtGridPos.mjGRID_TOPLEFT, "\n".join(labels), "\n".join(values))]
+
+
+def default_log_path() -> Path:
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    return Path("sessions") / f"session-{stamp}.jsonl"
+
+
+def run_interactive(
+    task: int = 1,
+    learner: str = "strol",
+    learner_kwargs: dict[str, Any] | None = None,
+    seed: int = 20000,
+    log: str | Path | None = None,
+    duration: float = 120.0,
+    max_steps: int | None = None,
+    realtime: bool = True,
+    viewer_factory: ViewerFactory = passive_viewer,
+    env_kwargs: dict[str, Any] | None = None,
+) -> tuple[Path, dict[str, Any]]:
+    """Run one interactive session; returns the log's path and the last step's ``info``.
+
+    Stops when the viewer closes, after ``duration`` s of simulated time, or after
+    ``max_steps`` control steps. ``realtime`` paces steps to wall-clock time.
+    """
+    if isinstance(task, bool) or task not in (1, 2, 3):
+        raise ValueError(f"task must be 1, 2 or 3, got {task!r}")
+    if viewer_factory is passive_viewer and not has_display():
+        raise ValueError(NO_DISPLAY)
+    from strol_gym.tasks.study import CONTROL_DT
+
+    path = Path(log) if log is not None else default_log_path()
+    if path.exists():
+        raise ValueError(f"log {path} exists; sessions are never overwritten")
+    kwargs = {"task": task, "human": None, "duration": duration, **(env_kwargs or {})}
+    base = gym.make("StROL-Study-v0", **kwargs)
+    learning = OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
+    study = base.unwrapped
+    site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
+    viewer = viewer_factory(study.model, study.data)
+    options = {"max_steps": max_steps, "realtime": realtime, "mode": "interactive"}
+    env = SessionLogger(learning, path, extra={"interact": options})
+    try:
+        obs, info = env.reset(seed=seed)
+        info.update(correction_active=False, corrections=0, correction_time=0.0, time=0.0)
+        action = np.zeros(env.action_space.shape, dtype=np.float32)
+        steps, reason, ended = 0, "viewer closed", False
+        t_next = time.perf_counter()
+        while viewer.is_running():
+            if max_steps is not None and steps >= max_steps:
+                reason = "max_steps"
+                break
+            study.data.xfrc_applied[:] = 0.0  # what is left there is the env's own push
+            viewer.sync()  # zeroes xfrc_applied, then writes the mouse's perturbation
+            force, torque = read_perturbation(study.model, study.data, site, study.task.oriented)
+            study.hold_wrench(force, torque)
+            obs, _, terminated, truncated, info = env.step(action)
+            steps += 1
+            felt = float(np.linalg.norm(info["wrench"][:3]))
+            viewer.set_texts(overlay(study.task, info, felt))
+            if terminated or truncated:  # SessionLogger wrote the end line
+                ended = True
+                break
+            if realtime:
+                t_next += CONTROL_DT
+                time.sleep(max(0.0, t_next - time.perf_counter()))
+        if not ended:
+            env.end_session(reason)
+    finally:
+        viewer.close()
+        env.close()
+    return path, info
+
+
+__all__ = ["NO_DISPLAY", "Viewer", "passive_viewer", "read_perturbation", "run_interactive"]
