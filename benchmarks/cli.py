@@ -207,6 +207,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
     _plugin_option(p)
 
+    from strol_gym.benchmarks import interact, replay
+
+    replay.add_parser(sub, _learner_list, _plugin_option)
+    interact.add_parser(sub, _plugin_option)
+
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
     p.add_argument("--no-plots", action="store_true")
@@ -331,8 +336,22 @@ def cmd_train(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.replay import command
+
+    return command(args, parser)
+
+
+def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.interact import command
+
+    return command(args, parser)
+
+
 COMMANDS = {
     "paper": cmd_paper,
+    "replay": cmd_replay,
+    "interact": cmd_interact,
     "run": cmd_run,
     "train": cmd_train,
     "list": cmd_list,

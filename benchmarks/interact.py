@@ -13,6 +13,7 @@ tests inject a fake that writes a wrench the way the real one does.
 from __future__ import annotations
 
 import datetime as dt
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -21,10 +22,10 @@ from typing import Any, Protocol
 import gymnasium as gym
 import mujoco
 import numpy as np
-
 from strol_gym.benchmarks.session_log import SessionLogger
-from strol_gym.envs.panda import has_display
 from strol_gym.wrappers import OnlineLearningWrapper
+
+from strol_gym.envs.panda import has_display
 
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "
@@ -48,13 +49,37 @@ class Viewer(Protocol):
 ViewerFactory = Callable[[mujoco.MjModel, mujoco.MjData], Viewer]
 
 
+class _Passive:
+    """``launch_passive``'s handle whose ``close`` also waits for the viewer's thread: exiting
+    while it still renders makes GLFW's exit handler crash the process (seen under Xvfb)."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        from mujoco import viewer
+
+        before = set(threading.enumerate())
+        self.handle = viewer.launch_passive(model, data)
+        self.threads = [t for t in threading.enumerate() if t not in before]
+
+    def sync(self) -> None:
+        self.handle.sync()
+
+    def is_running(self) -> bool:
+        return self.handle.is_running()
+
+    def set_texts(self, texts: Any) -> None:
+        self.handle.set_texts(texts)
+
+    def close(self) -> None:
+        self.handle.close()
+        for t in self.threads:
+            t.join(timeout=10.0)
+
+
 def passive_viewer(model: mujoco.MjModel, data: mujoco.MjData) -> Viewer:
     """MuJoCo's passive viewer (needs a display)."""
     if not has_display():
         raise ValueError(NO_DISPLAY)
-    from mujoco import viewer
-
-    return viewer.launch_passive(model, data)
+    return _Passive(model, data)
 
 
 def read_perturbation(
@@ -136,7 +161,7 @@ def run_interactive(
     options = {"max_steps": max_steps, "realtime": realtime, "mode": "interactive"}
     env = SessionLogger(learning, path, extra={"interact": options})
     try:
-        obs, info = env.reset(seed=seed)
+        _, info = env.reset(seed=seed)
         info.update(correction_active=False, corrections=0, correction_time=0.0, time=0.0)
         action = np.zeros(env.action_space.shape, dtype=np.float32)
         steps, reason, ended = 0, "viewer closed", False
@@ -149,7 +174,7 @@ def run_interactive(
             viewer.sync()  # zeroes xfrc_applied, then writes the mouse's perturbation
             force, torque = read_perturbation(study.model, study.data, site, study.task.oriented)
             study.hold_wrench(force, torque)
-            obs, _, terminated, truncated, info = env.step(action)
+            _, _, terminated, truncated, info = env.step(action)
             steps += 1
             felt = float(np.linalg.norm(info["wrench"][:3]))
             viewer.set_texts(overlay(study.task, info, felt))
@@ -165,6 +190,64 @@ def run_interactive(
         viewer.close()
         env.close()
     return path, info
+
+
+# ---------------------------------------------------------------------- CLI (strol-bench interact)
+def add_parser(sub: Any, plugin_option: Any) -> None:
+    p = sub.add_parser(
+        "interact",
+        help="push the study arm yourself in MuJoCo's viewer; the robot learns (needs a display)",
+        description="Open MuJoCo's passive viewer on StROL-Study-v0 (no simulated user). Push "
+        "the arm with Ctrl + right-drag (double-click a link first to select it): a push above "
+        "15 N is a correction; the learner updates and the robot replans. The session is "
+        "logged for strol-bench replay. Without a display: xvfb-run -a strol-bench interact.",
+    )
+    p.add_argument("--task", default="1", help="study Task: 1, 2 or 3 (default 1)")
+    p.add_argument("--learner", default="strol", help="registered name or module:attr (strol)")
+    p.add_argument("--learner-kwargs", default=None, help="JSON, e.g. '{\"lam\": 0.5}'")
+    p.add_argument("--seed", type=int, default=20000, help="θ̂0's seed (default 20000)")
+    p.add_argument("--log", default=None, help="session log (default sessions/session-TIME.jsonl)")
+    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds (120)")
+    p.add_argument("--max-steps", type=int, default=None, help="stop after N control steps")
+    p.add_argument("--fast", action="store_true", help="do not pace the steps to wall-clock time")
+    plugin_option(p)
+
+
+def command(args: Any, parser: Any) -> int:
+    import json
+
+    from strol_gym.benchmarks.cli import check_learner_names
+
+    if args.task not in ("1", "2", "3"):
+        raise ValueError(f"--task must be 1, 2 or 3, got {args.task!r}")
+    if not has_display():  # before anything is built
+        raise ValueError(NO_DISPLAY)
+    check_learner_names([args.learner])
+    kwargs = None
+    if args.learner_kwargs:
+        try:
+            kwargs = json.loads(args.learner_kwargs)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"--learner-kwargs must be a JSON object ({e})") from None
+        if not isinstance(kwargs, dict):
+            raise ValueError("--learner-kwargs must be a JSON object")
+    if args.max_steps is not None and args.max_steps < 1:
+        raise ValueError(f"--max-steps must be >= 1, got {args.max_steps}")
+    path, info = run_interactive(
+        task=int(args.task),
+        learner=args.learner,
+        learner_kwargs=kwargs,
+        seed=args.seed,
+        log=args.log,
+        duration=args.duration,
+        max_steps=args.max_steps,
+        realtime=not args.fast,
+    )
+    theta = ", ".join(f"{t:+.3f}" for t in info["theta_hat"])
+    print(f"{info['corrections']} correction(s), {info['correction_time']:.2f} s of pushing")
+    print(f"final θ̂ = ({theta}); session log: {path}")
+    print(f"replay it: strol-bench replay {path} --learners strol,gradient")
+    return 0
 
 
 __all__ = ["NO_DISPLAY", "Viewer", "passive_viewer", "read_perturbation", "run_interactive"]

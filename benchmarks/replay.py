@@ -14,11 +14,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from strol_gym.benchmarks.session_log import Session, read_session
+from strol_gym.wrappers.online_learning import _cosine_error
+
 from strol_gym.learners.registry import display_name, make_learner
 from strol_gym.tasks import make_task
-from strol_gym.wrappers.online_learning import _cosine_error
 
 
 def replay_session(
@@ -96,7 +96,6 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
     from strol_gym.benchmarks.plots import _color
 
     names = session.header["task_describe"]["feature_names"]
@@ -126,8 +125,10 @@ def run_replay(
     session = read_session(log)
     results = replay_session(session, learners, learner_kwargs)
     rows = summary_rows(session, results)
-    folder = Path(out) if out is not None else Path(log).with_suffix("").with_name(
-        Path(log).stem + "_replay"
+    folder = (
+        Path(out)
+        if out is not None
+        else Path(log).with_suffix("").with_name(Path(log).stem + "_replay")
     )
     folder.mkdir(parents=True, exist_ok=True)
     written = [folder / "replay.csv"]
@@ -152,3 +153,43 @@ def run_replay(
 
 
 __all__ = ["plot_thetas", "replay_session", "run_replay", "summary_rows", "write_csv"]
+
+
+# ---------------------------------------------------------------------- CLI (strol-bench replay)
+def add_parser(sub: Any, learner_list: Any, plugin_option: Any) -> None:
+    p = sub.add_parser(
+        "replay",
+        help="feed a session log's corrections through learners (table, CSV, plot)",
+        description="Replay the corrections of a session log (strol-bench interact, or any "
+        "SessionLogger) through learners: each starts at the logged θ̂0 and updates on the "
+        "logged (x, u_H, u_R). Prints final θ̂, error to the logged θ* and 1 − cos.",
+    )
+    p.add_argument("log", help="a session log (.jsonl)")
+    p.add_argument(
+        "--learners",
+        type=learner_list,
+        required=True,
+        help="comma-separated registered names or module:attr",
+    )
+    p.add_argument("--learner-kwargs", default=None, help='JSON, e.g. \'{"strol": {"lam": 0.5}}\'')
+    p.add_argument("--out", default=None, help="output folder (default: LOG's name + _replay)")
+    p.add_argument("--no-plots", action="store_true")
+    plugin_option(p)
+
+
+def command(args: Any, parser: Any) -> int:
+    import json
+
+    from strol_gym.benchmarks.cli import check_learner_names
+
+    check_learner_names(args.learners)
+    kwargs: dict[str, dict] = {}
+    if args.learner_kwargs:
+        try:
+            kwargs = json.loads(args.learner_kwargs)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"--learner-kwargs must be JSON ({e})") from None
+        if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
+            raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {}}')
+    run_replay(args.log, args.learners, args.out, kwargs, plots=not args.no_plots)
+    return 0

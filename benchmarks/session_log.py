@@ -33,8 +33,8 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-
 from strol_gym.benchmarks.results import package_versions
+
 from strol_gym.registry import spec_of
 from strol_gym.tasks import TASKS, Task
 from strol_gym.tasks.base import _jsonable
@@ -117,9 +117,7 @@ class SessionLogger(gym.Wrapper):
     be replayed. A multi-step correction's ``info["correction_record"]`` adds the wrench trace.
     """
 
-    def __init__(
-        self, env: gym.Env, path: str | Path, extra: dict[str, Any] | None = None
-    ) -> None:
+    def __init__(self, env: gym.Env, path: str | Path, extra: dict[str, Any] | None = None) -> None:
         super().__init__(env)
         learning = _unwrap_learning(env)
         saved = getattr(learning, "_saved_kwargs", {})

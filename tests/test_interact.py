@@ -1,0 +1,183 @@
+"""strol-bench interact and replay: a viewer's push becomes a logged, replayable correction.
+
+The fake viewer writes its wrench the way MuJoCo's passive viewer does: ``sync()`` zeroes
+``xfrc_applied`` and then writes the mouse's perturbation on the selected body.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import subprocess
+import sys
+
+import mujoco
+import numpy as np
+import pytest
+from strol_gym.benchmarks.cli import main
+from strol_gym.benchmarks.interact import run_interactive
+from strol_gym.benchmarks.session_log import SessionLogError, read_session
+
+PUSH_START, PUSH_STEPS = 10, 20  # control steps (0.05 s): a 1 s push from t = 0.5 s
+
+
+class FakeViewer:
+    """Pushes the hand with ``force`` N during syncs [start, start + steps)."""
+
+    def __init__(self, model, data, force=(0.0, 30.0, 0.0), start=PUSH_START, steps=PUSH_STEPS):
+        self.data = data
+        self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
+        self.force = np.asarray(force, dtype=float)
+        self.window = range(start, start + steps)
+        self.syncs = 0
+        self.texts = None
+        self.closed = False
+
+    def sync(self) -> None:
+        self.data.xfrc_applied[:] = 0.0
+        if self.syncs in self.window:
+            self.data.xfrc_applied[self.body, :3] = self.force
+        self.syncs += 1
+
+    def is_running(self) -> bool:
+        return not self.closed
+
+    def set_texts(self, texts) -> None:
+        self.texts = texts
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def cli(argv: list[str]) -> int:
+    """strol-bench's exit status (argparse-style errors raise SystemExit)."""
+    try:
+        return main(argv)
+    except SystemExit as e:
+        return int(e.code)
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    """One headless interactive session on Task 1 with StROL: a 30 N push along +y for 1 s."""
+    path = tmp_path_factory.mktemp("interact") / "s.jsonl"
+    viewers = []
+
+    def factory(model, data):
+        viewers.append(FakeViewer(model, data))
+        return viewers[-1]
+
+    log, info = run_interactive(
+        task=1,
+        learner="strol",
+        seed=20010,
+        log=path,
+        max_steps=50,
+        realtime=False,
+        viewer_factory=factory,
+    )
+    return log, info, viewers[0]
+
+
+def test_push_is_one_logged_correction_and_the_learner_updates(session):
+    log, info, viewer = session
+    assert viewer.closed and viewer.syncs == 50
+    assert info["corrections"] == 1
+    assert info["correction_time"] == pytest.approx(1.0, abs=0.051)
+    s = read_session(log)
+    assert s.header["learner"] == "strol" and s.header["task"] == "study-task1"
+    assert s.header["env_kwargs"]["human"] is None
+    (ep,) = s.episodes
+    (c,) = ep.corrections
+    assert c["u_h"][1] > 0.02  # the hand moved along +y by > 2 cm
+    lines = [json.loads(t) for t in log.read_text().splitlines()]
+    rec = next(r for r in lines if r["type"] == "correction")
+    force = np.array(rec["trace"]["force"])
+    assert len(rec["trace"]["t"]) == PUSH_STEPS
+    np.testing.assert_allclose(force, np.tile([0.0, 30.0, 0.0], (PUSH_STEPS, 1)))
+    assert not np.allclose(rec["theta_hat_before"], rec["theta_hat_after"])
+    np.testing.assert_allclose(rec["theta_hat_before"], ep.theta_hat0)
+    np.testing.assert_allclose(info["theta_hat"], rec["theta_hat_after"])
+    assert lines[-1]["type"] == "end" and lines[-1]["reason"] == "max_steps"
+    # the overlay shows θ̂, the correction time and the features
+    (text,) = viewer.texts
+    assert "correction time" in text[2] and "pitcher" in text[2] and "1.00 s" in text[3]
+
+
+def test_replay_two_learners(session, tmp_path, capsys):
+    log, info, _ = session
+    out = tmp_path / "replay"
+    assert cli(["replay", str(log), "--learners", "strol,gradient", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "StROL" in printed and "Gradient" in printed
+    with (out / "replay.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 2 * 2  # two learners x (θ̂0, after the one correction)
+    strol = [r for r in rows if r["learner"] == "strol"]
+    # replaying the logged learner reproduces the session's θ̂
+    final = np.array([float(strol[-1][f"theta_{i}"]) for i in range(3)])
+    np.testing.assert_allclose(final, info["theta_hat"], atol=1e-5)
+    grad = [r for r in rows if r["learner"] == "gradient"]
+    assert grad[-1]["theta_0"] != strol[-1]["theta_0"]
+    assert (out / "replay_theta.png").stat().st_size > 1000
+
+
+def test_bad_log_names_file_and_line(session, tmp_path, capsys):
+    log, _, _ = session
+    lines = log.read_text().splitlines()
+    bad = tmp_path / "bad.jsonl"
+    rec = json.loads(lines[2])
+    rec["u_h"] = [1.0, "x", 0.0]
+    bad.write_text("\n".join([lines[0], lines[1], json.dumps(rec)]) + "\n")
+    with pytest.raises(SessionLogError, match=rf"{bad}:3: 'u_h'"):
+        read_session(bad)
+    assert cli(["replay", str(bad), "--learners", "strol"]) == 2
+    err = capsys.readouterr().err
+    assert f"{bad}:3" in err and "Traceback" not in err
+    notjson = tmp_path / "notjson.jsonl"
+    notjson.write_text(lines[0] + "\n{oops\n")
+    assert cli(["replay", str(notjson), "--learners", "strol"]) == 2
+    assert f"{notjson}:2: not JSON" in capsys.readouterr().err
+    assert cli(["replay", str(tmp_path / "missing.jsonl"), "--learners", "strol"]) == 2
+
+
+def test_cli_bad_inputs_exit_2(tmp_path, monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert cli(["interact", "--task", "4"]) == 2
+    assert "--task must be 1, 2 or 3" in capsys.readouterr().err
+    assert cli(["interact", "--task", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "xvfb-run -a strol-bench interact" in err and "StROL-Study-v0" in err
+    with pytest.raises(ValueError, match="task must be 1, 2 or 3"):
+        run_interactive(task=5, viewer_factory=FakeViewer)
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run is not installed")
+def test_real_passive_viewer_under_xvfb(tmp_path):
+    """The real viewer opens on a virtual display, steps, and the session is logged."""
+    log = tmp_path / "xvfb.jsonl"
+    cmd = [
+        "xvfb-run",
+        "-a",
+        "-s",
+        "-screen 0 1024x768x24",
+        sys.executable,
+        "-m",
+        "strol_gym.benchmarks.cli",
+        "interact",
+        "--task",
+        "1",
+        "--max-steps",
+        "20",
+        "--fast",
+        "--log",
+        str(log),
+    ]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    s = read_session(log)
+    assert s.header["extra"]["interact"]["max_steps"] == 20
+    end = json.loads(log.read_text().splitlines()[-1])
+    assert end["type"] == "end" and end["steps"] == 20 and end["corrections"] == 0
