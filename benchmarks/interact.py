@@ -49,6 +49,10 @@ class Viewer(Protocol):
 ViewerFactory = Callable[[mujoco.MjModel, mujoco.MjData], Viewer]
 
 
+LOOKAT = (0.4, 0.0, 0.35)
+"""Where the viewer's camera looks first (m, robot base frame): the pitcher, plate and arm."""
+
+
 class _Passive:
     """``launch_passive``'s handle whose ``close`` also waits for the viewer's thread: exiting
     while it still renders makes GLFW's exit handler crash the process (seen under Xvfb)."""
@@ -57,8 +61,12 @@ class _Passive:
         from mujoco import viewer
 
         before = set(threading.enumerate())
-        self.handle = viewer.launch_passive(model, data)
+        self.handle = viewer.launch_passive(model, data, show_left_ui=False, show_right_ui=False)
         self.threads = [t for t in threading.enumerate() if t not in before]
+        with self.handle.lock():  # look at the workspace from the person's side of the table
+            cam = self.handle.cam
+            cam.lookat[:] = LOOKAT
+            cam.distance, cam.azimuth, cam.elevation = 2.2, 150.0, -20.0
 
     def sync(self) -> None:
         self.handle.sync()
@@ -115,7 +123,7 @@ def overlay(task: Any, info: dict[str, Any], felt: float) -> list[tuple]:
         f"{info['correction_time']:.2f} s",
     ]
     for name, t, p in zip(task.feature_names, theta, phi, strict=True):
-        labels.append(f"{name}: θ̂ / φ")
+        labels.append(f"{name}: theta_hat / phi")  # the viewer's font is ASCII
         values.append(f"{t:+.3f} / {p:+.3f}")
     font = mujoco.mjtFontScale.mjFONTSCALE_150
     return [(font, mujoco.mjtGridPos.mjGRID_TOPLEFT, "\n".join(labels), "\n".join(values))]
