@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_study_env.py [--task 1] [--repeats 3]
 
 1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
-   feature computation; no user, no planning, no rendering; 200 env steps = 5,000 physics
+   feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics
    steps, before the plan ends so nothing replans) over those of bare ``mujoco.mj_step`` on the
    same compiled model from the same pose, timed alternately in one process; best of
    ``--repeats`` each. Target ≥ 0.5.
@@ -71,7 +71,6 @@ def _state(env: StudyEnv) -> np.ndarray:
 def realtime_factor(task: int, repeats: int) -> tuple[float, dict]:
     """(best simulated s / wall s over ``repeats`` episodes, the last episode's summary)."""
     import torch
-
     from strol_gym.wrappers import OnlineLearningWrapper
 
     torch.set_num_threads(1)
@@ -113,7 +112,9 @@ def main() -> None:
         f"{bare_rate:,.0f}/s, ratio {ratio:.2f} (target >= 0.50)"
     )
     factor, summary = realtime_factor(args.task, args.repeats)
-    print(f"60 s episode, simulated user + StROL: {factor:.1f}x real time (target >= 30); {summary}")
+    print(
+        f"60 s episode, simulated user + StROL: {factor:.1f}x real time (target >= 30); {summary}"
+    )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

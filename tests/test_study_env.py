@@ -286,3 +286,17 @@ def test_human_mode_without_display_is_a_clear_error():
     env = make(render_mode="human")
     with pytest.raises(RuntimeError, match="display"):
         env.reset(seed=SEED)
+
+
+def test_held_wrench_is_one_correction_until_released():
+    """What an interactive front end does: read the person's push each step, hand it over."""
+    env = make(task=1)
+    env.reset(seed=SEED)
+    for _ in range(8):
+        env.hold_wrench([0.0, 0.0, 25.0])
+        _, info = run(env, 1)
+    env.hold_wrench([0.0, 0.0, 0.0])
+    _, info = run(env, 1)
+    assert info["is_correction"] and info["corrections"] == 1
+    assert info["u_h"][2] > 0 and info["correction_time"] == pytest.approx(0.4)
+    np.testing.assert_allclose(info["correction_record"]["force"][:, 2], 25.0)

@@ -25,7 +25,7 @@ from strol_gym.tasks.study import (
     rpy_to_mat,
 )
 
-HOLD = 5
+HOLD = 2
 """Physics steps per impedance update (the torque is held in between: 100 Hz control)."""
 END_HOLD = 2.0
 """Seconds the robot waits at the end of its plan before it returns home and plays it again."""
@@ -334,7 +334,7 @@ class StudyEnv(CorrectionEnv, gym.Env):
 
     # ------------------------------------------------------------------ physics
     def _simulate(self, v_sp: np.ndarray) -> None:
-        """25 physics steps; the impedance torque is recomputed every ``HOLD`` of them.
+        """One control step of physics; the impedance torque is recomputed every ``HOLD`` steps.
 
         τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints; e = setpoint − pose
         (orientation error as the rotation vector's small-angle form). v_sp, the setpoint's
@@ -342,9 +342,14 @@ class StudyEnv(CorrectionEnv, gym.Env):
         """
         m, d = self.model, self.data
         f = self._wrench[:3]
-        lever = d.site_xpos[self._site] - d.xipos[self._hand]
-        d.xfrc_applied[self._hand, :3] = f
-        d.xfrc_applied[self._hand, 3:] = self._wrench[3:] + np.cross(lever, f)
+        if self._wrench.any():
+            lx, ly, lz = (d.site_xpos[self._site] - d.xipos[self._hand]).tolist()
+            fx, fy, fz = f.tolist()
+            d.xfrc_applied[self._hand, :3] = f
+            lever_torque = np.array((ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx))
+            d.xfrc_applied[self._hand, 3:] = self._wrench[3:] + lever_torque
+        else:
+            d.xfrc_applied[self._hand] = 0.0
         jac, k, damp, err = self._jac, self._k, self._d, self._err
         jp, jr = self._jacp, self._jacr
         sp_p, sp_r = self._sp[:3], self._sp_R

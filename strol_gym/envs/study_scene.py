@@ -27,6 +27,10 @@ CUP_IN_HAND = np.array([0.0, 0.0, 0.26])
 PITCHER_RADIUS = 0.07
 PITCHER_HEIGHT = 0.24
 PLATE_RADIUS = 0.10
+TIMESTEP = 0.005
+"""Physics step (s): 10 per 0.05 s control step. The implicit-fast integrator keeps the compliant
+arm stable at this step (the model files' 2 ms would cost 2.5x the physics per simulated
+second; docs/study.md)."""
 JOINT_DAMPING = np.array([5.0, 5.0, 5.0, 5.0, 1.0, 1.0, 1.0])
 """Viscous joint damping (N m s/rad), integrated implicitly by MuJoCo (the model files' 100 on
 the big joints makes the arm lag its setpoint by ~10 cm at 0.1 m/s)."""
@@ -104,6 +108,8 @@ def build_model(offwidth: int = 640, offheight: int = 480) -> mujoco.MjModel:
     for body in spec.bodies[1:]:
         body.gravcomp = 1.0  # in the spec: MuJoCo skips gravcomp if none is set at compile
     model = prepare_model(spec.compile())
+    model.opt.timestep = TIMESTEP
+    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     model.dof_damping[:N_ARM] = JOINT_DAMPING
     model.dof_armature[:N_ARM] = ARMATURE
     # Arm actuators: position servos -> torque motors within the Panda's torque limits.
