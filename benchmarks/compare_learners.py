@@ -1,7 +1,7 @@
 """Paired tests of candidate learners against StROL and against the best paper baseline.
 
     .venv/bin/python -m strol_gym.benchmarks.compare_learners results/learners-robot [...]
-        [--learners bayes,bayes-teacher,strol-adaptive,strol-unrolled]
+        [--learners bayes,bayes-teacher,strol-adaptive,strol-unrolled] [--metrics regret,error]
 
 Reads ``runs.csv`` of ``strol-bench`` results folders and prints, per env and condition, a
 markdown table: for each candidate learner and metric (regret where the env has it, error,
@@ -46,13 +46,14 @@ def _paired(runs, env, cond, a, b, metric):
     return x, y
 
 
-def compare(runs, candidates) -> list[str]:
-    """The markdown lines for every (env, condition) in ``runs``."""
+def compare(runs, candidates, wanted=METRICS) -> list[str]:
+    """The markdown lines for every (env, condition) in ``runs``, for the ``wanted`` metrics
+    that the reference learner has (regret is NaN where a Task has no planner)."""
     lines = []
     for env, cond in dict.fromkeys((e, c) for e, c, _ in runs):
         metrics = [
             m
-            for m in METRICS
+            for m in wanted
             if all(math.isfinite(v[m]) for v in runs[(env, cond, REFERENCE)].values())
         ]
         lines += [
@@ -94,11 +95,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("folders", nargs="+", type=Path, help="strol-bench results folders")
     parser.add_argument("--learners", default=",".join(CANDIDATES))
+    parser.add_argument("--metrics", default=",".join(METRICS), help="subset of " + str(METRICS))
     args = parser.parse_args()
+    wanted = [m.strip() for m in args.metrics.split(",") if m.strip()]
+    if not wanted or set(wanted) - set(METRICS):
+        parser.error(f"--metrics must name some of {METRICS}, got {args.metrics!r}")
     candidates = [c.strip() for c in args.learners.split(",") if c.strip()]
     for folder in args.folders:
         runs = load_runs(folder)
-        print("\n".join(compare(runs, candidates)))
+        print("\n".join(compare(runs, candidates, wanted)))
 
 
 if __name__ == "__main__":

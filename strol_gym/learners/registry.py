@@ -66,7 +66,8 @@ def make_learner(
 ) -> OnlineRewardLearner:
     """Build a learner for ``task``.
 
-    ``name`` is a registered name ("gradient", "one", "mof", "e2e", "strol", or one added with
+    ``name`` is a registered name ("gradient", "one", "mof", "e2e", "strol", "bayes",
+    "bayes-teacher", "strol-adaptive", "strol-unrolled", or one added with
     ``register_learner``), a learner object (returned as it is; it must be built for ``task``
     when one is given), or a factory called as ``factory(task=task, **kwargs)``.
     """
