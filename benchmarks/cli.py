@@ -7,7 +7,6 @@ naming the argument and its valid values (argparse's convention).
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import math
 import sys
@@ -18,18 +17,16 @@ from pathlib import Path
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
     ENV_PRESETS,
-    HUMANS,
+    PAPER_ENVS,
     PAPER_LEARNERS,
     PRIORS,
     REFERENCE_LEARNER,
     custom_condition,
     env_preset,
-    paper_condition,
+    make_condition,
 )
 from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment, paper_config
 from strol_gym.benchmarks.results import ResultsError
-
-ENV_CHOICES = tuple(ENV_PRESETS)
 
 
 # ---------------------------------------------------------------------- argument types
@@ -88,28 +85,26 @@ def _learner_list(text: str) -> list[str]:
 
 def check_learner_names(names: Sequence[str]) -> None:
     """ValueError for a name that is neither registered nor an importable ``module:attr``."""
-    from strol_gym.learners.registry import list_learners
+    from strol_gym.learners.registry import LEARNERS
 
-    known = list_learners()
     for name in names:
-        if name in known:
-            continue
-        if ":" in name:
-            module, _, attr = name.partition(":")
-            try:
-                getattr(importlib.import_module(module), attr)
-            except (ImportError, AttributeError) as e:
-                msg = f"learner {name!r}: cannot import {attr!r} from {module!r} ({e})"
-                raise ValueError(msg) from None
-            continue
-        raise ValueError(
-            f"unknown learner {name!r}; known learners: {', '.join(known)}, "
-            "or 'module:attr' naming a learner factory"
-        )
+        LEARNERS.check_name(name)
+
+
+def _plugin_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import a module (or a .py file) that registers your own learners, humans, Tasks "
+        "or conditions (repeatable); see docs/extending.md",
+    )
 
 
 # ---------------------------------------------------------------------- parser
 def _common_run_options(p: argparse.ArgumentParser) -> None:
+    _plugin_option(p)
     p.add_argument("--out", default=None, help="results folder (default results/<preset>)")
     p.add_argument(
         "--jobs",
@@ -147,7 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="The paper's comparison (Gradient, One, MOF, e2e, StROL under the training, "
         "clean, noisy-biased and uniform-prior conditions) for one or both envs.",
     )
-    p.add_argument("--env", choices=(*ENV_CHOICES, "all"), default="all")
+    p.add_argument("--env", choices=(*PAPER_ENVS, "all"), default="all")
     p.add_argument(
         "--runs",
         type=_positive_int("--runs"),
@@ -156,13 +151,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _common_run_options(p)
 
+    from strol_gym.learners.training import add_train_arguments, json_object_arg
+
     p = sub.add_parser(
         "run",
         help="one configuration: env, learners, a condition or explicit noise/bias/prior/human",
         description="Run learners on one env under paper conditions (--condition, repeatable) "
         "or one explicit condition (--sigma/--bias/--prior/--human/--beta).",
     )
-    p.add_argument("--env", choices=ENV_CHOICES, required=True)
+    p.add_argument(
+        "--env", required=True, help=f"{', '.join(PAPER_ENVS)} or a registered env preset"
+    )
     p.add_argument(
         "--learners",
         type=_learner_list,
@@ -175,14 +174,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--condition",
         action="append",
-        choices=CONDITION_NAMES,
-        help="a paper condition (repeatable); default training",
+        help="a registered condition (the paper's: " + ", ".join(CONDITION_NAMES) + ") or "
+        "module:attr (repeatable); default training",
     )
     p.add_argument("--sigma", type=_fraction("--sigma"), help="noise σ, fraction of a_max")
     p.add_argument("--bias", type=_fraction("--bias", allow_negative=True), help="bias ε")
     p.add_argument("--prior", choices=PRIORS, help="where θ* comes from")
-    p.add_argument("--human", choices=HUMANS, help="simulated human model")
-    p.add_argument("--beta", type=_fraction("--beta"), help="Boltzmann rationality β")
+    p.add_argument("--human", help="simulated human: a registered name or module:attr")
+    p.add_argument("--beta", type=_fraction("--beta"), help="rationality β (if the human takes it)")
+    p.add_argument(
+        "--human-kwargs",
+        type=json_object_arg("--human-kwargs"),
+        help="JSON: the human's own kwargs",
+    )
+    p.add_argument("--task", default=None, help="a Task name or module:attr (default: the env's)")
     p.add_argument("--name", default="custom", help="name of the explicit condition")
     p.add_argument("--runs", type=_positive_int("--runs"), default=None)
     p.add_argument(
@@ -196,11 +201,11 @@ def build_parser() -> argparse.ArgumentParser:
     _common_run_options(p)
 
     p = sub.add_parser("train", help="train ĝ for StROL or e2e (Algorithm 1)")
-    from strol_gym.learners.training import add_train_arguments
-
     add_train_arguments(p)
+    _plugin_option(p)
 
-    sub.add_parser("list", help="envs, learners and conditions")
+    p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
+    _plugin_option(p)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -210,23 +215,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 # ---------------------------------------------------------------------- commands
 def _config_for_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> BenchConfig:
-    explicit = {k: getattr(args, k) for k in ("sigma", "bias", "prior", "human", "beta")}
+    keys = ("sigma", "bias", "prior", "human", "beta", "human_kwargs")
+    explicit = {k: getattr(args, k) for k in keys}
     given = {k: v for k, v in explicit.items() if v is not None}
     if given and args.condition:
-        parser.error(
-            f"--condition cannot be combined with explicit {', '.join('--' + k for k in given)}"
-        )
+        flags = ", ".join("--" + k.replace("_", "-") for k in given)
+        parser.error(f"--condition cannot be combined with explicit {flags}")
     if given:
         if args.name in CONDITION_NAMES:
             parser.error(f"--name must not be a paper condition name ({args.name!r})")
         conds = [custom_condition(args.env, name=args.name, **given)]
     else:
-        conds = [
-            paper_condition(args.env, c) for c in dict.fromkeys(args.condition or ["training"])
-        ]
+        conds = [make_condition(args.env, c) for c in dict.fromkeys(args.condition or ["training"])]
     runs = args.runs or env_preset(args.env).runs
     exps = tuple(
-        Experiment(args.env, c, runs=runs, seed=args.seed, n_corrections=args.corrections)
+        Experiment(
+            args.env, c, runs=runs, seed=args.seed, n_corrections=args.corrections, task=args.task
+        )
         for c in conds
     )
     kwargs = {}
@@ -263,7 +268,7 @@ def _run(args: argparse.Namespace, config: BenchConfig, out: Path) -> int:
 
 
 def cmd_paper(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    envs = list(ENV_CHOICES) if args.env == "all" else [args.env]
+    envs = list(PAPER_ENVS) if args.env == "all" else [args.env]
     config = paper_config(envs, runs=args.runs, seed=args.seed, block=args.block)
     out = Path(args.out or f"results/paper-{args.env}")
     return _run(args, config, out)
@@ -281,18 +286,23 @@ def cmd_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 
 def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from strol_gym.learners.registry import list_learners
+    from strol_gym.registry import registries
 
-    print("envs:")
+    for kind, reg in registries().items():
+        user = set(reg.user_names())
+        names = [f"{n} (yours)" if n in user else n for n in reg.names()]
+        tail = "" if reg.decode is not None else " (or module:attr)"
+        print(f"{kind}s: " + ", ".join(names) + tail)
+    print("envs in detail:")
     for key, p in ENV_PRESETS.items():
         print(
             f"  {key:8s} {p.env_id}: {p.runs} runs, {p.n_corrections} corrections, "
             f"primary metric {p.primary_metric}"
         )
-    print("learners: " + ", ".join(list_learners()) + " (or module:attr)")
-    print("conditions:")
-    for key, p in ENV_PRESETS.items():
-        for c in p.conditions().values():
+    print("conditions in detail:")
+    for key in ENV_PRESETS:
+        for name in registries()["condition"].names():
+            c = make_condition(key, name)
             print(f"  {key:8s} {c.name:14s} {c.describe()}")
     return 0
 
@@ -335,6 +345,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        from strol_gym.registry import import_plugin
+
+        for plugin in getattr(args, "plugin", None) or ():
+            import_plugin(plugin)
         return COMMANDS[args.command](args, parser)
     except ResultsError as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
-from strol_gym.humans import HUMAN_MODELS
+from strol_gym.registry import Registry
 
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
 """The paper's five rules, in the order its figures use."""
@@ -22,16 +23,15 @@ REFERENCE_LEARNER = "strol"
 """The learner every post-hoc test compares against the others."""
 
 PRIORS = ("bimodal", "uniform")
-HUMANS: tuple[str, ...] = tuple(HUMAN_MODELS)
-"""Human model names the envs accept; a condition's ``None`` means the env's own default."""
-CONDITION_NAMES = ("training", "clean", "noisy-biased", "uniform-prior")
 
 
 @dataclasses.dataclass(frozen=True)
 class Condition:
     """A simulated-human setting: σ, ε (fractions of a_max), prior, human model (and its β).
 
-    ``human=None`` leaves the env's default human model (the eq. M6 teacher for the Robot).
+    ``human=None`` leaves the env's default human model (the eq. M6 teacher for the Robot);
+    otherwise it names a human (``strol_gym.humans.HUMANS``) or is a ``"module:attr"``.
+    ``beta`` reaches the human only if its factory declares it.
     """
 
     name: str
@@ -40,6 +40,7 @@ class Condition:
     prior: str = "bimodal"
     human: str | None = None
     beta: float | None = None
+    human_kwargs: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if not self.name or not isinstance(self.name, str):
@@ -50,12 +51,14 @@ class Condition:
             raise ValueError(f"bias must be a finite number, got {self.bias}")
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
-        if self.human is not None and self.human not in HUMANS:
-            raise ValueError(f"human must be one of {HUMANS}, got {self.human!r}")
+        if self.human is not None and (not isinstance(self.human, str) or not self.human):
+            raise ValueError(
+                f"human must be a registered human's name or 'module:attr', got {self.human!r}"
+            )
         if self.beta is not None and not (math.isfinite(self.beta) and self.beta >= 0):
             raise ValueError(f"beta must be a finite number >= 0, got {self.beta}")
-        if self.beta is not None and self.human != "boltzmann":
-            raise ValueError("beta only applies to human='boltzmann'")
+        if self.human_kwargs is not None and not isinstance(self.human_kwargs, dict):
+            raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments for ``gymnasium.make`` (the env contract in CONVENTIONS.md)."""
@@ -64,18 +67,34 @@ class Condition:
             kw["human"] = self.human
         if self.beta is not None:
             kw["beta"] = self.beta
+        if self.human_kwargs:
+            kw["human_kwargs"] = dict(self.human_kwargs)
         return kw
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form; ``human_kwargs`` only when set (older results folders keep their hash)."""
+        d = dataclasses.asdict(self)
+        if d["human_kwargs"] is None:
+            del d["human_kwargs"]
+        return d
 
     def describe(self) -> str:
         """One line for tables: σ, ε, prior, human."""
         h = self.human or "env-default"
         h = h if self.beta is None else f"{h} (β={self.beta:g})"
+        if self.human_kwargs:
+            h += " " + ", ".join(f"{k}={v}" for k, v in sorted(self.human_kwargs.items()))
         return f"σ={self.sigma:g}, ε={self.bias:g}, {self.prior} prior, {h} human"
+
+
+PRIMARY_METRICS = ("regret", "error", "cos_error")
 
 
 @dataclasses.dataclass(frozen=True)
 class EnvPreset:
-    """What the paper fixes per environment: id, run count, correction steps, primary metric."""
+    """What the benchmark fixes per environment: id, run count, correction steps, the training
+    condition's noise and the primary metric. ``env_id`` may be ``"module:Env-v0"`` (gymnasium
+    then imports ``module`` first, which is how a worker process finds a user's env)."""
 
     key: str
     env_id: str
@@ -84,15 +103,27 @@ class EnvPreset:
     training_sigma: float
     primary_metric: str
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.key, str) or not self.key or ":" in self.key:
+            raise ValueError(f"key must be a non-empty string without ':', got {self.key!r}")
+        if not isinstance(self.env_id, str) or not self.env_id:
+            raise ValueError(f"env_id must be a gymnasium env id, got {self.env_id!r}")
+        for name in ("runs", "n_corrections"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
+        if not (math.isfinite(self.training_sigma) and self.training_sigma >= 0):
+            raise ValueError(
+                f"training_sigma must be a finite number >= 0, got {self.training_sigma}"
+            )
+        if self.primary_metric not in PRIMARY_METRICS:
+            raise ValueError(
+                f"primary_metric must be one of {PRIMARY_METRICS}, got {self.primary_metric!r}"
+            )
+
     def conditions(self) -> dict[str, Condition]:
         """The paper's four conditions for this env (DESIGN.md's table), in figure order."""
-        s = self.training_sigma
-        return {
-            "training": Condition("training", sigma=s, bias=0.0, prior="bimodal"),
-            "clean": Condition("clean", sigma=0.0, bias=0.0, prior="bimodal"),
-            "noisy-biased": Condition("noisy-biased", sigma=0.5, bias=0.5, prior="bimodal"),
-            "uniform-prior": Condition("uniform-prior", sigma=s, bias=0.0, prior="uniform"),
-        }
+        return {name: make_condition(self.key, name) for name in CONDITION_NAMES}
 
 
 ENV_PRESETS: dict[str, EnvPreset] = {
@@ -115,20 +146,113 @@ ENV_PRESETS: dict[str, EnvPreset] = {
 }
 
 
+PAPER_ENVS: tuple[str, ...] = tuple(ENV_PRESETS)
+"""The paper's envs (``strol-bench paper``); ``register_env_preset`` adds more for ``run``."""
+
+
+def _check_preset(key: str, preset: object) -> None:
+    if not isinstance(preset, EnvPreset) or preset.key != key:
+        raise ValueError(f"env {key!r} must be an EnvPreset with key {key!r}, got {preset!r}")
+
+
+ENVS = Registry(
+    "env",
+    ENV_PRESETS,
+    check=_check_preset,
+    encode=dataclasses.asdict,
+    decode=lambda d: EnvPreset(**d),
+)
+
+
+def register_env_preset(preset: EnvPreset) -> None:
+    """Make an env available to ``strol-bench run --env KEY`` (and ``list``)."""
+    if not isinstance(preset, EnvPreset):
+        raise ValueError(f"preset must be an EnvPreset, got {preset!r}")
+    ENVS.register(preset.key, preset)
+
+
 def env_preset(key: str) -> EnvPreset:
-    """The preset for ``key`` ("robot" | "highway"); ValueError listing the valid keys."""
+    """The preset for ``key`` ("robot", "highway" or a registered one); ValueError listing them."""
     try:
         return ENV_PRESETS[key]
-    except KeyError:
+    except (KeyError, TypeError):
         raise ValueError(f"env must be one of {sorted(ENV_PRESETS)}, got {key!r}") from None
+
+
+# ---------------------------------------------------------------------- the conditions' registry
+ConditionFactory = Callable[[EnvPreset], Condition]
+
+
+def _training(p: EnvPreset) -> Condition:
+    return Condition("training", sigma=p.training_sigma, bias=0.0, prior="bimodal")
+
+
+def _clean(p: EnvPreset) -> Condition:
+    return Condition("clean", sigma=0.0, bias=0.0, prior="bimodal")
+
+
+def _noisy_biased(p: EnvPreset) -> Condition:
+    return Condition("noisy-biased", sigma=0.5, bias=0.5, prior="bimodal")
+
+
+def _uniform_prior(p: EnvPreset) -> Condition:
+    return Condition("uniform-prior", sigma=p.training_sigma, bias=0.0, prior="uniform")
+
+
+_CONDITIONS: dict[str, Condition | ConditionFactory | str] = {
+    "training": _training,
+    "clean": _clean,
+    "noisy-biased": _noisy_biased,
+    "uniform-prior": _uniform_prior,
+}
+CONDITION_NAMES: tuple[str, ...] = tuple(_CONDITIONS)
+"""The paper's conditions (its Fig. 4 columns), in figure order."""
+
+
+def _check_condition(name: str, cond: object) -> None:
+    if not isinstance(cond, Condition) and not callable(cond):
+        raise ValueError(
+            f"condition {name!r} must be a Condition or a factory (EnvPreset) -> Condition, "
+            f"got {cond!r}"
+        )
+
+
+CONDITIONS = Registry(
+    "condition",
+    _CONDITIONS,
+    check=_check_condition,
+    hint=" naming a Condition or a factory (EnvPreset) -> Condition",
+)
+
+
+def register_condition(name: str, condition: Condition | ConditionFactory | str) -> None:
+    """Make ``condition`` (a Condition, a factory ``(EnvPreset) -> Condition`` or its
+    "module:attr") available as ``strol-bench run --condition name``."""
+    CONDITIONS.register(name, condition)
+
+
+def make_condition(env: str, spec: str) -> Condition:
+    """The condition named ``spec`` (registered or "module:attr") for ``env``."""
+    preset = env_preset(env)
+    obj = CONDITIONS.get(spec)
+    cond = obj if isinstance(obj, Condition) else obj(preset)
+    if not isinstance(cond, Condition):
+        raise ValueError(f"condition {spec!r} gave {type(cond).__name__}, not a Condition")
+    if cond.name in CONDITION_NAMES and spec != cond.name:
+        raise ValueError(f"condition {spec!r} must not reuse the paper's name {cond.name!r}")
+    return cond
 
 
 def paper_condition(env: str, name: str) -> Condition:
     """One of the paper's conditions for ``env``; ValueError listing the valid names."""
-    conds = env_preset(env).conditions()
-    if name not in conds:
-        raise ValueError(f"condition must be one of {list(conds)}, got {name!r}")
-    return conds[name]
+    if name not in CONDITION_NAMES:
+        raise ValueError(f"condition must be one of {list(CONDITION_NAMES)}, got {name!r}")
+    return make_condition(env, name)
+
+
+def is_paper_condition(env: str, cond: Condition) -> bool:
+    """Whether ``cond`` is exactly the paper's condition of that name for ``env``."""
+    return cond.name in CONDITION_NAMES and cond == paper_condition(env, cond.name)
 
 
 def custom_condition(
@@ -140,8 +264,14 @@ def custom_condition(
     prior: str = "bimodal",
     human: str | None = None,
     beta: float | None = None,
+    human_kwargs: dict[str, Any] | None = None,
 ) -> Condition:
-    """An explicit condition; σ defaults to the env's training noise."""
+    """An explicit condition; σ defaults to the env's training noise. ``human`` must be a
+    registered human or an importable "module:attr" (checked here)."""
+    if human is not None:
+        from strol_gym.humans import HUMANS
+
+        HUMANS.check_name(human)
     preset = env_preset(env)
     return Condition(
         name=name,
@@ -150,4 +280,5 @@ def custom_condition(
         prior=prior,
         human=human,
         beta=beta,
+        human_kwargs=human_kwargs,
     )

@@ -18,7 +18,10 @@ from strol_gym.benchmarks.conditions import (
     REFERENCE_LEARNER,
     Condition,
     env_preset,
+    is_paper_condition,
 )
+
+from strol_gym.registry import install_specs, user_specs
 
 DEFAULT_BLOCK = 25
 """Run seeds per unit of work. Fixed by the config, never by --jobs, so that batched numerics see
@@ -36,9 +39,13 @@ class Experiment:
     runs: int
     seed: int = 0
     n_corrections: int | None = None
+    task: str | None = None
+    """A Task name or "module:attr" (``gymnasium.make(..., task=...)``); None: the env's own."""
 
     def __post_init__(self) -> None:
         env_preset(self.env)  # validates the key
+        if self.task is not None and (not isinstance(self.task, str) or not self.task):
+            raise ValueError(f"task must be a Task name or 'module:attr', got {self.task!r}")
         if int(self.runs) < 1:
             raise ValueError(f"runs must be >= 1, got {self.runs}")
         if int(self.seed) < 0:
@@ -63,21 +70,35 @@ class Experiment:
 
     def env_kwargs(self) -> dict[str, Any]:
         """gymnasium.make kwargs: the condition plus exactly ``corrections`` steps per episode."""
-        return {
+        kw = {
             **self.condition.env_kwargs(),
             "n_corrections": self.corrections,
             "max_episode_steps": self.corrections,
         }
+        if self.task is not None:
+            kw["task"] = self.task
+        return kw
+
+    def is_paper(self) -> bool:
+        """The paper's setting: its condition, the env's own Task and correction count."""
+        return (
+            self.task is None
+            and self.corrections == env_preset(self.env).n_corrections
+            and is_paper_condition(self.env, self.condition)
+        )
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        d = {
             "env": self.env,
             "env_id": self.env_id,
-            "condition": dataclasses.asdict(self.condition),
+            "condition": self.condition.to_dict(),
             "runs": int(self.runs),
             "seed": int(self.seed),
             "n_corrections": self.corrections,
         }
+        if self.task is not None:
+            d["task"] = self.task
+        return d
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Experiment:
@@ -87,6 +108,7 @@ class Experiment:
             runs=d["runs"],
             seed=d["seed"],
             n_corrections=d["n_corrections"],
+            task=d.get("task"),
         )
 
 
@@ -111,6 +133,9 @@ class BenchConfig:
     reference: str = REFERENCE_LEARNER
     block: int = DEFAULT_BLOCK
     learner_kwargs: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    plugins: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    """User-registered pieces the run uses, as ``{kind: {name: "module:attr"}}``: what a worker
+    process registers before it builds anything (``with_user_specs``)."""
 
     def __post_init__(self) -> None:
         if not self.experiments:
@@ -133,6 +158,27 @@ class BenchConfig:
         if len(set(keys)) != len(keys):
             raise ValueError(f"each (env, condition) may appear once, got {keys}")
 
+    def is_paper(self) -> bool:
+        """The paper's comparison: its learners and reference, its settings (H1/H2 apply)."""
+        return (
+            set(self.learners) == set(PAPER_LEARNERS)
+            and self.reference == REFERENCE_LEARNER
+            and not self.learner_kwargs
+            and all(e.is_paper() for e in self.experiments)
+        )
+
+    def with_user_specs(self) -> tuple[BenchConfig, list[str]]:
+        """This config with ``plugins`` set to the user registrations it uses, and the names
+        of those that cannot reach a worker process (lambdas, closures, interactive code)."""
+        used = {
+            "env": [e.env for e in self.experiments],
+            "learner": self.learners,
+            "human": [e.condition.human for e in self.experiments if e.condition.human],
+            "task": [e.task for e in self.experiments if e.task],
+        }
+        specs, stuck = user_specs(used)
+        return dataclasses.replace(self, plugins=specs), stuck
+
     def kwargs_for(self, learner: str) -> dict[str, Any]:
         """Constructor keyword arguments for ``learner`` (beyond the task)."""
         return dict(self.learner_kwargs.get(learner, {}))
@@ -154,6 +200,7 @@ class BenchConfig:
             "reference": self.reference,
             "block": int(self.block),
             "learner_kwargs": {k: dict(v) for k, v in sorted(self.learner_kwargs.items())},
+            **({"plugins": self.plugins} if self.plugins else {}),
         }
 
     @classmethod
@@ -162,12 +209,14 @@ class BenchConfig:
             raise ValueError(
                 f"unknown results schema {d.get('schema')!r}, expected {SCHEMA_VERSION}"
             )
+        install_specs(d.get("plugins", {}))  # a worker learns the user's names first
         return cls(
             experiments=tuple(Experiment.from_dict(e) for e in d["experiments"]),
             learners=tuple(d["learners"]),
             reference=d["reference"],
             block=d["block"],
             learner_kwargs=d.get("learner_kwargs", {}),
+            plugins=d.get("plugins", {}),
         )
 
     def hash(self, extra: dict[str, Any] | None = None) -> str:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 from strol_gym.benchmarks import stats
-from strol_gym.benchmarks.conditions import CONDITION_NAMES, env_preset
+from strol_gym.benchmarks.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, env_preset
 from strol_gym.benchmarks.config import BenchConfig
 from strol_gym.benchmarks.results import ResultsDir, write_csv
 
@@ -24,7 +24,6 @@ METRIC_LABELS = {
     "cos_error": "Scale-free error 1 − cos(θ*, θ̂) (final)",
     "regret": "Regret (eq. S1) of the plan for the final θ̂",
 }
-DISPLAY = {"gradient": "Gradient", "one": "One", "mof": "MOF", "e2e": "e2e", "strol": "StROL"}
 
 SUMMARY_COLUMNS = (
     "env",
@@ -81,8 +80,10 @@ ANOVA_COLUMNS = (
 
 
 def display(name: str) -> str:
-    """The paper's spelling of a learner name (user learners keep theirs)."""
-    return DISPLAY.get(name, name)
+    """How tables spell a learner (its registration's display name; else its name)."""
+    from strol_gym.learners.registry import display_name
+
+    return display_name(name)
 
 
 @dataclasses.dataclass
@@ -190,19 +191,21 @@ def verdicts(a: Analysis) -> list[dict[str, Any]]:
     H1: in the training condition the reference learner is significantly lower than every
     baseline (paired t, Holm p < 0.05). H2: in every other paper condition no baseline is
     significantly lower than the reference (it is better or comparable).
-    Only stated when the config has the paper's conditions and the reference is StROL.
+    Only stated for the paper's comparison (``BenchConfig.is_paper``: its learners, reference,
+    conditions, Tasks and correction counts); anything else gets tables and tests, no verdict.
     """
-    out = []
-    if a.config.reference != "strol" or len(a.config.learners) < 2:
+    out: list[dict[str, Any]] = []
+    if not a.config.is_paper():
         return out
+    ref = a.config.reference
     envs = list(dict.fromkeys(e.env for e in a.config.experiments))
     for env in envs:
         metric = env_preset(env).primary_metric
         for e in a.config.experiments:
             cond = e.condition.name
-            if e.env != env or cond not in CONDITION_NAMES:
+            if e.env != env:
                 continue
-            tests = [a.test(env, cond, b, metric) for b in a.config.learners if b != "strol"]
+            tests = [a.test(env, cond, b, metric) for b in a.config.learners if b != ref]
             tests = [t for t in tests if t is not None]
             if not tests:
                 continue
@@ -215,7 +218,7 @@ def verdicts(a: Analysis) -> list[dict[str, Any]]:
                 if v["hypothesis"] == "H1":
                     holds = len(better) == len(dirs)
                     detail = (
-                        "StROL significantly lower than every baseline"
+                        f"{display(ref)} significantly lower than every baseline"
                         if holds
                         else "not significantly lower than "
                         + ", ".join(b for b in dirs if b not in better)
@@ -326,7 +329,8 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                 out.append("")
         from strol_gym.benchmarks.paper_numbers import PAPER, side_by_side
 
-        if (env, primary) in PAPER and set(cfg.learners) >= {"gradient", "strol"}:
+        baselines = set(PAPER_LEARNERS) - {REFERENCE_LEARNER}
+        if (env, primary) in PAPER and set(cfg.learners) & baselines:
             out += [
                 f"### {primary} beside the authors' reported numbers (DESIGN.md; their released "
                 "code, not a target)",

@@ -19,7 +19,6 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import hashlib
-import importlib
 import multiprocessing as mp
 import os
 import signal
@@ -32,29 +31,8 @@ import numpy as np
 from strol_gym.benchmarks.config import BenchConfig, Unit
 from strol_gym.benchmarks.results import ResultsDir
 
-
-# ---------------------------------------------------------------------- learners
-def resolve_learner(spec: str, task: Any, **kwargs: Any) -> Any:
-    """Build a learner from a registered name or a ``module:attr`` factory / class / object."""
-    import strol_gym
-    from strol_gym.learners.registry import list_learners
-
-    if spec in list_learners():
-        return strol_gym.make_learner(spec, task=task, **kwargs)
-    if ":" in spec:
-        module, _, attr = spec.partition(":")
-        try:
-            obj = getattr(importlib.import_module(module), attr)
-        except (ImportError, AttributeError) as e:
-            raise ValueError(
-                f"learner {spec!r}: cannot import {attr!r} from {module!r} ({e})"
-            ) from e
-        return strol_gym.make_learner(obj, task=task, **kwargs)
-    raise ValueError(
-        f"unknown learner {spec!r}; known learners: {', '.join(list_learners())}, "
-        "or 'module:attr' naming a learner factory"
-    )
-
+from strol_gym.learners.registry import make_learner
+from strol_gym.registry import install_specs
 
 CODE_SUFFIXES = (".py", ".xml", ".npz", ".pt", ".json", ".stl", ".obj")
 
@@ -119,7 +97,7 @@ def check_learners(config: BenchConfig) -> dict[str, Any]:
             out[env_key] = {}
             for lr in config.learners:
                 try:
-                    learner = resolve_learner(lr, task, **config.kwargs_for(lr))
+                    learner = make_learner(lr, task=task, **config.kwargs_for(lr))
                 except (OSError, TypeError) as e:
                     raise ValueError(f"learner {lr!r} cannot be built for {exp.env_id}: {e}") from e
                 out[env_key][lr] = learner_fingerprint(learner)
@@ -133,6 +111,7 @@ class _Worker:
     """Per-process cache of envs and wrapped learners, so a unit does not rebuild them."""
 
     def __init__(self, config: BenchConfig) -> None:
+        install_specs(config.plugins)  # the parent's user registrations, in a fresh process
         self.config = config
         self._exp: int | None = None
         self._envs: list[Any] = []
@@ -153,7 +132,7 @@ class _Worker:
             self._envs.append(env)
             task = env.unwrapped.task
             for lr in self.config.learners:
-                learner = resolve_learner(lr, task, **self.config.kwargs_for(lr))
+                learner = make_learner(lr, task=task, **self.config.kwargs_for(lr))
                 self._wrapped.setdefault(lr, []).append(OnlineLearningWrapper(env, learner))
 
     def close(self) -> None:
@@ -367,6 +346,13 @@ def run_benchmark(
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     from strol_gym.benchmarks.results import package_versions
 
+    config, stuck = config.with_user_specs()
+    if stuck and int(jobs) > 1:
+        raise ValueError(
+            f"{', '.join(stuck)} cannot reach the worker processes: it was registered as a "
+            "lambda, a closure or interactive code. Register an importable object or a "
+            "'module:attr' string (e.g. in a module passed to --plugin), or use --jobs 1"
+        )
     versions = package_versions()
     extra = {
         "learners": check_learners(config),

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from strol_gym.humans import BoltzmannHuman, Human, NominalHuman
+from strol_gym.humans import BoltzmannHuman, Human, NominalHuman, register_human
 from strol_gym.priors import FixedPrior, MixturePrior, Prior, UniformPrior
 from strol_gym.registration import register_envs
-from strol_gym.tasks import RobotTask, Task
+from strol_gym.tasks import RobotTask, Task, make_task, register_task
 
 __version__ = "0.1.0"
 
@@ -49,5 +49,8 @@ __all__ = [
     "__version__",
     "list_learners",
     "make_learner",
+    "make_task",
+    "register_human",
     "register_learner",
+    "register_task",
 ]

@@ -7,10 +7,13 @@ Noise and bias are fractions of the action bound a_max (DESIGN.md): δ ~ N(ε·a
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+import inspect
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from strol_gym.registry import Registry
 from strol_gym.tasks.base import Task
 
 DEFAULT_CANDIDATES = 512
@@ -156,6 +159,11 @@ class NominalHuman(SimulatedHuman):
     def choose(self, x, u_r, theta_hat, candidates):
         return optimal_correction(self.task, x, u_r, theta_hat, self.theta_star[None], candidates)
 
+    @staticmethod
+    def batch_choice(task, x, u_r, theta_hat, theta_star, candidates, rng, *, beta=50.0):
+        """``choose`` for a batch of humans with their own θ* (training's synthetic data)."""
+        return optimal_correction(task, x, u_r, theta_hat, theta_star, candidates)
+
 
 class BoltzmannHuman(SimulatedHuman):
     """A noisily-rational human: P(u) ∝ exp(β θ*·g(x, u, u_R)). Ignores θ̂; δ is added on top."""
@@ -178,6 +186,11 @@ class BoltzmannHuman(SimulatedHuman):
     def choose(self, x, u_r, theta_hat, candidates):
         th = self.theta_star[None]
         return boltzmann_correction(self.task, x, u_r, th, candidates, self.beta, self.rng)
+
+    @staticmethod
+    def batch_choice(task, x, u_r, theta_hat, theta_star, candidates, rng, *, beta=50.0):
+        """``choose`` for a batch of humans with their own θ* (training's synthetic data)."""
+        return boltzmann_correction(task, x, u_r, theta_star, candidates, beta, rng)
 
 
 class DriverHuman(SimulatedHuman):
@@ -204,4 +217,110 @@ class DriverHuman(SimulatedHuman):
         return driver_correction(self.task, x, u_r, th, candidates, self.horizon)
 
 
-HUMAN_MODELS = {"nominal": NominalHuman, "boltzmann": BoltzmannHuman, "driver": DriverHuman}
+HUMAN_MODELS: dict[str, Any] = {
+    "nominal": NominalHuman,
+    "boltzmann": BoltzmannHuman,
+    "driver": DriverHuman,
+}
+"""The built-in human models; ``register_human`` adds to it (through ``HUMANS``)."""
+
+HumanFactory = Callable[..., Human]
+SHARED_PARAMS = ("sigma", "bias", "beta")
+"""What every human factory may receive from the env or the benchmark (contract: it gets only
+those its signature declares)."""
+
+
+def _check_factory(name: str, factory: Any) -> None:
+    if not callable(factory):
+        raise ValueError(
+            f"human {name!r} must be a callable (task, theta_star, rng, **params) -> Human "
+            f"or a 'module:attr' string, got {factory!r}"
+        )
+
+
+HUMANS = Registry(
+    "human",
+    HUMAN_MODELS,
+    check=_check_factory,
+    hint=" naming a factory (task, theta_star, rng, sigma=, bias=, beta=, ...) -> Human",
+)
+
+
+def register_human(name: str, factory: HumanFactory | str) -> None:
+    """Make ``factory`` available as ``human=name`` in the envs, the benchmark and training.
+
+    ``factory`` is called as ``factory(task, theta_star, rng, sigma=..., bias=..., beta=...,
+    **human_kwargs)`` with only the keyword arguments its signature declares (all of them if
+    it takes ``**kwargs``); it may be a lazy ``"module:attr"`` string.
+    """
+    HUMANS.register(name, factory)
+
+
+def human_factory(human: str | HumanFactory) -> HumanFactory:
+    """The factory for a registered name, a ``"module:attr"`` or a callable; else ValueError."""
+    if isinstance(human, str):
+        factory = HUMANS.get(human)
+    else:
+        factory = human
+    _check_factory(str(human), factory)
+    return factory
+
+
+def _accepted(factory: HumanFactory) -> set[str] | None:
+    """Keyword names ``factory`` declares; None when it takes ``**kwargs`` (or is opaque)."""
+    try:
+        params = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):
+        return None
+    if any(p.kind is p.VAR_KEYWORD for p in params):
+        return None
+    return {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+
+
+def check_human_kwargs(human: str | HumanFactory, human_kwargs: dict[str, Any] | None) -> dict:
+    """``human_kwargs`` as a dict, else ValueError: not a mapping of names the factory declares,
+    or one of the shared parameters (σ, ε, β are arguments of their own)."""
+    if human_kwargs is None:
+        return {}
+    if not isinstance(human_kwargs, dict) or not all(isinstance(k, str) for k in human_kwargs):
+        raise ValueError(f"human_kwargs must be a dict of keyword arguments, got {human_kwargs!r}")
+    shared = sorted(set(human_kwargs) & set(SHARED_PARAMS))
+    if shared:
+        raise ValueError(
+            f"human_kwargs must not hold {shared}: pass them as arguments of their own"
+        )
+    accepted = _accepted(human_factory(human))
+    unknown = [] if accepted is None else sorted(set(human_kwargs) - accepted)
+    if unknown:
+        raise ValueError(
+            f"human_kwargs {unknown} are not parameters of human {human!r}; "
+            f"it takes {sorted(accepted - {'task', 'theta_star', 'rng'})}"
+        )
+    return dict(human_kwargs)
+
+
+def make_human(
+    human: str | HumanFactory,
+    task: Task,
+    theta_star: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    sigma: float = 0.0,
+    bias: float = 0.0,
+    beta: float = 50.0,
+    **human_kwargs: Any,
+) -> Human:
+    """Build a human: ``factory(task, theta_star, rng, **params)`` where params are σ, ε, β and
+    ``human_kwargs``, restricted to those the factory's signature declares."""
+    factory = human_factory(human)
+    params: dict[str, Any] = {"sigma": sigma, "bias": bias, "beta": beta, **human_kwargs}
+    accepted = _accepted(factory)
+    if accepted is not None:
+        params = {k: v for k, v in params.items() if k in accepted}
+    obj = factory(task, theta_star, rng, **params)
+    if not isinstance(obj, Human):
+        raise ValueError(
+            f"human {human!r} must return an object with act(x, u_r, theta_hat) and "
+            f"theta_star, got {type(obj).__name__}"
+        )
+    return obj

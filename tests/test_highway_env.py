@@ -44,7 +44,7 @@ def make(**kw) -> HighwayEnv:
         ({"render_mode": "ascii"}, "render_mode"),
         ({"width": 0}, "width"),
         ({"height": 10**6}, "height"),
-        ({"task": "highway"}, "task"),
+        ({"task": "robot"}, "task must be a HighwayTask"),
         ({"speed": 3}, "unknown argument"),
     ],
 )

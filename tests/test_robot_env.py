@@ -132,7 +132,8 @@ def test_action_clipped_and_nan_raises():
         ({"render_mode": "ascii"}, "render_mode"),
         ({"width": 8}, "width"),
         ({"height": 5000}, "height"),
-        ({"task": "robot"}, "task"),
+        ({"task": "highway"}, "task must be a RobotTask"),
+        ({"task": "no-such-task"}, "unknown task"),
         ({"colour": "red"}, "colour"),
     ],
 )

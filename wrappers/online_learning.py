@@ -22,17 +22,19 @@ def _cosine_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
 class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Let a learner update θ̂ from the human's corrections as the episode runs.
 
-    Each step, when ``info["is_correction"]`` is true, the learner sees x (the previous
-    observation's ``"state"``), u_H (this observation's ``"correction"``) and u_R
-    (``info["robot_action"]``) and returns θ̂. The wrapper hands θ̂ to the env with
-    ``env.unwrapped.set_theta_hat`` (so the human's next correction and the env's observation
-    use it) and writes it into ``obs["theta_hat"]`` and ``info["theta_hat"]``. The observation
-    space does not change.
+    Each step, when ``info["is_correction"]`` is true, the learner sees x, u_H (this
+    observation's ``"correction"``) and u_R (``info["robot_action"]``) and returns θ̂. x is
+    ``info["correction_state"]`` when the env provides it (a correction that spans several
+    steps, learned from the state where it began), else the previous observation's ``"state"``.
+    The wrapper hands θ̂ to the env with ``env.unwrapped.set_theta_hat`` (so the human's next
+    correction and the env's observation use it) and writes it into ``obs["theta_hat"]`` and
+    ``info["theta_hat"]``. The observation space does not change.
 
     Args:
         env: a strol-gym env (``env.unwrapped.task`` is its Task).
-        learner: a learner object or a registered name ("gradient", "one", "mof", "e2e",
-            "strol", ...), built with ``make_learner(name, task=env.unwrapped.task, **kwargs)``.
+        learner: a learner object, a registered name (``strol_gym.list_learners()``), a
+            ``"module:attr"`` naming a learner factory or class, or a factory; names are built
+            with ``make_learner(learner, task=env.unwrapped.task, **learner_kwargs)``.
         learner_kwargs: keyword arguments for ``make_learner`` when ``learner`` is a name.
         replace_reward: if true, the reward becomes θ̂·φ(x') with the updated θ̂ (the robot's
             own belief), and ``info["true_reward"]`` keeps the env's R(x', θ*).
@@ -91,8 +93,9 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         obs, reward, terminated, truncated, info = self.env.step(action)
         obs, info = dict(obs), dict(info)
         if info.get("is_correction", False):
+            x = info.get("correction_state")
             self.learner.update(
-                self._x,
+                self._x if x is None else np.asarray(x, dtype=np.float64),
                 np.asarray(obs["correction"], dtype=np.float64),
                 np.asarray(info["robot_action"], dtype=np.float64),
             )

@@ -13,8 +13,8 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.envs.interaction import CorrectionEnvMixin, HumanFactory, int_arg
-from strol_gym.humans import Human
+from strol_gym.envs.base import CorrectionEnv, int_arg
+from strol_gym.humans import Human, HumanFactory
 from strol_gym.priors import Prior
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
@@ -22,11 +22,11 @@ ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
 
 
 class HumanVehicle(Vehicle):
-    """A highway-env kinematic vehicle whose controls come from a ``Human``.
+    """A highway-env kinematic vehicle driven by a ``Human``.
 
-    ``decide`` asks the human for u_H = (acceleration, steering) given the state, the robot's
-    action and the robot's current estimate θ̂, and stores it as the vehicle's action, which
-    ``Vehicle.step`` then integrates. Noise and bias are already inside u_H (the human adds them).
+    The env asks the human for u_H = (acceleration, steering) and sets it as the vehicle's
+    action, which ``Vehicle.step`` then integrates. Noise and bias are already inside u_H (the
+    human adds them).
     """
 
     def __init__(
@@ -40,17 +40,8 @@ class HumanVehicle(Vehicle):
         super().__init__(road, position, heading, speed)
         self.human = human
 
-    def decide(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
-        if self.human is None:
-            raise RuntimeError("HumanVehicle has no human to decide its action")
-        u = np.asarray(self.human.act(x, u_r, theta_hat), dtype=np.float64).reshape(-1)
-        if u.shape != (2,) or not np.isfinite(u).all():
-            raise ValueError(f"the human's action must be 2 finite numbers, got {u}")
-        self.act({"acceleration": float(u[0]), "steering": float(u[1])})
-        return u
 
-
-class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
+class HighwayEnv(CorrectionEnv, AbstractEnv):
     """StROL-Highway-v0: a human car with hidden driving preferences θ* behind a robot car.
 
     ## Description
@@ -95,6 +86,7 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
     - ``"correction"`` (2,): u_H, the human car's (acceleration m/s², steering rad) this step,
       noise and bias included; zeros when the human does not correct (and after reset).
     - ``"theta_hat"`` (3,): the robot's current estimate θ̂ (see ``set_theta_hat``).
+    - ``"phi"`` (3,): φ(x), the features of the state.
 
     Built directly from the two vehicles: no highway-env observation type runs in the loop.
 
@@ -102,8 +94,8 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
 
     R(x', θ*) = θ*·φ(x'), the human's reward of the state reached. ``info`` carries
     ``"features"`` (name -> value), ``"phi"``, ``"correction"`` (u_H), ``"robot_action"`` (u_R as
-    applied, task units), ``"theta_star"`` (for evaluation only), ``"theta_hat"``,
-    ``"is_correction"`` and ``"crashed"``.
+    applied, task units), ``"theta_star"`` (the human's current preference, for evaluation
+    only), ``"theta_hat"``, ``"is_correction"`` and ``"crashed"``.
 
     ## Starting State
 
@@ -130,8 +122,11 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
       P(θ*). "bimodal": modes "tailgate" (1.0, 1.0, 0.1) and "pass on the right"
       (0.1, 1.0, 1.0) with N(0, 0.1²) jitter (see ``strol_gym.tasks.highway`` for the signs);
       "uniform": [−1, 1]³.
-    - ``human`` ("nominal" | "boltzmann" | "driver" | callable ``(task, theta_star, rng) ->
-      Human``, default "nominal").
+    - ``human`` (a name in ``strol_gym.humans.HUMANS``: "nominal", "boltzmann", "driver" or
+      one registered with ``register_human``; a ``"module:attr"``; or a callable
+      ``factory(task, theta_star, rng, sigma=, bias=, beta=, **human_kwargs) -> Human``, given
+      only the keyword arguments it declares; default "nominal", the eq. M6 teacher).
+    - ``human_kwargs`` (dict or None): the human model's own keyword arguments.
     - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
     - ``n_corrections`` (int ≥ 0, default 10): steps during which the human corrects.
     - ``max_episode_steps`` (int ≥ 1 or None): through ``gymnasium.make`` this is gymnasium's
@@ -141,8 +136,8 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
     - ``render_mode`` (None | "human" | "rgb_array"); ``width``, ``height`` (int in
       [16, 4096], default 600 x 150): frame size in pixels. Headless "rgb_array" needs
       ``SDL_VIDEODRIVER=offscreen`` (set by default if unset; "dummy" renders blank frames).
-    - ``task`` (``HighwayTask`` or None): a variant of the setting (its prior is replaced by
-      ``prior``).
+    - ``task`` (a ``HighwayTask``, its registered name or "module:attr", or None): a variant
+      of the setting (its prior is replaced by ``prior``).
 
     ## Version History
 
@@ -163,7 +158,8 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
         render_mode: str | None = None,
         width: int = 600,
         height: int = 150,
-        task: HighwayTask | None = None,
+        task: HighwayTask | str | None = None,
+        human_kwargs: dict[str, Any] | None = None,
         **unknown: Any,
     ) -> None:
         self._configure(
@@ -178,20 +174,16 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
             beta=beta,
             n_corrections=n_corrections,
             render_mode=render_mode,
+            max_episode_steps=max_episode_steps,
+            human_kwargs=human_kwargs,
         )
         self.task: HighwayTask
-        if max_episode_steps is not None:
-            max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
-        self.max_episode_steps = max_episode_steps
         width = int_arg("width", width, 16, 4096)
         height = int_arg("height", height, 16, 4096)
         freq = 1.0 / self.task.dt
         self._network = RoadNetwork.straight_road_network(
             lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None
         )
-        self.theta_star = self.task.prior.mean.copy()
-        self.theta_hat = self._default_theta_hat()
-        self.human: Human | None = None
         self.robot_vehicle: Vehicle | None = None
         self.human_vehicle: HumanVehicle | None = None
         self._x = np.zeros(self.task.state_dim)
@@ -210,14 +202,8 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
     # ------------------------------------------------------------------ spaces, θ̂
     def define_spaces(self) -> None:
         """Fixed spaces; highway-env's observation and action types are not used."""
-        box = lambda n: spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)  # noqa: E731
-        self.observation_space = spaces.Dict(
-            {
-                "state": box(self.task.state_dim),
-                "correction": box(self.task.action_dim),
-                "theta_hat": box(self.task.dim),
-            }
-        )
+        state = spaces.Box(-np.inf, np.inf, shape=(self.task.state_dim,), dtype=np.float32)
+        self.observation_space = self._observation_space(state)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(self.task.action_dim,), dtype=np.float32)
         self.observation_type = None
         self.action_type = None
@@ -226,7 +212,7 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         gym.Env.reset(self, seed=seed)
         theta_override, x_override = self._reset_overrides(options)
-        self.time = self.steps = 0
+        self.time = 0
         self.done = False
         rng = self.np_random
         theta_star = self.task.prior.sample(rng, 1)[0]
@@ -236,14 +222,12 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
             theta_star = theta_override
         if x_override is not None:
             x0 = x_override
-        self.theta_star = theta_star
-        self.theta_hat = self._default_theta_hat()
-        self.human = self._make_human(theta_star, human_rng)
+        self._start_episode(theta_star, human_rng)
         self._build_scene(x0)
         self._x = self._read_state()
         zeros = np.zeros(self.task.action_dim)
         phi = self.task.features(self._x)
-        obs = self._obs(zeros)
+        obs = self._obs(zeros, phi)
         info = self._make_info(phi, zeros, zeros, False)
         if self.render_mode == "human":
             self.render()
@@ -283,12 +267,8 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         u_r = self._robot_action(action)
-        is_correction = self.steps < self.n_corrections
-        if is_correction:
-            u_h = self.human_vehicle.decide(self._x, u_r, self.theta_hat)
-        else:
-            u_h = np.zeros(self.task.action_dim)
-            self.human_vehicle.act({"acceleration": 0.0, "steering": 0.0})
+        u_h, is_correction = self._human_correction(self._x, u_r)
+        self.human_vehicle.act({"acceleration": float(u_h[0]), "steering": float(u_h[1])})
         self.robot_vehicle.act({"acceleration": float(u_r[0]), "steering": float(u_r[1])})
         self.road.step(self.task.dt)
         self.steps += 1
@@ -298,18 +278,11 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
         reward = float(phi @ self.theta_star)
         terminated = self._is_terminated()
         truncated = (not terminated) and self._is_truncated()
-        obs = self._obs(u_h)
+        obs = self._obs(u_h, phi)
         info = self._make_info(phi, u_h, u_r, is_correction)
         if self.render_mode == "human":
             self.render()
         return obs, reward, terminated, truncated, info
-
-    def _obs(self, u_h: np.ndarray) -> dict[str, np.ndarray]:
-        return {
-            "state": self._x.astype(np.float32),
-            "correction": np.asarray(u_h, dtype=np.float32),
-            "theta_hat": self.theta_hat.astype(np.float32),
-        }
 
     def _make_info(
         self, phi: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, is_correction: bool
@@ -329,7 +302,7 @@ class HighwayEnv(CorrectionEnvMixin, AbstractEnv):
         return bool(self.robot_vehicle.crashed or self.human_vehicle.crashed)
 
     def _is_truncated(self) -> bool:
-        return self.max_episode_steps is not None and self.steps >= self.max_episode_steps
+        return self._truncated()
 
     # ------------------------------------------------------------------ render, pickle
     def render(self) -> np.ndarray | None:

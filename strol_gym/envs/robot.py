@@ -9,17 +9,17 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.interaction import CorrectionEnvMixin, HumanFactory, int_arg
+from strol_gym.envs.base import CorrectionEnv, int_arg
 from strol_gym.envs.panda import N_ARM, Q_HOME, has_display
 from strol_gym.envs.panda_ik import IK_ITERS, PandaIK
 from strol_gym.envs.robot_scene import TABLE_TOP, build_model
 from strol_gym.envs.robot_seeds import seed_table
-from strol_gym.humans import Human
+from strol_gym.humans import HumanFactory
 from strol_gym.priors import Prior
 from strol_gym.tasks.robot import RobotTask
 
 
-class RobotEnv(CorrectionEnvMixin, gym.Env):
+class RobotEnv(CorrectionEnv, gym.Env):
     """StROL-Robot-v0: a Franka Panda whose end effector a human corrects toward a plate or cup.
 
     ## Description
@@ -69,8 +69,9 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
 
     R(x', θ*) = θ*·φ(x'), the human's reward of the state reached. ``info`` carries
     ``"features"`` (name -> value), ``"phi"``, ``"correction"`` (u_H), ``"robot_action"`` (u_R as
-    applied, m), ``"theta_star"`` (for evaluation only), ``"theta_hat"``, ``"is_correction"``,
-    ``"target"`` (the IK target f(x, u_H, u_R)) and ``"ik_error"`` (m).
+    applied, m), ``"theta_star"`` (the human's current preference, for evaluation only),
+    ``"theta_hat"``, ``"is_correction"``, ``"target"`` (the IK target f(x, u_H, u_R)) and
+    ``"ik_error"`` (m).
 
     ## Starting State
 
@@ -95,8 +96,11 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
     - ``prior`` ("bimodal" | "uniform" | a ``Prior`` | array of modes, default "bimodal"): P(θ*).
       "bimodal": modes (0.8, −0.8) (reach the plate, avoid the cup) and (−0.8, 0.8), with
       N(0, 0.1²) jitter; "uniform": [−1, 1]².
-    - ``human`` ("nominal" | "boltzmann" | "driver" | callable ``(task, theta_star, rng) ->
-      Human``, default "nominal" = the eq. M6 teacher ``strol_gym.humans.NominalHuman``).
+    - ``human`` (a name in ``strol_gym.humans.HUMANS``: "nominal", "boltzmann", "driver" or
+      one registered with ``register_human``; a ``"module:attr"``; or a callable
+      ``factory(task, theta_star, rng, sigma=, bias=, beta=, **human_kwargs) -> Human``, given
+      only the keyword arguments it declares; default "nominal", the eq. M6 teacher).
+    - ``human_kwargs`` (dict or None): the human model's own keyword arguments.
     - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
     - ``n_corrections`` (int ≥ 0, default 5): steps during which the human corrects.
     - ``max_episode_steps`` (int ≥ 1 or None): through ``gymnasium.make`` this is gymnasium's
@@ -106,8 +110,9 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
       [16, 4096], default 480 x 360). Headless "rgb_array" uses ``MUJOCO_GL=egl`` (set when
       ``strol_gym.envs`` is imported before MuJoCo and there is no display) or osmesa;
       "human" needs a display.
-    - ``task`` (``RobotTask`` or None): a variant of the setting (its prior is replaced by
-      ``prior``). A workspace box other than the default builds its IK seed table once (~5 s).
+    - ``task`` (a ``RobotTask``, its registered name or "module:attr", or None): a variant of
+      the setting (its prior is replaced by ``prior``). A workspace box other than the default
+      builds its IK seed table once (~5 s).
 
     ## Version History
 
@@ -128,7 +133,8 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
-        task: RobotTask | None = None,
+        task: RobotTask | str | None = None,
+        human_kwargs: dict[str, Any] | None = None,
         **unknown: Any,
     ) -> None:
         self._configure(
@@ -143,37 +149,28 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
             beta=beta,
             n_corrections=n_corrections,
             render_mode=render_mode,
+            max_episode_steps=max_episode_steps,
+            human_kwargs=human_kwargs,
         )
         self.task: RobotTask
-        if max_episode_steps is not None:
-            max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
-        self.max_episode_steps = max_episode_steps
         self.render_mode = render_mode
         self.width = int_arg("width", width, 16, 4096)
         self.height = int_arg("height", height, 16, 4096)
 
         t = self.task
-        d, s, a = t.dim, t.state_dim, t.action_dim
         margin = 0.1
         f32 = np.float32
-        self.observation_space = spaces.Dict(
-            {
-                "state": spaces.Box(
-                    (t.workspace_low - margin).astype(f32),
-                    (t.workspace_high + margin).astype(f32),
-                    dtype=f32,
-                ),
-                "correction": spaces.Box(-np.inf, np.inf, shape=(a,), dtype=f32),
-                "theta_hat": spaces.Box(-np.inf, np.inf, shape=(d,), dtype=f32),
-                "phi": spaces.Box(-np.inf, 0.0, shape=(d,), dtype=f32),
-            }
+        self.observation_space = self._observation_space(
+            spaces.Box(
+                (t.workspace_low - margin).astype(f32),
+                (t.workspace_high + margin).astype(f32),
+                dtype=f32,
+            ),
+            spaces.Box(-np.inf, t.feature_high, shape=(t.dim,), dtype=f32),
         )
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(a,), dtype=f32)
-        self._zeros = np.zeros(a)
-        self.theta_star = t.prior.mean.copy()
-        self.human: Human | None = None
-        self.steps = 0
-        self._x = np.zeros(s)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(t.action_dim,), dtype=f32)
+        self._zeros = np.zeros(t.action_dim)
+        self._x = np.zeros(t.state_dim)
         self._renderer: mujoco.Renderer | None = None
         self._viewer: Any = None
         self._build()
@@ -214,10 +211,7 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
             theta_star = theta_override
         if x_override is not None:
             x0 = np.clip(x_override, self.task.workspace_low, self.task.workspace_high)
-        self.theta_star = theta_star
-        self.theta_hat = self._default_theta_hat()
-        self.human = self._make_human(theta_star, rng)
-        self.steps = 0
+        self._start_episode(theta_star, rng)
         self._x = self.move_to(x0)
         phi = self.task.features(self._x)
         obs = self._obs(self._zeros, phi)
@@ -228,15 +222,7 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         u_r = self._robot_action(action)
-        if self.human is None:
-            raise RuntimeError("call reset() before step()")
-        is_correction = self.steps < self.n_corrections
-        if is_correction:
-            u_h = np.asarray(self.human.act(self._x, u_r, self.theta_hat), dtype=np.float64)
-            if u_h.shape != (3,) or not np.isfinite(u_h).all():
-                raise ValueError(f"the human's correction must be 3 finite numbers, got {u_h}")
-        else:
-            u_h = self._zeros
+        u_h, is_correction = self._human_correction(self._x, u_r)
         target = self.task.dynamics(self._x, u_h, u_r)
         ik_error = self._ik.solve(target)
         self.data.ctrl[:N_ARM] = self._ik.q
@@ -244,20 +230,12 @@ class RobotEnv(CorrectionEnvMixin, gym.Env):
         self._x = self._ik.ee
         phi = self.task.features(self._x)
         reward = float(phi @ self.theta_star)
-        truncated = self.max_episode_steps is not None and self.steps >= self.max_episode_steps
+        truncated = self._truncated()
         obs = self._obs(u_h, phi)
         info = self._make_info(phi, u_h, u_r, is_correction, target, ik_error)
         if self.render_mode == "human":
             self.render()
         return obs, reward, False, truncated, info
-
-    def _obs(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
-        return {
-            "state": self._x.astype(np.float32),
-            "correction": u_h.astype(np.float32),
-            "theta_hat": self.theta_hat.astype(np.float32),
-            "phi": phi.astype(np.float32),
-        }
 
     def _make_info(
         self,

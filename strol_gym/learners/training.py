@@ -14,6 +14,9 @@ Each step draws a fresh batch, fully vectorised in numpy, and takes one Adam ste
 4. The nominal human: u* from eq. M6 over ``n_candidates`` admissible candidates
    (``task.candidate_actions``, which always includes u = 0), or a Boltzmann-rational choice
    (``human="boltzmann"``); then u_H = u* + δ, δ ~ N(ε a_max, (σ a_max)²) (``humans.perturb``).
+   Any other human (a registered name or "module:attr", see ``strol_gym.humans``) is built once
+   per sample with ``make_human`` (σ, ε, β, ``human_kwargs``) and asked for its correction;
+   a human class with a batched ``batch_choice`` is asked once per batch instead.
 5. Loss (eq. M7, averaged): mean(α²‖g̃‖² − 2α e·g̃), e = θ* − θ, g̃ = g + ĝ (StROL) or ĝ (e2e).
 
 With ``unroll`` = K > 1 the loss is the error after K updates instead of one (Algorithm 1
@@ -31,7 +34,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import importlib
+import json
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -44,7 +47,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from strol_gym.humans import boltzmann_correction, check_fraction, optimal_correction, perturb
+from strol_gym.humans import HUMANS, check_fraction, human_factory, make_human, perturb
 from strol_gym.learners.checkpoint import (
     KINDS,
     THETA_KINDS,
@@ -54,17 +57,12 @@ from strol_gym.learners.checkpoint import (
 )
 from strol_gym.learners.network import BOUNDS, DEFAULT_HIDDEN, CorrectionNet
 from strol_gym.priors import HedgedPrior, Prior
+from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
 
 THETA_SAMPLING = ("path", "prior-mean", "prior")
 ROBOT_ACTIONS = ("zero", "uniform")
-HUMANS = ("nominal", "boltzmann")
 TRAIN_PRIORS = ("task", "hedged")
-KNOWN_TASKS = {
-    "StROL-Robot-v0": "strol_gym.tasks.robot:RobotTask",
-    "StROL-Highway-v0": "strol_gym.tasks.highway:HighwayTask",
-}
-SHORT_NAMES = {"robot": "StROL-Robot-v0", "highway": "StROL-Highway-v0"}
 NORM_SAMPLES = 4096
 
 
@@ -91,6 +89,7 @@ class TrainConfig:
     threads: int = 1
     unroll: int = 1
     prior: str = "task"
+    human_kwargs: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         def choice(name: str, options: Sequence[str]) -> None:
@@ -104,7 +103,9 @@ class TrainConfig:
                 raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)}")
 
         choice("kind", KINDS)
-        choice("human", HUMANS)
+        HUMANS.check_name(self.human)
+        if self.human_kwargs is not None and not isinstance(self.human_kwargs, dict):
+            raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
         choice("theta_sampling", THETA_SAMPLING)
         choice("robot_action", ROBOT_ACTIONS)
         choice("bound", BOUNDS)
@@ -130,6 +131,8 @@ class TrainConfig:
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["hidden"] = list(self.hidden)
+        if d["human_kwargs"] is None:
+            del d["human_kwargs"]
         return d
 
 
@@ -180,13 +183,28 @@ def human_correction(
     theta: np.ndarray,
     theta_star: np.ndarray,
 ) -> np.ndarray:
-    """The training human's u_H for a batch: eq. M6 (or Boltzmann) over fresh candidates, + δ."""
-    cand = task.candidate_actions(rng, len(x), config.n_candidates)
-    if config.human == "nominal":
-        u_star = optimal_correction(task, x, u_r, theta, theta_star, cand)
-    else:
-        u_star = boltzmann_correction(task, x, u_r, theta_star, cand, config.beta, rng)
-    return perturb(task, u_star, config.sigma, config.bias, rng)
+    """The training human's u_H for a batch: a human class with ``batch_choice`` (eq. M6,
+    Boltzmann) over fresh candidates, + δ; any other human built per sample (``make_human``)."""
+    factory = human_factory(config.human)
+    batched = getattr(factory, "batch_choice", None)
+    if batched is not None:
+        cand = task.candidate_actions(rng, len(x), config.n_candidates)
+        u_star = batched(task, x, u_r, theta, theta_star, cand, rng, beta=config.beta)
+        return perturb(task, u_star, config.sigma, config.bias, rng)
+    u_h = np.empty((len(x), task.action_dim))
+    for i in range(len(x)):
+        human = make_human(
+            factory,
+            task,
+            theta_star[i],
+            rng,
+            sigma=config.sigma,
+            bias=config.bias,
+            beta=config.beta,
+            **(config.human_kwargs or {}),
+        )
+        u_h[i] = human.act(x[i], u_r[i], theta[i])
+    return u_h
 
 
 def lyapunov_term(alpha: float, e: np.ndarray, g_tilde: np.ndarray) -> np.ndarray:
@@ -393,26 +411,35 @@ def heldout_unrolled(
 
 # ---------------------------------------------------------------------------------------- CLI
 def resolve_task(spec: str) -> Task:
-    """A Task from an env id ("StROL-Robot-v0"), a short name ("robot") or "module:Class"."""
-    spec = SHORT_NAMES.get(spec, spec)
-    target = KNOWN_TASKS.get(spec, spec)
-    if ":" not in target:
-        raise ValueError(
-            f"task must be one of {sorted(KNOWN_TASKS) + sorted(SHORT_NAMES)} or 'module:Class', "
-            f"got {spec!r}"
-        )
-    module, _, attr = target.partition(":")
-    task = getattr(importlib.import_module(module), attr)()
-    if not isinstance(task, Task):
-        raise ValueError(f"{target} did not build a strol_gym Task")
-    return task
+    """A Task from a registered name ("robot"), an env id ("StROL-Robot-v0") or "module:attr"
+    (``strol_gym.tasks.make_task``)."""
+    return make_task(spec)
+
+
+def json_object_arg(name: str):
+    """An argparse type: a JSON object (keyword arguments), else an error naming ``name``."""
+
+    def parse(text: str) -> dict[str, Any]:
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object ({e})") from None
+        if not isinstance(value, dict):
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object, got {text!r}")
+        return value
+
+    return parse
 
 
 def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     """Add the training options to ``parser`` (used by ``strol-bench train`` and this module)."""
     d = TrainConfig()
     a = parser.add_argument
-    a("--task", default="StROL-Robot-v0", help="env id, short name (robot) or module:Class")
+    a(
+        "--task",
+        default="StROL-Robot-v0",
+        help="a registered Task name (robot), an env id or module:attr",
+    )
     a(
         "--kind",
         choices=KINDS,
@@ -433,8 +460,14 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     a("--sigma", type=float, default=d.sigma, help="human noise, fraction of a_max")
     a("--bias", type=float, default=d.bias, help="human bias, fraction of a_max")
     a("--seed", type=int, default=d.seed, help="keep disjoint from evaluation seeds (0, 1, ...)")
-    a("--human", choices=HUMANS, default=d.human)
-    a("--beta", type=float, default=d.beta, help="Boltzmann rationality (human=boltzmann)")
+    a("--human", default=d.human, help="a registered human's name or module:attr")
+    a("--beta", type=float, default=d.beta, help="rationality β (humans that declare it)")
+    a(
+        "--human-kwargs",
+        type=json_object_arg("--human-kwargs"),
+        default=None,
+        help="JSON: the human's own kwargs",
+    )
     a("--lr", type=float, default=d.lr)
     a("--lr-halve-every", type=int, default=d.lr_halve_every)
     a("--candidates", type=int, default=d.n_candidates, help="candidate actions for eq. M6")
@@ -476,6 +509,7 @@ def run_train(args: argparse.Namespace) -> Path:
         threads=args.threads,
         unroll=args.unroll,
         prior=args.prior,
+        human_kwargs=args.human_kwargs,
     )
     if args.heldout < 1:
         raise ValueError(f"heldout must be >= 1, got {args.heldout}")

@@ -31,8 +31,9 @@ class Task(ABC):
     """Base class for a StROL setting. Subclasses are frozen dataclasses, so they pickle.
 
     Class attributes a subclass sets: ``task_id``, ``version``, ``feature_names``,
-    ``state_dim``, ``action_dim``. Instance fields: ``prior`` (P(θ*)), ``alpha`` (the learning
-    rate α of eq. P2) and whatever geometry the setting needs.
+    ``state_dim``, ``action_dim`` (and ``feature_high`` if its features are bounded above).
+    Instance fields: ``prior`` (P(θ*)), ``alpha`` (the learning rate α of eq. P2) and whatever
+    geometry the setting needs.
     """
 
     task_id: ClassVar[str]
@@ -40,6 +41,8 @@ class Task(ABC):
     feature_names: ClassVar[tuple[str, ...]]
     state_dim: ClassVar[int]
     action_dim: ClassVar[int]
+    feature_high: ClassVar[float] = np.inf
+    """An upper bound of every feature (the top of the envs' ``"phi"`` observation box)."""
 
     prior: Prior
     alpha: float

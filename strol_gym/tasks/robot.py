@@ -45,6 +45,7 @@ class RobotTask(Task):
     feature_names: ClassVar[tuple[str, ...]] = ("plate_planar_distance", "cup_distance")
     state_dim: ClassVar[int] = 3
     action_dim: ClassVar[int] = 3
+    feature_high: ClassVar[float] = 0.0  # both features are negated distances
 
     prior: Prior = dataclasses.field(default_factory=_default_prior)
     alpha: float = 2.0

@@ -1,0 +1,245 @@
+"""What every strol-gym env shares: the corrective human, θ̂, arguments, observation and info.
+
+Every env is a Task plus a simulator (MuJoCo arm, highway-env cars, ...). :class:`CorrectionEnv`
+holds the part that is the same whatever simulates the Task, so the envs agree on the contract
+the learners, the wrapper and the benchmark rely on:
+
+- observation ``{"state": x, "correction": u_H, "theta_hat": θ̂, "phi": φ(x)}``;
+- info ``features``, ``phi``, ``correction``, ``robot_action``, ``theta_star`` (the human's
+  *current* preference), ``theta_hat``, ``is_correction``; an env whose corrections span
+  several steps adds ``correction_state`` (the state where the correction began);
+- reward R(x', θ*) = θ*·φ(x');
+- humans built by ``strol_gym.humans.make_human`` (σ, ε, β and ``human_kwargs``);
+- episodes end through gymnasium's ``TimeLimit`` (``gymnasium.make``); an env built directly
+  truncates itself only when given ``max_episode_steps``. One rule, one place: ``_truncated``.
+
+It is a mixin, placed before the simulator's base class (``gym.Env`` or highway-env's
+``AbstractEnv``). An env calls ``_configure`` in ``__init__``, ``_start_episode`` in ``reset``
+and the step helpers in ``step``. ``docs/extending.md`` shows a complete small env.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from strol_gym.humans import (
+    Human,
+    HumanFactory,
+    check_fraction,
+    check_human_kwargs,
+    human_factory,
+    make_human,
+)
+from strol_gym.priors import Prior, make_prior
+from strol_gym.tasks import make_task
+from strol_gym.tasks.base import Task
+
+RESET_OPTIONS = ("theta_star", "state")
+
+
+def int_arg(name: str, value: Any, low: int, high: int | None = None) -> int:
+    """An integer argument in [low, high], else ValueError naming it and the range."""
+    ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
+    if ok and value >= low and (high is None or value <= high):
+        return int(value)
+    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
+    raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
+
+
+def vector_arg(name: str, value: Any, n: int) -> np.ndarray:
+    """``n`` finite numbers as a fresh float64 vector, else ValueError naming the argument."""
+    v = np.asarray(value, dtype=np.float64).reshape(-1)
+    if v.shape != (n,) or not np.isfinite(v).all():
+        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
+    return v.copy()
+
+
+class CorrectionEnv:
+    """The human-correction half of a strol-gym env (a mixin; see the module docstring)."""
+
+    metadata: dict[str, Any]
+    task: Any
+    theta_hat: np.ndarray
+    human: Human | None
+    steps: int
+    _x: np.ndarray
+
+    def _configure(
+        self,
+        env_id: str,
+        task: Task | str | None,
+        task_cls: type[Task],
+        unknown: dict[str, Any],
+        *,
+        sigma: float,
+        bias: float,
+        prior: str | Prior | Any,
+        human: str | HumanFactory,
+        beta: float,
+        n_corrections: int,
+        render_mode: str | None,
+        max_episode_steps: int | None = None,
+        human_kwargs: dict[str, Any] | None = None,
+    ) -> None:
+        """Validate the shared keyword arguments; each error names the argument and its range."""
+        if unknown:
+            takes = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
+            takes = [p for p in takes if p not in ("unknown", "kwargs")]
+            raise ValueError(f"unknown argument(s) {sorted(unknown)}; {env_id} takes {takes}")
+        task = task_cls() if task is None else make_task(task, of=task_cls)
+        self.task = task.with_prior(make_prior(prior, task.prior_modes))
+        self.sigma = check_fraction("sigma", sigma)
+        self.bias = check_fraction("bias", bias, allow_negative=True)
+        if not isinstance(human, str) and not callable(human):
+            raise ValueError(
+                f"human must be a registered name, 'module:attr' or a callable "
+                f"(task, theta_star, rng, **params) -> Human; got {human!r}"
+            )
+        human_factory(human)  # unknown names fail here, not at the first reset
+        self.human_model = human
+        self.human_kwargs = check_human_kwargs(human, human_kwargs)
+        try:
+            beta = float(beta)
+        except (TypeError, ValueError):
+            beta = float("nan")
+        if not (np.isfinite(beta) and beta >= 0):
+            raise ValueError(f"beta must be a finite number >= 0, got {beta}")
+        self.beta = beta
+        self.n_corrections = int_arg("n_corrections", n_corrections, 0)
+        if max_episode_steps is not None:
+            max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
+        self.max_episode_steps = max_episode_steps
+        modes = self.metadata["render_modes"]
+        if render_mode is not None and render_mode not in modes:
+            raise ValueError(f"render_mode must be None or one of {modes}, got {render_mode!r}")
+        self._u_scale = np.asarray(self.task.robot_action_bound, dtype=np.float64)
+        self.theta_hat = self._default_theta_hat()
+        self.theta_star = self.task.prior.mean.copy()
+        self.human = None
+        self.steps = 0
+
+    def _observation_space(self, state: spaces.Box, phi: spaces.Box | None = None) -> spaces.Dict:
+        """The shared observation space: ``state`` as given; φ unbounded unless given."""
+        f32 = np.float32
+        t = self.task
+        return spaces.Dict(
+            {
+                "state": state,
+                "correction": spaces.Box(-np.inf, np.inf, shape=(t.action_dim,), dtype=f32),
+                "theta_hat": spaces.Box(-np.inf, np.inf, shape=(t.dim,), dtype=f32),
+                "phi": phi or spaces.Box(-np.inf, np.inf, shape=(t.dim,), dtype=f32),
+            }
+        )
+
+    # ------------------------------------------------------------------ θ*, θ̂ and the human
+    @property
+    def theta_star(self) -> np.ndarray:
+        """The human's current preference θ* (what rewards and evaluation use)."""
+        human = getattr(self, "human", None)
+        if human is not None:
+            return np.asarray(human.theta_star, dtype=np.float64)
+        return self._theta_star
+
+    @theta_star.setter
+    def theta_star(self, value: np.ndarray) -> None:
+        self._theta_star = np.asarray(value, dtype=np.float64)
+
+    def _default_theta_hat(self) -> np.ndarray:
+        return np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
+
+    def set_theta_hat(self, theta_hat: np.ndarray) -> None:
+        """The robot's current estimate θ̂: the nominal human teaches relative to it, and the
+        next observation carries it. Reset restores the bimodal prior modes' mean."""
+        th = np.asarray(theta_hat, dtype=np.float64).reshape(-1)
+        if th.shape != (self.task.dim,) or not np.isfinite(th).all():
+            raise ValueError(f"theta_hat must be {self.task.dim} finite numbers, got {theta_hat}")
+        self.theta_hat = th.copy()
+
+    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
+        return make_human(
+            self.human_model,
+            self.task,
+            theta_star,
+            rng,
+            sigma=self.sigma,
+            bias=self.bias,
+            beta=self.beta,
+            **self.human_kwargs,
+        )
+
+    def _start_episode(self, theta_star: np.ndarray, human_rng: np.random.Generator) -> None:
+        """A new episode's θ*, θ̂0 and human (``reset`` calls it after drawing θ*)."""
+        self.human = None
+        self.theta_star = theta_star
+        self.theta_hat = self._default_theta_hat()
+        self.human = self._make_human(theta_star, human_rng)
+        self.steps = 0
+
+    def _reset_overrides(self, options: dict | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """``reset(options={"theta_star": ..., "state": ...})``: checked overrides or None."""
+        options = dict(options or {})
+        bad = set(options) - set(RESET_OPTIONS)
+        if bad:
+            raise ValueError(f"unknown reset option(s) {sorted(bad)}; valid: {RESET_OPTIONS}")
+        theta_star = options.get("theta_star")
+        state = options.get("state")
+        return (
+            None if theta_star is None else vector_arg("theta_star", theta_star, self.task.dim),
+            None if state is None else vector_arg("state", state, self.task.state_dim),
+        )
+
+    # ------------------------------------------------------------------ step helpers
+    def _robot_action(self, action: Any) -> np.ndarray:
+        """The action in [−1, 1] as u_R in task units. Out of range clips; NaN/inf raises."""
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (self.task.action_dim,):
+            raise ValueError(
+                f"action must have shape ({self.task.action_dim},), got {np.shape(action)}"
+            )
+        if not np.isfinite(a).all():
+            raise ValueError(f"action must be finite, got {action}")
+        return np.minimum(np.maximum(a, -1.0), 1.0) * self._u_scale
+
+    def _human_correction(self, x: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, bool]:
+        """(u_H, is_correction): the human's correction during the first ``n_corrections``
+        steps, checked to be ``action_dim`` finite numbers; zeros afterwards."""
+        if self.human is None:
+            raise RuntimeError("call reset() before step()")
+        if self.steps >= self.n_corrections:
+            return np.zeros(self.task.action_dim), False
+        u_h = np.asarray(self.human.act(x, u_r, self.theta_hat), dtype=np.float64)
+        if u_h.shape != (self.task.action_dim,) or not np.isfinite(u_h).all():
+            raise ValueError(
+                f"the human's correction must be {self.task.action_dim} finite numbers, got {u_h}"
+            )
+        return u_h, True
+
+    def _truncated(self) -> bool:
+        """Self-truncation of a directly built env given ``max_episode_steps``."""
+        return self.max_episode_steps is not None and self.steps >= self.max_episode_steps
+
+    def _obs(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
+        return {
+            "state": self._x.astype(np.float32),
+            "correction": np.asarray(u_h, dtype=np.float32),
+            "theta_hat": self.theta_hat.astype(np.float32),
+            "phi": np.asarray(phi, dtype=np.float32),
+        }
+
+    def _info(
+        self, phi: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, is_correction: bool
+    ) -> dict[str, Any]:
+        """The info keys every strol-gym env provides; envs add their own on top."""
+        return {
+            "features": dict(zip(self.task.feature_names, phi.tolist(), strict=True)),
+            "phi": phi,
+            "correction": np.array(u_h, dtype=np.float64),
+            "robot_action": np.array(u_r, dtype=np.float64),
+            "theta_star": self.theta_star.copy(),
+            "theta_hat": self.theta_hat.copy(),
+            "is_correction": bool(is_correction),
+        }

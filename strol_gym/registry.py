@@ -1,0 +1,246 @@
+"""One open registry of names -> pieces: learners, humans, Tasks and benchmark conditions.
+
+Each kind of piece keeps its built-in table where it is defined (``learners/registry.py``,
+``humans.py``, ``tasks/__init__.py``, ``benchmarks/conditions.py``); a :class:`Registry` wraps
+that table. Wherever strol-gym accepts a name it also accepts ``"module:attr"`` (imported on
+use), and a user adds a name with ``register(name, piece)``.
+
+User entries must reach the benchmark's worker processes, which start fresh (spawn). So what
+travels is a *spec*, a ``"module:attr"`` string a worker can import, never a closure:
+:func:`user_specs` collects them (and says which cannot travel), :func:`install_specs`
+registers them in a worker.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Callable, Iterable
+from typing import Any
+
+__all__ = [
+    "Registry",
+    "import_spec",
+    "install_specs",
+    "registries",
+    "resolve",
+    "spec_of",
+    "user_specs",
+]
+
+
+def import_spec(spec: str, what: str = "piece") -> Any:
+    """The object named by ``"module:attr"`` (``attr`` may be dotted), else ValueError."""
+    module, sep, attr = spec.partition(":")
+    if not sep or not module or not attr:
+        raise ValueError(f"{what} {spec!r} must be a registered name or 'module:attr'")
+    try:
+        obj: Any = importlib.import_module(module)
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except Exception as e:
+        raise ValueError(f"{what} {spec!r}: cannot import {attr!r} from {module!r} ({e})") from e
+    return obj
+
+
+def spec_of(obj: Any) -> str | None:
+    """``"module:qualname"`` if importing it gives back ``obj`` (so a worker can), else None.
+
+    Lambdas, closures and objects of an interactive session have no such spec. Objects of the
+    script being run (``__main__`` with a file) do: spawned workers import that script too.
+    """
+    if isinstance(obj, str):
+        return obj if ":" in obj else None
+    module = getattr(obj, "__module__", None)
+    qualname = getattr(obj, "__qualname__", None)
+    if not module or not qualname or "<" in qualname:
+        return None
+    if module == "__main__" and not getattr(sys.modules.get("__main__"), "__file__", None):
+        return None
+    try:
+        found = import_spec(f"{module}:{qualname}")
+    except ValueError:
+        return None
+    return f"{module}:{qualname}" if found is obj else None
+
+
+def _names(entry: Any, piece: Any) -> bool:
+    """Whether a lazy ``"module:attr"`` entry names ``piece`` (without importing anything new)."""
+    if not isinstance(entry, str) or isinstance(piece, str):
+        return False
+    module, _, attr = entry.partition(":")
+    return getattr(piece, "__module__", None) == module and (
+        getattr(piece, "__qualname__", None) == attr
+    )
+
+
+class Registry:
+    """Names -> pieces of one kind, over a built-in table (shared, not copied).
+
+    An entry is the piece itself (a class, factory or object) or a lazy ``"module:attr"``
+    string. ``get`` accepts a registered name or any ``"module:attr"``.
+    """
+
+    def __init__(
+        self,
+        kind: str,
+        table: dict[str, Any],
+        *,
+        check: Callable[[str, Any], None] | None = None,
+        hint: str = "",
+        encode: Callable[[Any], Any] | None = None,
+        decode: Callable[[Any], Any] | None = None,
+    ) -> None:
+        self.kind = kind
+        self.table = table
+        self.builtin = tuple(table)
+        self._check = check
+        self.hint = hint
+        self.encode = encode
+        self.decode = decode
+        """Pieces that are plain data (env presets) travel as ``encode(piece)`` (JSON) and are
+        rebuilt with ``decode``; every other piece travels as its ``"module:attr"``."""
+
+    def names(self) -> list[str]:
+        """Registered names, built-ins first, in registration order."""
+        return list(self.table)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.table
+
+    def register(self, name: str, piece: Any, *, replace: bool = False) -> None:
+        """Add ``piece`` (or a ``"module:attr"`` string, imported on first use) as ``name``."""
+        if not isinstance(name, str) or not name or ":" in name or "," in name:
+            raise ValueError(
+                f"{self.kind} name must be a non-empty string without ':' or ',', got {name!r}"
+            )
+        current = self.table.get(name)
+        same = current is not None and (
+            current is piece
+            or _names(current, piece)
+            or (self.decode is not None and type(current) is type(piece) and current == piece)
+        )
+        if same and name not in self.builtin:
+            self.table[name] = piece  # the same piece again (e.g. a worker importing the module
+            return  # behind a spec it was sent, which registers itself on import)
+        if name in self.table and (not replace or name in self.builtin):
+            raise ValueError(f"a {self.kind} named {name!r} is already registered")
+        if isinstance(piece, str):
+            if ":" not in piece:
+                raise ValueError(
+                    f"a lazy {self.kind} entry must look like 'module:attr', got {piece!r}"
+                )
+        elif self._check is not None:
+            self._check(name, piece)
+        self.table[name] = piece
+
+    def unregister(self, name: str) -> None:
+        """Remove a user entry (built-ins stay)."""
+        if name not in self.table:
+            raise ValueError(
+                f"no {self.kind} named {name!r}; known {self.kind}s: {', '.join(self.table)}"
+            )
+        if name in self.builtin:
+            raise ValueError(f"{name!r} is a built-in {self.kind} and cannot be removed")
+        del self.table[name]
+
+    def user_names(self) -> list[str]:
+        return [n for n in self.table if n not in self.builtin]
+
+    def get(self, spec: str) -> Any:
+        """The piece for a registered name or a ``"module:attr"``; ValueError listing names."""
+        if not isinstance(spec, str):
+            raise ValueError(f"{self.kind} must be a name or 'module:attr', got {spec!r}")
+        if spec in self.table:
+            entry = self.table[spec]
+            return import_spec(entry, self.kind) if isinstance(entry, str) else entry
+        if ":" in spec:
+            return import_spec(spec, self.kind)
+        raise ValueError(
+            f"unknown {self.kind} {spec!r}; known {self.kind}s: {', '.join(self.table)}, "
+            f"or 'module:attr'{self.hint}"
+        )
+
+    def check_name(self, spec: str) -> str:
+        """``spec`` if ``get`` would find it (imports a ``module:attr``), else ValueError."""
+        self.get(spec)
+        return spec
+
+
+_REGISTRIES: dict[str, Callable[[], Registry]] = {
+    "env": lambda: importlib.import_module("strol_gym.benchmarks.conditions").ENVS,
+    "learner": lambda: importlib.import_module("strol_gym.learners.registry").LEARNERS,
+    "human": lambda: importlib.import_module("strol_gym.humans").HUMANS,
+    "task": lambda: importlib.import_module("strol_gym.tasks").TASKS,
+    "condition": lambda: importlib.import_module("strol_gym.benchmarks.conditions").CONDITIONS,
+}
+
+
+def registries() -> dict[str, Registry]:
+    """Every registry by kind: env (benchmark presets), learner, human, task, condition."""
+    return {kind: get() for kind, get in _REGISTRIES.items()}
+
+
+def resolve(kind: str, spec: str) -> Any:
+    """The piece of ``kind`` named ``spec`` (a registered name or ``"module:attr"``)."""
+    if kind not in _REGISTRIES:
+        raise ValueError(f"kind must be one of {list(_REGISTRIES)}, got {kind!r}")
+    return _REGISTRIES[kind]().get(spec)
+
+
+def user_specs(
+    used: dict[str, Iterable[str]] | None = None,
+) -> tuple[dict[str, dict[str, Any]], list[str]]:
+    """The user entries as importable specs ``{kind: {name: "module:attr"}}``, and the names
+    that cannot travel to another process (each as "kind 'name'").
+
+    ``used`` limits the answer to the names a run uses (``{kind: names}``).
+    """
+    specs: dict[str, dict[str, str]] = {}
+    stuck: list[str] = []
+    for kind, reg in registries().items():
+        wanted = None if used is None else set(used.get(kind, ()))
+        for name in reg.user_names():
+            if wanted is not None and name not in wanted:
+                continue
+            entry = reg.table[name]
+            spec = reg.encode(entry) if reg.encode is not None else spec_of(entry)
+            if spec is None:
+                stuck.append(f"{kind} {name!r}")
+            else:
+                specs.setdefault(kind, {})[name] = spec
+    return specs, stuck
+
+
+def install_specs(specs: dict[str, dict[str, Any]]) -> None:
+    """Register ``user_specs`` output in this process (a worker). A name this process already
+    has is left as it is: a worker starts without them, and the parent keeps its own."""
+    regs = registries()
+    for kind, entries in specs.items():
+        if kind not in regs:
+            raise ValueError(f"unknown kind of piece {kind!r}; known: {list(regs)}")
+        reg = regs[kind]
+        for name, spec in entries.items():
+            if name not in reg.table:
+                reg.register(name, spec if reg.decode is None else reg.decode(spec))
+
+
+def import_plugin(spec: str) -> None:
+    """Import a module of user pieces (which registers them): a module name, or a ``.py`` file
+    whose folder then joins ``sys.path`` (so worker processes import it by the same name)."""
+    from pathlib import Path
+
+    path = Path(spec)
+    if spec.endswith(".py"):
+        if not path.is_file():
+            raise ValueError(f"plugin {spec!r}: no such file")
+        folder = str(path.resolve().parent)
+        if folder not in sys.path:
+            sys.path.insert(0, folder)
+        spec = path.stem
+    try:
+        importlib.import_module(spec)
+    except SystemExit as e:
+        raise ValueError(f"plugin {spec!r} called sys.exit({e.code}) on import") from e
+    except Exception as e:  # a user module may raise anything on import
+        raise ValueError(f"plugin {spec!r} failed to import: {type(e).__name__}: {e}") from e

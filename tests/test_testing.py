@@ -1,0 +1,96 @@
+"""strol_gym.testing: every registered piece passes the checks, and broken pieces fail them."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from test_learners import LinearTask
+
+from strol_gym.humans import HUMANS, NominalHuman
+from strol_gym.learners.registry import list_learners
+from strol_gym.learners.rules import GradientLearner
+from strol_gym.tasks import TASKS, make_task
+from strol_gym.testing import check_human, check_learner, check_task
+
+
+@pytest.mark.parametrize("task", TASKS.names())
+def test_every_registered_task_passes(task):
+    check_task(make_task(task))
+
+
+@pytest.mark.parametrize("task", TASKS.names())
+@pytest.mark.parametrize("learner", list_learners())
+def test_every_registered_learner_passes(learner, task):
+    check_learner(learner, make_task(task))
+
+
+@pytest.mark.parametrize("task", TASKS.names())
+@pytest.mark.parametrize("human", HUMANS.names())
+def test_every_registered_human_passes(human, task):
+    check_human(human, make_task(task))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class BatchMixingTask(LinearTask):
+    """φ centred on the batch mean: right for one state, wrong for a batch."""
+
+    def features(self, x):
+        x = np.asarray(x, dtype=np.float64)
+        phi = super().features(x)
+        return phi - phi.mean(axis=0) if phi.ndim == 2 else phi
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class DriftingGTask(LinearTask):
+    """A g that moves θ̂ even without a correction."""
+
+    def g(self, x, u_h, u_r):
+        return super().g(x, u_h, u_r) + 0.1
+
+
+@pytest.mark.parametrize(
+    ("task", "match"),
+    [
+        (BatchMixingTask(), "features: batched row 0 vs a single state"),
+        (DriftingGTask(), r"g\(x, 0, u_R\) \(no correction, nothing to learn\) must be 0"),
+    ],
+)
+def test_a_broken_task_fails_with_a_message(task, match):
+    with pytest.raises(AssertionError, match=match):
+        check_task(task)
+
+
+class Forgetful(GradientLearner):
+    """Its state_dict does not restore θ̂."""
+
+    def load_state_dict(self, state):
+        pass
+
+
+class Jittery(GradientLearner):
+    """Adds unseeded noise to every update."""
+
+    def update(self, x, u_h, u_r=None):
+        super().update(x, u_h, u_r)
+        self.theta = self.theta + 1e-3 * np.random.default_rng().standard_normal(self.theta.shape)
+        return self.theta.copy()
+
+
+@pytest.mark.parametrize(
+    ("learner", "match"),
+    [(Forgetful, r"load_state_dict\(state_dict\(\)\)"), (Jittery, "determinism")],
+)
+def test_a_broken_learner_fails_with_a_message(learner, match):
+    with pytest.raises(AssertionError, match=match):
+        check_learner(learner, LinearTask())
+
+
+def test_a_human_that_ignores_its_generator_fails():
+    def careless(task, theta_star, rng, sigma=0.0):
+        return NominalHuman(task, theta_star, np.random.default_rng(), sigma=sigma)
+
+    with pytest.raises(AssertionError, match="same generator seed"):
+        check_human(careless, LinearTask())
+    check_human(NominalHuman, LinearTask(), sigma=0.2)
