@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -549,7 +550,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         prog="python -m strol_gym.learners.training",
         description="Train StROL's correction term ĝ (Algorithm 1) for a task.",
     )
-    run_train(add_train_arguments(parser).parse_args(argv))
+    args = add_train_arguments(parser).parse_args(argv)
+    try:
+        run_train(args)
+    except (ValueError, FileNotFoundError) as e:  # bad options: one line, exit status 2
+        print(f"{parser.prog}: error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 if __name__ == "__main__":
