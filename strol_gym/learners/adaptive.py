@@ -14,7 +14,7 @@ import numpy as np
 
 from strol_gym.learners.correction import StROLLearner
 from strol_gym.learners.network import CorrectionNet
-from strol_gym.learners.protocol import batch_inputs
+from strol_gym.learners.protocol import batch_inputs, checked_theta
 from strol_gym.priors import MixturePrior
 from strol_gym.tasks.base import Task
 
@@ -155,9 +155,16 @@ class AdaptiveStROLLearner(StROLLearner):
         g_hat, g = self._correction_and_g(x2, uh2, ur2, th2)
         c, ok = _cosine(g, last)
         total, count = total + np.where(ok, c, 0.0), count + ok
+        old = self._sum, self._count
         self._sum, self._count = total, count
         lam = np.atleast_1d(self.current_lambda())
-        theta = th2 + self.task.alpha * (g + lam[:, None] * g_hat)
+        with np.errstate(over="ignore", invalid="ignore"):
+            theta = th2 + self.task.alpha * (g + lam[:, None] * g_hat)
+        try:
+            theta = checked_theta(theta)
+        except ValueError:
+            self._sum, self._count = old
+            raise
         self._last = g_hat.copy()
         if single:
             self._sum, self._count, self._last = total[0], count[0], self._last[0]
