@@ -42,7 +42,9 @@ def _positive_int(name: str, high: int | None = None):
         try:
             v = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer {rng}, got {text!r}") from None
+            raise argparse.ArgumentTypeError(
+                f"{name} must be an integer {rng}, got {text!r}"
+            ) from None
         if v < 1 or (high is not None and v > high):
             raise argparse.ArgumentTypeError(f"{name} must be an integer {rng}, got {v}")
         return v
@@ -367,7 +369,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ResultsError as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)
         return 2
-    except ValueError as e:
+    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
         parser.exit(2, f"strol-bench: error: {e}\n")
     except KeyboardInterrupt:
         print(

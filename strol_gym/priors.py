@@ -87,7 +87,9 @@ class FixedPrior:
         try:
             thetas = np.atleast_2d(np.asarray(self.thetas, dtype=np.float64))
         except (TypeError, ValueError):
-            raise ValueError(f"thetas must be numbers of shape (k, d), got {self.thetas!r}") from None
+            raise ValueError(
+                f"thetas must be numbers of shape (k, d), got {self.thetas!r}"
+            ) from None
         if thetas.ndim != 2 or thetas.shape[0] < 1 or thetas.shape[1] < 1:
             raise ValueError(f"thetas must have shape (k, d) with k, d >= 1, got {thetas.shape}")
         if not np.isfinite(thetas).all():

@@ -192,7 +192,12 @@ class AdaptiveStROLLearner(StROLLearner):
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        try:  # read everything before anything is assigned: a failed load changes nothing
+            stats = [
+                np.asarray(state[k], dtype=np.float64).copy()
+                for k in ("stat_sum", "stat_count", "last_correction")
+            ]
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"state lacks strol-adaptive's statistics ({e})") from None
         super().load_state_dict(state)
-        self._sum = np.asarray(state["stat_sum"], dtype=np.float64).copy()
-        self._count = np.asarray(state["stat_count"], dtype=np.float64).copy()
-        self._last = np.asarray(state["last_correction"], dtype=np.float64).copy()
+        self._sum, self._count, self._last = stats
