@@ -13,11 +13,11 @@ from strol_gym.benchmarks.config import BenchConfig, Experiment, paper_config
     [
         (["run", "--env", "robot", "--learners", "gradient,nope"], "unknown learner 'nope'"),
         (["run", "--env", "robot", "--learners", "no_such_mod:thing"], "cannot import"),
-        (["run", "--env", "robot", "--sigma", "-0.1"], "--sigma must be a finite number >= 0"),
-        (["run", "--env", "robot", "--sigma", "nan"], "--sigma must be a finite number >= 0"),
+        (["run", "--env", "robot", "--sigma", "-0.1"], "--sigma must be a number in [0, 100]"),
+        (["run", "--env", "robot", "--sigma", "nan"], "--sigma must be a number in [0, 100]"),
         (["run", "--env", "robot", "--condition", "windy"], "unknown condition 'windy'"),
         (["run", "--env", "boat"], "env must be one of ['highway', 'robot'], got 'boat'"),
-        (["paper", "--runs", "0"], "--runs must be an integer >= 1"),
+        (["paper", "--runs", "0"], "--runs must be an integer in [1, "),
         (["paper", "--jobs", "0"], "--jobs must be an integer >= 1"),
         (["paper", "--env", "moon"], "invalid choice: 'moon'"),
         (
