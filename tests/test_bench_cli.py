@@ -79,5 +79,5 @@ def test_config_round_trip_and_units():
     assert len(units) == 8 * 3
     exp = Experiment("robot", paper_condition("robot", "clean"), runs=2, seed=5)
     assert list(exp.seeds) == [5, 6] and exp.env_kwargs()["max_episode_steps"] == 5
-    with pytest.raises(ValueError, match="runs must be >= 1"):
+    with pytest.raises(ValueError, match=r"runs must be an integer in \[1, "):
         Experiment("robot", paper_condition("robot", "clean"), runs=0)

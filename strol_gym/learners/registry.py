@@ -107,7 +107,7 @@ def make_learner(
         raise ValueError(f"task must be a strol_gym Task, got {type(task).__name__}")
     try:
         learner = name(task=task, **kwargs)
-    except ValueError:
+    except (ValueError, OSError):  # already say what is wrong (OSError: a missing checkpoint)
         raise
     except Exception as e:  # a user's factory may raise anything: name it, no traceback
         raise ValueError(f"learner {label!r} failed to build: {type(e).__name__}: {e}") from e
