@@ -25,7 +25,7 @@ from strol_gym.tasks.study import (
     rpy_to_mat,
 )
 
-HOLD = 2
+HOLD = 5
 """Physics steps per impedance update (the torque is held in between: 100 Hz control)."""
 END_HOLD = 2.0
 """Seconds the robot waits at the end of its plan before it returns home and plays it again."""
@@ -208,7 +208,11 @@ class StudyEnv(CorrectionEnv, gym.Env):
         self._site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
         self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
         self._jac = np.zeros((6, m.nv))
-        self._jacp, self._jacr = self._jac[:3], self._jac[3:]
+        self._jacp, self._jacr, self._ja = self._jac[:3], self._jac[3:], self._jac[:, :N_ARM]
+        d = self.data  # views into MjData, valid as long as it lives
+        self._qpos, self._qvel = d.qpos[:N_ARM], d.qvel[:N_ARM]
+        self._site_xpos = d.site_xpos[self._site]
+        self._site_xmat = d.site_xmat[self._site].reshape(3, 3)
         self._err = np.zeros(6)
         self._q_home = model_q(self.task.home_q)
         kp, kr = self.stiffness, self.rot_stiffness
@@ -350,22 +354,19 @@ class StudyEnv(CorrectionEnv, gym.Env):
             d.xfrc_applied[self._hand, 3:] = self._wrench[3:] + lever_torque
         else:
             d.xfrc_applied[self._hand] = 0.0
-        jac, k, damp, err = self._jac, self._k, self._d, self._err
-        jp, jr = self._jacp, self._jacr
-        sp_p, sp_r = self._sp[:3], self._sp_R
+        jp, jr, ja, err, k, damp = self._jacp, self._jacr, self._ja, self._err, self._k, self._d
+        qd, q, xpos, xmat = self._qvel, self._qpos, self._site_xpos, self._site_xmat
+        sp_p, sp_r, site = self._sp[:3], self._sp_R, self._site
         dv = damp * v_sp
-        xpos, xmat = d.site_xpos[self._site], d.site_xmat[self._site]
         for _ in range(self._n_sub // HOLD):
-            mujoco.mj_jacSite(m, d, jp, jr, self._site)
-            qd = d.qvel[:N_ARM]
-            re = sp_r @ xmat.reshape(3, 3).T
+            mujoco.mj_jacSite(m, d, jp, jr, site)
+            re = sp_r @ xmat.T
             np.subtract(sp_p, xpos, out=err[:3])
             err[3] = re[2, 1] - re[1, 2]
             err[4] = re[0, 2] - re[2, 0]
             err[5] = re[1, 0] - re[0, 1]
-            ja = jac[:, :N_ARM]
             w = k * err - damp * (ja @ qd) + dv
-            d.ctrl[:N_ARM] = ja.T @ w + K_NULL * (self._q_home - d.qpos[:N_ARM]) - D_NULL * qd
+            d.ctrl[:N_ARM] = ja.T @ w + K_NULL * (self._q_home - q) - D_NULL * qd
             mujoco.mj_step(m, d, nstep=HOLD)
         # mj_step leaves positions one physics step old: refresh them (the state read next and
         # the next step's first torque then depend on qpos alone, so a pickled env continues
@@ -377,7 +378,8 @@ class StudyEnv(CorrectionEnv, gym.Env):
     def _check_stable(self) -> bool:
         """False after a MuJoCo instability warning (it then resets the data) or NaN."""
         d = self.data
-        warnings = sum(d.warning[i].number for i in _INSTABILITY)
+        w = d.warning
+        warnings = w[_INSTABILITY[0]].number + w[_INSTABILITY[1]].number + w[_INSTABILITY[2]].number
         bad = warnings > self._warnings or not np.isfinite(d.qpos).all()
         self._warnings = warnings
         return not bad

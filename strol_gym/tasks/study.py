@@ -202,6 +202,8 @@ class StudyTask(Task):
     # ------------------------------------------------------------------ φ and ∂φ/∂x
     def features(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
+        if x.ndim == 1:  # the env's per-step call: plain floats are ~10x faster
+            return self._features1(x)
         dxy = x[..., :2] - self.pitcher[:2]
         dp = x[..., :3] - self.plate
         cols = [
@@ -213,6 +215,21 @@ class StudyTask(Task):
             c = np.cos(x[..., 3]) * np.cos(x[..., 4])
             cols.append(-np.arccos(np.clip(c, -1.0, 1.0)))
         return np.stack(cols, axis=-1)
+
+    def _features1(self, x: np.ndarray) -> np.ndarray:
+        """``features`` for one state (the same formulas as the batched path)."""
+        px, py, pz = x[:3].tolist()
+        qx, qy, _ = self.pitcher.tolist()
+        lx, ly, lz = self.plate.tolist()
+        out = [
+            -math.hypot(px - qx, py - qy),
+            -math.sqrt((px - lx) ** 2 + (py - ly) ** 2 + (pz - lz) ** 2),
+            -pz,
+        ]
+        if self.oriented:
+            c = math.cos(float(x[3])) * math.cos(float(x[4]))
+            out.append(-math.acos(min(1.0, max(-1.0, c))))
+        return np.array(out)
 
     def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂φ/∂x, (..., s) -> (..., d, s) (0 at the kinks)."""
