@@ -11,9 +11,11 @@ import json
 import math
 import sys
 import time
+import types
 from collections.abc import Sequence
 from pathlib import Path
 
+from strol_gym.benchmarks import basin, changing, confirm, lambda_sweep
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
     ENV_PRESETS,
@@ -128,6 +130,16 @@ def _common_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
 
 
+_COMMON = types.SimpleNamespace(
+    positive_int=_positive_int, nonneg_int=_nonneg_int, run_options=_common_run_options
+)
+"""The option helpers the experiment presets' own parser blocks use."""
+
+
+PRESETS = {"changing": changing, "lambda": lambda_sweep, "basin": basin, "confirm": confirm}
+"""The experiment presets (issue 10): each module has ``add_parser(sub, common)`` and ``cmd``."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="strol-bench",
@@ -206,6 +218,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
     _plugin_option(p)
+
+    for preset in PRESETS.values():
+        preset.add_parser(sub, _COMMON)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -337,6 +352,7 @@ COMMANDS = {
     "train": cmd_train,
     "list": cmd_list,
     "report": cmd_report,
+    **{name: preset.cmd for name, preset in PRESETS.items()},
 }
 
 
