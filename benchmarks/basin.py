@@ -9,6 +9,7 @@ after ``--steps`` corrections by one fixed, seeded eq. M6 human (σ = ``--sigma`
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -40,6 +41,12 @@ def add_parser(sub: argparse._SubParsersAction, common) -> None:
     p.add_argument(
         "--seed", type=common.nonneg_int("--seed"), default=DEFAULT_SEED, help="the human's seed"
     )
+    p.add_argument(
+        "--theta-star",
+        type=presets.float_list("--theta-star", low=-math.inf),
+        default=None,
+        help="the human's θ*, comma-separated (default: the first prior mode)",
+    )
     p.add_argument("--out", default=None, help="results folder (default results/basin-<env>)")
     p.add_argument("--no-plots", action="store_true")
 
@@ -55,7 +62,15 @@ def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     out = Path(args.out or f"results/basin-{args.env}")
     t0 = time.perf_counter()
     maps = {
-        lr: basin_map(task, lr, args.grid, steps=args.steps, sigma=args.sigma, seed=args.seed)
+        lr: basin_map(
+            task,
+            lr,
+            args.grid,
+            theta_star=args.theta_star,
+            steps=args.steps,
+            sigma=args.sigma,
+            seed=args.seed,
+        )
         for lr in LEARNERS
     }
     wall = time.perf_counter() - t0

@@ -59,7 +59,7 @@ def make_config(
 def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     configs = {}
     try:
-        for lam in args.lambdas:
+        for lam in dict.fromkeys(args.lambdas):
             configs[lam] = make_config(
                 args.env, lam, runs=args.runs, seed=args.seed, block=args.block
             )

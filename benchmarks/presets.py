@@ -33,13 +33,14 @@ def float_list(name: str, *, low: float = 0.0):
             except ValueError:
                 v = math.nan
             if not math.isfinite(v) or v < low:
+                bound = "" if low == -math.inf else f" >= {low:g}"
                 raise argparse.ArgumentTypeError(
-                    f"{name} must be comma-separated finite numbers >= {low:g}, got {tok!r}"
+                    f"{name} must be comma-separated finite numbers{bound}, got {tok!r}"
                 )
             out.append(v)
         if not out:
             raise argparse.ArgumentTypeError(f"{name} must name at least one value")
-        return list(dict.fromkeys(out))
+        return out
 
     return parse
 
