@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 import types
@@ -27,21 +26,29 @@ from strol_gym.benchmarks.conditions import (
     env_preset,
     make_condition,
 )
-from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment, paper_config
+from strol_gym.benchmarks.config import (
+    DEFAULT_BLOCK,
+    MAX_RUNS,
+    BenchConfig,
+    Experiment,
+    paper_config,
+)
 from strol_gym.benchmarks.results import ResultsError
 
 
 # ---------------------------------------------------------------------- argument types
-def _positive_int(name: str):
+def _positive_int(name: str, high: int | None = None):
+    rng = ">= 1" if high is None else f"in [1, {high}]"
+
     def parse(text: str) -> int:
         try:
             v = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(
-                f"{name} must be an integer >= 1, got {text!r}"
+                f"{name} must be an integer {rng}, got {text!r}"
             ) from None
-        if v < 1:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer >= 1, got {v}")
+        if v < 1 or (high is not None and v > high):
+            raise argparse.ArgumentTypeError(f"{name} must be an integer {rng}, got {v}")
         return v
 
     return parse
@@ -63,19 +70,25 @@ def _nonneg_int(name: str):
 
 
 def _fraction(name: str, allow_negative: bool = False):
+    """σ or ε as a fraction of a_max, checked by the humans' own rule (one range everywhere)."""
+    from strol_gym.humans import check_fraction
+
     def parse(text: str) -> float:
         try:
-            v = float(text)
-        except ValueError:
-            v = math.nan
-        if not math.isfinite(v) or (v < 0 and not allow_negative):
-            rng = "a finite number" if allow_negative else "a finite number >= 0"
-            raise argparse.ArgumentTypeError(
-                f"{name} must be {rng} (a fraction of the action bound a_max), got {text!r}"
-            )
-        return v
+            return check_fraction(name, text, allow_negative=allow_negative)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
 
     return parse
+
+
+def _beta(text: str) -> float:
+    from strol_gym.humans import check_beta
+
+    try:
+        return check_beta(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"--{e}") from None
 
 
 def _learner_list(text: str) -> list[str]:
@@ -157,9 +170,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--env", choices=(*PAPER_ENVS, "all"), default="all")
     p.add_argument(
         "--runs",
-        type=_positive_int("--runs"),
+        type=_positive_int("--runs", MAX_RUNS),
         default=None,
-        help="runs per condition (default: the paper's, Robot 100, Highway 250)",
+        help="runs per condition (default: the paper's, Robot 100, Highway 250; at most "
+        f"{MAX_RUNS})",
     )
     _common_run_options(p)
 
@@ -193,7 +207,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--bias", type=_fraction("--bias", allow_negative=True), help="bias ε")
     p.add_argument("--prior", choices=PRIORS, help="where θ* comes from")
     p.add_argument("--human", help="simulated human: a registered name or module:attr")
-    p.add_argument("--beta", type=_fraction("--beta"), help="rationality β (if the human takes it)")
+    p.add_argument("--beta", type=_beta, help="rationality β (if the human takes it)")
     p.add_argument(
         "--human-kwargs",
         type=json_object_arg("--human-kwargs"),
@@ -201,7 +215,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--task", default=None, help="a Task name or module:attr (default: the env's)")
     p.add_argument("--name", default="custom", help="name of the explicit condition")
-    p.add_argument("--runs", type=_positive_int("--runs"), default=None)
+    p.add_argument(
+        "--runs", type=_positive_int("--runs", MAX_RUNS), default=None, help=f"at most {MAX_RUNS}"
+    )
     p.add_argument(
         "--corrections", type=_positive_int("--corrections"), default=None, help="steps/episode"
     )
@@ -369,7 +385,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ResultsError as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)
         return 2
-    except ValueError as e:
+    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
         parser.exit(2, f"strol-bench: error: {e}\n")
     except KeyboardInterrupt:
         print(

@@ -28,6 +28,9 @@ DEFAULT_BLOCK = 25
 the same batches whatever the parallelism (and results are identical across --jobs)."""
 
 SCHEMA_VERSION = 1
+MAX_RUNS = 1_000_000
+"""The most runs per experiment (env × condition): the paper uses 100–250, and a run's record
+is kept in memory while the tables are built, so far more than this cannot finish anyway."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,8 +49,8 @@ class Experiment:
         env_preset(self.env)  # validates the key
         if self.task is not None and (not isinstance(self.task, str) or not self.task):
             raise ValueError(f"task must be a Task name or 'module:attr', got {self.task!r}")
-        if int(self.runs) < 1:
-            raise ValueError(f"runs must be >= 1, got {self.runs}")
+        if not 1 <= int(self.runs) <= MAX_RUNS:
+            raise ValueError(f"runs must be an integer in [1, {MAX_RUNS}], got {self.runs}")
         if int(self.seed) < 0:
             raise ValueError(f"seed must be >= 0, got {self.seed}")
         if self.n_corrections is not None and int(self.n_corrections) < 1:

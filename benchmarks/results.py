@@ -24,6 +24,7 @@ import math
 import os
 import shutil
 import subprocess
+import sys
 from collections.abc import Iterable, Sequence
 from importlib import metadata
 from pathlib import Path
@@ -33,6 +34,9 @@ from strol_gym.benchmarks.config import BenchConfig, Unit, diff_configs
 
 META = "meta.json"
 RECORDS = "records"
+LOCK = ".lock"
+"""Holds the pid of the process running into the folder; a second run is refused while that
+process lives. A lock whose process is gone (killed, crashed) is taken over with a note."""
 RUN_FIELDS = ("error", "cos_error", "regret")
 """Scalar metrics of a run (error = final ‖θ* − θ̂‖); lower is better for each."""
 
@@ -139,6 +143,18 @@ class ResultsDir:
         stored in meta.json.
         """
         path = Path(path)
+        try:
+            rd = cls._open(path, config, extra, force)
+        except OSError as e:
+            raise ResultsError(
+                f"--out {path}: cannot write the results folder there ({e.strerror or e})"
+            ) from None
+        return rd
+
+    @classmethod
+    def _open(
+        cls, path: Path, config: BenchConfig, extra: dict[str, Any] | None, force: bool
+    ) -> ResultsDir:
         chash = config.hash(extra)
         meta_path = path / META
         if path.exists() and not path.is_dir():
@@ -151,6 +167,7 @@ class ResultsDir:
                 )
             if force:
                 cls._check_ours(path)
+                _acquire_lock(path)  # never delete a folder another live run is writing
                 shutil.rmtree(path)
             else:
                 meta = cls._read_meta(path)
@@ -163,8 +180,13 @@ class ResultsDir:
                         f"{path} holds results of a different configuration ({detail}). "
                         "Use another --out, or --force to delete those results and start over."
                     )
+                _acquire_lock(path)
+                # A deleted records/ folder (or one lost otherwise) is recreated: its units
+                # are simply missing and this run computes them again.
+                (path / RECORDS).mkdir(exist_ok=True)
                 return cls(path, config, chash, meta)
         path.mkdir(parents=True, exist_ok=True)
+        _acquire_lock(path)
         seeds = {
             f"{e.env}/{e.condition.name}": [e.seeds.start, e.seeds.stop - 1]
             for e in config.experiments
@@ -188,21 +210,32 @@ class ResultsDir:
     @staticmethod
     def _read_meta(path: Path) -> dict:
         try:
-            meta = json.loads((path / META).read_text())
-        except (OSError, json.JSONDecodeError) as e:
+            meta = json.loads((path / META).read_bytes().decode("utf-8"))
+        except (OSError, ValueError) as e:  # ValueError: bad JSON or bytes that are not UTF-8
             raise ResultsError(
-                f"{path / META} is unreadable or corrupt ({e}). Use another --out, or --force "
-                "to delete this folder's results and start over."
-            ) from e
+                f"{path / META} is unreadable or corrupt ({type(e).__name__}: {e}). Use another "
+                "--out, or --force to delete this folder's results and start over."
+            ) from None
         if not isinstance(meta, dict) or meta.get("tool") != "strol-bench" or "config" not in meta:
             raise ResultsError(f"{path / META} is not a strol-bench meta file")
+        for key, kind, word in (("config", dict, "object"), ("config_hash", str, "string")):
+            if not isinstance(meta.get(key), kind):
+                raise ResultsError(
+                    f"{path / META}: {key!r} must be a JSON {word}, got {meta.get(key)!r:.60}; "
+                    "use another --out, or --force to start over"
+                )
+        # Session bookkeeping only (wall times): a damaged list is repaired, not fatal.
+        sessions = meta.get("sessions")
+        meta["sessions"] = (
+            [s for s in sessions if isinstance(s, dict)] if isinstance(sessions, list) else []
+        )
         return meta
 
     @staticmethod
     def _check_ours(path: Path) -> None:
         """Refuse to delete a folder holding anything but our own outputs."""
         ours = {META, RECORDS, "plots", "runs.csv", "curves.csv", "summary.csv", "stats.csv"}
-        ours |= {"anova.csv", "summary.md"}
+        ours |= {"anova.csv", "summary.md", LOCK}
         foreign = [p.name for p in path.iterdir() if p.name not in ours]
         if foreign:
             raise ResultsError(
@@ -218,8 +251,10 @@ class ResultsDir:
         meta = cls._read_meta(path)
         try:
             config = BenchConfig.from_dict(meta["config"])
-        except (KeyError, TypeError, ValueError) as e:
-            raise ResultsError(f"{path / META} has an invalid config: {e}") from e
+        except (KeyError, TypeError, ValueError, AttributeError) as e:
+            raise ResultsError(
+                f"{path / META} has an invalid config ({type(e).__name__}: {e})"
+            ) from None
         return cls(path, config, meta["config_hash"], meta)
 
     # ------------------------------------------------------------------ records
@@ -278,14 +313,34 @@ class ResultsDir:
         return out
 
     def finish_session(self, started: str, wall_time_s: float, units_run: int, jobs: int) -> None:
-        """Append this session's wall time to meta.json and mark the folder complete if it is."""
-        self.meta.setdefault("sessions", []).append(
-            {"started": started, "wall_time_s": wall_time_s, "units_run": units_run, "jobs": jobs}
-        )
-        complete = not self.missing_units()
-        self.meta["status"] = "complete" if complete else "incomplete"
-        self.meta["wall_time_s"] = sum(s["wall_time_s"] for s in self.meta["sessions"])
-        write_json_atomic(self.path / META, self.meta)
+        """Append this session's wall time to meta.json, mark the folder complete if it is, and
+        release the folder's lock. "complete" means every unit's record is there and valid; a
+        corrupt one leaves the folder "incomplete" (``read_records`` names it)."""
+        try:
+            sessions = self.meta.get("sessions")
+            if not isinstance(sessions, list):
+                sessions = self.meta["sessions"] = []
+            sessions.append(
+                {
+                    "started": started,
+                    "wall_time_s": wall_time_s,
+                    "units_run": units_run,
+                    "jobs": jobs,
+                }
+            )
+            complete = not self.missing_units()
+            if complete:
+                try:
+                    self.read_records()
+                except ResultsError:
+                    complete = False
+            self.meta["status"] = "complete" if complete else "incomplete"
+            self.meta["wall_time_s"] = sum(
+                float(s.get("wall_time_s") or 0.0) for s in sessions if isinstance(s, dict)
+            )
+            write_json_atomic(self.path / META, self.meta)
+        finally:
+            _release_lock(self.path)
 
     # ------------------------------------------------------------------ long-format tables
     def write_run_tables(self, records: Sequence[dict]) -> tuple[Path, Path]:
@@ -314,6 +369,59 @@ class ResultsDir:
                         [r["env"], r["condition"], r["learner"], r["seed"], k, _fmt(e), _fmt(c)]
                     )
         return runs_path, curves_path
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, owned by someone else
+        return True
+    return True
+
+
+def _acquire_lock(path: Path) -> None:
+    """Create ``path/LOCK`` holding our pid, or ResultsError if a live process holds it.
+
+    A lock left by a process that no longer runs is taken over (with a note on stderr); our
+    own pid in it means an earlier run of this process ended without releasing it.
+    """
+    lock = path / LOCK
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+        except FileExistsError:
+            try:
+                pid = int(lock.read_text().strip() or "0")
+            except (OSError, ValueError):
+                pid = 0
+            if pid > 0 and pid != os.getpid() and _pid_alive(pid):
+                raise ResultsError(
+                    f"{path} is in use by another strol-bench run (pid {pid}, lock file {lock}); "
+                    "wait for it to finish or use another --out"
+                ) from None
+            if pid != os.getpid():
+                print(
+                    f"note: taking over {lock}: the run that held it (pid {pid}) is gone",
+                    file=sys.stderr,
+                )
+            lock.unlink(missing_ok=True)
+            continue
+        with os.fdopen(fd, "w") as f:
+            f.write(f"{os.getpid()}\n")
+        return
+    raise ResultsError(f"{path}: could not take the lock file {lock} (another run took it)")
+
+
+def _release_lock(path: Path) -> None:
+    """Remove ``path/LOCK`` if this process holds it."""
+    lock = path / LOCK
+    try:
+        if int(lock.read_text().strip() or "0") == os.getpid():
+            lock.unlink()
+    except (OSError, ValueError):
+        pass
 
 
 def _fmt(x: Any) -> str:

@@ -34,33 +34,63 @@ from strol_gym.benchmarks.results import ResultsDir
 from strol_gym.learners.registry import make_learner
 from strol_gym.registry import install_specs
 
-CODE_SUFFIXES = (".py", ".xml", ".npz", ".pt", ".json", ".stl", ".obj")
+# What a record depends on besides the run's config: every module of the strol_gym package
+# except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
+# shipped data, by data package and the suffixes setup.cfg installs.
+BENCHMARK_CODE = ("runner", "config", "conditions")
+MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")
+DATA_FILES = {"strol_gym.assets": (".xml", ".npz"), "strol_gym.pretrained": (".pt", ".json")}
+
+
+def _code_modules(package: str = "strol_gym") -> list[str]:
+    """Names of ``package`` and all its submodules, found through the import system (so an
+    editable and a wheel install list the same modules, whatever their files' layout)."""
+    import importlib
+    import pkgutil
+
+    names = [package]
+    pkg = importlib.import_module(package)
+    found = {i.name: i.ispkg for i in pkgutil.iter_modules(pkg.__path__, package + ".")}
+    if package == "strol_gym":
+        # setup.cfg maps these from the repository's top level (package_dir): an editable
+        # install imports them but does not list them under strol_gym's folder.
+        found.update(dict.fromkeys(MAPPED_PACKAGES, True))
+    for name, ispkg in sorted(found.items()):
+        if name == "strol_gym.benchmarks":
+            names += [f"{name}.{m}" for m in BENCHMARK_CODE]
+        elif ispkg:
+            names += _code_modules(name)
+        else:
+            names.append(name)
+    return names
 
 
 def code_fingerprint() -> str:
-    """SHA-256 of the code and data that produce records: the strol_gym package (tasks, envs,
-    humans, learners, weights, assets), its wrappers and this runner.
+    """SHA-256 of the code and data that produce records: each strol_gym module's source (tasks,
+    envs, humans, learners, wrappers, this runner and the benchmark's config and conditions)
+    under its module name, and the shipped assets and weights under their package-relative
+    names.
 
     Part of the config hash, so a results folder is never resumed with other code: a resumed
     run would otherwise mix records from two versions. Report-only modules are left out, so
-    re-rendering with newer tables or plots still works.
+    re-rendering with newer tables or plots still works. Hashing by module name, not by file
+    listing, gives the same fingerprint for an editable and a wheel install of one commit.
     """
-    import strol_gym.wrappers
-
-    import strol_gym
+    import importlib.resources
+    import importlib.util
 
     h = hashlib.sha256()
-    roots = [Path(strol_gym.__file__).parent, Path(strol_gym.wrappers.__file__).parent]
-    files: list[tuple[str, Path]] = []
-    for root in roots:
-        for f in root.rglob("*"):
-            if f.is_file() and f.suffix in CODE_SUFFIXES and "__pycache__" not in f.parts:
-                files.append((f"{root.name}/{f.relative_to(root).as_posix()}", f))
-    here = Path(__file__).resolve().parent
-    for name in ("runner.py", "config.py", "conditions.py"):
-        files.append((f"benchmarks/{name}", here / name))
-    for rel, f in sorted(files):
-        h.update(rel.encode() + b"\0" + f.read_bytes() + b"\0")
+    for name in sorted(_code_modules()):
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.origin is None or spec.loader is None:
+            raise RuntimeError(f"cannot find the source of module {name!r} to fingerprint it")
+        source = spec.loader.get_data(spec.origin)  # type: ignore[attr-defined]
+        h.update(f"module:{name}".encode() + b"\0" + source + b"\0")
+    for package, suffixes in DATA_FILES.items():
+        root = importlib.resources.files(package)
+        files = sorted((f.name, f) for f in root.iterdir() if f.name.endswith(suffixes))
+        for fname, f in files:
+            h.update(f"data:{package}/{fname}".encode() + b"\0" + f.read_bytes() + b"\0")
     return h.hexdigest()[:16]
 
 

@@ -30,13 +30,36 @@ class Human(Protocol):
         ...
 
 
+MAX_FRACTION = 100.0
+"""The largest |σ| and |ε| accepted, in units of a_max: a correction of 100 action bounds is
+already nonsense, and a bound keeps every correction (and θ̂ after it) finite."""
+MAX_BETA = 1e6
+"""The largest rationality β accepted: β·θ*·g must stay finite for the Boltzmann choice."""
+
+
+def _number(name: str, value: Any, rng: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {rng}, got {value!r}") from None
+
+
 def check_fraction(name: str, value: float, *, allow_negative: bool = False) -> float:
-    """Validate a noise or bias level given as a fraction of a_max."""
-    value = float(value)
-    low = -np.inf if allow_negative else 0.0
-    if not np.isfinite(value) or value < low:
-        rng = "a finite number" if allow_negative else "a finite number >= 0"
-        raise ValueError(f"{name} must be {rng} (a fraction of the action bound), got {value}")
+    """Validate a noise or bias level given as a fraction of a_max, |value| <= MAX_FRACTION."""
+    low = -MAX_FRACTION if allow_negative else 0.0
+    rng = f"a number in [{low:g}, {MAX_FRACTION:g}] (a fraction of the action bound)"
+    value = _number(name, value, rng)
+    if not (np.isfinite(value) and low <= value <= MAX_FRACTION):
+        raise ValueError(f"{name} must be {rng}, got {value}")
+    return value
+
+
+def check_beta(beta: Any) -> float:
+    """Validate a rationality β: a number in [0, MAX_BETA]."""
+    rng = f"a number in [0, {MAX_BETA:g}]"
+    value = _number("beta", beta, rng)
+    if not (np.isfinite(value) and 0.0 <= value <= MAX_BETA):
+        raise ValueError(f"beta must be {rng}, got {value}")
     return value
 
 
@@ -179,9 +202,7 @@ class BoltzmannHuman(SimulatedHuman):
         n_candidates: int = DEFAULT_CANDIDATES,
     ) -> None:
         super().__init__(task, theta_star, rng, sigma, bias, n_candidates)
-        if not (np.isfinite(beta) and beta >= 0):
-            raise ValueError(f"beta must be a finite number >= 0, got {beta}")
-        self.beta = float(beta)
+        self.beta = check_beta(beta)
 
     def choose(self, x, u_r, theta_hat, candidates):
         th = self.theta_star[None]

@@ -64,8 +64,8 @@ class UniformPrior:
     def __post_init__(self) -> None:
         if self.dim < 1:
             raise ValueError(f"dim must be >= 1, got {self.dim}")
-        if not self.low < self.high:
-            raise ValueError(f"need low < high, got low={self.low}, high={self.high}")
+        if not (np.isfinite(self.low) and np.isfinite(self.high) and self.low < self.high):
+            raise ValueError(f"need finite low < high, got low={self.low}, high={self.high}")
 
     @property
     def mean(self) -> np.ndarray:
@@ -84,7 +84,16 @@ class FixedPrior:
     dim: int = field(init=False)
 
     def __post_init__(self) -> None:
-        thetas = np.atleast_2d(np.asarray(self.thetas, dtype=np.float64))
+        try:
+            thetas = np.atleast_2d(np.asarray(self.thetas, dtype=np.float64))
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"thetas must be numbers of shape (k, d), got {self.thetas!r}"
+            ) from None
+        if thetas.ndim != 2 or thetas.shape[0] < 1 or thetas.shape[1] < 1:
+            raise ValueError(f"thetas must have shape (k, d) with k, d >= 1, got {thetas.shape}")
+        if not np.isfinite(thetas).all():
+            raise ValueError("thetas must be finite (no NaN or inf)")
         object.__setattr__(self, "thetas", thetas)
         object.__setattr__(self, "dim", thetas.shape[1])
 

@@ -38,6 +38,8 @@ def import_spec(spec: str, what: str = "piece") -> Any:
         obj: Any = importlib.import_module(module)
         for part in attr.split("."):
             obj = getattr(obj, part)
+    except SystemExit as e:  # a module that calls sys.exit on import must not end the caller
+        raise ValueError(f"{what} {spec!r}: module {module!r} called sys.exit({e.code})") from e
     except Exception as e:
         raise ValueError(f"{what} {spec!r}: cannot import {attr!r} from {module!r} ({e})") from e
     return obj

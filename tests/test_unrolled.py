@@ -104,3 +104,13 @@ def test_weights_of_another_kind_or_task_are_refused_naming_the_file(tmp_path):
         strol_gym.make_learner(
             "strol", task=RobotTask(), checkpoint=PRETRAINED_DIR / "robot_strol-unrolled.pt"
         )
+
+
+def test_training_cli_rejects_k_below_one_with_status_2(capsys):
+    from strol_gym.learners import training
+
+    with pytest.raises(SystemExit) as e:
+        training.main(["--kind", "strol-unrolled", "-K", "0", "--out", "never.pt"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert "unroll" in err and "Traceback" not in err and len(err.splitlines()) == 1

@@ -29,6 +29,7 @@ from gymnasium import spaces
 from strol_gym.humans import (
     Human,
     HumanFactory,
+    check_beta,
     check_fraction,
     check_human_kwargs,
     human_factory,
@@ -102,13 +103,7 @@ class CorrectionEnv:
         human_factory(human)  # unknown names fail here, not at the first reset
         self.human_model = human
         self.human_kwargs = check_human_kwargs(human, human_kwargs)
-        try:
-            beta = float(beta)
-        except (TypeError, ValueError):
-            beta = float("nan")
-        if not (np.isfinite(beta) and beta >= 0):
-            raise ValueError(f"beta must be a finite number >= 0, got {beta}")
-        self.beta = beta
+        self.beta = check_beta(beta)
         self.n_corrections = int_arg("n_corrections", n_corrections, 0)
         if max_episode_steps is not None:
             max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
@@ -195,11 +190,11 @@ class CorrectionEnv:
     # ------------------------------------------------------------------ step helpers
     def _robot_action(self, action: Any) -> np.ndarray:
         """The action in [−1, 1] as u_R in task units. Out of range clips; NaN/inf raises."""
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (self.task.action_dim,):
+        if np.shape(action) != (self.task.action_dim,):
             raise ValueError(
                 f"action must have shape ({self.task.action_dim},), got {np.shape(action)}"
             )
+        a = np.asarray(action, dtype=np.float64)
         if not np.isfinite(a).all():
             raise ValueError(f"action must be finite, got {action}")
         return np.minimum(np.maximum(a, -1.0), 1.0) * self._u_scale

@@ -14,7 +14,7 @@ import numpy as np
 
 from strol_gym.learners.correction import StROLLearner
 from strol_gym.learners.network import CorrectionNet
-from strol_gym.learners.protocol import batch_inputs
+from strol_gym.learners.protocol import batch_inputs, checked_theta
 from strol_gym.priors import MixturePrior
 from strol_gym.tasks.base import Task
 
@@ -155,9 +155,16 @@ class AdaptiveStROLLearner(StROLLearner):
         g_hat, g = self._correction_and_g(x2, uh2, ur2, th2)
         c, ok = _cosine(g, last)
         total, count = total + np.where(ok, c, 0.0), count + ok
+        old = self._sum, self._count
         self._sum, self._count = total, count
         lam = np.atleast_1d(self.current_lambda())
-        theta = th2 + self.task.alpha * (g + lam[:, None] * g_hat)
+        with np.errstate(over="ignore", invalid="ignore"):
+            theta = th2 + self.task.alpha * (g + lam[:, None] * g_hat)
+        try:
+            theta = checked_theta(theta)
+        except ValueError:
+            self._sum, self._count = old
+            raise
         self._last = g_hat.copy()
         if single:
             self._sum, self._count, self._last = total[0], count[0], self._last[0]
@@ -185,7 +192,12 @@ class AdaptiveStROLLearner(StROLLearner):
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        try:  # read everything before anything is assigned: a failed load changes nothing
+            stats = [
+                np.asarray(state[k], dtype=np.float64).copy()
+                for k in ("stat_sum", "stat_count", "last_correction")
+            ]
+        except (KeyError, TypeError, ValueError) as e:
+            raise ValueError(f"state lacks strol-adaptive's statistics ({e})") from None
         super().load_state_dict(state)
-        self._sum = np.asarray(state["stat_sum"], dtype=np.float64).copy()
-        self._count = np.asarray(state["stat_count"], dtype=np.float64).copy()
-        self._last = np.asarray(state["last_correction"], dtype=np.float64).copy()
+        self._sum, self._count, self._last = stats

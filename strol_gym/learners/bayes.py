@@ -190,11 +190,13 @@ class BayesLearner(LinearRuleLearner):
         for lo in range(0, b, step):
             sl = slice(lo, lo + step)
             rel = parts[sl] - base[sl, None]
-            score = np.einsum("bnd,bcd->bnc", rel, g[sl]) + offset[sl, None]
+            score = np.matmul(rel, g[sl].transpose(0, 2, 1))  # (b, N, C), batched BLAS
+            score += offset[sl, None]
             score *= beta[sl, :, None]
-            top = score.max(axis=-1, keepdims=True)
-            lse = top[..., 0] + np.log(np.exp(score - top).sum(axis=-1))
-            out[sl] = score[..., -1] - lse
+            score -= score.max(axis=-1, keepdims=True)
+            chosen = score[..., -1].copy()  # u_H is the last candidate
+            np.exp(score, out=score)
+            out[sl] = chosen - np.log(score.sum(axis=-1))
         return out
 
     def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:

@@ -9,7 +9,9 @@ check. Loading compares it with the Task and raises ValueError naming every diff
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 import platform
 from pathlib import Path
 from typing import Any
@@ -25,6 +27,39 @@ KINDS = ("strol", "e2e", "strol-unrolled")
 THETA_KINDS = ("strol-unrolled",)
 """Kinds whose ĝ also sees the robot's current estimate θ̂ (appended to the task's input)."""
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
+
+
+def weights_sha256(path: str | Path) -> str:
+    """SHA-256 of a weights file's bytes: the sidecar's ``weights_sha256``, so a sidecar only
+    vouches for the exact file it was written for."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def check_finite_weights(weights: dict[str, Any], where: str) -> None:
+    """ValueError naming ``where`` and the tensor if any weight is NaN or inf."""
+    for key, value in weights.items():
+        if torch.is_tensor(value) and value.is_floating_point() and not torch.isfinite(value).all():
+            raise ValueError(f"{where}: weight {key!r} contains NaN or inf")
+
+
+def check_weights_path(path: str | Path, name: str = "path") -> Path:
+    """Where a checkpoint will be written: a ``.pt`` file in a folder we can create and write.
+
+    Training calls it first, so a bad ``--out`` fails at once rather than after the work.
+    """
+    path = Path(path)
+    if path.suffix != ".pt":
+        raise ValueError(f"{name} must be a file ending in .pt, got {path}")
+    if path.is_dir():
+        raise ValueError(f"{name} {path} is a folder; give a file name ending in .pt")
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise ValueError(f"{name} {path}: {folder} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"{name} {path}: cannot write in {folder} (permission denied)")
+    return path
 
 
 def sidecar_path(path: str | Path) -> Path:
@@ -81,8 +116,7 @@ def save_checkpoint(
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
     path = Path(path)
-    if path.suffix != ".pt":
-        raise ValueError(f"path must end in .pt, got {path}")
+    check_weights_path(path)
     if model.in_dim != input_dim(task, kind) or model.out_dim != task.dim:
         raise ValueError(
             f"model maps {model.in_dim} -> {model.out_dim}, a {kind} ĝ for task {task.task_id} "
@@ -90,10 +124,12 @@ def save_checkpoint(
         )
     path.parent.mkdir(parents=True, exist_ok=True)
     weights = {k: v.detach().cpu().contiguous().clone() for k, v in model.state_dict().items()}
+    check_finite_weights(weights, "model")
     torch.save(weights, path)
     meta = {
         "format_version": FORMAT_VERSION,
         "kind": kind,
+        "weights_sha256": weights_sha256(path),
         "task": task_signature(task),
         "network": model.arch(),
         "training": config or {},
@@ -108,7 +144,42 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     side = sidecar_path(path)
     if not side.is_file():
         raise FileNotFoundError(f"checkpoint sidecar {side} is missing (needed beside {path})")
-    return json.loads(side.read_text())
+    try:
+        meta = json.loads(side.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise ValueError(f"checkpoint sidecar {side} is not valid JSON ({e})") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"checkpoint sidecar {side} must hold a JSON object")
+    return meta
+
+
+def check_weights_hash(path: str | Path, meta: dict[str, Any]) -> None:
+    """ValueError naming the file unless the sidecar's ``weights_sha256`` matches its bytes."""
+    want = meta.get("weights_sha256")
+    rehash = f"`python -m strol_gym.learners.checkpoint --rehash {path}`"
+    if not isinstance(want, str):
+        raise ValueError(
+            f"{path}: its sidecar {sidecar_path(path)} has no weights_sha256, so nothing says "
+            f"these weights are the ones it describes; if they are, record their hash with {rehash}"
+        )
+    if weights_sha256(path) != want:
+        raise ValueError(
+            f"{path}: the weights do not match their sidecar {sidecar_path(path)} (SHA-256 "
+            f"differs): they are another checkpoint's weights (another kind or task) or were "
+            f"changed after saving"
+        )
+
+
+def rehash_sidecar(path: str | Path) -> str:
+    """Record the SHA-256 of ``path`` in its sidecar (nothing else changes); returns it.
+
+    For sidecars written before the hash existed: run it only on weights you trust.
+    """
+    side = sidecar_path(path)
+    meta = read_sidecar(path)
+    meta["weights_sha256"] = weights_sha256(path)
+    side.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+    return meta["weights_sha256"]
 
 
 def check_sidecar(meta: dict[str, Any], task: Task, kind: str | None = None) -> None:
@@ -153,10 +224,17 @@ def load_checkpoint(
         check_sidecar(meta, task, kind)
     except ValueError as e:
         raise ValueError(f"{path}: {e}") from None
+    check_weights_hash(path, meta)
     net = meta["network"]
     model = CorrectionNet(net["in_dim"], net["out_dim"], net["hidden"], net["bound"])
-    weights = torch.load(path, map_location="cpu", weights_only=True)
-    model.load_state_dict(weights)
+    try:
+        weights = torch.load(path, map_location="cpu", weights_only=True)
+        model.load_state_dict(weights)
+    except Exception as e:  # a damaged file can fail in torch's reader in many ways
+        raise ValueError(
+            f"{path}: cannot load these weights into its sidecar's network ({e})"
+        ) from None
+    check_finite_weights(weights, str(path))
     model.eval()
     return model, meta
 
@@ -187,3 +265,23 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
     if len(found) > 1:
         raise ValueError(f"several pretrained {kind} ĝ for {task.task_id}: {found}")
     return found[0]
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m strol_gym.learners.checkpoint --rehash FILE.pt ...``: record weights hashes."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="python -m strol_gym.learners.checkpoint",
+        description="Record the SHA-256 of trusted weights files in their JSON sidecars.",
+    )
+    parser.add_argument("--rehash", nargs="+", metavar="FILE.pt", required=True)
+    for path in parser.parse_args(argv).rehash:
+        try:
+            print(f"{path}: weights_sha256 {rehash_sidecar(path)}")
+        except (OSError, ValueError) as e:
+            parser.exit(2, f"error: {e}\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -9,6 +9,7 @@ the task (``strol_gym/pretrained``), looked up by ``task.task_id``.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -17,7 +18,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from strol_gym.learners.checkpoint import find_pretrained, input_dim, load_checkpoint, model_input
+from strol_gym.learners.checkpoint import (
+    check_finite_weights,
+    find_pretrained,
+    input_dim,
+    load_checkpoint,
+    model_input,
+)
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.protocol import LinearRuleLearner
 from strol_gym.tasks.base import Task
@@ -93,12 +100,22 @@ class CorrectionLearner(LinearRuleLearner):
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Restore θ̂ and ĝ, or raise and leave both untouched (ĝ is loaded into a copy first)."""
         if state.get("arch") != self.model.arch():
             raise ValueError(
                 f"state network {state.get('arch')} differs from this learner's {self.model.arch()}"
             )
-        super().load_state_dict(state)
-        self.model.load_state_dict(state["model"])
+        model = copy.deepcopy(self.model)
+        weights = state.get("model")
+        if not isinstance(weights, dict):
+            raise ValueError("state['model'] must be the network's state_dict")
+        try:
+            model.load_state_dict(weights)
+        except RuntimeError as e:
+            raise ValueError(f"state['model'] does not fit this learner's network ({e})") from None
+        check_finite_weights(weights, "state['model']")
+        super().load_state_dict(state)  # checks θ̂ before it assigns it
+        self.model = model.eval()
 
 
 class StROLLearner(CorrectionLearner):

@@ -46,8 +46,10 @@ class OnlineRewardLearner(Protocol):
 
 def _as_float_array(name: str, value: np.ndarray, width: int) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim not in (1, 2) or arr.shape[-1] != width:
-        raise ValueError(f"{name} must have shape ({width},) or (B, {width}), got {arr.shape}")
+    if arr.ndim not in (1, 2) or arr.shape[-1] != width or (arr.ndim == 2 and len(arr) < 1):
+        raise ValueError(
+            f"{name} must have shape ({width},) or (B, {width}) with B >= 1, got {arr.shape}"
+        )
     if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite (no NaN or inf)")
     return arr
@@ -80,6 +82,17 @@ def batch_inputs(
     return x2, uh2, ur2, th2, single
 
 
+def checked_theta(theta: np.ndarray) -> np.ndarray:
+    """An update's new θ̂, or ValueError if it is not finite (inputs so large that the rule
+    overflows); callers assign θ̂ only after this returns, so a refused update changes nothing."""
+    if not np.isfinite(theta).all():
+        raise ValueError(
+            "the update gives a non-finite θ̂ (x, u_h or u_r too large for the learning rule); "
+            "θ̂ is left unchanged"
+        )
+    return theta
+
+
 class LinearRuleLearner:
     """Base for learners of the form θ̂ ← θ̂ + α·G, with G computed by ``direction``.
 
@@ -104,7 +117,9 @@ class LinearRuleLearner:
 
     def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:
         x2, uh2, ur2, th2, single = batch_inputs(self.task, x, u_h, u_r, self.theta)
-        theta = th2 + self.task.alpha * self.direction(x2, uh2, ur2, th2)
+        with np.errstate(over="ignore", invalid="ignore"):
+            theta = th2 + self.task.alpha * self.direction(x2, uh2, ur2, th2)
+        theta = checked_theta(theta)
         self.theta = theta[0] if single else theta
         return self.theta.copy()
 

@@ -105,7 +105,12 @@ def make_learner(
         raise ValueError("task is required, e.g. make_learner(name, task=env.unwrapped.task)")
     if not isinstance(task, Task):
         raise ValueError(f"task must be a strol_gym Task, got {type(task).__name__}")
-    learner = name(task=task, **kwargs)
+    try:
+        learner = name(task=task, **kwargs)
+    except (ValueError, OSError):  # already say what is wrong (OSError: a missing checkpoint)
+        raise
+    except Exception as e:  # a user's factory may raise anything: name it, no traceback
+        raise ValueError(f"learner {label!r} failed to build: {type(e).__name__}: {e}") from e
     if not isinstance(learner, OnlineRewardLearner):
         raise ValueError(
             f"the factory for {label!r} returned {type(learner).__name__}, which lacks the "

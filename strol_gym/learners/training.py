@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 import time
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -50,6 +51,7 @@ from strol_gym.humans import HUMANS, check_fraction, human_factory, make_human, 
 from strol_gym.learners.checkpoint import (
     KINDS,
     THETA_KINDS,
+    check_weights_path,
     input_dim,
     model_input,
     save_checkpoint,
@@ -512,10 +514,11 @@ def run_train(args: argparse.Namespace) -> Path:
     )
     if args.heldout < 1:
         raise ValueError(f"heldout must be >= 1, got {args.heldout}")
-    model, history = train_correction(task, config, quiet=args.quiet)
-    check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)
     short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
     out = Path(args.out) if args.out else Path(f"{short}_{config.kind}.pt")
+    check_weights_path(out, "--out")  # before training, not after it
+    model, history = train_correction(task, config, quiet=args.quiet)
+    check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)
     prior = training_prior(task, config)
     extra = {
         "final_loss": float(history["loss"][-10:].mean()),
@@ -549,7 +552,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         prog="python -m strol_gym.learners.training",
         description="Train StROL's correction term ĝ (Algorithm 1) for a task.",
     )
-    run_train(add_train_arguments(parser).parse_args(argv))
+    args = add_train_arguments(parser).parse_args(argv)
+    try:
+        run_train(args)
+    except (ValueError, FileNotFoundError) as e:  # bad options: one line, exit status 2
+        print(f"{parser.prog}: error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
 
 
 if __name__ == "__main__":

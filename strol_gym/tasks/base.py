@@ -26,6 +26,28 @@ def _jsonable(value: object) -> object:
     return value
 
 
+def positive_field(name: str, value: object, *, integer: bool = False) -> float:
+    """A Task field that must be a finite number > 0 (an integer >= 1 if ``integer``)."""
+    kind = "an integer >= 1" if integer else "a finite number > 0"
+    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+    if ok and integer:
+        ok = float(value) == int(value)
+    if not (ok and np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be {kind}, got {value!r}")
+    return value
+
+
+def vector_field(name: str, value: object, n: int) -> np.ndarray:
+    """A Task field that must be ``n`` finite numbers; returned as a float64 array."""
+    try:
+        v = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        v = np.full(0, np.nan)
+    if v.shape != (n,) or not np.isfinite(v).all():
+        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
+    return v
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Task(ABC):
     """Base class for a StROL setting. Subclasses are frozen dataclasses, so they pickle.

@@ -47,7 +47,7 @@ from typing import ClassVar
 import numpy as np
 
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task
+from strol_gym.tasks.base import Task, positive_field, vector_field
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
 """Prior modes over (gap, speed, lane_change): "tailgate" and "pass on the right"."""
@@ -137,15 +137,18 @@ class HighwayTask(Task):
     start_x: tuple[float, float] = (50.0, 100.0)  # m, the human car's x (meaningless offset)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.prior, Prior) or self.prior.dim != 3:
+            raise ValueError(f"prior must be a Prior over 3 weights, got {self.prior!r}")
         for name in ("alpha", "dt", "max_acceleration", "max_steering", "headway"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {v}")
+            positive_field(name, getattr(self, name))
         for name in ("gap_scale", "speed_scale", "heading_scale", "lane_weight", "close_penalty"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+            positive_field(name, getattr(self, name))
+        for name in ("min_gap", "speed_ref"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float | np.number) and np.isfinite(v)):
+                raise ValueError(f"{name} must be a finite number, got {v!r}")
         for name in ("start_gap", "start_speed", "start_x"):
-            lo, hi = getattr(self, name)
+            lo, hi = vector_field(name, getattr(self, name), 2)
             if not lo <= hi:
                 raise ValueError(f"{name} must be (low, high) with low <= high, got {(lo, hi)}")
         if self.start_gap[0] <= CAR_LENGTH:

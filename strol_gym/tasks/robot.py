@@ -16,7 +16,7 @@ import numpy as np
 
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task
+from strol_gym.tasks.base import Task, positive_field, vector_field
 
 PLATE = np.array([0.35, 0.10, 0.00])
 CUP = np.array([0.70, -0.45, 0.10])
@@ -57,6 +57,27 @@ class RobotTask(Task):
     step_bound: float = 0.1
     plan_steps: int = 10
     plan_step_bound: float = 0.05
+
+    def __post_init__(self) -> None:
+        """Every field is checked: a NaN or nonsense value fails here, naming the field."""
+        if not isinstance(self.prior, Prior) or self.prior.dim != 2:
+            raise ValueError(f"prior must be a Prior over 2 weights, got {self.prior!r}")
+        positive_field("alpha", self.alpha)
+        for name in ("step_bound", "plan_step_bound"):
+            positive_field(name, getattr(self, name))
+        positive_field("plan_steps", self.plan_steps, integer=True)
+        object.__setattr__(self, "plan_steps", int(self.plan_steps))
+        for name in ("plate", "cup", "start", "workspace_low", "workspace_high"):
+            object.__setattr__(self, name, vector_field(name, getattr(self, name), 3).copy())
+        lo, hi = self.workspace_low, self.workspace_high
+        if not (lo < hi).all():
+            raise ValueError(
+                f"workspace_low must be below workspace_high on every axis, got {lo} and {hi}"
+            )
+        # The plate and the cup may lie outside the box (things to reach for or avoid), but
+        # the end effector starts inside it.
+        if not ((lo <= self.start) & (self.start <= hi)).all():
+            raise ValueError(f"start must lie in the workspace box [{lo}, {hi}], got {self.start}")
 
     @property
     def action_bound(self) -> np.ndarray:
