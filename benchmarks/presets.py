@@ -76,12 +76,14 @@ def run_config(
     tables (summary.md, summary.csv, stats.csv, …). The standard figures are left to
     ``strol-bench report OUT`` (they cost more than a small preset run); each preset draws its
     own. Returns (results folder, analysis, wall time of the episodes in s)."""
+    from strol_gym.benchmarks.backends import backend_kwargs
     from strol_gym.benchmarks.report import write_reports
     from strol_gym.benchmarks.runner import default_jobs, run_benchmark
 
     jobs = getattr(args, "jobs", None) or default_jobs()
     t0 = time.perf_counter()
-    rd = run_benchmark(config, out, jobs=jobs, quiet=args.quiet, force=args.force)
+    backend = backend_kwargs(args) if hasattr(args, "backend") else {}
+    rd = run_benchmark(config, out, jobs=jobs, quiet=args.quiet, force=args.force, **backend)
     wall = time.perf_counter() - t0
     analysis, _ = write_reports(rd, plots=False)
     return rd, analysis, wall
