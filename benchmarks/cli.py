@@ -10,9 +10,11 @@ import argparse
 import json
 import sys
 import time
+import types
 from collections.abc import Sequence
 from pathlib import Path
 
+from strol_gym.benchmarks import basin, changing, confirm, lambda_sweep
 from strol_gym.benchmarks.backends import add_backend_options, backend_kwargs
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
@@ -143,6 +145,16 @@ def _common_run_options(p: argparse.ArgumentParser) -> None:
     add_backend_options(p)
 
 
+_COMMON = types.SimpleNamespace(
+    positive_int=_positive_int, nonneg_int=_nonneg_int, run_options=_common_run_options
+)
+"""The option helpers the experiment presets' own parser blocks use."""
+
+
+PRESETS = {"changing": changing, "lambda": lambda_sweep, "basin": basin, "confirm": confirm}
+"""The experiment presets (issue 10): each module has ``add_parser(sub, common)`` and ``cmd``."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="strol-bench",
@@ -229,6 +241,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     replay.add_parser(sub, _learner_list, _plugin_option)
     interact.add_parser(sub, _plugin_option)
+
+    for preset in PRESETS.values():
+        preset.add_parser(sub, _COMMON)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -376,6 +391,7 @@ COMMANDS = {
     "train": cmd_train,
     "list": cmd_list,
     "report": cmd_report,
+    **{name: preset.cmd for name, preset in PRESETS.items()},
 }
 
 

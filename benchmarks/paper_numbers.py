@@ -73,6 +73,20 @@ PAPER: dict[tuple[str, str], dict[str, dict[str, tuple[float, float]]]] = {
 }
 
 
+PAPER_CHANGING: dict[str, dict[str, float]] = {
+    "robot": {"gradient": 0.63, "one": 0.51, "mof": 0.65, "e2e": 2.93, "strol": 0.16},
+}
+"""Changing preferences (θ* for 2 corrections, then −θ* for 3; noise 0.025), mean regret read
+off the authors' figure (approximate: ≈ values, no spread reported)."""
+
+PAPER_LAMBDA: dict[str, dict[float, float]] = {
+    "bimodal": {0.0: 0.185, 0.1: 0.04, 1.0: 0.005, 10.0: 0.012},
+    "uniform": {0.0: 0.135, 0.1: 0.11, 1.0: 0.10, 10.0: 0.51},
+}
+"""StROL's Robot regret at λ ∈ {0, 0.1, 1, 10} under the designer's (bimodal) prior and the
+uniform prior, read off the authors' figure (approximate)."""
+
+
 def side_by_side(a: Analysis, env: str, metric: str, learners: Sequence[str]) -> list[str]:
     """Markdown: rows condition × source (ours / paper), columns learners, mean ± std."""
     paper = PAPER.get((env, metric), {})

@@ -238,10 +238,55 @@ class DriverHuman(SimulatedHuman):
         return driver_correction(self.task, x, u_r, th, candidates, self.horizon)
 
 
+class ChangingHuman(NominalHuman):
+    """The eq. M6 teacher whose preference changes mid-episode (the paper's "changing
+    preferences" simulation): it teaches θ* for its first ``switch_after`` corrections, then
+    ``theta_after`` (default −θ*). ``theta_star`` is always the *current* preference, so an env
+    scores the episode against the final one.
+    """
+
+    def __init__(
+        self,
+        task: Task,
+        theta_star: np.ndarray,
+        rng: np.random.Generator,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        switch_after: int = 2,
+        theta_after: Any = None,
+        n_candidates: int = DEFAULT_CANDIDATES,
+    ) -> None:
+        super().__init__(task, theta_star, rng, sigma, bias, n_candidates)
+        if isinstance(switch_after, bool) or not isinstance(switch_after, int | np.integer):
+            raise ValueError(f"switch_after must be an integer >= 0, got {switch_after!r}")
+        if switch_after < 0:
+            raise ValueError(f"switch_after must be an integer >= 0, got {switch_after!r}")
+        self.switch_after = int(switch_after)
+        if theta_after is None:
+            after = -self.theta_star
+        else:
+            after = np.asarray(theta_after, dtype=np.float64).reshape(-1)
+            if after.shape != self.theta_star.shape or not np.isfinite(after).all():
+                raise ValueError(
+                    f"theta_after must be None (−θ*) or {self.theta_star.size} finite numbers, "
+                    f"got {theta_after!r}"
+                )
+        self.theta_before = self.theta_star.copy()
+        self.theta_after = after.copy()
+        self.n_acts = 0
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        if self.n_acts == self.switch_after:
+            self.theta_star = self.theta_after.copy()
+        self.n_acts += 1
+        return super().act(x, u_r, theta_hat)
+
+
 HUMAN_MODELS: dict[str, Any] = {
     "nominal": NominalHuman,
     "boltzmann": BoltzmannHuman,
     "driver": DriverHuman,
+    "changing": ChangingHuman,
 }
 """The built-in human models; ``register_human`` adds to it (through ``HUMANS``)."""
 

@@ -1,0 +1,190 @@
+"""``strol-bench changing``: the paper's changing-preference simulation.
+
+The human (``human="changing"``, :class:`strol_gym.humans.ChangingHuman`) teaches θ* for its
+first k corrections and −θ* after that; every run is scored against the final preference (the
+envs report the human's current θ*). Paper defaults: Robot 2 corrections then 3, noise 0.025
+(a fraction of a_max here). The Highway has 10 corrections; its default switch keeps the same
+proportion (4, then 6). The five paper learners, paired runs, the one runner.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from strol_gym.benchmarks import presets
+from strol_gym.benchmarks.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
+from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.paper_numbers import PAPER_CHANGING
+
+DEFAULT_SIGMA = 0.025
+DEFAULT_SWITCH = {"robot": 2, "highway": 4}
+COLUMNS = (
+    "env",
+    "learner",
+    "metric",
+    "mean",
+    "std",
+    "sem",
+    "median",
+    "n",
+    "error_mean",
+    "cos_error_mean",
+    "p_t_holm",
+    "p_wilcoxon_holm",
+    "paper_mean",
+)
+
+
+def add_parser(sub: argparse._SubParsersAction, common) -> None:
+    p = sub.add_parser(
+        "changing",
+        help="changing preferences: the human teaches θ* for k corrections, then −θ*",
+        description="The paper's changing-preference simulation with the five paper learners; "
+        "scored against the final preference.",
+    )
+    p.add_argument("--env", choices=PAPER_ENVS, default="robot")
+    p.add_argument("--runs", type=common.positive_int("--runs"), default=None)
+    p.add_argument(
+        "--switch-after",
+        type=common.nonneg_int("--switch-after"),
+        default=None,
+        help="corrections toward θ* before the switch (default: robot 2, highway 4)",
+    )
+    p.add_argument(
+        "--sigma",
+        type=presets.finite("--sigma", low=0.0),
+        default=DEFAULT_SIGMA,
+        help=f"noise σ, a fraction of a_max (default {DEFAULT_SIGMA})",
+    )
+    common.run_options(p)
+
+
+def make_config(
+    env: str,
+    *,
+    runs: int | None = None,
+    seed: int = 0,
+    switch_after: int | None = None,
+    sigma: float = DEFAULT_SIGMA,
+    block: int = DEFAULT_BLOCK,
+) -> BenchConfig:
+    preset = env_preset(env)
+    k = DEFAULT_SWITCH.get(env, preset.n_corrections // 2) if switch_after is None else switch_after
+    if k >= preset.n_corrections:
+        raise ValueError(
+            f"--switch-after must be below the {preset.n_corrections} corrections of {env}, got {k}"
+        )
+    cond = Condition(
+        "changing", sigma=sigma, bias=0.0, human="changing", human_kwargs={"switch_after": k}
+    )
+    exp = Experiment(env, cond, runs=runs or preset.runs, seed=seed)
+    return BenchConfig((exp,), PAPER_LEARNERS, "strol", block)
+
+
+def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    try:
+        config = make_config(
+            args.env,
+            runs=args.runs,
+            seed=args.seed,
+            switch_after=args.switch_after,
+            sigma=args.sigma,
+            block=args.block,
+        )
+    except ValueError as e:
+        parser.error(str(e))
+    out = Path(args.out or f"results/changing-{args.env}")
+    rd, a, wall = presets.run_config(config, out, args)
+    env = args.env
+    metric = env_preset(env).primary_metric
+    metric = metric if metric in a.metrics_for(env) else "error"
+    paper = PAPER_CHANGING.get(env, {})
+    rows = []
+    for lr in config.learners:
+        c = a.cell(env, "changing", lr, metric) or {}
+        t = a.test(env, "changing", lr, metric) or {}
+        err = a.cell(env, "changing", lr, "error") or {}
+        cos = a.cell(env, "changing", lr, "cos_error") or {}
+        rows.append(
+            {
+                "env": env,
+                "learner": lr,
+                "metric": metric,
+                **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                "error_mean": err.get("mean"),
+                "cos_error_mean": cos.get("mean"),
+                "p_t_holm": t.get("p_holm"),
+                "p_wilcoxon_holm": t.get("wilcoxon_p_holm"),
+                "paper_mean": paper.get(lr),
+            }
+        )
+    k = config.experiments[0].condition.human_kwargs["switch_after"]
+    n_corr = config.experiments[0].corrections
+    md = table_markdown(rows, metric, k, n_corr, config.experiments[0].condition.sigma)
+    files = presets.write_table(rd.path, "changing", rows, COLUMNS, md)
+    presets.write_meta(
+        rd.path,
+        "changing",
+        {
+            "preset": "changing",
+            "config": config.to_dict(),
+            "seeds": [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1],
+            "wall_time_s": wall,
+        },
+    )
+    plots = [] if args.no_plots else plot(rows, metric, rd.path / "plots" / "changing")
+    print("\n".join(md))
+    print(f"\nwall time {wall:.1f} s ({presets.load()}); results in {rd.path}/")
+    for f in [*files, *(p for p in plots if p.suffix == ".png")]:
+        print(f"wrote {f}")
+    return 0
+
+
+def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) -> list[str]:
+    from strol_gym.benchmarks.report import display
+
+    fmt = presets.fmt
+    lines = [
+        f"Changing preferences: θ* for {k} corrections, then −θ* for {n - k}; σ = {sigma:g}; "
+        f"scored against the final preference. {metric} (mean ± std, SEM, median); p: StROL vs "
+        "that learner, Holm over the four baselines.",
+        "",
+        f"| learner | {metric} ours | SEM | median | paper | error | 1 − cos | p (t) | "
+        "p (Wilcoxon) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        paper = "—" if r["paper_mean"] is None else f"≈ {r['paper_mean']:g}"
+        lines.append(
+            f"| {display(r['learner'])} | {fmt(r['mean'])} ± {fmt(r['std'])} | {fmt(r['sem'])} | "
+            f"{fmt(r['median'])} | {paper} | {fmt(r['error_mean'])} | "
+            f"{fmt(r['cos_error_mean'])} | {fmt(r['p_t_holm'])} | {fmt(r['p_wilcoxon_holm'])} |"
+        )
+    return lines
+
+
+def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
+    """Bars: mean ± SEM per learner; the paper's values as black diamonds."""
+    from strol_gym.benchmarks.plots import COLORS, SHORT, _save, plt
+    from strol_gym.benchmarks.report import display
+
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(4.8, 3.2))
+    xs = range(len(rows))
+    ax.bar(
+        xs,
+        [r["mean"] for r in rows],
+        yerr=[r["sem"] for r in rows],
+        color=[COLORS.get(r["learner"], "C5") for r in rows],
+        capsize=3,
+        label="ours (mean ± SEM)",
+    )
+    paper = [(i, r["paper_mean"]) for i, r in enumerate(rows) if r["paper_mean"] is not None]
+    if paper:
+        ax.scatter(*zip(*paper, strict=True), marker="D", color="k", zorder=3, label="paper")
+    ax.set_xticks(list(xs), [display(r["learner"]) for r in rows])
+    ax.set_ylabel(SHORT.get(metric, metric))
+    ax.set_title("Changing preferences")
+    ax.legend(fontsize=8)
+    return _save(fig, stem.parent, stem.name)

@@ -1,0 +1,161 @@
+"""``strol-bench lambda``: StROL's λ (G = g + λ·ĝ) under the designer's bimodal prior and the
+uniform prior, the paper's sweep λ ∈ {0, 0.1, 1, 10}.
+
+Each λ is its own results folder (``OUT/lam-<λ>/``, resumable like ``paper``), holding the
+training condition (bimodal prior) and the uniform-prior condition on the same run seeds. λ = 0
+is exactly Gradient. The sweep's table, meta and plot sit in ``OUT``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from strol_gym.benchmarks import presets
+from strol_gym.benchmarks.conditions import env_preset, make_condition
+from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.paper_numbers import PAPER_LAMBDA
+
+DEFAULT_LAMBDAS = (0.0, 0.1, 1.0, 10.0)
+PRIOR_CONDITIONS = {"bimodal": "training", "uniform": "uniform-prior"}
+"""The prior θ* is drawn from -> the paper condition that has it (σ = the training noise)."""
+COLUMNS = ("env", "prior", "lam", "metric", "mean", "std", "sem", "median", "n", "paper_mean")
+
+
+def add_parser(sub: argparse._SubParsersAction, common) -> None:
+    p = sub.add_parser(
+        "lambda",
+        help="StROL at several λ under the bimodal and the uniform prior",
+        description="StROL's λ sweep (G = g + λ·ĝ) under the designer's bimodal prior and the "
+        "uniform prior; regret (Robot) against λ with SEM bars and the paper's values.",
+    )
+    p.add_argument("--env", choices=("robot",), default="robot")
+    p.add_argument(
+        "--lambdas",
+        type=presets.float_list("--lambdas", low=0.0),
+        default=list(DEFAULT_LAMBDAS),
+        help="comma-separated λ >= 0 (default 0,0.1,1,10)",
+    )
+    p.add_argument("--runs", type=common.positive_int("--runs"), default=None)
+    common.run_options(p)
+
+
+def lam_key(lam: float) -> str:
+    return f"{lam:g}"
+
+
+def make_config(
+    env: str, lam: float, *, runs: int | None = None, seed: int = 0, block: int = DEFAULT_BLOCK
+) -> BenchConfig:
+    """StROL alone at λ = ``lam``, in the training and the uniform-prior conditions."""
+    preset = env_preset(env)
+    exps = tuple(
+        Experiment(env, make_condition(env, c), runs=runs or preset.runs, seed=seed)
+        for c in PRIOR_CONDITIONS.values()
+    )
+    return BenchConfig(exps, ("strol",), "strol", block, {"strol": {"lam": float(lam)}})
+
+
+def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    configs = {}
+    try:
+        for lam in dict.fromkeys(args.lambdas):
+            configs[lam] = make_config(
+                args.env, lam, runs=args.runs, seed=args.seed, block=args.block
+            )
+    except ValueError as e:
+        parser.error(str(e))
+    out = Path(args.out or f"results/lambda-{args.env}")
+    metric = env_preset(args.env).primary_metric
+    rows, walls = [], {}
+    for lam, config in configs.items():
+        _, a, wall = presets.run_config(config, out / f"lam-{lam_key(lam)}", args)
+        walls[lam_key(lam)] = wall
+        for prior, cond in PRIOR_CONDITIONS.items():
+            c = a.cell(args.env, cond, "strol", metric) or {}
+            rows.append(
+                {
+                    "env": args.env,
+                    "prior": prior,
+                    "lam": lam,
+                    "metric": metric,
+                    **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                    "paper_mean": PAPER_LAMBDA.get(prior, {}).get(lam),
+                }
+            )
+    md = table_markdown(rows, metric)
+    files = presets.write_table(out, "lambda", rows, COLUMNS, md)
+    first = next(iter(configs.values()))
+    presets.write_meta(
+        out,
+        "lambda",
+        {
+            "preset": "lambda",
+            "lambdas": list(args.lambdas),
+            "conditions": {p: c for p, c in PRIOR_CONDITIONS.items()},
+            "configs": {lam_key(k): c.to_dict() for k, c in configs.items()},
+            "seeds": [first.experiments[0].seeds.start, first.experiments[0].seeds.stop - 1],
+            "wall_time_s": walls,
+        },
+    )
+    plots = [] if args.no_plots else plot(rows, metric, out / "plots" / "lambda")
+    print("\n".join(md))
+    total = sum(walls.values())
+    print(f"\nwall time {total:.1f} s ({presets.load()}); results in {out}/")
+    for f in [*files, *(p for p in plots if p.suffix == ".png")]:
+        print(f"wrote {f}")
+    return 0
+
+
+def table_markdown(rows: list[dict], metric: str) -> list[str]:
+    fmt = presets.fmt
+    lines = [
+        f"StROL's {metric} against λ (G = g + λ·ĝ; λ = 0 is Gradient): mean ± std, SEM, median; "
+        "the paper's values are read off its figure.",
+        "",
+        f"| prior | λ | {metric} ours | SEM | median | paper |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        paper = "—" if r["paper_mean"] is None else f"≈ {r['paper_mean']:g}"
+        lines.append(
+            f"| {r['prior']} | {r['lam']:g} | {fmt(r['mean'])} ± {fmt(r['std'])} | "
+            f"{fmt(r['sem'])} | {fmt(r['median'])} | {paper} |"
+        )
+    return lines
+
+
+def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
+    """Regret against λ (symlog x), mean ± SEM per prior; the paper's values as hollow marks."""
+    from strol_gym.benchmarks.plots import SHORT, _save, plt
+
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(4.8, 3.2))
+    for i, prior in enumerate(PRIOR_CONDITIONS):
+        rs = sorted((r for r in rows if r["prior"] == prior), key=lambda r: r["lam"])
+        color = f"C{i}"
+        ax.errorbar(
+            [r["lam"] for r in rs],
+            [r["mean"] for r in rs],
+            yerr=[r["sem"] for r in rs],
+            marker="o",
+            capsize=3,
+            color=color,
+            label=f"ours, {prior} prior (mean ± SEM)",
+        )
+        paper = [(r["lam"], r["paper_mean"]) for r in rs if r["paper_mean"] is not None]
+        if paper:
+            ax.scatter(
+                *zip(*paper, strict=True),
+                marker="D",
+                facecolors="none",
+                edgecolors=color,
+                zorder=3,
+                label=f"paper, {prior} prior",
+            )
+    ax.set_xscale("symlog", linthresh=0.1)
+    ax.set_xlabel("λ")
+    ax.set_ylabel(SHORT.get(metric, metric))
+    ax.set_title("StROL: G = g + λ·ĝ")
+    ax.legend(fontsize=7)
+    return _save(fig, stem.parent, stem.name)

@@ -1,0 +1,183 @@
+"""The paper's remaining experiments (issue 10): the changing human, basin_map, and the
+changing / lambda / basin / confirm presets from the CLI (tiny runs on diagnostic seeds; the
+confirmatory protocol's seeds 3_000_000+ are never used here)."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from strol_gym.benchmarks import cli, confirm
+
+import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.analysis import basin_map
+from strol_gym.humans import HUMANS, ChangingHuman
+from strol_gym.learners.registry import make_learner
+from strol_gym.tasks.robot import RobotTask
+
+SEED = 1000  # diagnostics range (contract 6)
+
+
+# ---------------------------------------------------------------------- the changing human
+def test_changing_human_switches_after_k_corrections():
+    task = RobotTask()
+    star = np.array([0.8, -0.8])
+    h = ChangingHuman(task, star, np.random.default_rng(0), switch_after=2)
+    x, u_r, th = task.start, np.zeros(3), np.zeros(2)
+    seen = []
+    for _ in range(5):
+        h.act(x, u_r, th)
+        seen.append(h.theta_star.copy())
+    np.testing.assert_array_equal(seen[:2], [star, star])
+    np.testing.assert_array_equal(seen[2:], [-star] * 3)
+    assert HUMANS.get("changing") is ChangingHuman
+
+
+def test_changing_human_env_reports_final_preference():
+    env = gym.make(
+        "StROL-Robot-v0", human="changing", human_kwargs={"switch_after": 1}, n_corrections=3
+    )
+    try:
+        env.reset(seed=SEED)
+        stars = [env.step(np.zeros(3, dtype=np.float32))[4]["theta_star"] for _ in range(3)]
+    finally:
+        env.close()
+    np.testing.assert_array_equal(stars[1], -stars[0])
+    np.testing.assert_array_equal(stars[2], stars[1])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [({"switch_after": -1}, "switch_after"), ({"theta_after": [1.0]}, "theta_after")],
+)
+def test_changing_human_bad_arguments(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        ChangingHuman(RobotTask(), np.ones(2), np.random.default_rng(0), **kwargs)
+
+
+# ---------------------------------------------------------------------- basin_map
+def test_basin_map_shape_and_lambda_zero_is_gradient():
+    task = RobotTask()
+    grid = (np.linspace(-1, 1, 5), np.linspace(-1, 1, 3))
+    g = basin_map(task, "gradient", grid, steps=3, seed=SEED)
+    s0 = basin_map(task, make_learner("strol", task=task, lam=0.0), grid, steps=3, seed=SEED)
+    s1 = basin_map(task, "strol", grid, steps=3, seed=SEED)
+    assert g.error.shape == (3, 5) and g.converged.shape == (3, 5)
+    np.testing.assert_array_equal(s0.error, g.error)
+    assert not np.array_equal(s1.error, g.error)  # ĝ changes the dynamics
+
+
+@pytest.mark.parametrize("learner", ["gradient", "strol"])
+def test_basin_map_cell_at_theta_star_stays(learner):
+    task = RobotTask()
+    star = task.prior_modes[0]
+    m = basin_map(task, learner, ([star[0]], [star[1]]), sigma=0.0, steps=4, seed=SEED)
+    assert m.error[0, 0] == 0.0 and m.fraction_converged == 1.0
+
+
+def test_basin_map_bad_grid():
+    with pytest.raises(ValueError, match="grid"):
+        basin_map(RobotTask(), "gradient", 0)
+
+
+# ---------------------------------------------------------------------- the confirm analysis
+def _records(deltas: dict[str, np.ndarray]) -> list[dict]:
+    """Synthetic records: baselines regret 1 + noise; StROL = baseline's + delta."""
+    rng = np.random.default_rng(SEED)
+    out = []
+    n = len(next(iter(deltas.values())))
+    for cond, delta in deltas.items():
+        base = 1.0 + rng.random(n)
+        for lr in confirm.LEARNERS:
+            vals = base + (delta if lr == "strol" else 0.0)
+            for i, v in enumerate(vals):
+                out.append(
+                    {
+                        "env": "robot",
+                        "condition": cond,
+                        "learner": lr,
+                        "seed": i,
+                        "regret": float(v),
+                        "error": float(v),
+                        "cos_error": float(v),
+                    }
+                )
+    return out
+
+
+def test_confirm_decision_rule_on_known_data():
+    n = 40
+    lower = -0.1 - np.random.default_rng(1).random(n) * 0.1
+    dust = np.where(np.arange(n) % 2 == 0, 5e-7, -5e-7)  # within the tie tolerance
+    res = confirm.analyse(
+        _records({"training": lower, "clean": -lower, "noisy-biased": dust}),
+        conditions=["training", "clean", "noisy-biased"],
+        resamples=200,
+    )
+    assert res["verdicts"] == {
+        "training": "confirmed",
+        "clean": "contradicted",
+        "noisy-biased": "not confirmed",
+    }
+    dust_rows = [r for r in res["rows"] if r["condition"] == "noisy-biased"]
+    reg = [r for r in dust_rows if r["metric"] == "regret"]
+    assert all(r["n_nonzero"] == 0 and r["wilcoxon_p_raw"] == 1.0 for r in reg)
+    assert all(r["prob_improvement"] == 0.5 for r in reg)
+    # the tie rule is for regret only: 1 − cos keeps the dust as real differences
+    assert all(r["n_nonzero"] == n for r in dust_rows if r["metric"] == "cos_error")
+    train = [r for r in res["rows"] if (r["condition"], r["metric"]) == ("training", "regret")]
+    for r in train:
+        assert r["prob_improvement"] == 1.0 and r["median_diff_ci95_high"] < 0
+
+
+# ---------------------------------------------------------------------- the CLI presets
+@pytest.mark.parametrize(
+    ("argv", "stem"),
+    [
+        (
+            ["changing", "--env", "robot", "--runs", "2", "--seed", str(SEED), "--jobs", "1"],
+            "changing",
+        ),
+        (
+            ["lambda", "--lambdas", "0,1", "--runs", "2", "--seed", str(SEED), "--jobs", "1"],
+            "lambda",
+        ),
+        (["basin", "--grid", "4", "--steps", "2"], "basin"),
+        (["confirm", "--runs", "2", "--seed", str(SEED), "--jobs", "1"], "confirm"),
+    ],
+)
+def test_preset_writes_table_meta_and_plot(argv, stem, tmp_path, capsys):
+    out = tmp_path / stem
+    assert cli.main([*argv, "--out", str(out), *(["--quiet"] if stem != "basin" else [])]) == 0
+    text = capsys.readouterr().out
+    assert "wall time" in text
+    for name in (f"{stem}.csv", f"{stem}.md", f"{stem}.json", f"plots/{stem}.png"):
+        assert (out / name).is_file(), name
+    meta = json.loads((out / f"{stem}.json").read_text())
+    assert meta["preset"] == stem and "versions" in meta
+    if stem == "confirm":
+        assert "EXPLORATORY" in text and meta["protocol"] is False
+        assert meta["seeds"] == [SEED, SEED + 1]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["lambda", "--lambdas", "0,-1"], "--lambdas must be comma-separated finite numbers"),
+        (["lambda", "--lambdas", "nan"], "--lambdas must be comma-separated finite numbers"),
+        (["basin", "--grid", "0"], "--grid must be an integer >= 1"),
+        (["changing", "--runs", "0"], "--runs must be an integer >= 1"),
+        (["changing", "--switch-after", "5"], "--switch-after must be below the 5 corrections"),
+        (["confirm", "--runs", "0"], "--runs must be an integer >= 1"),
+        (["confirm", "--env", "highway"], "invalid choice: 'highway'"),
+    ],
+)
+def test_preset_bad_input_exits_2_before_any_folder(argv, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exc:
+        cli.main([*argv, "--out", str(out)])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
