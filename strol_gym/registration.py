@@ -7,6 +7,8 @@ import gymnasium as gym
 ENV_SPECS: dict[str, dict] = {
     # gymnasium's TimeLimit ends episodes: 10 steps unless make(..., max_episode_steps=N).
     "StROL-Robot-v0": {"entry_point": "strol_gym.envs.robot:RobotEnv", "max_episode_steps": 10},
+    # The study env truncates itself after 60 s of simulated time (1200 steps of 0.05 s).
+    "StROL-Study-v0": {"entry_point": "strol_gym.envs.study:StudyEnv", "max_episode_steps": 1200},
     "StROL-Highway-v0": {
         "entry_point": "strol_gym.envs.highway:HighwayEnv",
         "max_episode_steps": 10,

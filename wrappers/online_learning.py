@@ -39,6 +39,9 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         replace_reward: if true, the reward becomes θ̂·φ(x') with the updated θ̂ (the robot's
             own belief), and ``info["true_reward"]`` keeps the env's R(x', θ*).
 
+    The learner starts each episode from the prior modes' mean, or from ``info["theta_hat0"]``
+    when the env's reset provides one.
+
     At the end of an episode (terminated or truncated) ``info`` also holds ``"error"`` =
     ‖θ* − θ̂‖, ``"cosine_error"`` = 1 − cos(θ*, θ̂) (1.0 when θ̂ = 0) and ``"regret"`` =
     ``task.regret(θ̂, θ*, x0)`` from the episode's start state x0 (NaN when the task has no
@@ -81,7 +84,9 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
         obs, info = dict(obs), dict(info)
-        self.learner.reset()
+        # An env that draws θ̂0 itself (the study env: U[−1, 1]^d) says so in "theta_hat0".
+        theta0 = info.get("theta_hat0")
+        self.learner.reset(None if theta0 is None else np.asarray(theta0, dtype=np.float64))
         self._publish(obs, info)
         self._x = np.asarray(obs["state"], dtype=np.float64).copy()
         self._x0 = self._x.copy()

@@ -67,7 +67,11 @@ def compile_model(xml: str) -> mujoco.MjModel:
     The arm bodies get gravity compensation, so ``mj_step`` (if a user calls it) holds the arm
     up; reflections are off (they cost ~8x frame rate and add nothing here).
     """
-    model = mujoco.MjModel.from_xml_string(xml)
+    return prepare_model(mujoco.MjModel.from_xml_string(xml))
+
+
+def prepare_model(model: mujoco.MjModel) -> mujoco.MjModel:
+    """Gravity-compensate the arm bodies and turn reflections off (in place; returns it)."""
     arm = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name) for name in ARM_BODIES]
     model.body_gravcomp[arm] = 1.0
     model.mat_reflectance[:] = 0.0

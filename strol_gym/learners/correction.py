@@ -119,7 +119,8 @@ class CorrectionLearner(LinearRuleLearner):
 
 
 class StROLLearner(CorrectionLearner):
-    """StROL: θ̂ ← θ̂ + α·(g + λ·ĝ). ``lam`` = λ ≥ 0 (default 1, as trained)."""
+    """StROL: θ̂ ← θ̂ + α·(g + λ·ĝ). ``lam`` = λ ≥ 0; default: the Task's ``strol_lambda`` if
+    it has one (the user study's 0.25 for Task 1, 1.0 for Tasks 2-3), else 1 (as trained)."""
 
     name = "strol"
     kind = "strol"
@@ -127,11 +128,11 @@ class StROLLearner(CorrectionLearner):
     def __init__(
         self,
         task: Task,
-        lam: float = 1.0,
+        lam: float | None = None,
         checkpoint: str | Path | None = None,
         model: CorrectionNet | None = None,
     ) -> None:
-        lam = float(lam)
+        lam = float(getattr(task, "strol_lambda", 1.0) if lam is None else lam)
         if not (np.isfinite(lam) and lam >= 0):
             raise ValueError(f"lam must be a finite number >= 0, got {lam}")
         self.lam = lam

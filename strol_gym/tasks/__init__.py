@@ -14,6 +14,9 @@ from strol_gym.tasks.robot import RobotTask
 _TASKS: dict[str, Any] = {
     "robot": "strol_gym.tasks.robot:RobotTask",
     "highway": "strol_gym.tasks.highway:HighwayTask",
+    "study-task1": "strol_gym.tasks.study:StudyTask1",
+    "study-task2": "strol_gym.tasks.study:StudyTask2",
+    "study-task3": "strol_gym.tasks.study:StudyTask3",
 }
 
 

@@ -1,0 +1,564 @@
+"""StROL-Study-v0: the paper's user study in simulation, a compliant Panda that people push."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+
+from strol_gym.envs.base import CorrectionEnv, int_arg, vector_arg
+from strol_gym.envs.panda import FINGER_OPEN, N_ARM, has_display
+from strol_gym.envs.study_scene import build_model, model_q
+from strol_gym.envs.study_user import SimulatedUser, angle_delta, rotation_error
+from strol_gym.humans import Human, HumanFactory
+from strol_gym.priors import Prior
+from strol_gym.tasks import make_task
+from strol_gym.tasks.study import (
+    CONTROL_DT,
+    SEGMENT_TIME,
+    STUDY_TASKS,
+    StudyTask,
+    mat_to_rpy,
+    rpy_to_mat,
+)
+
+HOLD = 5
+"""Physics steps per impedance update (the torque is held in between: 100 Hz control)."""
+END_HOLD = 2.0
+"""Seconds the robot waits at the end of its plan before it returns home and plays it again."""
+_INSTABILITY = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+)
+TORQUE_LEVER = 0.1
+"""A torque τ counts as a force ‖τ‖ / 0.1 m towards the correction threshold."""
+K_NULL, D_NULL = 0.5, 0.5
+"""A weak joint-space pull towards the home joints (N m/rad, N m s/rad): keeps the redundant
+elbow from drifting; a few N/m at the hand, small next to the Cartesian stiffness."""
+
+
+class StudyEnv(CorrectionEnv, gym.Env):
+    """StROL-Study-v0: a compliant Franka Panda carries a cup; a person's pushes teach it θ*.
+
+    ## Description
+
+    The paper's user study (StROL, RA-L 2024, "User Study") with physics: a 7-DoF Panda
+    (gymnasium-robotics' model files) holds a cup over a table with a pitcher at (0.35, 0.10, 0)
+    and a plate at (0.70, −0.45, 0.10) (robot base frame, m). The robot follows a plan for its
+    estimate θ̂ (``task.plan``: waypoints ≤ 0.05 m and ≤ 0.1 rad apart, one per 0.5 s) through a
+    Cartesian impedance controller in joint torques (``docs/study.md``), so a push on the hand
+    moves it and the arm returns to the plan when released. A **correction** is an interval in
+    which the external force on the hand exceeds ``force_threshold`` (15 N); when it ends, u_H
+    = the cup's pose change over it (3-D position for Task 1, 6-D pose for Tasks 2-3). The
+    robot holds its setpoint while it is pushed and replans (from where it is) whenever θ̂
+    changes. At the end of a plan it waits 2 s, returns home and plays its current plan again.
+
+    External wrenches come from three sources, summed each step: the simulated user
+    (``human``), ``apply_wrench`` (scripted, for a duration) and ``hold_wrench`` (held until
+    changed: what an interactive front end writes after reading the viewer's perturbation).
+    The env does not know which one pushed.
+
+    ## Action Space
+
+    ``Box(-1, 1, (a,), float32)``, a = 3 (Task 1) or 6: a residual velocity added to the
+    planned setpoint's, scaled by ``task.robot_action_bound`` (0.005 m and 0.01 rad per step,
+    i.e. 0.1 m/s and 0.2 rad/s). Zeros reproduce the paper's robot. Clipped to [−1, 1]; NaN
+    raises ``ValueError``. Ignored while a correction is active (the setpoint is held).
+
+    ## Observation Space
+
+    ``Dict`` of float32 Boxes: ``"state"`` (3 or 6): the cup's pose (position, and roll, pitch,
+    yaw for Tasks 2-3); ``"correction"``: u_H on the step a correction ended, else zeros;
+    ``"theta_hat"``: θ̂; ``"phi"``: φ(state); ``"wrench"`` (6,): the external force (N) and
+    torque (N m) on the hand this step.
+
+    ## Rewards
+
+    θ*·φ(x') (the study participant's reward). ``info``: the shared keys (``features``,
+    ``phi``, ``correction``, ``robot_action`` = the setpoint's displacement this step (zeros
+    while held), ``theta_star``, ``theta_hat``, ``is_correction``) plus ``u_h``,
+    ``correction_active``, ``correction_time`` (seconds pushed so far this episode),
+    ``corrections`` (count), ``time``, ``wrench``, ``unstable``; on the step a correction ends
+    ``correction_state`` (the pose where it began) and ``correction_record`` (start and end
+    time, start pose, u_H, and the wrench trace: times, forces, torques). Wrapped in
+    ``OnlineLearningWrapper``, the last step adds ``error`` and ``regret``.
+
+    ## Starting State
+
+    The Task's home joints (paper), arm at rest. θ* is the Task's (the issue's table) unless
+    ``reset(options={"theta_star": ...})``; θ̂0 ~ U[−1, 1]^d from ``env.np_random``
+    (``info["theta_hat0"]``; the wrapper starts its learner there); the simulated user's
+    generator is drawn from ``env.np_random`` next.
+
+    ## Episode End
+
+    Never terminates. Truncated after ``duration`` seconds of simulated time (60 s = 1200
+    steps; ``gymnasium.make(..., max_episode_steps=N)`` shortens it), or at once with
+    ``info["unstable"] = True`` if the simulation becomes unstable (a MuJoCo warning or NaN);
+    the observation is then the last finite one.
+
+    ## Arguments
+
+    - ``task`` (1 | 2 | 3, a ``StudyTask`` or its registered name; default 1).
+    - ``human`` (a human model name, "module:attr" or factory for the simulated user's choice
+      of correction, default "nominal" = eq. M6; ``None``: no simulated user).
+    - ``sigma``, ``bias`` (fractions of a_max = 0.1 m, 0.3 rad), ``beta`` (≥ 0, default 50),
+      ``human_kwargs``: the human model's parameters; ``user_kwargs``: the simulated user's
+      (``push_force``, ``push_torque``, ``ramp``, ``max_push``, ``decide_every``, ``rest``,
+      ``min_correction``, ``tol``, ``ang_tol``; ``strol_gym.envs.study_user``).
+    - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
+    - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
+      ``stiffness`` (N/m, > 0, default 400), ``rot_stiffness`` (N m/rad, > 0, default 30).
+    - ``max_episode_steps`` (int ≥ 1 or None), ``render_mode`` (None | "rgb_array" |
+      "human"), ``width``, ``height``.
+
+    ## Version History
+
+    - v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+
+    def __init__(
+        self,
+        task: int | StudyTask | str = 1,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        prior: str | Prior | Any | None = None,
+        human: str | HumanFactory | None = "nominal",
+        beta: float = 50.0,
+        force_threshold: float = 15.0,
+        duration: float = 60.0,
+        stiffness: float = 400.0,
+        rot_stiffness: float = 30.0,
+        max_episode_steps: int | None = None,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+        human_kwargs: dict[str, Any] | None = None,
+        user_kwargs: dict[str, Any] | None = None,
+        **unknown: Any,
+    ) -> None:
+        if isinstance(task, int | np.integer) and not isinstance(task, bool):
+            task = STUDY_TASKS[int_arg("task", task, 1, 3)]()
+        elif not isinstance(task, StudyTask | str):
+            raise ValueError(f"task must be 1, 2 or 3 (or a StudyTask), got {task!r}")
+        task_obj = make_task(task, of=StudyTask)
+        self._configure(
+            "StROL-Study-v0",
+            task_obj,
+            StudyTask,
+            unknown,
+            sigma=sigma,
+            bias=bias,
+            prior=task_obj.prior if prior is None else prior,
+            human="nominal" if human is None else human,
+            beta=beta,
+            n_corrections=0,
+            render_mode=render_mode,
+            max_episode_steps=max_episode_steps,
+            human_kwargs=human_kwargs,
+        )
+        self.task: StudyTask
+        self.user_enabled = human is not None
+        self.user_kwargs = dict(user_kwargs or {})
+        if self.user_enabled:  # fail at construction, not at the first reset
+            SimulatedUser(
+                self.task, self.task.theta_star, np.random.default_rng(0), **self._user_params()
+            )
+        self.force_threshold = _positive("force_threshold", force_threshold)
+        self.duration = _positive("duration", duration)
+        self.stiffness = _positive("stiffness", stiffness)
+        self.rot_stiffness = _positive("rot_stiffness", rot_stiffness)
+        self.render_mode = render_mode
+        self.width = int_arg("width", width, 16, 4096)
+        self.height = int_arg("height", height, 16, 4096)
+
+        t = self.task
+        f32 = np.float32
+        lim = np.array([2.0] * 3 + [4.0] * (t.state_dim - 3), dtype=f32)
+        self.observation_space = self._observation_space(spaces.Box(-lim, lim, dtype=f32))
+        self.observation_space.spaces["wrench"] = spaces.Box(-np.inf, np.inf, (6,), dtype=f32)
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(t.action_dim,), dtype=f32)
+        self._zeros = np.zeros(t.action_dim)
+        self._renderer: mujoco.Renderer | None = None
+        self._viewer: Any = None
+        self._build()
+        self._reset_sim()
+
+    def _user_params(self) -> dict[str, Any]:
+        return {
+            "model": self.human_model,
+            "sigma": self.sigma,
+            "bias": self.bias,
+            "beta": self.beta,
+            "human_kwargs": self.human_kwargs,
+            **self.user_kwargs,
+        }
+
+    # ------------------------------------------------------------------ model
+    def _build(self) -> None:
+        self.model = build_model(max(640, self.width), max(480, self.height))
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self._site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
+        self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
+        self._jac = np.zeros((6, m.nv))
+        self._jacp, self._jacr, self._ja = self._jac[:3], self._jac[3:], self._jac[:, :N_ARM]
+        d = self.data  # views into MjData, valid as long as it lives
+        self._qpos, self._qvel = d.qpos[:N_ARM], d.qvel[:N_ARM]
+        self._site_xpos = d.site_xpos[self._site]
+        self._site_xmat = d.site_xmat[self._site].reshape(3, 3)
+        self._err = np.zeros(6)
+        self._q_home = model_q(self.task.home_q)
+        kp, kr = self.stiffness, self.rot_stiffness
+        # The rotation error below is 2 sin(angle/2)·axis-ish (twice the small-angle form).
+        self._k = np.array([kp] * 3 + [0.5 * kr] * 3)
+        # About critical damping for ~2 kg at the hand and ~0.05 kg m² about it.
+        self._d = 2.0 * np.sqrt(np.array([kp] * 3 + [kr] * 3) * np.array([2.0] * 3 + [0.05] * 3))
+        self._n_sub = round(CONTROL_DT / m.opt.timestep)
+
+    def _reset_sim(self) -> None:
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[:N_ARM] = self._q_home
+        d.qpos[N_ARM : N_ARM + 2] = FINGER_OPEN
+        d.ctrl[N_ARM:] = FINGER_OPEN
+        mujoco.mj_forward(m, d)
+        self._home_R = d.site_xmat[self._site].reshape(3, 3).copy()
+        self._x = self._read_state()
+        self._sp = self._x.copy()
+        self._sp_R = self._home_R.copy()
+        self._time = 0.0
+        self._warnings = 0
+        self._wrench = np.zeros(6)
+        self._held = np.zeros(6)
+        self._scripted: tuple[np.ndarray, int] | None = None
+        self._active = False
+        self._corr_start_x = self._x.copy()
+        self._corr_t0 = 0.0
+        self._trace: list[tuple[float, np.ndarray]] = []
+        self._corr_time = 0.0
+        self._n_corr = 0
+        self._unstable = False
+        self._x0 = self._x.copy()
+        self._set_plan(np.array([self._x, self._x]), leg="plan")
+
+    def _read_state(self) -> np.ndarray:
+        d = self.data
+        pos = d.site_xpos[self._site]
+        if not self.task.oriented:
+            return pos.copy()
+        return np.concatenate([pos, mat_to_rpy(d.site_xmat[self._site].reshape(3, 3))])
+
+    # ------------------------------------------------------------------ wrenches
+    def apply_wrench(
+        self, force: Any, torque: Any = (0.0, 0.0, 0.0), duration: float = 1.0
+    ) -> None:
+        """Push the hand (at the cup) with ``force`` (N) and ``torque`` (N m), world frame, for
+        ``duration`` seconds from the next step on (replaces an unfinished scripted push)."""
+        f = vector_arg("force", force, 3)
+        tq = vector_arg("torque", torque, 3)
+        duration = _positive("duration", duration)
+        self._scripted = (np.concatenate([f, tq]), max(1, round(duration / CONTROL_DT)))
+
+    def hold_wrench(self, force: Any, torque: Any = (0.0, 0.0, 0.0)) -> None:
+        """Apply ``force``/``torque`` on the hand every step until called again (zeros stop it):
+        for an interactive front end that reads a person's push (e.g. the viewer's
+        perturbation after ``sync()``) and hands it to the env."""
+        self._held = np.concatenate(
+            [vector_arg("force", force, 3), vector_arg("torque", torque, 3)]
+        )
+
+    def _external_wrench(self) -> np.ndarray:
+        w = self._held.copy()
+        if self._scripted is not None:
+            ws, n = self._scripted
+            w += ws
+            self._scripted = (ws, n - 1) if n > 1 else None
+        if self.user_enabled and self.human is not None:
+            f, tq = self.human.wrench(self._time, self._x, self.theta_hat)
+            w[:3] += f
+            w[3:] += tq
+        return w
+
+    # ------------------------------------------------------------------ plan and setpoint
+    def _set_plan(self, waypoints: np.ndarray, leg: str) -> None:
+        self._plan = np.asarray(waypoints, dtype=np.float64)
+        self._leg = leg
+        self._tau = 0.0
+        self._plan_theta = self.theta_hat.copy()
+
+    def _replan(self) -> None:
+        """Plan for θ̂ from the cup's pose; the setpoint restarts there (it stays where a person
+        left it)."""
+        self._set_plan(self.task.plan(self.theta_hat, self._x)[0], leg="plan")
+        self._sp = self._x.copy()
+        if self.task.oriented:
+            self._sp_R = rpy_to_mat(self._sp[3:])
+
+    def _plan_point(self, tau: float) -> np.ndarray:
+        k = tau / SEGMENT_TIME
+        n = len(self._plan) - 1
+        if k >= n:
+            return self._plan[-1]
+        i = int(k)
+        a = self._plan[i]
+        return a + (k - i) * angle_delta(self._plan[i + 1], a)
+
+    def _advance(self, u_r: np.ndarray) -> np.ndarray:
+        """Move the setpoint one step along the plan plus the residual; its displacement."""
+        n = len(self._plan) - 1
+        end = n * SEGMENT_TIME
+        if self._leg == "plan" and self._tau >= end + END_HOLD:
+            ret = _straight(self._sp, self.task.start, self.task.plan_pos_bound)
+            self._set_plan(ret, leg="return")
+        elif self._leg == "return" and self._tau >= end:
+            self._replan()
+        before = self._plan_point(self._tau)
+        self._tau += CONTROL_DT
+        step = angle_delta(self._plan_point(self._tau), before) + u_r
+        self._sp = self._sp + step
+        if self.task.oriented:
+            self._sp_R = rpy_to_mat(self._sp[3:])
+        return step
+
+    def _sp_velocity(self, step: np.ndarray) -> np.ndarray:
+        """The setpoint's velocity (6,) in the world frame from its displacement this step."""
+        v = np.zeros(6)
+        v[:3] = step[:3] / CONTROL_DT
+        if self.task.oriented and np.any(step[3:]):
+            r0 = rpy_to_mat(self._sp[3:] - step[3:])
+            v[3:] = rotation_error(self._sp_R, r0) / CONTROL_DT
+        return v
+
+    # ------------------------------------------------------------------ physics
+    def _simulate(self, v_sp: np.ndarray) -> None:
+        """One control step of physics; the impedance torque is recomputed every ``HOLD`` steps.
+
+        τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints; e = setpoint − pose
+        (orientation error as the rotation vector's small-angle form). v_sp, the setpoint's
+        velocity, is a feedforward term so that the arm does not lag its plan.
+        """
+        m, d = self.model, self.data
+        f = self._wrench[:3]
+        if self._wrench.any():
+            lx, ly, lz = (d.site_xpos[self._site] - d.xipos[self._hand]).tolist()
+            fx, fy, fz = f.tolist()
+            d.xfrc_applied[self._hand, :3] = f
+            lever_torque = np.array((ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx))
+            d.xfrc_applied[self._hand, 3:] = self._wrench[3:] + lever_torque
+        else:
+            d.xfrc_applied[self._hand] = 0.0
+        jp, jr, ja, err, k, damp = self._jacp, self._jacr, self._ja, self._err, self._k, self._d
+        qd, q, xpos, xmat = self._qvel, self._qpos, self._site_xpos, self._site_xmat
+        sp_p, sp_r, site = self._sp[:3], self._sp_R, self._site
+        dv = damp * v_sp
+        for _ in range(self._n_sub // HOLD):
+            mujoco.mj_jacSite(m, d, jp, jr, site)
+            re = sp_r @ xmat.T
+            np.subtract(sp_p, xpos, out=err[:3])
+            err[3] = re[2, 1] - re[1, 2]
+            err[4] = re[0, 2] - re[2, 0]
+            err[5] = re[1, 0] - re[0, 1]
+            w = k * err - damp * (ja @ qd) + dv
+            d.ctrl[:N_ARM] = ja.T @ w + K_NULL * (self._q_home - q) - D_NULL * qd
+            mujoco.mj_step(m, d, nstep=HOLD)
+        # mj_step leaves positions one physics step old: refresh them (the state read next and
+        # the next step's first torque then depend on qpos alone, so a pickled env continues
+        # exactly).
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)  # mj_jacSite reads cdof and subtree_com
+        self._time += CONTROL_DT
+
+    def _check_stable(self) -> bool:
+        """False after a MuJoCo instability warning (it then resets the data) or NaN."""
+        d = self.data
+        w = d.warning
+        warnings = w[_INSTABILITY[0]].number + w[_INSTABILITY[1]].number + w[_INSTABILITY[2]].number
+        bad = warnings > self._warnings or not np.isfinite(d.qpos).all()
+        self._warnings = warnings
+        return not bad
+
+    # ------------------------------------------------------------------ reset / step
+    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
+        if not self.user_enabled:
+            return None
+        return SimulatedUser(self.task, theta_star, rng, **self._user_params())
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        super().reset(seed=seed)
+        theta_override, state_override = self._reset_overrides(options)
+        if state_override is not None:
+            raise ValueError("reset option 'state' is not supported: the study starts at home")
+        rng = self.np_random
+        theta_star = self.task.theta_star if theta_override is None else theta_override
+        theta_hat0 = rng.uniform(-1.0, 1.0, size=self.task.dim)
+        user_rng = np.random.default_rng(int(rng.integers(2**63)))
+        self._start_episode(theta_star, user_rng)
+        self.theta_hat = theta_hat0
+        self._reset_sim()
+        self._replan()
+        phi = self.task.features(self._x)
+        info = self._make_info(phi, self._zeros, self._zeros, False, None)
+        info["theta_hat0"] = theta_hat0.copy()
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(self._zeros, phi), info
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        if self.human is None and self.user_enabled:
+            raise RuntimeError("call reset() before step()")
+        u_res = self._robot_action(action)
+        if self._unstable:
+            raise RuntimeError("the episode ended unstable; call reset()")
+        if not self._active and not np.array_equal(self.theta_hat, self._plan_theta):
+            self._replan()
+        self._wrench = self._external_wrench()
+        felt = np.linalg.norm(self._wrench[:3]) + np.linalg.norm(self._wrench[3:]) / TORQUE_LEVER
+        pushing = felt > self.force_threshold
+        u_h, is_correction, record = self._zeros, False, None
+        if pushing and not self._active:
+            self._active, self._corr_start_x, self._corr_t0 = True, self._x.copy(), self._time
+            self._trace = []
+        elif not pushing and self._active:
+            self._active = False
+            is_correction = True
+            u_h = angle_delta(self._x, self._corr_start_x)[: self.task.action_dim]
+            self._n_corr += 1
+            record = self._record(u_h)
+        u_r = self._zeros if (self._active or is_correction) else self._advance(u_res)
+        x_before = self._x
+        self._simulate(self._sp_velocity(u_r))
+        self.steps += 1
+        if self._active:
+            self._corr_time += CONTROL_DT
+            self._trace.append((self._time, self._wrench.copy()))
+        stable = self._check_stable()
+        if stable:
+            self._x = self._read_state()
+        else:
+            self._unstable = True
+            self._x = x_before
+        phi = self.task.features(self._x)
+        reward = float(phi @ self.theta_star)
+        truncated = self._unstable or self._truncated() or self._time >= self.duration - 1e-9
+        info = self._make_info(phi, u_h, u_r, is_correction, record)
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(u_h, phi), reward, False, bool(truncated), info
+
+    def _record(self, u_h: np.ndarray) -> dict[str, Any]:
+        times = np.array([t for t, _ in self._trace])
+        wr = np.array([w for _, w in self._trace]).reshape(-1, 6)
+        return {
+            "start_time": self._corr_t0,
+            "end_time": self._time,
+            "state": self._corr_start_x.copy(),
+            "u_h": np.array(u_h),
+            "times": times,
+            "force": wr[:, :3],
+            "torque": wr[:, 3:],
+            "theta_hat": self.theta_hat.copy(),
+        }
+
+    def _observation(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
+        obs = self._obs(u_h, phi)
+        obs["wrench"] = self._wrench.astype(np.float32)
+        return obs
+
+    def _make_info(self, phi, u_h, u_r, is_correction, record) -> dict[str, Any]:
+        info = self._info(phi, u_h, u_r, is_correction)
+        info.update(
+            u_h=np.array(u_h, dtype=np.float64),
+            correction_active=self._active,
+            correction_time=self._corr_time,
+            corrections=self._n_corr,
+            time=self._time,
+            wrench=self._wrench.copy(),
+            setpoint=self._sp.copy(),
+            unstable=self._unstable,
+        )
+        if record is not None:
+            info["correction_state"] = record["state"].copy()
+            info["correction_record"] = record
+        return info
+
+    # ------------------------------------------------------------------ render, close, pickle
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn('render() called without a render_mode; use render_mode="rgb_array"')
+            return None
+        if self.render_mode == "rgb_array":
+            if self._renderer is None:
+                self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+                flags = self._renderer.scene.flags
+                flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+                flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+            self._renderer.update_scene(self.data, camera="overview")
+            return self._renderer.render()
+        if self._viewer is None:
+            if not has_display():
+                raise RuntimeError(
+                    'render_mode="human" needs a display (DISPLAY is not set): run under '
+                    'xvfb-run, or use render_mode="rgb_array" for headless frames'
+                )
+            from mujoco import viewer
+
+            self._viewer = viewer.launch_passive(self.model, self.data)
+        self._viewer.sync()
+        return None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        super().close()
+
+    def __getstate__(self) -> dict:
+        state = self.__dict__.copy()
+        for key in ("model", "data", "_renderer", "_viewer"):
+            state.pop(key, None)
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        sim = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self.data, sim, spec)
+        state["_sim"] = sim
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        sim = state.pop("_sim")
+        self.__dict__.update(state)
+        self._renderer = None
+        self._viewer = None
+        self._build()
+        mujoco.mj_setState(self.model, self.data, sim, mujoco.mjtState.mjSTATE_INTEGRATION)
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_comPos(self.model, self.data)
+
+
+def _positive(name: str, value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
+
+
+def _straight(a: np.ndarray, b: np.ndarray, bound: float) -> np.ndarray:
+    """Waypoints from pose a to pose b, at most ``bound`` apart per axis (angles: 2 bound)."""
+    delta = angle_delta(b, a)
+    scale = np.array([1.0] * 3 + [2.0] * (len(a) - 3))
+    n = max(1, int(np.ceil(np.max(np.abs(delta) / (bound * scale)))))
+    return a + np.linspace(0.0, 1.0, n + 1)[:, None] * delta
+
+
+__all__ = ["StudyEnv", "rotation_error"]

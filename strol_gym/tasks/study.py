@@ -1,0 +1,378 @@
+"""The user study's Tasks (paper, "User Study"): a Panda carries a cup past a pitcher to a plate.
+
+Task frame = the robot base frame: metres, x forward, y left, z up from the table top (the base
+stands on the table). The state is the cup's pose: position (Task 1, 3-D) or position and
+orientation (Tasks 2-3, 6-D: roll, pitch, yaw of the cup frame, R = Rz(yaw) Ry(pitch) Rx(roll);
+the cup is upright when roll = pitch = 0). Corrections are pose changes of the same size
+(3-D for Task 1, 6-D for Tasks 2-3). Features (all 0 at best, negative otherwise):
+
+- ``pitcher``: −‖x_xy − pitcher_xy‖ (a negative weight keeps the cup away from the pitcher);
+- ``plate``: −‖x − plate‖ (a positive weight carries it to the plate);
+- ``table``: −z (a positive weight keeps it low, close to the table);
+- ``upright`` (Tasks 2-3): −tilt, the angle in rad between the cup's axis and the vertical.
+
+θ* per Task is the issue's table (Task 3's lies outside the prior). The prior is the designer's
+multimodal prior (docs/study.md): 3 modes for Task 1 (θ*_1 among them), 4 for Tasks 2-3 (θ*_2
+and Task 1's preference among them), none near θ*_3.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from strol_gym.planning import plan_linear_reward
+from strol_gym.priors import MixturePrior, Prior
+from strol_gym.tasks.base import Task
+
+PITCHER = np.array([0.35, 0.10, 0.0])
+PLATE = np.array([0.70, -0.45, 0.10])
+HOME_Q_TASK1 = np.array([0.8385, -0.0609, 0.2447, -1.5657, 0.0089, 1.5335, 1.8607])
+HOME_Q_TASK2 = np.array([1.13894, -0.129095, -0.236155, -1.73935, 0.566207, 2.39615, 1.49282])
+"""Home joints as the paper's robot reports them (real Panda convention); the MuJoCo model's
+joint 6 is offset by −π/2 (strol_gym.envs.panda), which the env applies."""
+
+THETA_STAR = {
+    1: np.array([-1.5, 0.8, 0.8]),
+    2: np.array([-0.8, 0.8, 0.8, 0.8]),
+    3: np.array([-0.8, -0.8, -0.8, 0.8]),
+}
+MODES_3 = np.array([[-1.5, 0.8, 0.8], [0.8, -0.8, 0.8], [-0.8, 0.8, -0.8]])
+"""Task 1's prior modes: θ*_1 (avoid the pitcher, reach the plate, stay low), "near the pitcher,
+away from the plate, low" and "away from the pitcher, to the plate, high"."""
+MODES_4 = np.array(
+    [[-0.8, 0.8, 0.8, 0.8], [-1.5, 0.8, 0.8, 0.0], [0.8, -0.8, 0.8, -0.8], [0.8, 0.8, -0.8, 0.0]]
+)
+"""Tasks 2-3's prior modes: θ*_2, Task 1's preference (orientation indifferent), and two
+others; the nearest to θ*_3 is 2.3 away (jitter 0.1), so Task 3 is outside the prior."""
+
+CONTROL_DT = 0.05
+"""The env's control step (s)."""
+SEGMENT_TIME = 0.5
+"""Seconds the robot takes per plan waypoint (≤ 0.05 m apart: ≤ 0.1 m/s)."""
+
+POS_LOW = np.array([0.20, -0.60, 0.05])
+POS_HIGH = np.array([0.80, 0.60, 0.70])
+"""Where the planner may put the cup (m): reachable by the arm, above the table."""
+ANG_LIMIT = 1.3
+"""|roll|, |pitch| the planner may use (rad); yaw is not planned (no feature depends on it)."""
+
+# Home cup poses (FK of the home joints in strol_gym.envs.study_scene; a test checks them).
+START_TASK1 = np.array([0.2473, 0.4760, 0.5026])
+START_TASK2 = np.array([0.3772, 0.5631, 0.6193, 0.1258, 0.9303, -1.5862])
+
+
+def rpy_to_mat(rpy: np.ndarray) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll), batched: (..., 3) -> (..., 3, 3)."""
+    rpy = np.asarray(rpy, dtype=np.float64)
+    if rpy.shape == (3,):  # the env's per-step call: plain floats are ~10x faster
+        return _rpy_to_mat1(*rpy.tolist())
+    r, p, y = np.moveaxis(rpy, -1, 0)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    rows = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
+def _rpy_to_mat1(r: float, p: float, y: float) -> np.ndarray:
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(r),
+        math.sin(r),
+        math.cos(p),
+        math.sin(p),
+        math.cos(y),
+        math.sin(y),
+    )
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def mat_to_rpy(mat: np.ndarray) -> np.ndarray:
+    """The inverse of ``rpy_to_mat`` (pitch in [−π/2, π/2]): (..., 3, 3) -> (..., 3)."""
+    m = np.asarray(mat, dtype=np.float64)
+    pitch = np.arcsin(np.clip(-m[..., 2, 0], -1.0, 1.0))
+    roll = np.arctan2(m[..., 2, 1], m[..., 2, 2])
+    yaw = np.arctan2(m[..., 1, 0], m[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def wrap_angle(a: np.ndarray) -> np.ndarray:
+    """Angles to [−π, π)."""
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask(Task):
+    """Shared by the three study Tasks; subclasses fix the study Task number."""
+
+    task_id: ClassVar[str] = "StROL-Study-v0-task1"
+    version: ClassVar[int] = 0
+    number: ClassVar[int] = 1
+    feature_high: ClassVar[float] = 0.0
+    strol_lambda: ClassVar[float] = 1.0
+    """StROL's λ in the paper's study (``make_learner("strol", task=...)`` uses it)."""
+
+    prior: Prior = dataclasses.field(default_factory=lambda: MixturePrior(MODES_3, jitter=0.1))
+    alpha: float = 2.0
+    pitcher: np.ndarray = dataclasses.field(default_factory=PITCHER.copy)
+    plate: np.ndarray = dataclasses.field(default_factory=PLATE.copy)
+    pos_step: float = 0.1
+    """a_max of a correction's position change per axis (m)."""
+    ang_step: float = 0.3
+    """a_max of a correction's orientation change per axis (rad)."""
+    plan_steps: int = 20
+    plan_pos_bound: float = 0.05
+    plan_ang_bound: float = 0.1
+
+    # ------------------------------------------------------------------ identity
+    @property
+    def theta_star(self) -> np.ndarray:
+        """The study participant's θ* for this Task (the issue's table)."""
+        return THETA_STAR[self.number].copy()
+
+    @property
+    def home_q(self) -> np.ndarray:
+        """Home joints in the paper's (real Panda) convention."""
+        return (HOME_Q_TASK1 if self.number == 1 else HOME_Q_TASK2).copy()
+
+    @property
+    def oriented(self) -> bool:
+        """Whether the state and corrections include the cup's orientation (Tasks 2-3)."""
+        return self.state_dim == 6
+
+    @property
+    def prior_modes(self) -> np.ndarray:
+        return MODES_3 if self.dim == 3 else MODES_4
+
+    @property
+    def action_bound(self) -> np.ndarray:
+        return np.array([self.pos_step] * 3 + [self.ang_step] * (self.action_dim - 3))
+
+    @property
+    def robot_action_bound(self) -> np.ndarray:
+        """The env's action is a residual setpoint velocity: 0.1 m/s, 0.2 rad/s at |a| = 1,
+        applied per 0.05 s control step."""
+        per_step = CONTROL_DT / SEGMENT_TIME
+        return np.array(
+            [self.plan_pos_bound * per_step] * 3
+            + [self.plan_ang_bound * per_step] * (self.action_dim - 3)
+        )
+
+    def robot_policy(self, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        """u_R per control step: the plan's first step, spread over its ``SEGMENT_TIME``."""
+        x, theta_hat = np.atleast_2d(x), np.atleast_2d(theta_hat)
+        step = self.plan(theta_hat, x)[:, 1] - x
+        if self.oriented:
+            step[:, 3:] = wrap_angle(step[:, 3:])
+        return step * (CONTROL_DT / SEGMENT_TIME)
+
+    @property
+    def feature_scale(self) -> np.ndarray:
+        # Distances (m) over a ~1 m workspace and a tilt (rad) up to ~1.3: comparable ranges.
+        return np.ones(self.dim)
+
+    @property
+    def low(self) -> np.ndarray:
+        """The planning box's lower corner (yaw unbounded)."""
+        ang = [-ANG_LIMIT, -ANG_LIMIT, -np.inf][: self.state_dim - 3]
+        return np.concatenate([POS_LOW, ang])
+
+    @property
+    def high(self) -> np.ndarray:
+        ang = [ANG_LIMIT, ANG_LIMIT, np.inf][: self.state_dim - 3]
+        return np.concatenate([POS_HIGH, ang])
+
+    @property
+    def start(self) -> np.ndarray:
+        """The cup's pose at the home joints (FK; see the constants above)."""
+        return (START_TASK1 if self.number == 1 else START_TASK2).copy()
+
+    # ------------------------------------------------------------------ φ and ∂φ/∂x
+    def features(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        if x.ndim == 1:  # the env's per-step call: plain floats are ~10x faster
+            return self._features1(x)
+        dxy = x[..., :2] - self.pitcher[:2]
+        dp = x[..., :3] - self.plate
+        cols = [
+            -np.sqrt(np.einsum("...i,...i->...", dxy, dxy)),
+            -np.sqrt(np.einsum("...i,...i->...", dp, dp)),
+            -x[..., 2],
+        ]
+        if self.oriented:
+            c = np.cos(x[..., 3]) * np.cos(x[..., 4])
+            cols.append(-np.arccos(np.clip(c, -1.0, 1.0)))
+        return np.stack(cols, axis=-1)
+
+    def _features1(self, x: np.ndarray) -> np.ndarray:
+        """``features`` for one state (the same formulas as the batched path)."""
+        px, py, pz = x[:3].tolist()
+        qx, qy, _ = self.pitcher.tolist()
+        lx, ly, lz = self.plate.tolist()
+        out = [
+            -math.hypot(px - qx, py - qy),
+            -math.sqrt((px - lx) ** 2 + (py - ly) ** 2 + (pz - lz) ** 2),
+            -pz,
+        ]
+        if self.oriented:
+            c = math.cos(float(x[3])) * math.cos(float(x[4]))
+            out.append(-math.acos(min(1.0, max(-1.0, c))))
+        return np.array(out)
+
+    def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
+        """∂φ/∂x, (..., s) -> (..., d, s) (0 at the kinks)."""
+        x = np.asarray(x, dtype=np.float64)
+        jac = np.zeros((*x.shape[:-1], self.dim, self.state_dim))
+        dxy = x[..., :2] - self.pitcher[:2]
+        n = np.sqrt(np.einsum("...i,...i->...", dxy, dxy))[..., None]
+        jac[..., 0, :2] = -dxy / np.maximum(n, 1e-12)
+        dp = x[..., :3] - self.plate
+        n = np.sqrt(np.einsum("...i,...i->...", dp, dp))[..., None]
+        jac[..., 1, :3] = -dp / np.maximum(n, 1e-12)
+        jac[..., 2, 2] = -1.0
+        if self.oriented:
+            r, p = x[..., 3], x[..., 4]
+            c = np.clip(np.cos(r) * np.cos(p), -1.0, 1.0)
+            s = np.sqrt(np.maximum(1.0 - c * c, 1e-12))
+            # d(−arccos c) = dc / sqrt(1 − c²)
+            jac[..., 3, 3] = -np.sin(r) * np.cos(p) / s
+            jac[..., 3, 4] = -np.cos(r) * np.sin(p) / s
+        return jac
+
+    # ------------------------------------------------------------------ f, starts, planning
+    def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """x' = x + u_R + u_H, positions clipped to the planning box, angles wrapped."""
+        y = np.asarray(x, dtype=np.float64) + u_r + u_h
+        pos = np.minimum(np.maximum(y[..., :3], POS_LOW), POS_HIGH)
+        if not self.oriented:
+            return pos
+        return np.concatenate([pos, wrap_angle(y[..., 3:])], axis=-1)
+
+    def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Poses where a correction can begin: uniform in the planning box (yaw uniform in
+        [−π, π)). Training draws its states here; the env itself starts at ``start`` (home)."""
+        pos = rng.uniform(POS_LOW, POS_HIGH, size=(n, 3))
+        if not self.oriented:
+            return pos
+        ang = rng.uniform([-ANG_LIMIT, -ANG_LIMIT, -np.pi], [ANG_LIMIT, ANG_LIMIT, np.pi], (n, 3))
+        return np.concatenate([pos, ang], axis=1)
+
+    @functools.cached_property
+    def _plan_scale(self) -> np.ndarray:
+        """Planned axes (position, and roll/pitch for Tasks 2-3) scaled so that one step bound
+        (``plan_pos_bound``) also bounds the angles by ``plan_ang_bound``."""
+        ang = self.plan_ang_bound / self.plan_pos_bound
+        return np.array([1.0, 1.0, 1.0] + ([ang, ang] if self.oriented else []))
+
+    @property
+    def _plan_axes(self) -> int:
+        return 5 if self.oriented else 3
+
+    def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """Plans maximising Σ_{t=1..T} θ·φ(x_t): (B, d), (B, s) -> (B, T+1, s), T = plan_steps.
+
+        Steps ≤ 0.05 m and ≤ 0.1 rad per axis (paper); yaw is held at x0's (no feature uses it).
+        Deterministic (strol_gym.planning).
+        """
+        theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
+        x0 = np.atleast_2d(np.asarray(x0, dtype=np.float64))
+        k, scale = self._plan_axes, self._plan_scale
+        tail = x0[:, k:]
+
+        def full(y: np.ndarray) -> np.ndarray:
+            y = y * scale
+            if tail.shape[1] == 0:
+                return y
+            return np.concatenate([y, np.zeros((*y.shape[:-1], tail.shape[1]))], axis=-1)
+
+        def feats(y: np.ndarray) -> np.ndarray:
+            return self.features(full(y))
+
+        def jac(y: np.ndarray) -> np.ndarray:
+            return self.feature_jacobian(full(y))[..., :k] * scale
+
+        low, high = self.low[:k] / scale, self.high[:k] / scale
+        targets = self._plan_targets / scale
+        plans = plan_linear_reward(
+            feats,
+            jac,
+            theta,
+            x0[:, :k] / scale,
+            steps=self.plan_steps,
+            step_bound=self.plan_pos_bound,
+            low=low,
+            high=high,
+            targets=targets,
+            away=False,
+            n_random=8,
+            n_iters=60,
+            keep=4,
+        )
+        plans = plans * scale
+        if tail.shape[1]:
+            plans = np.concatenate(
+                [plans, np.broadcast_to(tail[:, None, :], (*plans.shape[:2], tail.shape[1]))],
+                axis=-1,
+            )
+        return plans
+
+    @functools.cached_property
+    def _plan_targets(self) -> np.ndarray:
+        """Straight-line starts: the plate, above the plate, the box's corners, all upright."""
+        lo, hi = POS_LOW, POS_HIGH
+        corners = np.array([[(lo, hi)[(i >> k) & 1][k] for k in range(3)] for i in range(8)])
+        pts = np.vstack([self.plate, [*self.plate[:2], hi[2]], corners])
+        if self.oriented:
+            pts = np.hstack([pts, np.zeros((len(pts), 2))])
+        return pts
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask1(StudyTask):
+    """Study Task 1: carry the cup to the plate, close to the table, away from the pitcher."""
+
+    task_id: ClassVar[str] = "StROL-Study-v0-task1"
+    number: ClassVar[int] = 1
+    strol_lambda: ClassVar[float] = 0.25
+    feature_names: ClassVar[tuple[str, ...]] = ("pitcher", "plate", "table")
+    state_dim: ClassVar[int] = 3
+    action_dim: ClassVar[int] = 3
+
+
+def _prior4() -> Prior:
+    return MixturePrior(MODES_4, jitter=0.1)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask2(StudyTask):
+    """Study Task 2: as Task 1, and keep the cup upright (6-D pose corrections)."""
+
+    task_id: ClassVar[str] = "StROL-Study-v0-task2"
+    number: ClassVar[int] = 2
+    feature_names: ClassVar[tuple[str, ...]] = ("pitcher", "plate", "table", "upright")
+    state_dim: ClassVar[int] = 6
+    action_dim: ClassVar[int] = 6
+    prior: Prior = dataclasses.field(default_factory=_prior4)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask3(StudyTask2):
+    """Study Task 3: away from every object, cup upright; θ* outside the prior."""
+
+    task_id: ClassVar[str] = "StROL-Study-v0-task3"
+    number: ClassVar[int] = 3
+
+
+STUDY_TASKS: dict[int, type[StudyTask]] = {1: StudyTask1, 2: StudyTask2, 3: StudyTask3}
