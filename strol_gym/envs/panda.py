@@ -76,3 +76,57 @@ def prepare_model(model: mujoco.MjModel) -> mujoco.MjModel:
     model.body_gravcomp[arm] = 1.0
     model.mat_reflectance[:] = 0.0
     return model
+
+
+class MujocoRendering:
+    """``render`` and ``close`` of a strol-gym MuJoCo env (a mixin placed first): offscreen
+    frames of the scene's ``overview`` camera for ``render_mode="rgb_array"`` (shadows and
+    reflections off, ~8x the frame rate), MuJoCo's passive viewer for ``"human"``."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    render_mode: str | None
+    width: int
+    height: int
+    _renderer: mujoco.Renderer | None = None
+    _viewer: Any = None
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            import gymnasium as gym
+
+            gym.logger.warn(
+                "render() called without a render_mode; "
+                'make the env with render_mode="rgb_array" or "human"'
+            )
+            return None
+        mujoco.mj_forward(self.model, self.data)
+        if self.render_mode == "rgb_array":
+            if self._renderer is None:
+                self._renderer = mujoco.Renderer(self.model, self.height, self.width)
+                flags = self._renderer.scene.flags
+                flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+                flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+            self._renderer.update_scene(self.data, camera="overview")
+            return self._renderer.render()
+        if self._viewer is None:
+            if not has_display():
+                # GLFW would abort the whole process; fail politely instead.
+                raise RuntimeError(
+                    'render_mode="human" needs a display (DISPLAY is not set): run under '
+                    'xvfb-run, or use render_mode="rgb_array" for headless frames'
+                )
+            from mujoco import viewer
+
+            self._viewer = viewer.launch_passive(self.model, self.data)
+        self._viewer.sync()
+        return None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        super().close()  # type: ignore[misc]

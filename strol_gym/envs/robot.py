@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from strol_gym.envs.base import CorrectionEnv, int_arg
-from strol_gym.envs.panda import N_ARM, Q_HOME, has_display
+from strol_gym.envs.panda import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.panda_ik import IK_ITERS, PandaIK
 from strol_gym.envs.robot_scene import TABLE_TOP, build_model
 from strol_gym.envs.robot_seeds import seed_table
@@ -19,7 +19,7 @@ from strol_gym.priors import Prior
 from strol_gym.tasks.robot import RobotTask
 
 
-class RobotEnv(CorrectionEnv, gym.Env):
+class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
     """StROL-Robot-v0: a Franka Panda whose end effector a human corrects toward a plate or cup.
 
     ## Description
@@ -252,44 +252,6 @@ class RobotEnv(CorrectionEnv, gym.Env):
         return info
 
     # ------------------------------------------------------------------ render, close, pickle
-    def render(self) -> np.ndarray | None:
-        if self.render_mode is None:
-            gym.logger.warn(
-                "render() called without a render_mode; "
-                'make the env with render_mode="rgb_array" or "human"'
-            )
-            return None
-        mujoco.mj_forward(self.model, self.data)
-        if self.render_mode == "rgb_array":
-            if self._renderer is None:
-                self._renderer = mujoco.Renderer(self.model, self.height, self.width)
-                flags = self._renderer.scene.flags
-                flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-                flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-            self._renderer.update_scene(self.data, camera="overview")
-            return self._renderer.render()
-        if self._viewer is None:
-            if not has_display():
-                # GLFW would abort the whole process; fail politely instead.
-                raise RuntimeError(
-                    'render_mode="human" needs a display (DISPLAY is not set); '
-                    'use render_mode="rgb_array" for headless rendering'
-                )
-            from mujoco import viewer
-
-            self._viewer = viewer.launch_passive(self.model, self.data)
-        self._viewer.sync()
-        return None
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        if self._viewer is not None:
-            self._viewer.close()
-            self._viewer = None
-        super().close()
-
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
         for key in ("model", "data", "_ik", "_renderer", "_viewer"):

@@ -10,7 +10,7 @@ import numpy as np
 from gymnasium import spaces
 
 from strol_gym.envs.base import CorrectionEnv, int_arg, vector_arg
-from strol_gym.envs.panda import FINGER_OPEN, N_ARM, has_display
+from strol_gym.envs.panda import FINGER_OPEN, N_ARM, MujocoRendering
 from strol_gym.envs.study_scene import build_model, model_q
 from strol_gym.envs.study_user import SimulatedUser, angle_delta, rotation_error
 from strol_gym.humans import Human, HumanFactory
@@ -41,7 +41,7 @@ K_NULL, D_NULL = 0.5, 0.5
 elbow from drifting; a few N/m at the hand, small next to the Cartesian stiffness."""
 
 
-class StudyEnv(CorrectionEnv, gym.Env):
+class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     """StROL-Study-v0: a compliant Franka Panda carries a cup; a person's pushes teach it θ*.
 
     ## Description
@@ -489,39 +489,6 @@ class StudyEnv(CorrectionEnv, gym.Env):
         return info
 
     # ------------------------------------------------------------------ render, close, pickle
-    def render(self) -> np.ndarray | None:
-        if self.render_mode is None:
-            gym.logger.warn('render() called without a render_mode; use render_mode="rgb_array"')
-            return None
-        if self.render_mode == "rgb_array":
-            if self._renderer is None:
-                self._renderer = mujoco.Renderer(self.model, self.height, self.width)
-                flags = self._renderer.scene.flags
-                flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
-                flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
-            self._renderer.update_scene(self.data, camera="overview")
-            return self._renderer.render()
-        if self._viewer is None:
-            if not has_display():
-                raise RuntimeError(
-                    'render_mode="human" needs a display (DISPLAY is not set): run under '
-                    'xvfb-run, or use render_mode="rgb_array" for headless frames'
-                )
-            from mujoco import viewer
-
-            self._viewer = viewer.launch_passive(self.model, self.data)
-        self._viewer.sync()
-        return None
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
-        if self._viewer is not None:
-            self._viewer.close()
-            self._viewer = None
-        super().close()
-
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
         for key in ("model", "data", "_renderer", "_viewer"):

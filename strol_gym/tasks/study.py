@@ -102,6 +102,15 @@ def _rpy_to_mat1(r: float, p: float, y: float) -> np.ndarray:
 def mat_to_rpy(mat: np.ndarray) -> np.ndarray:
     """The inverse of ``rpy_to_mat`` (pitch in [−π/2, π/2]): (..., 3, 3) -> (..., 3)."""
     m = np.asarray(mat, dtype=np.float64)
+    if m.shape == (3, 3):  # the env's per-step call
+        (r00, _, _), (r10, _, _), (r20, r21, r22) = m.tolist()
+        return np.array(
+            [
+                math.atan2(r21, r22),
+                math.asin(min(1.0, max(-1.0, -r20))),
+                math.atan2(r10, r00),
+            ]
+        )
     pitch = np.arcsin(np.clip(-m[..., 2, 0], -1.0, 1.0))
     roll = np.arctan2(m[..., 2, 1], m[..., 2, 2])
     yaw = np.arctan2(m[..., 1, 0], m[..., 0, 0])
