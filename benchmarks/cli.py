@@ -13,6 +13,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from strol_gym.benchmarks.backends import add_backend_options, backend_kwargs
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
     ENV_PRESETS,
@@ -139,6 +140,7 @@ def _common_run_options(p: argparse.ArgumentParser) -> None:
         help=f"run seeds per unit of work, batched together (default {DEFAULT_BLOCK})",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    add_backend_options(p)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -281,11 +283,13 @@ def _run(args: argparse.Namespace, config: BenchConfig, out: Path) -> int:
 
     jobs = args.jobs or default_jobs()
     t0 = time.perf_counter()
-    rd = run_benchmark(config, out, jobs=jobs, quiet=args.quiet, force=args.force)
+    rd = run_benchmark(
+        config, out, jobs=jobs, quiet=args.quiet, force=args.force, **backend_kwargs(args)
+    )
     wall = time.perf_counter() - t0
     analysis, plots = write_reports(rd, plots=not args.no_plots)
     print(console_summary(analysis))
-    print(f"\nwall time {wall:.1f} s (jobs={jobs}); results in {rd.path}/")
+    print(f"\nwall time {wall:.1f} s (jobs={jobs}, backend={args.backend}); results in {rd.path}/")
     print(f"summary: {rd.path / 'summary.md'}")
     for p in plots:
         if p.suffix == ".png":

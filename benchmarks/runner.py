@@ -342,8 +342,17 @@ def _single_thread_torch() -> Iterator[None]:
 
 
 def _iter_results(
-    config: BenchConfig, units: list[Unit], jobs: int
+    config: BenchConfig,
+    units: list[Unit],
+    jobs: int,
+    backend: str = "local",
+    ray_address: str | None = None,
 ) -> Iterator[tuple[Unit, list[dict]]]:
+    if backend == "ray":
+        from strol_gym.benchmarks.backends import iter_ray
+
+        yield from iter_ray(config, units, jobs, ray_address)
+        return
     if jobs <= 1 or len(units) <= 1:
         worker = _Worker(config)
         try:
@@ -380,18 +389,24 @@ def run_benchmark(
     quiet: bool = False,
     force: bool = False,
     on_unit: Callable[[Unit, int], None] | None = None,
+    backend: str = "local",
+    ray_address: str | None = None,
 ) -> ResultsDir:
     """Run (or resume) ``config`` into the folder ``out``; returns the folder when all is done.
 
     ``on_unit(unit, n_done)`` is called after each unit is stored (tests use it to simulate an
     interruption). Learners are built once up front, so a bad learner fails before any work.
+    ``backend`` is ``"local"`` (``jobs`` processes) or ``"ray"`` (Ray tasks on the cluster at
+    ``ray_address``, or on a local one with ``jobs`` CPUs); records do not depend on it.
     """
     if int(jobs) < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
+    from strol_gym.benchmarks.backends import check_backend
     from strol_gym.benchmarks.results import package_versions
 
+    check_backend(backend, ray_address)
     config, stuck = config.with_user_specs()
-    if stuck and int(jobs) > 1:
+    if stuck and (int(jobs) > 1 or backend != "local"):
         raise ValueError(
             f"{', '.join(stuck)} cannot reach the worker processes: it was registered as a "
             "lambda, a closure or interactive code. Register an importable object or a "
@@ -418,7 +433,7 @@ def run_benchmark(
         )
     n = 0
     try:
-        for unit, records in _iter_results(config, todo, int(jobs)):
+        for unit, records in _iter_results(config, todo, int(jobs), backend, ray_address):
             rd.write_unit(unit, records)
             n += 1
             if bar is not None:

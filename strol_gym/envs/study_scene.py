@@ -47,8 +47,8 @@ def model_q(home_q: np.ndarray) -> np.ndarray:
 
 def scene_xml(offwidth: int = 640, offheight: int = 480) -> str:
     franka = franka_assets_dir()
-    eye = np.array([1.65, -1.25, 0.95])
-    center = np.array([0.45, 0.0, 0.2])
+    eye = np.array([1.95, -1.45, 1.25])
+    center = np.array([0.4, 0.05, 0.3])
     pitcher_pos = [*PITCHER[:2], PITCHER[2] + PITCHER_HEIGHT / 2]
     riser_h = max(PLATE[2] - 0.005, 0.0)
     return f"""<mujoco model="strol_study">

@@ -1,0 +1,136 @@
+"""Where a benchmark's units of work run: ``local`` processes (the default) or a Ray cluster.
+
+Both backends run the same units (blocks of run seeds × every learner) through the same
+:class:`~strol_gym.benchmarks.runner._Worker`, one intra-op thread per worker, so the records
+are identical whichever computed them, and a folder started on one backend resumes on the other.
+Ray is optional (``pip install "strol-gym[ray]"``); a local cluster listens on 127.0.0.1 only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import importlib.util
+import json
+import os
+import sys
+from collections.abc import Iterator
+from typing import Any
+
+from strol_gym.benchmarks.config import BenchConfig, Unit
+
+BACKENDS = ("local", "ray")
+LOOPBACK = "127.0.0.1"
+RAY_SINGLE_MACHINE = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+RAY_MISSING = "--backend ray needs Ray: pip install 'strol-gym[ray]'"
+
+
+def add_backend_options(p: argparse.ArgumentParser) -> None:
+    """``--backend`` and ``--ray-address`` for any subcommand that calls ``run_benchmark``; pass
+    ``**backend_kwargs(args)`` to it."""
+    p.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default="local",
+        help="where units of work run: local processes (default) or Ray tasks; "
+        "results are identical",
+    )
+    p.add_argument(
+        "--ray-address",
+        default=None,
+        help="address of a running Ray cluster (ray.init(address=...)); default: start a local "
+        "one on 127.0.0.1 with --jobs CPUs",
+    )
+
+
+def backend_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``run_benchmark`` keyword arguments chosen by :func:`add_backend_options`' options."""
+    return {"backend": args.backend, "ray_address": args.ray_address}
+
+
+def check_backend(backend: str, ray_address: str | None) -> None:
+    """ValueError for an unknown backend, an address without Ray, or Ray not installed."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if ray_address is not None and backend != "ray":
+        raise ValueError("ray_address is only used with backend 'ray'")
+    if ray_address is not None and (not isinstance(ray_address, str) or not ray_address):
+        raise ValueError(f"ray_address must be a non-empty address string, got {ray_address!r}")
+    if backend == "ray" and importlib.util.find_spec("ray") is None:
+        raise ValueError(RAY_MISSING)
+
+
+# ---------------------------------------------------------------------- inside a Ray worker
+_CACHE: dict[str, Any] = {}
+
+
+def _ray_unit(config_dict: dict, sys_path: list[str], unit: Unit) -> tuple[Unit, list[dict]]:
+    """One unit in a Ray worker process. The worker keeps its envs and learners between units of
+    the same config (as a local pool process does), keyed by the config's JSON."""
+    from strol_gym.benchmarks.runner import _limit_threads, _Worker
+
+    for entry in sys_path:  # the driver's path: user plugins given as .py files import here
+        if entry not in sys.path:
+            sys.path.append(entry)
+    key = hashlib.sha256(json.dumps(config_dict, sort_keys=True).encode()).hexdigest()
+    if _CACHE.get("key") != key:
+        if "worker" in _CACHE:
+            _CACHE.pop("worker").close()
+        _limit_threads()
+        _CACHE["worker"] = _Worker(BenchConfig.from_dict(config_dict))
+        _CACHE["key"] = key
+    return unit, _CACHE["worker"].run_unit(unit)
+
+
+# ---------------------------------------------------------------------- on the driver
+def _start_ray(jobs: int, address: str | None) -> bool:
+    """Connect to ``address`` or start a local cluster; True when this call started Ray (and
+    so must shut it down)."""
+    common = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+    if address is not None:
+        import ray
+
+        if ray.is_initialized():
+            return False
+        ray.init(address=address, **common)
+        return True
+    # Ray resolves 127.0.0.1 to the host's network address, and its servers then listen on
+    # every interface, unless its single-machine mode is on: read at import by this process,
+    # and from the environment by the cluster's processes this starts.
+    os.environ[RAY_SINGLE_MACHINE] = "0"
+    import ray
+    from ray._private import ray_constants
+
+    if ray.is_initialized():
+        return False
+    ray_constants.ENABLE_RAY_CLUSTER = False
+    ray.init(num_cpus=jobs, _node_ip_address=LOOPBACK, **common)
+    return True
+
+
+def iter_ray(
+    config: BenchConfig, units: list[Unit], jobs: int, address: str | None = None
+) -> Iterator[tuple[Unit, list[dict]]]:
+    """Run ``units`` as Ray tasks (one CPU each) and yield ``(unit, records)`` as they finish.
+
+    On an error or an interrupt the pending tasks are cancelled; a cluster started here is shut
+    down when the iteration ends.
+    """
+    import ray
+
+    started = _start_ray(jobs, address)
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(_ray_unit)
+        config_ref = ray.put(config.to_dict())
+        pending = [task.remote(config_ref, list(sys.path), u) for u in units]
+        try:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                yield ray.get(done[0])
+        except BaseException:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+            raise
+    finally:
+        if started:
+            ray.shutdown()
