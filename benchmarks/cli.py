@@ -230,6 +230,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _common_run_options(p)
 
+    from strol_gym.benchmarks import study
+
+    p = sub.add_parser(
+        "study",
+        help="the user study (H3) with simulated users: Tasks 1-3 of StROL-Study-v0",
+        description="StROL-Study-v0's Tasks x Gradient, One, MOF, e2e, StROL x simulated users "
+        "(paired); regret, correction time, H3 verdicts, table beside the paper's, plots.",
+    )
+    study.add_arguments(p)
+
     p = sub.add_parser("train", help="train ĝ for StROL or e2e (Algorithm 1)")
     add_train_arguments(p)
     _plugin_option(p)
@@ -383,8 +393,15 @@ def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> i
     return command(args, parser)
 
 
+def cmd_study(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks import study
+
+    return study.cmd_study(args, parser)
+
+
 COMMANDS = {
     "paper": cmd_paper,
+    "study": cmd_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
     "run": cmd_run,

@@ -88,6 +88,7 @@ class Condition:
 
 
 PRIMARY_METRICS = ("regret", "error", "cos_error")
+ROBOTS = ("task", "zeros")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -102,6 +103,14 @@ class EnvPreset:
     n_corrections: int
     training_sigma: float
     primary_metric: str
+    make_kwargs: dict[str, Any] | None = None
+    """Extra ``gymnasium.make`` kwargs (the study presets' ``task``)."""
+    robot: str = "task"
+    """How the runner's robot acts: "task" (``task.robot_policy``, scaled to the action space)
+    or "zeros" (the env drives its own robot and the action is a residual on it)."""
+    corrections_kwarg: bool = True
+    """Whether the env takes ``n_corrections``; if not (the study env, whose user corrects when
+    it chooses), ``n_corrections`` only sets the episode's length in steps."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.key, str) or not self.key or ":" in self.key:
@@ -120,6 +129,10 @@ class EnvPreset:
             raise ValueError(
                 f"primary_metric must be one of {PRIMARY_METRICS}, got {self.primary_metric!r}"
             )
+        if self.robot not in ROBOTS:
+            raise ValueError(f"robot must be one of {ROBOTS}, got {self.robot!r}")
+        if self.make_kwargs is not None and not isinstance(self.make_kwargs, dict):
+            raise ValueError(f"make_kwargs must be a dict or None, got {self.make_kwargs!r}")
 
     def conditions(self) -> dict[str, Condition]:
         """The paper's four conditions for this env (DESIGN.md's table), in figure order."""
@@ -148,6 +161,22 @@ ENV_PRESETS: dict[str, EnvPreset] = {
 
 PAPER_ENVS: tuple[str, ...] = tuple(ENV_PRESETS)
 """The paper's envs (``strol-bench paper``); ``register_env_preset`` adds more for ``run``."""
+
+STUDY_EPISODE_STEPS = 1200
+"""The study env's 60 s session in 0.05 s steps (docs/study.md)."""
+
+for _k in (1, 2, 3):  # the user study's Tasks (``strol-bench study``), not part of ``paper``
+    ENV_PRESETS[f"study{_k}"] = EnvPreset(
+        key=f"study{_k}",
+        env_id="StROL-Study-v0",
+        runs=20,
+        n_corrections=STUDY_EPISODE_STEPS,
+        training_sigma=0.25,
+        primary_metric="regret",
+        make_kwargs={"task": _k},
+        robot="zeros",
+        corrections_kwarg=False,
+    )
 
 
 def _check_preset(key: str, preset: object) -> None:

@@ -73,11 +73,14 @@ class Experiment:
 
     def env_kwargs(self) -> dict[str, Any]:
         """gymnasium.make kwargs: the condition plus exactly ``corrections`` steps per episode."""
+        preset = env_preset(self.env)
         kw = {
             **self.condition.env_kwargs(),
-            "n_corrections": self.corrections,
+            **(preset.make_kwargs or {}),
             "max_episode_steps": self.corrections,
         }
+        if preset.corrections_kwarg:
+            kw["n_corrections"] = self.corrections
         if self.task is not None:
             kw["task"] = self.task
         return kw

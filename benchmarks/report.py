@@ -133,14 +133,16 @@ def _f(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
-def analyse(config: BenchConfig, records: Sequence[dict]) -> Analysis:
+def analyse(
+    config: BenchConfig, records: Sequence[dict], metrics: Sequence[str] = METRICS
+) -> Analysis:
     """Descriptives, RM-ANOVA and post-hoc tests per env × condition × metric; learning curves."""
     learners = list(config.learners)
     summary, posthoc, anova = [], [], []
     curves: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}
     for exp in config.experiments:
         env, cond = exp.env, exp.condition.name
-        for metric in METRICS:
+        for metric in metrics:
             _, y = _matrix(records, env, cond, learners, metric)
             if y.size == 0 or not np.isfinite(y).any():
                 continue

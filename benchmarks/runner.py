@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from strol_gym.benchmarks.conditions import env_preset
 from strol_gym.benchmarks.config import BenchConfig, Unit
 from strol_gym.benchmarks.results import ResultsDir
 
@@ -174,7 +175,8 @@ class _Worker:
         """Every learner on every seed of ``unit``: a list of per-run records."""
         exp = self.config.experiments[unit.experiment]
         self._prepare(unit.experiment, len(unit.seeds))
-        policy = _MemoPolicy(self._envs[0].unwrapped.task)
+        task = self._envs[0].unwrapped.task
+        policy = _MemoPolicy(task) if env_preset(exp.env).robot == "task" else _zero_policy
         out = []
         for lr in self.config.learners:
             wrapped = self._wrapped[lr][: len(unit.seeds)]
@@ -205,6 +207,17 @@ class _MemoPolicy:
             for i, row in zip(todo, u.reshape(len(todo), -1), strict=True):
                 self.cache[keys[i]] = row
         return np.stack([self.cache[k] for k in keys])
+
+
+def _zero_policy(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Action zero for every row: an env that drives its own robot (the study env's robot
+    follows its plan for θ̂; the action is a residual on it) runs as the paper's robot."""
+    return np.zeros_like(x)
+
+
+INFO_METRICS = ("correction_time", "corrections")
+"""Per-episode totals an env may report in its last ``info`` (the study env does); copied into
+the record when present."""
 
 
 def _state(obs: Any) -> np.ndarray:
@@ -280,6 +293,7 @@ def _run_block(
                 "x0": x0[i].tolist(),
                 "first_correction": first_corr[i],
             }
+            | {k: float(info[k]) for k in INFO_METRICS if k in info}
         )
     return records
 

@@ -16,7 +16,10 @@ from strol_gym.benchmarks.config import BenchConfig, Experiment, paper_config
         (["run", "--env", "robot", "--sigma", "-0.1"], "--sigma must be a number in [0, 100]"),
         (["run", "--env", "robot", "--sigma", "nan"], "--sigma must be a number in [0, 100]"),
         (["run", "--env", "robot", "--condition", "windy"], "unknown condition 'windy'"),
-        (["run", "--env", "boat"], "env must be one of ['highway', 'robot'], got 'boat'"),
+        (
+            ["run", "--env", "boat"],
+            "env must be one of ['highway', 'robot', 'study1', 'study2', 'study3'], got 'boat'",
+        ),
         (["paper", "--runs", "0"], "--runs must be an integer in [1, "),
         (["paper", "--jobs", "0"], "--jobs must be an integer >= 1"),
         (["paper", "--env", "moon"], "invalid choice: 'moon'"),

@@ -1,0 +1,80 @@
+"""strol-bench study: bad input exits 2 before any folder exists; a 2-user run of Task 1 writes
+its table (CSV + markdown), meta JSON, verdicts and plot, and resumes without rerunning."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import pytest
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.study import METRICS
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--task", "4"], "--task must be a comma-separated list of Task numbers from 1,2,3"),
+        (["--task", "1,0"], "--task must be"),
+        (["--task", "one"], "--task must be"),
+        (["--task", ","], "--task must be"),
+        (["--users", "0"], "--users must be an integer in [1, "),
+        (["--users", "-3"], "--users must be an integer in [1, "),
+        (["--jobs", "0"], "--jobs must be an integer >= 1"),
+    ],
+)
+def test_study_bad_input_exits_2_before_any_folder(argv, message, tmp_path, capsys):
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["study", *argv, "--out", str(out), "--quiet"])
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):
+    out = tmp_path / "study"
+    argv = ["study", "--task", "1", "--users", "2", "--jobs", "1", "--out", str(out), "--quiet"]
+    assert cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "Task 1: H3" in printed and "wall time" in printed
+
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["status"] == "complete"
+    exps = meta["config"]["experiments"]
+    assert [(e["env"], e["runs"], e["seed"]) for e in exps] == [("study1", 2, 20000)]
+
+    rows = list(csv.DictReader(open(out / "study_table.csv")))
+    learners = ["gradient", "one", "mof", "e2e", "strol"]
+    assert [(r["metric"], r["learner"]) for r in rows] == [
+        (m, lr) for m in METRICS for lr in learners
+    ]
+    for r in rows:
+        assert math.isfinite(float(r["task1_mean"])) and int(r["all_n"]) == 2
+    paper = {(r["metric"], r["learner"]): r["paper_mean"] for r in rows}
+    assert float(paper[("regret", "strol")]) == 1.03
+    assert float(paper[("correction_time", "one")]) == 2.5
+
+    md = (out / "study_table.md").read_text()
+    assert "| Regret | StROL |" in md and "Task 1: H3" in md
+    assert (out / "plots" / "study.png").stat().st_size > 0
+    verdicts = json.loads((out / "study.json").read_text())["verdicts"]
+    assert [v["task"] for v in verdicts] == [1] and len(verdicts[0]["details"]) == 4
+
+    # paired: every learner saw both user seeds; the env's correction totals are recorded
+    recs = [
+        r
+        for p in sorted((out / "records").glob("*.json"))
+        for r in json.loads(p.read_text())["records"]
+    ]
+    assert sorted((r["learner"], r["seed"]) for r in recs) == sorted(
+        (lr, s) for lr in learners for s in (20000, 20001)
+    )
+    for r in recs:
+        assert r["steps"] == 1200 and r["corrections"] >= 1 and r["correction_time"] > 0
+
+    # resume: the same command runs no unit again
+    assert cli.main(argv) == 0
+    meta = json.loads((out / "meta.json").read_text())
+    assert [s["units_run"] for s in meta["sessions"]] == [1, 0]
