@@ -176,3 +176,24 @@ def test_bad_input_leaves_theta_unchanged():
     after = learner.state_dict()
     np.testing.assert_array_equal(before["theta"], after["theta"])
     np.testing.assert_array_equal(before["particles"], after["particles"])
+
+
+@pytest.mark.parametrize("key", ["particles", "beta_idx", "logw", "updates"])
+def test_load_state_missing_posterior_key_names_it_and_changes_nothing(key):
+    task = HighwayTask()
+    rng = np.random.default_rng(5)
+    x = task.sample_start(rng, 2)
+    u = task.candidate_actions(rng, 2, 1)[:, 1]
+    source = BayesLearner(task, n_particles=1000)
+    source.update(x, u)  # θ̂ differs from a fresh learner's
+    state = source.state_dict()
+    del state[key]
+    target = BayesLearner(task, n_particles=1000)
+    before = target.state_dict()
+    assert not np.array_equal(before["theta"], state["theta"])
+    with pytest.raises(ValueError, match=f"missing key.*{key}"):
+        target.load_state_dict(state)
+    after = target.state_dict()
+    np.testing.assert_array_equal(before["theta"], after["theta"])
+    np.testing.assert_array_equal(before["particles"], after["particles"])
+    assert after["updates"] == before["updates"]

@@ -262,11 +262,20 @@ class BayesLearner(LinearRuleLearner):
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        # Read and check everything before anything is assigned: a failed load changes nothing.
+        missing = [k for k in ("particles", "beta_idx", "logw", "updates") if k not in state]
+        if missing:
+            raise ValueError(f"state lacks {self.name}'s posterior: missing key(s) {missing}")
+        try:
+            particles = np.asarray(state["particles"], dtype=np.float64).copy()
+            beta_idx = np.asarray(state["beta_idx"]).copy()
+            logw = np.asarray(state["logw"], dtype=np.float64).copy()
+            updates = int(state["updates"])
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"state has an invalid {self.name} posterior ({e})") from None
         super().load_state_dict(state)
-        self._particles = np.asarray(state["particles"], dtype=np.float64).copy()
-        self._beta_idx = np.asarray(state["beta_idx"]).copy()
-        self._logw = np.asarray(state["logw"], dtype=np.float64).copy()
-        self._updates = int(state["updates"])
+        self._particles, self._beta_idx, self._logw = particles, beta_idx, logw
+        self._updates = updates
 
 
 def teacher_bayes(task: Task, **kwargs: Any) -> BayesLearner:
