@@ -21,10 +21,10 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+from strol_gym.benchmarks.conditions import REFERENCE_LEARNER as REFERENCE
 from strol_gym.benchmarks.stats import holm, paired_test, stars
 
 BASELINES = ("gradient", "one", "mof", "e2e")
-REFERENCE = "strol"
 CANDIDATES = ("bayes", "bayes-teacher", "strol-adaptive", "strol-unrolled")
 METRICS = ("regret", "error", "cos_error")
 

@@ -21,12 +21,13 @@ from typing import Any
 import numpy as np
 from scipy import stats as sps
 from strol_gym.benchmarks import presets, stats
-from strol_gym.benchmarks.conditions import CONDITION_NAMES, make_condition
+from strol_gym.benchmarks.conditions import CONDITION_NAMES, REFERENCE_LEARNER, make_condition
 from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment
 
 PROTOCOL_RUNS = 1000
 PROTOCOL_SEED = 3_000_000
-REFERENCE = "strol"
+REFERENCE = REFERENCE_LEARNER
+"""The pre-registered reference learner, "strol" (tests pin it: the protocol fixes it)."""
 BASELINES = ("gradient", "one", "mof")
 LEARNERS = (*BASELINES, REFERENCE)
 PRIMARY = "regret"

@@ -181,3 +181,22 @@ def test_preset_bad_input_exits_2_before_any_folder(argv, message, tmp_path, cap
     assert exc.value.code == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_reference_learner_has_one_definition():
+    """confirm and compare_learners take the reference from conditions (no local literal);
+    confirm's pre-registered reference stays "strol"."""
+    import ast
+    import inspect
+
+    from strol_gym.benchmarks import compare_learners, conditions
+
+    for mod in (confirm, compare_learners):
+        for node in ast.parse(inspect.getsource(mod)).body:
+            if isinstance(node, ast.Assign) and any(
+                isinstance(t, ast.Name) and t.id == "REFERENCE" for t in node.targets
+            ):
+                assert not isinstance(node.value, ast.Constant), mod.__name__
+        assert mod.REFERENCE == conditions.REFERENCE_LEARNER
+    assert confirm.REFERENCE == "strol"
+    assert confirm.LEARNERS[-1] == "strol"
