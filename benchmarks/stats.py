@@ -59,8 +59,19 @@ class AnovaResult:
     df2_gg: float
     p_gg: float
 
+    @property
+    def no_variance(self) -> bool:
+        """The data were valid (n, k ≥ 2, finite) but the error variance is zero: F and p are
+        NaN rather than F = inf, p = 0, which would read as significant on no evidence."""
+        return self.n >= 2 and self.k >= 2 and math.isnan(self.F) and math.isfinite(self.eps_gg)
+
     def line(self) -> str:
         """APA-style sentence with the corrected degrees of freedom."""
+        if self.no_variance:
+            return (
+                "F and p undefined (no within-subject error variance: every subject's levels "
+                f"differ by the same amounts; n = {self.n}, k = {self.k})"
+            )
         if not math.isfinite(self.F):
             return f"repeated-measures ANOVA not defined (n = {self.n}, k = {self.k})"
         return (
@@ -100,19 +111,19 @@ def rm_anova(y: np.ndarray) -> AnovaResult:
     ss_total = float(np.sum((y - grand) ** 2))
     ss_error = max(ss_total - ss_levels - ss_subjects, 0.0)
     df1, df2 = k - 1.0, (k - 1.0) * (n - 1.0)
+    # No error variance (every subject's levels differ by the same amounts, e.g. a constant
+    # metric): F = MS_levels / 0 is undefined, not infinite evidence. Report NaN, not F = inf,
+    # p = 0.
     if ss_error <= 1e-12 * max(ss_total, 1e-300):
-        f = nan if ss_levels <= 1e-12 * max(ss_total, 1e-300) else math.inf
+        f = nan
     else:
         f = (ss_levels / df1) / (ss_error / df2)
-    p = float(sps.f.sf(f, df1, df2)) if math.isfinite(f) else (0.0 if f == math.inf else nan)
+    p = float(sps.f.sf(f, df1, df2)) if math.isfinite(f) else nan
     eps = greenhouse_geisser_epsilon(y)
     if not math.isfinite(eps):
         eps = 1.0 / df1  # the lower bound: the most conservative correction
     eps = min(max(eps, 1.0 / df1), 1.0)
-    if math.isfinite(f):
-        p_gg = float(sps.f.sf(f, eps * df1, eps * df2))
-    else:
-        p_gg = p
+    p_gg = float(sps.f.sf(f, eps * df1, eps * df2)) if math.isfinite(f) else nan
     return AnovaResult(n, k, float(f), df1, df2, p, eps, eps * df1, eps * df2, p_gg)
 
 

@@ -201,6 +201,18 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
     return _save(fig, out, "study")
 
 
+def _anova_text(r: dict[str, Any]) -> str:
+    """'F(df1, df2) = F, p_GG = p', or why F and p are undefined (never "F = inf, p = 0")."""
+    from strol_gym.benchmarks.report import ANOVA_COLUMNS
+    from strol_gym.benchmarks.stats import AnovaResult
+
+    if AnovaResult(**{k: r[k] for k in ANOVA_COLUMNS[3:]}).no_variance:
+        return "F and p undefined (no within-subject variance)"
+    if not math.isfinite(r["F"]):
+        return f"F and p undefined (n = {r['n']}, k = {r['k']})"
+    return f"F({r['df1_gg']:.2f}, {r['df2_gg']:.2f}) = {r['F']:.2f}, p_GG = {r['p_gg']:.3g}"
+
+
 def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]:
     """Tables (CSV + markdown), statistics, verdicts (study.json) and plots from ``rd``."""
     from strol_gym.benchmarks.report import ANOVA_COLUMNS, STATS_COLUMNS, SUMMARY_COLUMNS
@@ -220,8 +232,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
     verd = verdicts(a)
     anova = [
-        f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: F({r['df1_gg']:.2f}, "
-        f"{r['df2_gg']:.2f}) = {r['F']:.2f}, p_GG = {r['p_gg']:.3g}"
+        f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: {_anova_text(r)}"
         for r in a.anova
         if r["metric"] in H3_METRICS
     ]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -101,3 +102,28 @@ def test_compare_to_reference_and_language():
     assert stats.stars(0.0004) == "***" and stats.stars(0.2) == ""
     with pytest.raises(ValueError, match="reference"):
         stats.compare_to_reference(Y, ["a", "b", "c"], "strol")
+
+
+@pytest.mark.parametrize(
+    "y",
+    [
+        np.array([[1.0, 2.0, 4.0], [3.0, 4.0, 6.0]]),  # level effect, zero error variance
+        np.array([[1.0, 2.0], [1.0, 2.0], [1.0, 2.0]]),  # identical subjects
+        np.full((2, 4), 0.5),  # a constant metric
+    ],
+)
+def test_rm_anova_without_error_variance_is_undefined_not_significant(y):
+    res = stats.rm_anova(y)
+    for v in (res.F, res.p, res.p_gg):
+        assert math.isnan(v)
+    assert res.no_variance
+    assert "inf" not in res.line() and "p <" not in res.line()
+    assert "undefined (no within-subject error variance" in res.line()
+    from strol_gym.benchmarks.report import ANOVA_COLUMNS
+    from strol_gym.benchmarks.study import _anova_text
+
+    row = {"env": "x", "condition": "c", "metric": "m"} | dataclasses.asdict(res)
+    assert _anova_text(row) == "F and p undefined (no within-subject variance)"
+    assert set(ANOVA_COLUMNS[3:]) <= set(row)
+    assert not stats.rm_anova(Y).no_variance
+    assert not stats.rm_anova(np.array([[1.0, 2.0]])).no_variance  # n < 2: another reason
