@@ -31,7 +31,9 @@ def add_parser(sub: argparse._SubParsersAction, common) -> None:
         "StROL's g + ĝ, with one fixed seeded human; prints the fraction that converges.",
     )
     p.add_argument("--env", choices=("robot", "highway"), default="robot")
-    p.add_argument("--grid", type=common.positive_int("--grid"), default=41, help="cells per axis")
+    p.add_argument(
+        "--grid", type=common.positive_int("--grid", low=2), default=41, help="cells per axis (≥ 2)"
+    )
     p.add_argument(
         "--steps", type=common.positive_int("--steps"), default=10, help="corrections (10)"
     )

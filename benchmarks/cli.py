@@ -38,8 +38,9 @@ from strol_gym.benchmarks.results import ResultsError
 
 
 # ---------------------------------------------------------------------- argument types
-def _positive_int(name: str, high: int | None = None):
-    rng = ">= 1" if high is None else f"in [1, {high}]"
+def _positive_int(name: str, high: int | None = None, *, low: int = 1):
+    """An argparse type: an integer in [low, high] (low defaults to 1; no upper bound)."""
+    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
 
     def parse(text: str) -> int:
         try:
@@ -48,7 +49,7 @@ def _positive_int(name: str, high: int | None = None):
             raise argparse.ArgumentTypeError(
                 f"{name} must be an integer {rng}, got {text!r}"
             ) from None
-        if v < 1 or (high is not None and v > high):
+        if v < low or (high is not None and v > high):
             raise argparse.ArgumentTypeError(f"{name} must be an integer {rng}, got {v}")
         return v
 

@@ -47,8 +47,8 @@ class BasinMap:
 
 def _grid_axis(name: str, value: Any, span: tuple[float, float]) -> np.ndarray:
     if isinstance(value, int | np.integer) and not isinstance(value, bool):
-        if value < 1:
-            raise ValueError(f"{name} must be an integer >= 1 or a sequence of values, got {value}")
+        if value < 2:  # one point would ignore span: pass [value] for a single cell
+            raise ValueError(f"{name} must be an integer >= 2 or a sequence of values, got {value}")
         return np.linspace(span[0], span[1], int(value))
     arr = np.asarray(value, dtype=np.float64).reshape(-1)
     if arr.size == 0 or not np.isfinite(arr).all():
@@ -76,7 +76,7 @@ def basin_map(
 
     - ``learner``: a registered name or ``"module:attr"`` (built for ``task``) or a learner
       object whose ``reset``/``update`` take batches.
-    - ``grid``: points per axis (int ≥ 1), one sequence of values for both axes, or a pair
+    - ``grid``: points per axis (int ≥ 2), one sequence of values for both axes, or a pair
       (values for ``dims[0]``, values for ``dims[1]``); ints span ``span``.
     - ``theta_star``: the human's preference (default: the task's first prior mode).
     - ``fixed``: θ̂0's other coordinates (default: those of the prior modes' mean).

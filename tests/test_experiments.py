@@ -77,9 +77,10 @@ def test_basin_map_cell_at_theta_star_stays(learner):
     assert m.error[0, 0] == 0.0 and m.fraction_converged == 1.0
 
 
-def test_basin_map_bad_grid():
-    with pytest.raises(ValueError, match="grid"):
-        basin_map(RobotTask(), "gradient", 0)
+@pytest.mark.parametrize("grid", [0, 1, (5, 1), (1, 5)])
+def test_basin_map_bad_grid(grid):
+    with pytest.raises(ValueError, match=r"grid(\[\d\])? must be an integer >= 2"):
+        basin_map(RobotTask(), "gradient", grid)
 
 
 # ---------------------------------------------------------------------- the confirm analysis
@@ -167,7 +168,8 @@ def test_preset_writes_table_meta_and_plot(argv, stem, tmp_path, capsys):
     [
         (["lambda", "--lambdas", "0,-1"], "--lambdas must be comma-separated finite numbers"),
         (["lambda", "--lambdas", "nan"], "--lambdas must be comma-separated finite numbers"),
-        (["basin", "--grid", "0"], "--grid must be an integer >= 1"),
+        (["basin", "--grid", "0"], "--grid must be an integer >= 2"),
+        (["basin", "--grid", "1"], "--grid must be an integer >= 2, got 1"),
         (["changing", "--runs", "0"], "--runs must be an integer >= 1"),
         (["changing", "--switch-after", "5"], "--switch-after must be below the 5 corrections"),
         (["confirm", "--runs", "0"], "--runs must be an integer >= 1"),
