@@ -149,3 +149,17 @@ def test_the_installed_wheel_runs_the_paper_preset(wheel_install):
     meta = json.loads((out / "meta.json").read_text())
     assert meta["status"] == "complete"
     assert meta["extra"]["code"] == code_fingerprint()
+
+
+def test_the_test_extra_carries_setuptools_with_the_bound_the_build_needs():
+    """This file imports setuptools (>= 70.1 for the offline build): ``pip install .[test]``
+    must bring it, at the bound pyproject.toml's build requirement and the skip check use."""
+    import configparser
+    import tomllib
+
+    cfg = configparser.ConfigParser()
+    cfg.read(ROOT / "setup.cfg")
+    test_extra = cfg["options.extras_require"]["test"].split()
+    build_requires = tomllib.loads((ROOT / "pyproject.toml").read_text())["build-system"]
+    assert "setuptools>=70.1" in build_requires["requires"]
+    assert "setuptools>=70.1" in test_extra
