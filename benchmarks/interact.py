@@ -13,7 +13,6 @@ tests inject a fake that writes a wrench the way the real one does.
 from __future__ import annotations
 
 import datetime as dt
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -25,7 +24,7 @@ import numpy as np
 from strol_gym.benchmarks.session_log import SessionLogger
 from strol_gym.wrappers import OnlineLearningWrapper
 
-from strol_gym.envs.panda import has_display
+from strol_gym.envs.panda import PassiveViewer, has_display
 
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "
@@ -53,34 +52,19 @@ LOOKAT = (0.4, 0.0, 0.35)
 """Where the viewer's camera looks first (m, robot base frame): the pitcher, plate and arm."""
 
 
-class _Passive:
-    """``launch_passive``'s handle whose ``close`` also waits for the viewer's thread: exiting
-    while it still renders makes GLFW's exit handler crash the process (seen under Xvfb)."""
+class _Passive(PassiveViewer):
+    """The passive viewer (its ``close`` waits for the viewer's thread), UI panels hidden, the
+    camera on the person's side of the table."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        from mujoco import viewer
-
-        before = set(threading.enumerate())
-        self.handle = viewer.launch_passive(model, data, show_left_ui=False, show_right_ui=False)
-        self.threads = [t for t in threading.enumerate() if t not in before]
+        super().__init__(model, data, show_left_ui=False, show_right_ui=False)
         with self.handle.lock():  # look at the workspace from the person's side of the table
             cam = self.handle.cam
             cam.lookat[:] = LOOKAT
             cam.distance, cam.azimuth, cam.elevation = 2.2, 150.0, -20.0
 
-    def sync(self) -> None:
-        self.handle.sync()
-
-    def is_running(self) -> bool:
-        return self.handle.is_running()
-
     def set_texts(self, texts: Any) -> None:
         self.handle.set_texts(texts)
-
-    def close(self) -> None:
-        self.handle.close()
-        for t in self.threads:
-            t.join(timeout=10.0)
 
 
 def passive_viewer(model: mujoco.MjModel, data: mujoco.MjData) -> Viewer:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import shutil
 import subprocess
 import sys
 import warnings
@@ -242,6 +243,31 @@ def test_human_render_without_display_fails_politely():
     with pytest.raises(RuntimeError, match="display"):
         env.reset(seed=0)
     env.close()
+
+
+HUMAN_RENDER_SCRIPT = """
+import gymnasium as gym
+import numpy as np
+import strol_gym
+
+env = gym.make("StROL-Robot-v0", render_mode="human")
+env.reset(seed=0)
+for _ in range(3):
+    env.step(np.array([0.5, 0.0, -0.5]))
+    env.render()
+env.close()
+print("closed")
+"""
+
+
+@pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run is not installed")
+def test_human_render_under_xvfb_exits_cleanly():
+    """close() waits for the passive viewer's thread: without that, GLFW's exit handler
+    crashed the interpreter at exit (rc 139) after a clean close."""
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", sys.executable, "-c"]
+    done = subprocess.run([*cmd, HUMAN_RENDER_SCRIPT], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    assert done.stdout.strip().endswith("closed")
 
 
 # ------------------------------------------------------------------------------ arm and IK

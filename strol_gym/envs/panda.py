@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import importlib.util
 import os
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -78,6 +79,31 @@ def prepare_model(model: mujoco.MjModel) -> mujoco.MjModel:
     return model
 
 
+class PassiveViewer:
+    """``mujoco.viewer.launch_passive``'s handle whose ``close`` also waits for the viewer's
+    thread: exiting while it still renders makes GLFW's exit handler crash the process (a
+    segfault at interpreter exit, seen under Xvfb). Keyword arguments go to
+    ``launch_passive``; the handle is ``.handle``. Needs a display (see ``has_display``)."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, **kwargs: Any) -> None:
+        from mujoco import viewer
+
+        before = set(threading.enumerate())
+        self.handle = viewer.launch_passive(model, data, **kwargs)
+        self.threads = [t for t in threading.enumerate() if t not in before]
+
+    def sync(self) -> None:
+        self.handle.sync()
+
+    def is_running(self) -> bool:
+        return self.handle.is_running()
+
+    def close(self, timeout: float = 10.0) -> None:
+        self.handle.close()
+        for t in self.threads:
+            t.join(timeout=timeout)
+
+
 class MujocoRendering:
     """``render`` and ``close`` of a strol-gym MuJoCo env (a mixin placed first): offscreen
     frames of the scene's ``overview`` camera for ``render_mode="rgb_array"`` (shadows and
@@ -116,9 +142,7 @@ class MujocoRendering:
                     'render_mode="human" needs a display (DISPLAY is not set): run under '
                     'xvfb-run, or use render_mode="rgb_array" for headless frames'
                 )
-            from mujoco import viewer
-
-            self._viewer = viewer.launch_passive(self.model, self.data)
+            self._viewer = PassiveViewer(self.model, self.data)
         self._viewer.sync()
         return None
 
