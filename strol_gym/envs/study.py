@@ -26,7 +26,8 @@ from strol_gym.tasks.study import (
 )
 
 HOLD = 5
-"""Physics steps per impedance update (the torque is held in between: 100 Hz control)."""
+"""Physics steps per impedance update (the torque is held in between): 5 steps of 5 ms = 25 ms,
+i.e. 40 Hz impedance control."""
 END_HOLD = 2.0
 """Seconds the robot waits at the end of its plan before it returns home and plays it again."""
 _INSTABILITY = (
@@ -74,7 +75,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     ``Dict`` of float32 Boxes: ``"state"`` (3 or 6): the cup's pose (position, and roll, pitch,
     yaw for Tasks 2-3); ``"correction"``: u_H on the step a correction ended, else zeros;
     ``"theta_hat"``: θ̂; ``"phi"``: φ(state); ``"wrench"`` (6,): the external force (N) and
-    torque (N m) on the hand this step.
+    torque (N m) on the hand this step (clipped to float32's finite range).
 
     ## Rewards
 
@@ -109,7 +110,8 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     - ``sigma``, ``bias`` (fractions of a_max = 0.1 m, 0.3 rad), ``beta`` (≥ 0, default 50),
       ``human_kwargs``: the human model's parameters; ``user_kwargs``: the simulated user's
       (``push_force``, ``push_torque``, ``ramp``, ``max_push``, ``decide_every``, ``rest``,
-      ``min_correction``, ``tol``, ``ang_tol``; ``strol_gym.envs.study_user``).
+      ``min_correction``, ``tol``, ``ang_tol``, ``satisfied_regret``;
+      ``strol_gym.envs.study_user``).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
     - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
       ``stiffness`` (N/m, > 0, default 400), ``rot_stiffness`` (N m/rad, > 0, default 30).
@@ -468,7 +470,9 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     def _observation(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
         obs = self._obs(u_h, phi)
-        obs["wrench"] = self._wrench.astype(np.float32)
+        # Clipped to float32's finite range: an absurd wrench (say 1e39 N) must not observe inf.
+        big = np.finfo(np.float32).max
+        obs["wrench"] = np.clip(self._wrench, -big, big).astype(np.float32)
         return obs
 
     def _make_info(self, phi, u_h, u_r, is_correction, record) -> dict[str, Any]:

@@ -2,16 +2,20 @@
 
 What it wants comes from the suite's human models (``strol_gym.humans``: "nominal" is eq. M6,
 "boltzmann" is Boltzmann-rational with β; σ and ε are fractions of the largest admissible
-correction a_max): every ``decide_every`` seconds it asks its model for a correction u from the
-cup's current pose. If |u| is at least ``min_correction`` of a_max on some axis, the pose
-x + u becomes its target and it pushes: the force (and, for 6-D Tasks, the torque) points from
-the cup's pose to the target, ramps up over ``ramp`` seconds, holds, tapers when within a few
-centimetres, and is released (ramped down) when the target is reached (``tol``, ``ang_tol``) or
-after ``max_push`` seconds (tired). It then rests ``rest`` seconds before deciding again.
+correction a_max): every ``decide_every`` seconds it first judges the robot's current behaviour:
+the regret under its θ* of the robot's plan for θ̂ from home (``task.regret(θ̂, θ*, start)``,
+the study's own metric; computed once per distinct θ̂, which changes only after corrections). If
+that regret is at most ``satisfied_regret`` it is satisfied and does not push. Otherwise it asks
+its model for a correction u from the cup's current pose. If |u| is at least ``min_correction``
+of a_max on some axis, the pose x + u becomes its target and it pushes: the force (and, for 6-D
+Tasks, the torque) points from the cup's pose to the target, ramps up over ``ramp`` seconds,
+holds, tapers when within a few centimetres, and is released (ramped down) when the target is
+reached (``tol``, ``ang_tol``) or after ``max_push`` seconds (tired). It then rests ``rest``
+seconds before deciding again.
 
-Its only randomness is its model's, drawn from the generator it is given: a pure function of
-its seed. The env reads it through ``wrench`` once per control step, exactly as it reads a
-scripted wrench or a person's push through the viewer (one interface, see docs/study.md).
+Its only randomness is its model's, drawn from the generator it is given: a pure function of its
+seed. The env reads it through ``wrench`` once per control step, exactly as it reads a scripted
+wrench or a person's push through the viewer (one interface, see docs/study.md).
 """
 
 from __future__ import annotations
@@ -22,6 +26,10 @@ import numpy as np
 
 from strol_gym.humans import HumanFactory, make_human
 from strol_gym.tasks.study import StudyTask, rpy_to_mat, wrap_angle
+
+SATISFIED_REGRET = 1.0
+"""Default ``satisfied_regret``: the user stops pushing once the regret of the robot's plan (from
+home, under its θ*) is at most this (calibrated on seeds 900-919, docs/study.md)."""
 
 
 def rotation_error(r_target: np.ndarray, r_now: np.ndarray) -> np.ndarray:
@@ -59,6 +67,7 @@ class SimulatedUser:
         min_correction: float = 0.3,
         tol: float = 0.015,
         ang_tol: float = 0.05,
+        satisfied_regret: float = SATISFIED_REGRET,
     ) -> None:
         params = {
             "push_force": push_force,
@@ -76,6 +85,13 @@ class SimulatedUser:
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"user_kwargs[{name!r}] must be a finite number > 0, got {value}")
             setattr(self, name, value)
+        value = float(satisfied_regret)
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(
+                f"user_kwargs['satisfied_regret'] must be a finite number >= 0, got {value}"
+            )
+        self.satisfied_regret = value
+        self._regrets: dict[bytes, float] = {}
         self.task = task
         self.model = make_human(
             model, task, theta_star, rng, sigma=sigma, bias=bias, beta=beta, **(human_kwargs or {})
@@ -94,6 +110,19 @@ class SimulatedUser:
         """The correction its model wants (the ``Human`` interface)."""
         return self.model.act(x, u_r, theta_hat)
 
+    def regret(self, theta_hat: np.ndarray) -> float:
+        """The regret under θ* of the robot's plan for ``theta_hat`` from home (cached)."""
+        theta_hat = np.asarray(theta_hat, dtype=np.float64)
+        key = theta_hat.tobytes()
+        if key not in self._regrets:
+            r = self.task.regret(theta_hat, self.theta_star, self.task.start)
+            self._regrets[key] = float(np.asarray(r).reshape(-1)[0])
+        return self._regrets[key]
+
+    def satisfied(self, theta_hat: np.ndarray) -> bool:
+        """Whether the robot's current plan is good enough: regret <= ``satisfied_regret``."""
+        return self.regret(theta_hat) <= self.satisfied_regret
+
     def _error(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(position error (3,), rotation error (3,)) from the cup's pose to the target."""
         assert self.target is not None
@@ -111,6 +140,8 @@ class SimulatedUser:
             if t + 1e-9 < self._t_next:
                 return zero, zero
             self._t_next = t + self.decide_every
+            if self.satisfied(theta_hat):
+                return zero, zero
             u = np.asarray(self.act(x, np.zeros(self.task.action_dim), theta_hat))
             if np.max(np.abs(u) / self.task.action_bound) < self.min_correction:
                 return zero, zero
