@@ -354,7 +354,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                 None,
             )
             if an is not None:
-                line = stats.AnovaResult(**{k: an[k] for k in ANOVA_COLUMNS[3:]}).line()
+                line = stats.AnovaResult.from_row(an).line()
                 out.append(f"- **{cond}**: repeated-measures ANOVA across learners: {line}")
             for t in a.posthoc:
                 if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):

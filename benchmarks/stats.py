@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from scipy import stats as sps
@@ -58,6 +59,11 @@ class AnovaResult:
     df1_gg: float
     df2_gg: float
     p_gg: float
+
+    @classmethod
+    def from_row(cls, row: dict[str, Any]) -> AnovaResult:
+        """The result from a row of ``anova.csv`` (its fields; other keys are ignored)."""
+        return cls(**{f.name: row[f.name] for f in dataclasses.fields(cls)})
 
     @property
     def no_variance(self) -> bool:

@@ -202,14 +202,12 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
 
 
 def _anova_text(r: dict[str, Any]) -> str:
-    """'F(df1, df2) = F, p_GG = p', or why F and p are undefined (never "F = inf, p = 0")."""
-    from strol_gym.benchmarks.report import ANOVA_COLUMNS
+    """'F(df1, df2) = F, p_GG = p', or, when F is undefined, ``AnovaResult.line``'s reason
+    (never "F = inf, p = 0")."""
     from strol_gym.benchmarks.stats import AnovaResult
 
-    if AnovaResult(**{k: r[k] for k in ANOVA_COLUMNS[3:]}).no_variance:
-        return "F and p undefined (no within-subject variance)"
     if not math.isfinite(r["F"]):
-        return f"F and p undefined (n = {r['n']}, k = {r['k']})"
+        return AnovaResult.from_row(r).line()
     return f"F({r['df1_gg']:.2f}, {r['df2_gg']:.2f}) = {r['F']:.2f}, p_GG = {r['p_gg']:.3g}"
 
 

@@ -123,7 +123,8 @@ def test_rm_anova_without_error_variance_is_undefined_not_significant(y):
     from strol_gym.benchmarks.study import _anova_text
 
     row = {"env": "x", "condition": "c", "metric": "m"} | dataclasses.asdict(res)
-    assert _anova_text(row) == "F and p undefined (no within-subject variance)"
+    assert stats.AnovaResult.from_row(row) == res
+    assert _anova_text(row) == res.line()
     assert set(ANOVA_COLUMNS[3:]) <= set(row)
     assert not stats.rm_anova(Y).no_variance
     assert not stats.rm_anova(np.array([[1.0, 2.0]])).no_variance  # n < 2: another reason

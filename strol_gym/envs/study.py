@@ -35,6 +35,7 @@ _INSTABILITY = (
     mujoco.mjtWarning.mjWARN_BADQPOS,
     mujoco.mjtWarning.mjWARN_BADQVEL,
 )
+_F32_MAX = float(np.finfo(np.float32).max)
 TORQUE_LEVER = 0.1
 """A torque τ counts as a force ‖τ‖ / 0.1 m towards the correction threshold."""
 K_NULL, D_NULL = 0.5, 0.5
@@ -471,8 +472,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     def _observation(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
         obs = self._obs(u_h, phi)
         # Clipped to float32's finite range: an absurd wrench (say 1e39 N) must not observe inf.
-        big = np.finfo(np.float32).max
-        obs["wrench"] = np.clip(self._wrench, -big, big).astype(np.float32)
+        obs["wrench"] = np.clip(self._wrench, -_F32_MAX, _F32_MAX).astype(np.float32)
         return obs
 
     def _make_info(self, phi, u_h, u_r, is_correction, record) -> dict[str, Any]:
