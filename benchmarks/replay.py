@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 from strol_gym.benchmarks.session_log import Session, read_session
-from strol_gym.wrappers.online_learning import _cosine_error
+from strol_gym.wrappers.online_learning import cosine_error
 
 from strol_gym.learners.registry import display_name, make_learner
 from strol_gym.tasks import make_task
@@ -65,7 +65,7 @@ def summary_rows(session: Session, results: dict[str, list[np.ndarray]]) -> list
                     "corrections": len(ep.corrections),
                     "theta_hat": final,
                     "error": np.nan if star is None else float(np.linalg.norm(star - final)),
-                    "cosine_error": np.nan if star is None else _cosine_error(star, final),
+                    "cosine_error": np.nan if star is None else cosine_error(star, final),
                 }
             )
     return rows
@@ -86,7 +86,7 @@ def write_csv(path: Path, session: Session, results: dict[str, list[np.ndarray]]
                 for j, theta in enumerate(curve):
                     star = ep.theta_star
                     err = "" if star is None else f"{np.linalg.norm(star - theta):.6g}"
-                    cos = "" if star is None else f"{_cosine_error(star, theta):.6g}"
+                    cos = "" if star is None else f"{cosine_error(star, theta):.6g}"
                     w.writerow([name, k, j, *(f"{t:.6g}" for t in theta), err, cos])
 
 

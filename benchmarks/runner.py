@@ -31,6 +31,7 @@ import numpy as np
 from strol_gym.benchmarks.conditions import env_preset
 from strol_gym.benchmarks.config import BenchConfig, Unit
 from strol_gym.benchmarks.results import ResultsDir
+from strol_gym.wrappers.online_learning import cosine_error, episode_regret
 
 from strol_gym.learners.registry import make_learner
 from strol_gym.registry import install_specs
@@ -164,7 +165,8 @@ class _Worker:
             task = env.unwrapped.task
             for lr in self.config.learners:
                 learner = make_learner(lr, task=task, **self.config.kwargs_for(lr))
-                self._wrapped.setdefault(lr, []).append(OnlineLearningWrapper(env, learner))
+                wrapped = OnlineLearningWrapper(env, learner, regret=False)  # scored per unit
+                self._wrapped.setdefault(lr, []).append(wrapped)
 
     def close(self) -> None:
         for env in self._envs:
@@ -183,6 +185,7 @@ class _Worker:
             out += _run_block(
                 wrapped, list(unit.seeds), exp.corrections, exp.env, exp.condition.name, lr, policy
             )
+        _score_regret(task, out)
         return out
 
 
@@ -224,9 +227,17 @@ def _state(obs: Any) -> np.ndarray:
     return np.asarray(obs["state"] if isinstance(obs, dict) else obs, dtype=np.float64)
 
 
-def _cos_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
-    den = float(np.linalg.norm(theta_star) * np.linalg.norm(theta_hat))
-    return float(1.0 - theta_star @ theta_hat / den) if den > 0 else 1.0
+def _score_regret(task: Any, records: list[dict]) -> None:
+    """Every record's regret in one batched call: the unit's planning is batched, and θ*'s plan
+    from a run's x0, shared by all learners on that seed, is made once (``Task.regret``)."""
+    if not records:
+        return
+    rows = [np.asarray([r[k] for r in records], dtype=np.float64) for k in _REGRET_INPUTS]
+    for record, regret in zip(records, episode_regret(task, *rows), strict=True):
+        record["regret"] = regret
+
+
+_REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
 
 
 def _run_block(
@@ -273,8 +284,7 @@ def _run_block(
         info = last_info[i]
         star = np.asarray(info["theta_star"], dtype=np.float64)
         errs = [float(np.linalg.norm(star - t)) for t in thetas[i]]
-        coss = [_cos_error(star, t) for t in thetas[i]]
-        regret = info.get("regret", np.nan)
+        coss = [cosine_error(star, t) for t in thetas[i]]
         records.append(
             {
                 "env": env,
@@ -283,7 +293,7 @@ def _run_block(
                 "seed": int(seed),
                 "error": errs[-1],
                 "cos_error": coss[-1],
-                "regret": float(regret) if regret is not None else float("nan"),
+                "regret": float("nan"),  # scored for the whole unit at once: _score_regret
                 "errors": errs,
                 "cos_errors": coss,
                 "steps": int(n_steps[i]),

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.online_learning import episode_regret
 from test_learners import LinearTask
 
 import strol_gym
@@ -186,6 +187,23 @@ def test_robot_env_through_make(name):
     np.testing.assert_array_equal(env.unwrapped.theta_hat, env.learner.theta)  # the human's θ̂
     assert not np.array_equal(env.learner.theta, env.unwrapped.task.prior_modes.mean(0))
     env.close()
+
+
+def test_regret_off_leaves_it_to_a_batched_call_with_the_same_value():
+    infos, starts = [], []
+    for regret in (True, False):
+        env = OnlineLearningWrapper(
+            gym.make("StROL-Robot-v0", max_episode_steps=5), "strol", regret=regret
+        )
+        infos.append(_episode(env, 3)[2])
+        starts.append(env._x0)
+        env.close()
+    (on, off), task = infos, env.unwrapped.task
+    assert "regret" not in off and off["error"] == on["error"]
+    np.testing.assert_array_equal(starts[0], starts[1])
+    rows = [np.stack([off[k], off[k]]) for k in ("theta_hat", "theta_star")]
+    batched = episode_regret(task, *rows, np.stack([starts[1], starts[1]]))
+    assert batched == [on["regret"], on["regret"]]
 
 
 def test_robot_env_through_make_vec_and_pickle():

@@ -11,7 +11,7 @@ from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
 
 
-def _cosine_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
+def cosine_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
     """1 − cos(θ*, θ̂); 1.0 (no directional information) when either vector is zero."""
     ns, nh = np.linalg.norm(theta_star), np.linalg.norm(theta_hat)
     if ns == 0 or nh == 0:
@@ -38,6 +38,9 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         learner_kwargs: keyword arguments for ``make_learner`` when ``learner`` is a name.
         replace_reward: if true, the reward becomes θ̂·φ(x') with the updated θ̂ (the robot's
             own belief), and ``info["true_reward"]`` keeps the env's R(x', θ*).
+        regret: if false, the last step's ``info`` has no ``"regret"``: for a runner that scores
+            many episodes at once with one batched ``task.regret`` call (planning is most of
+            the cost of scoring an episode).
 
     The learner starts each episode from the prior modes' mean, or from ``info["theta_hat0"]``
     when the env's reset provides one.
@@ -45,7 +48,7 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     At the end of an episode (terminated or truncated) ``info`` also holds ``"error"`` =
     ‖θ* − θ̂‖, ``"cosine_error"`` = 1 − cos(θ*, θ̂) (1.0 when θ̂ = 0) and ``"regret"`` =
     ``task.regret(θ̂, θ*, x0)`` from the episode's start state x0 (NaN when the task has no
-    planner).
+    planner; absent with ``regret=False``).
     """
 
     def __init__(
@@ -54,9 +57,14 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         learner: str | OnlineRewardLearner,
         learner_kwargs: dict[str, Any] | None = None,
         replace_reward: bool = False,
+        regret: bool = True,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(
-            self, learner=learner, learner_kwargs=learner_kwargs, replace_reward=replace_reward
+            self,
+            learner=learner,
+            learner_kwargs=learner_kwargs,
+            replace_reward=replace_reward,
+            regret=regret,
         )
         gym.Wrapper.__init__(self, env)
         base = env.unwrapped
@@ -67,6 +75,7 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             )
         self.learner = make_learner(learner, task=base.task, **(learner_kwargs or {}))
         self.replace_reward = bool(replace_reward)
+        self.score_regret = bool(regret)
         self._x: np.ndarray | None = None
         self._x0: np.ndarray | None = None
 
@@ -112,10 +121,18 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if terminated or truncated:
             theta_star = np.asarray(info["theta_star"], dtype=np.float64)
             info["error"] = float(np.linalg.norm(theta_star - theta_hat))
-            info["cosine_error"] = _cosine_error(theta_star, theta_hat)
-            try:
-                info["regret"] = float(self.task.regret(theta_hat, theta_star, self._x0)[0])
-            except NotImplementedError:
-                info["regret"] = float("nan")
+            info["cosine_error"] = cosine_error(theta_star, theta_hat)
+            if self.score_regret:
+                info["regret"] = episode_regret(self.task, theta_hat, theta_star, self._x0)[0]
         self._x = np.asarray(obs["state"], dtype=np.float64).copy()
         return obs, reward, terminated, truncated, info
+
+
+def episode_regret(task: Any, theta_hat: Any, theta_star: Any, x0: Any) -> list[float]:
+    """``task.regret`` as floats, NaN for a task without a planner: (B, d), (B, d), (B, s) or
+    single rows -> B floats. The one definition of the score both the wrapper and the benchmark
+    runner (which batches a whole block of episodes) report."""
+    try:
+        return [float(r) for r in task.regret(theta_hat, theta_star, x0)]
+    except NotImplementedError:
+        return [float("nan")] * len(np.atleast_2d(theta_star))

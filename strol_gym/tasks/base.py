@@ -48,6 +48,25 @@ def vector_field(name: str, value: object, n: int) -> np.ndarray:
     return v
 
 
+def unique_rows(*arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct rows of ``arrays`` side by side, compared by their exact bytes: (indices of each
+    distinct row's first occurrence, for every row the position of its own among those).
+
+    Bytes, not values: −0.0 and 0.0 stay apart, so a deduplicated computation
+    returns the very numbers the full one would.
+    """
+    index: dict[bytes, int] = {}
+    first: list[int] = []
+    inverse = np.empty(len(arrays[0]), dtype=np.intp)
+    for i in range(len(inverse)):
+        key = b"".join(np.ascontiguousarray(a[i]).tobytes() for a in arrays)
+        j = index.setdefault(key, len(first))
+        if j == len(first):
+            first.append(i)
+        inverse[i] = j
+    return np.asarray(first, dtype=np.intp), inverse
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Task(ABC):
     """Base class for a StROL setting. Subclasses are frozen dataclasses, so they pickle.
@@ -189,13 +208,25 @@ class Task(ABC):
 
     # ----------------------------------------------------------------- planning (optional)
     def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        """Trajectories that maximise Σ_t R(x_t, θ) from x0: (B, d), (B, s) -> (B, T+1, s)."""
+        """Trajectories that maximise Σ_t R(x_t, θ) from x0: (B, d), (B, s) -> (B, T+1, s).
+
+        A row's plan should depend on that row alone, not on the rest of the batch: ``regret``
+        and the benchmark runner batch and deduplicate rows (the shipped planners do, to the
+        bit; ``tests/test_planning.py`` checks it).
+        """
         raise NotImplementedError(f"{type(self).__name__} has no planner")
 
     def regret(self, theta_hat: np.ndarray, theta_star: np.ndarray, x0: np.ndarray) -> np.ndarray:
-        """Eq. S1, batched: Σ_{x∈ξ*} R(x,θ*) − Σ_{x∈ξ_θ̂} R(x,θ*), both planned from x0. -> (B,)."""
+        """Eq. S1, batched: Σ_{x∈ξ*} R(x,θ*) − Σ_{x∈ξ_θ̂} R(x,θ*), both planned from x0. -> (B,).
+
+        Equal (θ, x0) rows are planned once: a batch of episodes that share θ* and x0 (every
+        learner on one run seed) pays for θ*'s plan once.
+        """
         theta_hat, theta_star, x0 = (np.atleast_2d(a) for a in (theta_hat, theta_star, x0))
-        plans = self.plan(np.concatenate([theta_star, theta_hat]), np.concatenate([x0, x0]))
+        theta = np.concatenate([theta_star, theta_hat])
+        starts = np.concatenate([x0, x0])
+        first, inverse = unique_rows(theta, starts)
+        plans = self.plan(theta[first], starts[first])[inverse]
         returns = self.reward(plans[:, 1:], np.concatenate([theta_star, theta_star])[:, None])
         total = returns.sum(axis=1)
         b = len(theta_star)

@@ -1,0 +1,57 @@
+"""Batching the planners: a row's plan and regret do not depend on the rest of the batch.
+
+The benchmark runner scores a whole unit of episodes with one ``Task.regret`` call and
+deduplicates equal (θ, x0) rows; results must be the very numbers a call per episode gives.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from strol_gym.tasks import make_task
+from strol_gym.tasks.base import unique_rows
+
+PLANNING_TASKS = ("robot", "study-task1", "study-task2")
+
+
+def _problems(task, n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    theta_hat = rng.uniform(-1.0, 1.0, (n, task.dim))
+    theta_star = rng.uniform(-1.0, 1.0, (n, task.dim))
+    return theta_hat, theta_star, task.sample_start(rng, n)
+
+
+@pytest.mark.parametrize("name", PLANNING_TASKS)
+def test_plan_of_a_row_is_bit_identical_alone_and_in_a_batch(name):
+    task = make_task(name)
+    theta, _, x0 = _problems(task, 6, seed=11)
+    batch = task.plan(theta, x0)
+    for i in range(len(theta)):
+        np.testing.assert_array_equal(task.plan(theta[i], x0[i])[0], batch[i])
+
+
+@pytest.mark.parametrize("name", PLANNING_TASKS)
+def test_batched_regret_with_shared_rows_equals_one_call_per_episode(name):
+    task = make_task(name)
+    theta_hat, theta_star, x0 = _problems(task, 3, seed=5)
+    # Every θ̂ against every (θ*, x0): the θ* rows repeat, as for four learners on one seed.
+    hat = np.repeat(theta_hat, 3, axis=0)
+    star, start = np.tile(theta_star, (3, 1)), np.tile(x0, (3, 1))
+    batched = task.regret(hat, star, start)
+    single = [task.regret(h, s, x)[0] for h, s, x in zip(hat, star, start, strict=True)]
+    np.testing.assert_array_equal(batched, single)
+
+
+def test_unique_rows_compares_exact_bytes_across_arrays():
+    a = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, -0.0], [2.0, 0.0]])
+    b = np.array([[5.0], [5.0], [5.0], [5.0]])
+    first, inverse = unique_rows(a, b)
+    assert first.tolist() == [0, 2, 3]  # −0.0 is not merged with 0.0
+    assert inverse.tolist() == [0, 0, 1, 2]
+    b2 = np.array([[5.0], [6.0], [5.0], [5.0]])
+    first, inverse = unique_rows(a, b2)  # the second array separates rows 0 and 1
+    assert first.tolist() == [0, 1, 2, 3]
+    np.testing.assert_array_equal(
+        np.vstack([a, a])[unique_rows(np.vstack([a, a]))[0]], a[[0, 2, 3]]
+    )
