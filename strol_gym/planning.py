@@ -59,12 +59,13 @@ def _positions(x0: np.ndarray, n_starts: int, steps: int) -> np.ndarray:
 
 def _project(pos: np.ndarray, delta: np.ndarray, bound: float, lo: np.ndarray, hi: np.ndarray):
     """Write the feasible waypoints for raw increments ``delta`` into ``pos``; return the
-    feasible increments (see the module docstring)."""
+    feasible increments (see the module docstring). ``delta`` is overwritten: the returned
+    increments live in it (the loop below makes no large temporaries)."""
     way = pos[..., 1:, :]
-    np.cumsum(np.minimum(np.maximum(delta, -bound), bound), axis=-2, out=way)
+    np.cumsum(np.clip(delta, -bound, bound, out=delta), axis=-2, out=way)
     way += pos[..., :1, :]
-    np.minimum(np.maximum(way, lo, out=way), hi, out=way)
-    return way - pos[..., :-1, :]
+    np.clip(way, lo, hi, out=way)
+    return np.subtract(way, pos[..., :-1, :], out=delta)
 
 
 def plan_linear_reward(
@@ -132,6 +133,7 @@ def plan_linear_reward(
     initial_value = value_of(initial[..., 1:, :])
     m = np.zeros_like(delta)
     v = np.zeros_like(delta)
+    buf = den = np.empty(0)  # scratch for the Adam step
     for k in range(n_iters):
         if k == prune_after and delta.shape[1] > keep:
             # Continue with the most promising starts only: most of the cost is in the starts.
@@ -142,14 +144,23 @@ def plan_linear_reward(
             initial, initial_value = initial[rows, best], initial_value[rows, best]
             pos = _positions(x0, keep, steps)
             delta = _project(pos, delta, step_bound, lo, hi)
-        grad = upper @ np.matmul(th, jacobian(pos[..., 1:, :]))[..., 0, :]  # (B, S, T, s)
+        # The Adam step in place: at these sizes allocating temporaries costs as much as the
+        # arithmetic. The same operations in the same order as
+        # m = β1 m + (1 − β1) g;  v = β2 v + (1 − β2) g g;  Δ += step·m / (√(v / c2) + ε).
+        grad = np.matmul(upper, np.matmul(th, jacobian(pos[..., 1:, :]))[..., 0, :])
+        if buf.shape != delta.shape:
+            buf, den = np.empty_like(delta), np.empty_like(delta)
         m *= _BETA1
-        m += (1 - _BETA1) * grad
+        m += np.multiply(grad, 1 - _BETA1, out=buf)
         v *= _BETA2
-        v += (1 - _BETA2) * grad * grad
+        np.multiply(grad, 1 - _BETA2, out=buf)
+        v += np.multiply(buf, grad, out=buf)
         c1, c2 = 1 - _BETA1 ** (k + 1), 1 - _BETA2 ** (k + 1)
         step = step_bound * lr * (1.0 - k / n_iters) / c1
-        delta = _project(pos, delta + step * m / (np.sqrt(v / c2) + _EPS), step_bound, lo, hi)
+        np.sqrt(np.divide(v, c2, out=den), out=den)
+        den += _EPS
+        delta += np.divide(np.multiply(m, step, out=buf), den, out=buf)
+        delta = _project(pos, delta, step_bound, lo, hi)
 
     value = value_of(pos[..., 1:, :])
     worse = initial_value > value

@@ -109,9 +109,11 @@ class RobotTask(Task):
         Written with few numpy calls because the planner calls it once per iteration.
         """
         x = np.asarray(x, dtype=np.float64)
-        diff = (self._objects - x[..., None, :]) * _PLANAR_MASK  # (..., 2, 3) = −∂φ/∂x · dist
+        diff = self._objects - x[..., None, :]  # (..., 2, 3) = −∂φ/∂x · dist; in place below
+        diff *= _PLANAR_MASK
         dist = np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
-        return diff / np.maximum(dist, 1e-12)[..., None]
+        diff /= np.maximum(dist, 1e-12, out=dist)[..., None]
+        return diff
 
     def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
         return np.minimum(np.maximum(x + u_r + u_h, self.workspace_low), self.workspace_high)
