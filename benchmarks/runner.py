@@ -147,7 +147,7 @@ class _Worker:
         self.config = config
         self._exp: int | None = None
         self._envs: list[Any] = []
-        self._wrapped: dict[str, list[Any]] = {}
+        self._wrapped: dict[str, list[Any]] = {lr: [] for lr in config.learners}
 
     def _prepare(self, exp_index: int, n: int) -> None:
         import gymnasium as gym
@@ -159,43 +159,43 @@ class _Worker:
             self.close()
             self._exp = exp_index
         exp = self.config.experiments[exp_index]
-        while len(self._envs) < n:
-            env = gym.make(exp.env_id, **exp.env_kwargs())
-            self._envs.append(env)
-            task = env.unwrapped.task
-            for lr in self.config.learners:
-                learner = make_learner(lr, task=task, **self.config.kwargs_for(lr))
-                wrapped = OnlineLearningWrapper(env, learner, regret=False)  # scored per unit
-                self._wrapped.setdefault(lr, []).append(wrapped)
+        for lr, wrapped in self._wrapped.items():
+            while len(wrapped) < n:  # an env per learner and slot: the learners run in lockstep
+                env = gym.make(exp.env_id, **exp.env_kwargs())
+                self._envs.append(env)
+                learner = make_learner(lr, task=env.unwrapped.task, **self.config.kwargs_for(lr))
+                wrapped.append(OnlineLearningWrapper(env, learner, regret=False))
 
     def close(self) -> None:
         for env in self._envs:
             env.close()
-        self._envs, self._wrapped, self._exp = [], {}, None
+        self._envs, self._exp = [], None
+        self._wrapped = {lr: [] for lr in self.config.learners}
 
     def run_unit(self, unit: Unit) -> list[dict]:
-        """Every learner on every seed of ``unit``: a list of per-run records."""
+        """Every learner on every seed of ``unit``: a list of per-run records (learner-major)."""
         exp = self.config.experiments[unit.experiment]
-        self._prepare(unit.experiment, len(unit.seeds))
+        n = len(unit.seeds)
+        self._prepare(unit.experiment, n)
         task = self._envs[0].unwrapped.task
         policy = _MemoPolicy(task) if env_preset(exp.env).robot == "task" else _zero_policy
-        out = []
-        for lr in self.config.learners:
-            wrapped = self._wrapped[lr][: len(unit.seeds)]
-            out += _run_block(
-                wrapped, list(unit.seeds), exp.corrections, exp.env, exp.condition.name, lr, policy
-            )
+        runs = [
+            (lr, seed, wrapped)
+            for lr in self.config.learners
+            for seed, wrapped in zip(unit.seeds, self._wrapped[lr][:n], strict=True)
+        ]
+        out = _run_block(runs, exp.corrections, exp.env, exp.condition.name, policy)
         _score_regret(task, out)
         return out
 
 
 class _MemoPolicy:
-    """``task.robot_policy`` on a batch, remembering rows already planned in this unit.
+    """``task.robot_policy`` on a batch, planning each distinct row once per unit.
 
     The policy is a deterministic function of (x, θ̂). At step 0 every learner of a run has the
-    same start state and θ̂0, so only the first learner pays for that plan. Lookups are by the
-    exact bytes of the row, so a cached answer is the very number a fresh call would give for
-    that row in that batch.
+    same start state and θ̂0, so only one of them pays for that plan. Rows are compared by their
+    exact bytes, and a row's plan does not depend on the rest of its batch (``Task.plan``), so
+    a remembered answer is the very number a fresh call would give.
     """
 
     def __init__(self, task: Any) -> None:
@@ -204,11 +204,14 @@ class _MemoPolicy:
 
     def __call__(self, x: np.ndarray, theta: np.ndarray) -> np.ndarray:
         keys = [a.tobytes() + b.tobytes() for a, b in zip(x, theta, strict=True)]
-        todo = [i for i, k in enumerate(keys) if k not in self.cache]
+        todo: dict[bytes, int] = {}
+        for i, k in enumerate(keys):
+            if k not in self.cache:
+                todo.setdefault(k, i)
         if todo:
-            u = np.asarray(self.task.robot_policy(x[todo], theta[todo]), dtype=np.float64)
-            for i, row in zip(todo, u.reshape(len(todo), -1), strict=True):
-                self.cache[keys[i]] = row
+            rows = list(todo.values())
+            u = np.asarray(self.task.robot_policy(x[rows], theta[rows]), dtype=np.float64)
+            self.cache.update(zip(todo, u.reshape(len(rows), -1), strict=True))
         return np.stack([self.cache[k] for k in keys])
 
 
@@ -241,15 +244,16 @@ _REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
 
 
 def _run_block(
-    wrapped: Sequence[Any],
-    seeds: Sequence[int],
+    runs: Sequence[tuple[str, int, Any]],
     steps: int,
     env: str,
     cond: str,
-    lr: str,
     policy: Callable[[np.ndarray, np.ndarray], np.ndarray],
 ) -> list[dict]:
-    """Lockstep episodes of one learner on one block of seeds (one wrapped env per seed)."""
+    """Lockstep episodes of ``runs`` = (learner name, run seed, its wrapped env): one policy
+    call per step for all of them; a record per run, in the order given."""
+    wrapped = [w for _, _, w in runs]
+    seeds = [s for _, s, _ in runs]
     task = wrapped[0].unwrapped.task
     bound = np.asarray(task.robot_action_bound, dtype=np.float64)
     b = len(seeds)
@@ -289,7 +293,7 @@ def _run_block(
             {
                 "env": env,
                 "condition": cond,
-                "learner": lr,
+                "learner": runs[i][0],
                 "seed": int(seed),
                 "error": errs[-1],
                 "cos_error": coss[-1],
