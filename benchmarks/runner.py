@@ -8,10 +8,11 @@ condition, wrapped in ``OnlineLearningWrapper(env, learner)``; each step the rob
 observations and info.
 
 Speed: a unit of work is a block of run seeds (``BenchConfig.block``) × every learner. Inside a
-unit the block's envs step in lockstep, so the robot policy (the Task planner for the Robot) is
-called once per step for the whole block instead of once per run. The block size is part of the
-config, never derived from ``--jobs``, so batched numerics see the same batches whatever the
-parallelism and results are identical across ``--jobs`` and across resumes.
+unit every (learner, seed) episode steps in lockstep, so the robot policy (the Task planner for
+the Robot) is called once per step for the whole unit instead of once per run, and the unit's
+regrets are scored by one batched ``Task.regret`` call. The block size is part of the config,
+never derived from ``--jobs``; a row's plan does not depend on its batch (``Task.plan``,
+``tests/test_planning.py``), so results are identical across ``--jobs`` and across resumes.
 """
 
 from __future__ import annotations
