@@ -30,6 +30,8 @@ ROBOT_MODES = np.array([[0.8, -0.8], [-0.8, 0.8]])
 WORKSPACE_LOW = np.array([0.15, -0.55, 0.0])
 WORKSPACE_HIGH = np.array([0.75, 0.35, 0.7])
 _PLANAR_MASK = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 1.0]])
+_LONG = 3000
+"""Array size from which φ and ∂φ/∂x work per object and axis (``RobotTask._offsets``)."""
 
 
 def _default_prior() -> Prior:
@@ -98,21 +100,35 @@ class RobotTask(Task):
         return np.stack([self.plate, self.cup])
 
     def features(self, x: np.ndarray) -> np.ndarray:
-        # Few numpy calls: the env, the humans' candidate search and the planner call this often.
-        x = np.asarray(x, dtype=np.float64)
-        diff = (self._objects - x[..., None, :]) * _PLANAR_MASK  # (..., 2, 3)
+        diff = self._offsets(np.asarray(x, dtype=np.float64))  # (..., 2, 3)
         return -np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
 
     def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning (0 at the kinks).
-
-        Written with few numpy calls because the planner calls it once per iteration.
-        """
-        x = np.asarray(x, dtype=np.float64)
-        diff = self._objects - x[..., None, :]  # (..., 2, 3) = −∂φ/∂x · dist; in place below
-        diff *= _PLANAR_MASK
+        """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning (0 at the kinks)."""
+        diff = self._offsets(np.asarray(x, dtype=np.float64))  # −∂φ/∂x · dist; in place below
         dist = np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
-        diff /= np.maximum(dist, 1e-12, out=dist)[..., None]
+        np.maximum(dist, 1e-12, out=dist)
+        if diff.size < _LONG:
+            diff /= dist[..., None]
+        else:
+            for c in range(3):
+                diff[..., c] /= dist
+        return diff
+
+    def _offsets(self, x: np.ndarray) -> np.ndarray:
+        """(objects − x) · mask, (..., 3) -> (..., 2, 3).
+
+        The env calls φ on one state (one broadcast is cheapest); the planner on thousands
+        (then one numpy call per object and axis: broadcasting makes numpy's inner loops 3
+        elements long, several times slower). The same numbers either way.
+        """
+        if x.size < _LONG:
+            return (self._objects - x[..., None, :]) * _PLANAR_MASK
+        diff = np.empty((*x.shape[:-1], 2, 3))
+        for (o, c), mask in np.ndenumerate(_PLANAR_MASK):
+            out = np.subtract(self._objects[o, c], x[..., c], out=diff[..., o, c])
+            if mask != 1.0:
+                out *= mask
         return diff
 
     def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
