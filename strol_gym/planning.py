@@ -59,7 +59,15 @@ class _Buffers:
     results, are the same.
     """
 
-    def __init__(self, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, n_starts: int, steps: int):
+    def __init__(
+        self,
+        theta: np.ndarray,
+        x0: np.ndarray,
+        lo: np.ndarray,
+        hi: np.ndarray,
+        n_starts: int,
+        steps: int,
+    ):
         b, s = x0.shape
         self.pos = np.empty((b, n_starts, steps + 1, s))
         self.pos[..., 0, :] = x0[:, None, :]
@@ -67,6 +75,10 @@ class _Buffers:
         self.start, self.lo, self.hi = (
             np.broadcast_to(a, shape).copy() for a in (x0[:, None, None, :], lo, hi)
         )
+        # θ spread per feature, (d, B, S, T, s), and scratch for the θ-weighted Jacobian.
+        self.theta = np.broadcast_to(theta.T[:, :, None, None, None], (len(theta.T), *shape))
+        self.theta = self.theta.copy()
+        self.grad, self.term = np.empty(shape), np.empty(shape)
 
     def project(self, delta: np.ndarray, bound: float) -> np.ndarray:
         """Write the feasible waypoints for raw increments ``delta`` into ``pos``; return the
@@ -78,6 +90,20 @@ class _Buffers:
         way += self.start
         np.clip(way, self.lo, self.hi, out=way)
         return np.subtract(way, pos[..., :-1, :], out=delta)
+
+    def ascent(self, jac: np.ndarray) -> np.ndarray:
+        """∂R/∂x_t = Σ_i θ_i ∂φ_i/∂x_t, from the Jacobians (B, S, T, d, s) -> (B, S, T, s).
+
+        The very numbers of ``np.matmul(θ, J)``: products summed in feature order (the closing
+        + 0.0 turns a −0 total into +0, as matmul's sum from zero does), without its per-point
+        tiny matrix products. Overwritten by the next call.
+        """
+        grad, term = self.grad, self.term
+        np.multiply(self.theta[0], jac[..., 0, :], out=grad)
+        for i in range(1, len(self.theta)):
+            grad += np.multiply(self.theta[i], jac[..., i, :], out=term)
+        grad += 0.0
+        return grad
 
 
 def plan_linear_reward(
@@ -132,14 +158,13 @@ def plan_linear_reward(
     delta = np.concatenate(starts, axis=1)  # (B, S, T, s)
 
     th_row = theta[:, None, None, :]
-    th = theta[:, None, None, None, :]  # (B, 1, 1, 1, d) @ jacobians (B, S, T, d, s)
     # ∂/∂Δ_t = Σ_{τ≥t} ∂R/∂x_τ: a reverse cumulative sum, as one matmul with a triangle.
     upper = np.triu(np.ones((steps, steps)))
 
     def value_of(way: np.ndarray) -> np.ndarray:
         return np.sum(features(way) * th_row, axis=(-2, -1))  # (B, S)
 
-    buffers = _Buffers(x0, lo, hi, delta.shape[1], steps)
+    buffers = _Buffers(theta, x0, lo, hi, delta.shape[1], steps)
     pos = buffers.pos
     delta = buffers.project(delta, step_bound)
     initial = pos.copy()  # ascent is not monotone: a start can beat its own end point
@@ -155,13 +180,13 @@ def plan_linear_reward(
             rows = np.arange(b)[:, None]
             delta, m, v = delta[rows, best], m[rows, best], v[rows, best]
             initial, initial_value = initial[rows, best], initial_value[rows, best]
-            buffers = _Buffers(x0, lo, hi, keep, steps)
+            buffers = _Buffers(theta, x0, lo, hi, keep, steps)
             pos = buffers.pos
             delta = buffers.project(delta, step_bound)
         # The Adam step in place: at these sizes allocating temporaries costs as much as the
         # arithmetic. The same operations in the same order as
         # m = β1 m + (1 − β1) g;  v = β2 v + (1 − β2) g g;  Δ += step·m / (√(v / c2) + ε).
-        grad = np.matmul(upper, np.matmul(th, jacobian(pos[..., 1:, :]))[..., 0, :])
+        grad = np.matmul(upper, buffers.ascent(jacobian(pos[..., 1:, :])))
         if buf.shape != delta.shape:
             buf, den = np.empty_like(delta), np.empty_like(delta)
         m *= _BETA1

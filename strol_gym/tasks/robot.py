@@ -111,20 +111,22 @@ class RobotTask(Task):
         if diff.size < _LONG:
             diff /= dist[..., None]
         else:
-            for c in range(3):
-                diff[..., c] /= dist
+            for (o, c), _ in np.ndenumerate(_PLANAR_MASK):
+                diff[..., o, c] /= dist[..., o]
         return diff
 
     def _offsets(self, x: np.ndarray) -> np.ndarray:
         """(objects − x) · mask, (..., 3) -> (..., 2, 3).
 
-        The env calls φ on one state (one broadcast is cheapest); the planner on thousands
-        (then one numpy call per object and axis: broadcasting makes numpy's inner loops 3
-        elements long, several times slower). The same numbers either way.
+        The env calls φ on one state (one broadcast is cheapest); the planner on thousands.
+        Then it works per object and axis, and the result is laid out object-major (a view
+        of a (2, ..., 3) array), so that ``jac[..., i, :]`` is contiguous for the planner's
+        θ-weighted sum: broadcasting makes numpy's inner loops 3 elements long, several times
+        slower. The same numbers either way.
         """
         if x.size < _LONG:
             return (self._objects - x[..., None, :]) * _PLANAR_MASK
-        diff = np.empty((*x.shape[:-1], 2, 3))
+        diff = np.moveaxis(np.empty((2, *x.shape)), 0, -2)
         for (o, c), mask in np.ndenumerate(_PLANAR_MASK):
             out = np.subtract(self._objects[o, c], x[..., c], out=diff[..., o, c])
             if mask != 1.0:
