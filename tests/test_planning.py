@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from strol_gym.planning import _Buffers
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import unique_rows
 
@@ -55,3 +56,27 @@ def test_unique_rows_compares_exact_bytes_across_arrays():
     np.testing.assert_array_equal(
         np.vstack([a, a])[unique_rows(np.vstack([a, a]))[0]], a[[0, 2, 3]]
     )
+
+
+def test_theta_weighted_jacobian_is_matmuls_numbers_signed_zeros_included():
+    rng = np.random.default_rng(2)
+    b, n, steps, d, s = 3, 4, 5, 3, 3
+    theta = rng.uniform(-1.0, 1.0, (b, d))
+    jac = rng.normal(size=(b, n, steps, d, s))
+    jac[0, 0, 0] = -0.0  # every product −0: matmul's sum from zero gives +0
+    jac[1, 1, 1, :, 0] = [1.0, -1.0, 0.0]
+    theta[1] = [1.0, 1.0, 0.5]  # an exact cancellation
+    box = _Buffers(theta, np.zeros((b, s)), np.full(s, -1.0), np.ones(s), n, steps)
+    want = np.matmul(theta[:, None, None, None, :], jac)[..., 0, :]
+    assert box.ascent(jac).tobytes() == want.tobytes()
+
+
+def test_robot_features_and_jacobian_large_batches_equal_the_small_path():
+    task = make_task("robot")
+    x = task.sample_start(np.random.default_rng(4), 1200).reshape(40, 30, 3)
+    x[0, :5] = task.cup  # the kink: zero distance
+    phi, jac = task.features(x), task.feature_jacobian(x)
+    assert x.size >= 3000  # the large path (strol_gym.tasks.robot._LONG)
+    for i in (0, 17, 39):
+        assert task.features(x[i]).tobytes() == phi[i].tobytes()
+        assert task.feature_jacobian(x[i]).tobytes() == np.ascontiguousarray(jac[i]).tobytes()
