@@ -63,6 +63,7 @@ def test_theta_weighted_jacobian_is_matmuls_numbers_signed_zeros_included():
     b, n, steps, d, s = 3, 4, 5, 3, 3
     theta = rng.uniform(-1.0, 1.0, (b, d))
     jac = rng.normal(size=(b, n, steps, d, s))
+    theta[0] = [0.5, 0.7, 0.2]
     jac[0, 0, 0] = -0.0  # every product −0: matmul's sum from zero gives +0
     jac[1, 1, 1, :, 0] = [1.0, -1.0, 0.0]
     theta[1] = [1.0, 1.0, 0.5]  # an exact cancellation
