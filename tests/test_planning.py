@@ -78,6 +78,8 @@ def test_robot_features_and_jacobian_large_batches_equal_the_small_path():
     x[0, :5] = task.cup  # the kink: zero distance
     phi, jac = task.features(x), task.feature_jacobian(x)
     assert x.size >= 3000  # the large path (strol_gym.tasks.robot._LONG)
+    # C order as on the small path: sums over φ reduce in memory order (returns, plan values).
+    assert phi.flags.c_contiguous
     for i in (0, 17, 39):
         assert task.features(x[i]).tobytes() == phi[i].tobytes()
         assert task.feature_jacobian(x[i]).tobytes() == np.ascontiguousarray(jac[i]).tobytes()

@@ -101,10 +101,15 @@ class RobotTask(Task):
 
     def features(self, x: np.ndarray) -> np.ndarray:
         diff = self._offsets(np.asarray(x, dtype=np.float64))  # (..., 2, 3)
-        return -np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
+        # C order whatever the layout of diff: sums over φ (returns, plan values) reduce in
+        # memory order, and the same layout gives the same rounding.
+        return -np.sqrt(np.einsum("...ij,...ij->...i", diff, diff, order="C"))
 
     def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
-        """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning (0 at the kinks)."""
+        """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning (0 at the kinks).
+
+        On large batches a view of an object-major array (``_offsets``): fine for elementwise
+        use, as the planner's; copy it (``np.ascontiguousarray``) before reducing over it."""
         diff = self._offsets(np.asarray(x, dtype=np.float64))  # −∂φ/∂x · dist; in place below
         dist = np.sqrt(np.einsum("...ij,...ij->...i", diff, diff))
         np.maximum(dist, 1e-12, out=dist)
