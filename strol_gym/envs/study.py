@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -36,6 +37,9 @@ _INSTABILITY = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
 )
 _F32_MAX = float(np.finfo(np.float32).max)
+Velocity = tuple[float, float, float, float, float, float]
+"""The setpoint's linear (m/s) and angular (rad/s) velocity, world frame."""
+_STILL: Velocity = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 TORQUE_LEVER = 0.1
 """A torque τ counts as a force ‖τ‖ / 0.1 m towards the correction threshold."""
 K_NULL, D_NULL = 0.5, 0.5
@@ -188,6 +192,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self.observation_space.spaces["wrench"] = spaces.Box(-np.inf, np.inf, (6,), dtype=f32)
         self.action_space = spaces.Box(-1.0, 1.0, shape=(t.action_dim,), dtype=f32)
         self._zeros = np.zeros(t.action_dim)
+        self._oriented = t.oriented
         self._renderer: mujoco.Renderer | None = None
         self._viewer: Any = None
         self._build()
@@ -210,19 +215,24 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         m = self.model
         self._site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
         self._hand = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
-        self._jac = np.zeros((6, m.nv))
-        self._jacp, self._jacr, self._ja = self._jac[:3], self._jac[3:], self._jac[:, :N_ARM]
-        d = self.data  # views into MjData, valid as long as it lives
+        self._jac = np.zeros((6, m.nv))  # the cup is on link7: the finger columns stay 0
+        self._jacp, self._jacr = self._jac[:3], self._jac[3:]
+        # Views into MjData, valid as long as it lives: each attribute access on MjData builds a
+        # new array object, which the per-step code would otherwise pay for over and over.
+        d = self.data
         self._qpos, self._qvel = d.qpos[:N_ARM], d.qvel[:N_ARM]
+        self._qpos_all, self._qvel_all, self._ctrl = d.qpos, d.qvel, d.ctrl[:N_ARM]
         self._site_xpos = d.site_xpos[self._site]
         self._site_xmat = d.site_xmat[self._site].reshape(3, 3)
-        self._err = np.zeros(6)
+        self._hand_xipos, self._hand_xfrc = d.xipos[self._hand], d.xfrc_applied[self._hand]
+        self._warning_stats = tuple(d.warning[w] for w in _INSTABILITY)  # live, like the views
         self._q_home = model_q(self.task.home_q)
+        self._q_home_list = self._q_home.tolist()
         kp, kr = self.stiffness, self.rot_stiffness
         # The rotation error below is 2 sin(angle/2)·axis-ish (twice the small-angle form).
-        self._k = np.array([kp] * 3 + [0.5 * kr] * 3)
+        self._k = (kp, 0.5 * kr)
         # About critical damping for ~2 kg at the hand and ~0.05 kg m² about it.
-        self._d = 2.0 * np.sqrt(np.array([kp] * 3 + [kr] * 3) * np.array([2.0] * 3 + [0.05] * 3))
+        self._d = (2.0 * math.sqrt(kp * 2.0), 2.0 * math.sqrt(kr * 0.05))
         self._n_sub = round(CONTROL_DT / m.opt.timestep)
 
     def _reset_sim(self) -> None:
@@ -252,11 +262,9 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._set_plan(np.array([self._x, self._x]), leg="plan")
 
     def _read_state(self) -> np.ndarray:
-        d = self.data
-        pos = d.site_xpos[self._site]
-        if not self.task.oriented:
-            return pos.copy()
-        return np.concatenate([pos, mat_to_rpy(d.site_xmat[self._site].reshape(3, 3))])
+        if not self._oriented:
+            return self._site_xpos.copy()
+        return np.concatenate([self._site_xpos, mat_to_rpy(self._site_xmat)])
 
     # ------------------------------------------------------------------ wrenches
     def apply_wrench(
@@ -291,56 +299,58 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     # ------------------------------------------------------------------ plan and setpoint
     def _set_plan(self, waypoints: np.ndarray, leg: str) -> None:
-        self._plan = np.asarray(waypoints, dtype=np.float64)
+        plan = np.asarray(waypoints, dtype=np.float64)
+        # The segments' displacements (angles wrapped) once per plan, not twice per step.
+        self._segments = angle_delta(plan[1:], plan[:-1])
         self._leg = leg
         self._tau = 0.0
-        self._plan_theta = self.theta_hat.copy()
+        self._plan_theta = self.theta_hat.tolist()
 
     def _replan(self) -> None:
         """Plan for θ̂ from the cup's pose; the setpoint restarts there (it stays where a person
         left it)."""
         self._set_plan(self.task.plan(self.theta_hat, self._x)[0], leg="plan")
         self._sp = self._x.copy()
-        if self.task.oriented:
+        if self._oriented:
             self._sp_R = rpy_to_mat(self._sp[3:])
 
-    def _plan_point(self, tau: float) -> np.ndarray:
-        k = tau / SEGMENT_TIME
-        n = len(self._plan) - 1
-        if k >= n:
-            return self._plan[-1]
-        i = int(k)
-        a = self._plan[i]
-        return a + (k - i) * angle_delta(self._plan[i + 1], a)
+    def _plan_step(self, k0: float, k1: float) -> np.ndarray:
+        """The plan's displacement from k0 to k1 waypoints along it (0 < k1 − k0 < 1): the
+        covered parts of at most two segments; it stands still past its last waypoint."""
+        seg = self._segments
+        n, i, j = len(seg), int(k0), int(k1)
+        if i >= n:
+            return np.zeros(seg.shape[1])
+        if j == i:
+            return (k1 - k0) * seg[i]
+        step = (j - k0) * seg[i]
+        return step + (k1 - j) * seg[j] if j < n else step
 
-    def _advance(self, u_r: np.ndarray) -> np.ndarray:
-        """Move the setpoint one step along the plan plus the residual; its displacement."""
-        n = len(self._plan) - 1
-        end = n * SEGMENT_TIME
+    def _advance(self, u_r: np.ndarray) -> tuple[np.ndarray, Velocity]:
+        """Move the setpoint one step along the plan plus the residual: (its displacement, its
+        velocity in the world frame)."""
+        end = len(self._segments) * SEGMENT_TIME
         if self._leg == "plan" and self._tau >= end + END_HOLD:
             ret = _straight(self._sp, self.task.start, self.task.plan_pos_bound)
             self._set_plan(ret, leg="return")
         elif self._leg == "return" and self._tau >= end:
             self._replan()
-        before = self._plan_point(self._tau)
+        k0 = self._tau / SEGMENT_TIME
         self._tau += CONTROL_DT
-        step = angle_delta(self._plan_point(self._tau), before) + u_r
+        step = self._plan_step(k0, self._tau / SEGMENT_TIME) + u_r
         self._sp = self._sp + step
-        if self.task.oriented:
-            self._sp_R = rpy_to_mat(self._sp[3:])
-        return step
-
-    def _sp_velocity(self, step: np.ndarray) -> np.ndarray:
-        """The setpoint's velocity (6,) in the world frame from its displacement this step."""
-        v = np.zeros(6)
-        v[:3] = step[:3] / CONTROL_DT
-        if self.task.oriented and np.any(step[3:]):
-            r0 = rpy_to_mat(self._sp[3:] - step[3:])
-            v[3:] = rotation_error(self._sp_R, r0) / CONTROL_DT
-        return v
+        # In plain floats where numpy would pay a call per 3-vector (this runs every step).
+        dx, dy, dz, *turn = step.tolist()
+        rx = ry = rz = 0.0
+        if self._oriented:
+            r0, self._sp_R = self._sp_R, rpy_to_mat(self._sp[3:])
+            if any(turn):
+                rx, ry, rz = rotation_error(self._sp_R, r0).tolist()
+        dt = CONTROL_DT
+        return step, (dx / dt, dy / dt, dz / dt, rx / dt, ry / dt, rz / dt)
 
     # ------------------------------------------------------------------ physics
-    def _simulate(self, v_sp: np.ndarray) -> None:
+    def _simulate(self, v_sp: Velocity) -> None:
         """One control step of physics; the impedance torque is recomputed every ``HOLD`` steps.
 
         τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints; e = setpoint − pose
@@ -348,29 +358,46 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         velocity, is a feedforward term so that the arm does not lag its plan.
         """
         m, d = self.model, self.data
-        f = self._wrench[:3]
-        if self._wrench.any():
-            lx, ly, lz = (d.site_xpos[self._site] - d.xipos[self._hand]).tolist()
-            fx, fy, fz = f.tolist()
-            d.xfrc_applied[self._hand, :3] = f
-            lever_torque = np.array((ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx))
-            d.xfrc_applied[self._hand, 3:] = self._wrench[3:] + lever_torque
+        fx, fy, fz, tx, ty, tz = self._wrench.tolist()
+        if fx or fy or fz or tx or ty or tz:  # the push acts at the cup: add its lever's torque
+            lx, ly, lz = (self._site_xpos - self._hand_xipos).tolist()
+            self._hand_xfrc[:] = (
+                fx,
+                fy,
+                fz,
+                tx + (ly * fz - lz * fy),
+                ty + (lz * fx - lx * fz),
+                tz + (lx * fy - ly * fx),
+            )
         else:
-            d.xfrc_applied[self._hand] = 0.0
-        jp, jr, ja, err, k, damp = self._jacp, self._jacr, self._ja, self._err, self._k, self._d
-        qd, q, xpos, xmat = self._qvel, self._qpos, self._site_xpos, self._site_xmat
-        sp_p, sp_r, site = self._sp[:3], self._sp_R, self._site
-        dv = damp * v_sp
+            self._hand_xfrc[:] = 0.0
+        jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
+        q, qd, qd_all, q_home = self._qpos, self._qvel, self._qvel_all, self._q_home_list
+        xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R
+        (spx, spy, spz), (kp, kr), (dp, dr) = self._sp[:3].tolist(), self._k, self._d
+        vx, vy, vz, wx, wy, wz = v_sp
         for _ in range(self._n_sub // HOLD):
             mujoco.mj_jacSite(m, d, jp, jr, site)
-            re = sp_r @ xmat.T
-            np.subtract(sp_p, xpos, out=err[:3])
-            err[3] = re[2, 1] - re[1, 2]
-            err[4] = re[0, 2] - re[2, 0]
-            err[5] = re[1, 0] - re[0, 1]
-            w = k * err - damp * (ja @ qd) + dv
-            d.ctrl[:N_ARM] = ja.T @ w + K_NULL * (self._q_home - q) - D_NULL * qd
-            mujoco.mj_step(m, d, nstep=HOLD)
+            # Plain floats where numpy would pay a call per few numbers, and ndarray.dot (half
+            # the cost of @ on arrays this small). The wrench w = K e + D (v_sp − J q̇):
+            x, y, z = xpos.tolist()
+            (_, r01, r02), (r10, _, r12), (r20, r21, _) = sp_r.dot(xmat_t).tolist()
+            jvx, jvy, jvz, jwx, jwy, jwz = jac.dot(qd_all).tolist()  # J q̇
+            w = np.array(
+                (
+                    kp * (spx - x) + dp * (vx - jvx),
+                    kp * (spy - y) + dp * (vy - jvy),
+                    kp * (spz - z) + dp * (vz - jvz),
+                    kr * (r21 - r12) + dr * (wx - jwx),
+                    kr * (r02 - r20) + dr * (wy - jwy),
+                    kr * (r10 - r01) + dr * (wz - jwz),
+                )
+            )
+            # τ = Jᵀ w + K_NULL (q_home − q) − D_NULL q̇; zip stops at the arm's joints (Jᵀ w
+            # also has the fingers', which are 0).
+            joints = zip(w.dot(jac).tolist(), q_home, q.tolist(), qd.tolist(), strict=False)
+            ctrl[:] = [t + K_NULL * (h - a) - D_NULL * b for t, h, a, b in joints]
+            mujoco.mj_step(m, d, HOLD)  # nstep; by keyword, pybind11 costs a third more
         # mj_step leaves positions one physics step old: refresh them (the state read next and
         # the next step's first torque then depend on qpos alone, so a pickled env continues
         # exactly).
@@ -380,10 +407,9 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     def _check_stable(self) -> bool:
         """False after a MuJoCo instability warning (it then resets the data) or NaN."""
-        d = self.data
-        w = d.warning
-        warnings = w[_INSTABILITY[0]].number + w[_INSTABILITY[1]].number + w[_INSTABILITY[2]].number
-        bad = warnings > self._warnings or not np.isfinite(d.qpos).all()
+        qacc, qpos, qvel = self._warning_stats
+        warnings = qacc.number + qpos.number + qvel.number
+        bad = warnings > self._warnings or not all(map(math.isfinite, self._qpos_all.tolist()))
         self._warnings = warnings
         return not bad
 
@@ -419,10 +445,11 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         u_res = self._robot_action(action)
         if self._unstable:
             raise RuntimeError("the episode ended unstable; call reset()")
-        if not self._active and not np.array_equal(self.theta_hat, self._plan_theta):
+        if not self._active and self.theta_hat.tolist() != self._plan_theta:
             self._replan()
         self._wrench = self._external_wrench()
-        felt = np.linalg.norm(self._wrench[:3]) + np.linalg.norm(self._wrench[3:]) / TORQUE_LEVER
+        fx, fy, fz, tx, ty, tz = self._wrench.tolist()
+        felt = math.hypot(fx, fy, fz) + math.hypot(tx, ty, tz) / TORQUE_LEVER
         pushing = felt > self.force_threshold
         u_h, is_correction, record = self._zeros, False, None
         if pushing and not self._active:
@@ -434,9 +461,12 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
             u_h = angle_delta(self._x, self._corr_start_x)[: self.task.action_dim]
             self._n_corr += 1
             record = self._record(u_h)
-        u_r = self._zeros if (self._active or is_correction) else self._advance(u_res)
+        if self._active or is_correction:
+            u_r, v_sp = self._zeros, _STILL
+        else:
+            u_r, v_sp = self._advance(u_res)
         x_before = self._x
-        self._simulate(self._sp_velocity(u_r))
+        self._simulate(v_sp)
         self.steps += 1
         if self._active:
             self._corr_time += CONTROL_DT
@@ -472,7 +502,11 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     def _observation(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
         obs = self._obs(u_h, phi)
         # Clipped to float32's finite range: an absurd wrench (say 1e39 N) must not observe inf.
-        obs["wrench"] = np.clip(self._wrench, -_F32_MAX, _F32_MAX).astype(np.float32)
+        # Checked in plain floats first: np.clip costs more than the rest of the observation.
+        w = self._wrench
+        if max(map(abs, w.tolist())) > _F32_MAX:
+            w = np.clip(w, -_F32_MAX, _F32_MAX)
+        obs["wrench"] = w.astype(np.float32)
         return obs
 
     def _make_info(self, phi, u_h, u_r, is_correction, record) -> dict[str, Any]:
@@ -495,7 +529,8 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     # ------------------------------------------------------------------ render, close, pickle
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
-        for key in ("model", "data", "_renderer", "_viewer"):
+        # _build remakes the MjData views; MuJoCo's warning records do not pickle.
+        for key in ("model", "data", "_renderer", "_viewer", "_warning_stats"):
             state.pop(key, None)
         spec = mujoco.mjtState.mjSTATE_INTEGRATION
         sim = np.empty(mujoco.mj_stateSize(self.model, spec))
