@@ -75,10 +75,11 @@ class _Buffers:
         self.start, self.lo, self.hi = (
             np.broadcast_to(a, shape).copy() for a in (x0[:, None, None, :], lo, hi)
         )
-        # θ spread per feature, (d, B, S, T, s), and scratch for the θ-weighted Jacobian.
-        self.theta = np.broadcast_to(theta.T[:, :, None, None, None], (len(theta.T), *shape))
-        self.theta = self.theta.copy()
-        self.grad, self.term = np.empty(shape), np.empty(shape)
+        # θ spread per feature, (d, B, S, T, s); scratch for the θ-weighted Jacobian (grad,
+        # term) and for the Adam step (work, den), all of the increments' shape.
+        d = theta.shape[1]
+        self.theta = np.broadcast_to(theta.T[:, :, None, None, None], (d, *shape)).copy()
+        self.grad, self.term, self.work, self.den = (np.empty(shape) for _ in range(4))
 
     def project(self, delta: np.ndarray, bound: float) -> np.ndarray:
         """Write the feasible waypoints for raw increments ``delta`` into ``pos``; return the
@@ -171,7 +172,6 @@ def plan_linear_reward(
     initial_value = value_of(initial[..., 1:, :])
     m = np.zeros_like(delta)
     v = np.zeros_like(delta)
-    buf = den = np.empty(0)  # scratch for the Adam step
     for k in range(n_iters):
         if k == prune_after and delta.shape[1] > keep:
             # Continue with the most promising starts only: most of the cost is in the starts.
@@ -187,8 +187,7 @@ def plan_linear_reward(
         # arithmetic. The same operations in the same order as
         # m = β1 m + (1 − β1) g;  v = β2 v + (1 − β2) g g;  Δ += step·m / (√(v / c2) + ε).
         grad = np.matmul(upper, buffers.ascent(jacobian(pos[..., 1:, :])))
-        if buf.shape != delta.shape:
-            buf, den = np.empty_like(delta), np.empty_like(delta)
+        buf, den = buffers.work, buffers.den
         m *= _BETA1
         m += np.multiply(grad, 1 - _BETA1, out=buf)
         v *= _BETA2

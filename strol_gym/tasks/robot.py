@@ -116,7 +116,7 @@ class RobotTask(Task):
         if diff.size < _LONG:
             diff /= dist[..., None]
         else:
-            for (o, c), _ in np.ndenumerate(_PLANAR_MASK):
+            for o, c in np.ndindex(_PLANAR_MASK.shape):
                 diff[..., o, c] /= dist[..., o]
         return diff
 
