@@ -49,6 +49,8 @@ CASES = [
     ("StROL-Robot-v0", {"sigma": 0.5, "bias": 0.5, "n_corrections": 3}),
     ("StROL-Robot-v0", {"human": "boltzmann", "sigma": 0.25}),
     ("StROL-Robot-v0", {"human": "changing", "max_episode_steps": 7}),
+    ("StROL-Highway-v0", {}),
+    ("StROL-Highway-v0", {"sigma": 0.5, "bias": 0.5, "human": "driver"}),
 ]
 
 
@@ -96,3 +98,14 @@ def test_vector_env_rejects_bad_arguments():
     with pytest.raises(ValueError, match="finite"):
         env.step(np.full((2, 3), np.nan))
     env.close()
+
+
+def test_vector_highway_crashes_and_autoresets_like_sync():
+    # The "driver" human closes in on the robot car: crashes end sub-envs at different steps,
+    # so the autoresets desynchronise; highway-env's impact step must match too.
+    kwargs = {"human": "driver", "sigma": 0.5}
+    sync, _ = rollout("StROL-Highway-v0", "sync", 24, 1, 30, **kwargs)
+    vec, _ = rollout("StROL-Highway-v0", "vector_entry_point", 24, 1, 30, **kwargs)
+    crashes = sum(int(step[2].sum()) for step in vec[1:])
+    assert crashes >= 3
+    assert max(worst_difference(s, v) for s, v in zip(sync, vec, strict=True)) < TOL
