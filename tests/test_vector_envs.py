@@ -109,3 +109,18 @@ def test_vector_highway_crashes_and_autoresets_like_sync():
     crashes = sum(int(step[2].sum()) for step in vec[1:])
     assert crashes >= 3
     assert max(worst_difference(s, v) for s, v in zip(sync, vec, strict=True)) < TOL
+
+
+def test_reset_mask_resets_only_those_sub_envs_like_sync():
+    mask = np.array([True, False, True])
+    out = []
+    for mode in ("sync", "vector_entry_point"):
+        env = gym.make_vec("StROL-Highway-v0", 3, vectorization_mode=mode)
+        env.reset(seed=3)
+        steps = [env.step(np.full((3, 2), 0.3, dtype=np.float32)) for _ in range(4)]
+        steps.append(env.reset(seed=[50, None, 52], options={"reset_mask": mask.copy()}))
+        steps += [env.step(np.full((3, 2), -0.2, dtype=np.float32)) for _ in range(3)]
+        out.append(steps)
+        env.close()
+    assert max(worst_difference(s, v) for s, v in zip(*out, strict=True)) < TOL
+    assert np.array_equal(out[1][4][1]["_phi"], mask)

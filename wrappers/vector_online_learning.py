@@ -109,13 +109,16 @@ class VectorOnlineLearningWrapper(VectorWrapper):
 
     # ------------------------------------------------------------------ reset / step
     def reset(self, *, seed: Any = None, options: dict[str, Any] | None = None):
+        mask = (options or {}).get("reset_mask")
+        rows = np.arange(self.num_envs) if mask is None else np.flatnonzero(mask)
         obs, info = self.env.reset(seed=seed, options=options)
         obs, info = dict(obs), dict(info)
-        self._reset_learners(np.arange(self.num_envs), info)
+        self._reset_learners(rows, info)
         self._publish(obs, info)
-        self._x = np.asarray(obs["state"], dtype=np.float64).copy()
-        self._x0 = self._x.copy()
-        self._done[:] = False
+        state = np.asarray(obs["state"], dtype=np.float64)
+        self._x[rows] = state[rows]
+        self._x0[rows] = state[rows]
+        self._done[rows] = False
         self._started = True
         return obs, info
 

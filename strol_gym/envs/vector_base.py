@@ -69,6 +69,7 @@ class VectorCorrectionEnv(VectorEnv):
         self._x = np.zeros((n, t.state_dim))
         self._started = np.zeros(n, dtype=bool)
         self._autoreset = np.zeros(n, dtype=bool)
+        self._last_obs: dict[str, np.ndarray] | None = None
 
     # ------------------------------------------------------------------ subclass hooks
     def _draw_episode(
@@ -132,7 +133,17 @@ class VectorCorrectionEnv(VectorEnv):
         self._reset_rows(rows, overrides)
         self._autoreset[rows] = False
         zeros = np.zeros((len(rows), self.task.action_dim))
-        obs = self._observations(rows, zeros)
+        fresh = self._observations(rows, zeros)
+        if len(rows) == n:
+            obs = fresh
+        else:  # the other sub-envs keep their last observation, as SyncVectorEnv's do
+            last = self._last_obs or {
+                k: np.zeros((n, *v.shape[1:]), dtype=v.dtype) for k, v in fresh.items()
+            }
+            obs = {k: v.copy() for k, v in last.items()}
+            for k, v in fresh.items():
+                obs[k][rows] = v
+        self._last_obs = obs
         info = self._infos(rows, zeros, zeros, np.zeros(len(rows), dtype=bool), self._reset_extra)
         return obs, info
 
@@ -202,6 +213,7 @@ class VectorCorrectionEnv(VectorEnv):
         self._autoreset = terminated | truncated
         everyone = np.arange(n)
         obs = self._observations(everyone, u_h, phi)
+        self._last_obs = obs
         info = self._infos(everyone, u_h, u_r, corr, extra, phi)
         return obs, rewards, terminated, truncated, info
 
