@@ -25,6 +25,9 @@ from strol_gym.envs.panda_ik import (
     PandaIK,
 )
 
+SINGLE_RETRY = 16
+"""Up to this many arms restart (``IK_RECOVER``) one by one through ``PandaIK``; more, batched."""
+
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
     m = np.zeros(9)
@@ -74,6 +77,7 @@ class BatchedPandaIK:
             self._seed_low, self._seed_step = ik._seed_low, ik._seed_step
             self._seed_max = ik._seed_max
         self._orient = ik._orient.copy()
+        self._single = ik
         self._damp2 = IK_DAMPING**2
         # Rotations are stored by columns over the batch, cols[k, i, b] = R_b[i, k], so that
         # every product is one small matrix times a (3, 3N) block and every elementwise
@@ -150,7 +154,19 @@ class BatchedPandaIK:
         has_ref = ~np.isnan(ref[:, 0])
         err = self._solve(world.T, rows, iters, tol, ref.T, has_ref)
         retry = np.flatnonzero((err > IK_RECOVER * tol) & has_ref)
-        if len(retry):
+        if 0 < len(retry) <= SINGLE_RETRY:
+            # A restart runs 8x the iterations, usually for an arm or two that cannot reach
+            # their target: numpy's per-call cost on so few rows exceeds MuJoCo's own kinematics,
+            # so the single IK itself does them.
+            ik = self._single
+            for k in retry:
+                ik.set_q(ref[k])
+                err_ref = ik._solve(world[k], 8 * iters, tol, ref[k])
+                if err_ref < err[k]:
+                    err[k] = err_ref
+                    self._q[:, rows[k]] = ik.q
+            self.forward(rows[retry])
+        elif len(retry):
             sub = rows[retry]
             q_prev = self._q[:, sub].copy()
             self._q[:, sub] = ref[retry].T

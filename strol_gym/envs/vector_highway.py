@@ -54,10 +54,18 @@ class VectorHighwayEnv(VectorCorrectionEnv):
             x[crashed, 0:2] += self._impact[hit] / 2
             x[crashed, 4:6] += -self._impact[hit] / 2
             self._has_impact[hit] = False
-        # highway-env's spherical pre-check (robot car first: its speed sets the margin).
+        # highway-env's spherical pre-check (robot car first: its speed sets the margin) ...
         dt = self.task.dt
         dist = np.hypot(x[:, 4] - x[:, 0], x[:, 5] - x[:, 1])
-        close = np.flatnonzero(~(dist > self._diagonal + x[:, 2] * dt))
+        near = ~(dist > self._diagonal + x[:, 2] * dt)
+        # ... and a second one it implies: its rectangle test only looks along the two cars'
+        # axes, and along one of the robot car's axes the centres are at least |d|/√2 apart;
+        # beyond √2 (diagonal + |Δv| dt) that axis separates the cars now and after the
+        # relative displacement, so the test would answer (False, False). A millimetre spare.
+        dvx = x[:, 2] * np.cos(x[:, 3]) - x[:, 6] * np.cos(x[:, 7])
+        dvy = x[:, 2] * np.sin(x[:, 3]) - x[:, 6] * np.sin(x[:, 7])
+        reach = np.sqrt(2.0) * (self._diagonal + np.hypot(dvx, dvy) * dt) + 1e-3
+        close = np.flatnonzero(near & ~(dist > reach))
         for k in close:
             robot = Vehicle(None, x[k, 0:2].copy(), heading=x[k, 3], speed=x[k, 2])
             human = Vehicle(None, x[k, 4:6].copy(), heading=x[k, 7], speed=x[k, 6])
