@@ -124,3 +124,28 @@ def test_reset_mask_resets_only_those_sub_envs_like_sync():
         env.close()
     assert max(worst_difference(s, v) for s, v in zip(*out, strict=True)) < TOL
     assert np.array_equal(out[1][4][1]["_phi"], mask)
+
+
+def test_rectangle_test_is_highway_envs():
+    from highway_env import utils
+    from highway_env.vehicle.kinematics import Vehicle
+
+    from strol_gym.envs.vector_highway import rectangle_test
+
+    rng = np.random.default_rng(0)
+    n = 400
+    x = np.zeros((n, 8))
+    x[:, 0], x[:, 1] = rng.uniform(0, 8, n), rng.uniform(-3, 3, n)  # robot car near the human
+    x[:, 2], x[:, 6] = rng.uniform(10, 30, n), rng.uniform(10, 30, n)
+    x[:, 3], x[:, 7] = rng.uniform(-0.5, 0.5, n), rng.uniform(-0.5, 0.5, n)
+    intersecting, will, translation = rectangle_test(x, 0.5)
+    for k in range(n):
+        robot = Vehicle(None, x[k, 0:2].copy(), heading=x[k, 3], speed=x[k, 2])
+        human = Vehicle(None, x[k, 4:6].copy(), heading=x[k, 7], speed=x[k, 6])
+        ref = utils.are_polygons_intersecting(
+            robot.polygon(), human.polygon(), robot.velocity * 0.5, human.velocity * 0.5
+        )
+        assert (intersecting[k], will[k]) == (ref[0], ref[1])
+        if ref[1]:
+            assert np.abs(translation[k] - ref[2]).max() < 1e-12
+    assert 0 < intersecting.sum() < n and will.sum() > intersecting.sum()
