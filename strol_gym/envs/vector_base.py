@@ -24,7 +24,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from strol_gym.envs.base import CorrectionEnv, int_arg
-from strol_gym.envs.vector_humans import batched_corrections
+from strol_gym.envs.vector_humans import HumanMaker, batched_corrections
 
 
 class VectorCorrectionEnv(VectorEnv):
@@ -70,6 +70,14 @@ class VectorCorrectionEnv(VectorEnv):
         self._started = np.zeros(n, dtype=bool)
         self._autoreset = np.zeros(n, dtype=bool)
         self._last_obs: dict[str, np.ndarray] | None = None
+        self._make_human = HumanMaker(
+            self.template.human_model,
+            t,
+            sigma=self.template.sigma,
+            bias=self.template.bias,
+            beta=self.template.beta,
+            **self.template.human_kwargs,
+        )
 
     # ------------------------------------------------------------------ subclass hooks
     def _draw_episode(
@@ -159,7 +167,7 @@ class VectorCorrectionEnv(VectorEnv):
                 x0[k] = self._override_state(x_override)
             self.theta_star[i] = theta
             # A human that never acts draws nothing: with n_corrections = 0 it is not built.
-            self.humans[i] = t._make_human(theta, human_rng) if self.n_corrections else None
+            self.humans[i] = self._make_human(theta, human_rng) if self.n_corrections else None
         self.theta_hat[rows] = t._default_theta_hat()
         self.steps[rows] = 0
         self._started[rows] = True

@@ -10,10 +10,20 @@ candidates of all humans go through one ``optimal_correction`` call, and the noi
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-from strol_gym.humans import Human, NominalHuman, optimal_correction, perturb
+from strol_gym.humans import (
+    Human,
+    NominalHuman,
+    _accepted,
+    human_factory,
+    make_human,
+    optimal_correction,
+    perturb,
+)
+from strol_gym.tasks.base import Task
 
 
 class _Drawn:
@@ -49,7 +59,7 @@ def batched_corrections(
     if _same_nominal(humans):
         h0 = humans[0]
         task, k = h0.task, h0.n_candidates
-        cand = np.concatenate([task.candidate_actions(h.rng, 1, k) for h in humans])
+        cand = _candidates(task, [h.rng for h in humans], k)
         theta_star = np.stack([h.theta_star for h in humans])
         u = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
         z = np.concatenate([h.rng.standard_normal(u[:1].shape) for h in humans])
@@ -60,3 +70,41 @@ def batched_corrections(
             for b, h in enumerate(humans)
         ]
     )
+
+
+def _candidates(task: Task, rngs: list[np.random.Generator], k: int) -> np.ndarray:
+    """``task.candidate_actions(rng, 1, k)`` for each generator, stacked: (B, k + 1, a).
+
+    For a task that keeps ``Task.candidate_actions`` only the uniform draws stay per generator;
+    the zero action and the scaling by the bound, elementwise, run once on the batch."""
+    if type(task).candidate_actions is not Task.candidate_actions:
+        return np.concatenate([task.candidate_actions(rng, 1, k) for rng in rngs])
+    a = task.action_bound
+    draws = np.empty((len(rngs), k, task.action_dim))
+    for b, rng in enumerate(rngs):
+        draws[b] = rng.uniform(-1.0, 1.0, size=(k, task.action_dim))
+    draws *= a
+    out = np.zeros((len(rngs), k + 1, task.action_dim))
+    out[:, 1:] = draws
+    return out
+
+
+class HumanMaker:
+    """``make_human`` for many humans of one model: the factory and the keyword arguments its
+    signature accepts are resolved once (``make_human`` does it per call), the first human is
+    built and checked by ``make_human`` itself."""
+
+    def __init__(self, human: Any, task: Task, **params: Any) -> None:
+        self.human, self.task, self.params = human, task, params
+        self._factory: Any = None
+
+    def __call__(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
+        if self._factory is None:
+            obj = make_human(self.human, self.task, theta_star, rng, **self.params)
+            factory = human_factory(self.human)
+            accepted = _accepted(factory)
+            if accepted is not None:
+                self.params = {k: v for k, v in self.params.items() if k in accepted}
+            self._factory = factory
+            return obj
+        return self._factory(self.task, theta_star, rng, **self.params)
