@@ -69,6 +69,12 @@ class BatchedPandaIK:
         self._body_rot[0] = np.eye(3)  # the first joint's body frame is _base_rot
         self._site_pos = m.site_pos[ik.site].copy()
         self._site_rot = _quat_mat(m.site_quat[ik.site])
+        # By columns, a body's frame is Rᵀ of its parent's columns and its origin the parent's
+        # origin plus p · columns: both in one (4, 3) matrix per link.
+        self._links = np.concatenate(
+            [self._body_rot.transpose(0, 2, 1), self._body_pos[:, None]], 1
+        )
+        self._site_link = np.vstack([self._site_rot.T, self._site_pos])
         self.lo, self.hi = ik.lo.copy(), ik.hi.copy()
         self._lo, self._hi = self.lo[:, None], self.hi[:, None]
         self.lift = ik.lift.copy()
@@ -102,21 +108,24 @@ class BatchedPandaIK:
         pos = np.repeat(self._base_pos[:, None], b, axis=1)
         axes = np.empty((N_ARM, 3, b))
         anchors = np.empty((N_ARM, 3, b))
+        frame = cols
         for j in range(N_ARM):
             if j:
-                pos = pos + (self._body_pos[j] @ cols.reshape(3, -1)).reshape(3, b)
-                frame = (self._body_rot[j].T @ cols.reshape(3, -1)).reshape(3, 3, b)
-            else:
-                frame = cols
+                # One product gives the next body's frame (rows 0-2) and its offset (row 3).
+                out = (self._links[j] @ cols.reshape(3, -1)).reshape(4, 3, b)
+                frame = out[:3]
+                pos = pos + out[3]
             # The hinge turns the body frame about its z axis by q_j.
             cols = np.empty((3, 3, b))
-            cols[0] = c[j] * frame[0] + s[j] * frame[1]
-            cols[1] = c[j] * frame[1] - s[j] * frame[0]
+            np.multiply(frame[0], c[j], out=cols[0])
+            cols[0] += s[j] * frame[1]
+            np.multiply(frame[1], c[j], out=cols[1])
+            cols[1] -= s[j] * frame[0]
             cols[2] = frame[2]
             axes[j] = frame[2]
             anchors[j] = pos
-        site = pos + (self._site_pos @ cols.reshape(3, -1)).reshape(3, b)
-        site_cols = (self._site_rot.T @ cols.reshape(3, -1)).reshape(3, 3, b)
+        out = (self._site_link @ cols.reshape(3, -1)).reshape(4, 3, b)
+        site, site_cols = pos + out[3], out[:3]
         return site, site_cols, axes, anchors
 
     def forward(self, rows: np.ndarray | slice = slice(None)) -> None:

@@ -185,7 +185,8 @@ class VectorCorrectionEnv(VectorEnv):
         again = np.flatnonzero(done)
         a = actions[rows]
         if not np.isfinite(a).all():
-            raise ValueError(f"actions must be finite, got {actions}")
+            bad = rows[~np.isfinite(a).all(axis=1)]
+            raise ValueError(f"actions must be finite, got {actions[bad[0]]} in row {bad[0]}")
         u_r = np.zeros((n, t.action_dim))
         u_h = np.zeros((n, t.action_dim))
         u_r[rows] = np.minimum(np.maximum(a, -1.0), 1.0) * self._u_scale
