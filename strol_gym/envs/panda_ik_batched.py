@@ -199,9 +199,22 @@ class BatchedPandaIK:
         has_ref: np.ndarray,
     ) -> np.ndarray:
         """``iters`` iterations for arms ``rows`` towards world-frame ``target`` (3, B)."""
+        # While most arms iterate, all rows are computed (slices, no gathers or scatters) and
+        # only the iterating ones move; once fewer than half do, just those rows.
+        full = len(rows) == self.n and bool((rows == np.arange(self.n)).all())
+        moving = np.ones(len(rows), dtype=bool)
         live = np.arange(len(rows))  # positions (in rows) of the arms still iterating
-        idx = rows
         for _ in range(iters):
+            if full:
+                ep = target - self._site
+                moving &= ~((ep * ep).sum(axis=0) < tol * tol)
+                if 2 * moving.sum() >= self.n:
+                    self._iterate(slice(None), ep, ref, has_ref, moving)
+                    continue
+                full, live = False, np.flatnonzero(moving)
+                if not len(live):
+                    break
+            idx = rows[live]
             ep = target[:, live] - self._site[:, idx]
             near = (ep * ep).sum(axis=0) < tol * tol
             if near.any():
@@ -209,32 +222,47 @@ class BatchedPandaIK:
                 live, idx, ep = live[keep], idx[keep], ep[:, keep]
                 if not len(live):
                     break
-            q = self._q[:, idx]
-            axes = self._axes[..., idx]  # (7, 3, B): joint j's axis, the rotational Jacobian
-            d = self._site[:, idx] - self._anchors[..., idx]
-            jp = np.empty_like(axes)  # (7, 3, B): joint j's column of the position Jacobian
-            jp[:, 0] = axes[:, 1] * d[:, 2] - axes[:, 2] * d[:, 1]
-            jp[:, 1] = axes[:, 2] * d[:, 0] - axes[:, 0] * d[:, 2]
-            jp[:, 2] = axes[:, 0] * d[:, 1] - axes[:, 1] * d[:, 0]
-            v = self._orient_cols @ self._site_cols[..., idx].reshape(9, -1)  # (3, B)
-            s = IK_ORIENT_GAIN * (axes * v).sum(axis=1)
-            r = has_ref[live]
-            if r.all():
-                s += IK_POSTURE_GAIN * (ref[:, live] - q)
-            elif r.any():
-                s[:, r] += IK_POSTURE_GAIN * (ref[:, live[r]] - q[:, r])
-            q_new = q + self._step(jp, s, ep)
-            blocked = (q_new < self._lo) | (q_new > self._hi)
-            hit = blocked.any(axis=0)
-            if hit.any():
-                free = ~blocked[:, hit]
-                s_h = s[:, hit] * free
-                jp_h = jp[..., hit] * free[:, None]
-                q_new[:, hit] = q[:, hit] + self._step(jp_h, s_h, ep[:, hit])
-            self._q[:, idx] = np.minimum(np.maximum(q_new, self._lo), self._hi)
-            self.forward(idx)
+            self._iterate(idx, ep, ref[:, live], has_ref[live], None)
         ep = target - self._site[:, rows]
         return np.sqrt((ep * ep).sum(axis=0))
+
+    def _iterate(
+        self,
+        idx: np.ndarray | slice,
+        ep: np.ndarray,
+        ref: np.ndarray,
+        has_ref: np.ndarray,
+        moving: np.ndarray | None,
+    ) -> None:
+        """One IK iteration of arms ``idx`` (errors ``ep``); with ``moving``, only those move."""
+        q = self._q[:, idx]
+        axes = self._axes[..., idx]  # (7, 3, B): joint j's axis, the rotational Jacobian
+        d = self._site[:, idx] - self._anchors[..., idx]
+        jp = np.empty_like(axes)  # (7, 3, B): joint j's column of the position Jacobian
+        jp[:, 0] = axes[:, 1] * d[:, 2] - axes[:, 2] * d[:, 1]
+        jp[:, 1] = axes[:, 2] * d[:, 0] - axes[:, 0] * d[:, 2]
+        jp[:, 2] = axes[:, 0] * d[:, 1] - axes[:, 1] * d[:, 0]
+        v = self._orient_cols @ self._site_cols[..., idx].reshape(9, -1)  # (3, B)
+        s = IK_ORIENT_GAIN * (axes * v).sum(axis=1)
+        if has_ref.all():
+            s += IK_POSTURE_GAIN * (ref - q)
+        elif has_ref.any():
+            s[:, has_ref] += IK_POSTURE_GAIN * (ref[:, has_ref] - q[:, has_ref])
+        q_new = q + self._step(jp, s, ep)
+        blocked = (q_new < self._lo) | (q_new > self._hi)
+        hit = blocked.any(axis=0)
+        if moving is not None:
+            hit &= moving
+        if hit.any():
+            free = ~blocked[:, hit]
+            s_h = s[:, hit] * free
+            jp_h = jp[..., hit] * free[:, None]
+            q_new[:, hit] = q[:, hit] + self._step(jp_h, s_h, ep[:, hit])
+        q_new = np.minimum(np.maximum(q_new, self._lo), self._hi)
+        if moving is not None and not moving.all():
+            q_new = np.where(moving, q_new, q)
+        self._q[:, idx] = q_new
+        self.forward(idx)
 
     def _step(self, jp: np.ndarray, s: np.ndarray, ep: np.ndarray) -> np.ndarray:
         """dq = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) per arm; ``jp`` is J by columns (7, 3, B)."""
