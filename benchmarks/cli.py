@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
+import threading
 import time
 import types
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from strol_gym.benchmarks import basin, changing, confirm, lambda_sweep
 from strol_gym.benchmarks.backends import add_backend_options, backend_kwargs
@@ -35,6 +39,9 @@ from strol_gym.benchmarks.config import (
     paper_config,
 )
 from strol_gym.benchmarks.results import ResultsError
+
+from strol_gym.learners.protocol import LearnerFailed
+from strol_gym.limits import RUN_CAPS, add_allow_large, check_size_caps
 
 
 # ---------------------------------------------------------------------- argument types
@@ -230,6 +237,7 @@ def build_parser() -> argparse.ArgumentParser:
         help='JSON: constructor kwargs per learner, e.g. \'{"strol": {"lam": 0.5}}\'',
     )
     _common_run_options(p)
+    add_allow_large(p)
 
     from strol_gym.benchmarks import study
 
@@ -327,6 +335,7 @@ def cmd_paper(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def cmd_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     try:
+        check_size_caps(args, RUN_CAPS)
         check_learner_names(args.learners)
         config = _config_for_run(args, parser)
     except ValueError as e:
@@ -413,30 +422,51 @@ COMMANDS = {
 }
 
 
+INTERRUPTED = "interrupted: finished runs are saved; rerun the same command to resume"
+
+
+def _interrupted_at_start(signum: int, frame: Any) -> None:
+    """SIGINT before any work: nothing to save or release, so one line and status 130 at once
+    (a KeyboardInterrupt inside an import can surface as another error, or a traceback)."""
+    os.write(2, b"\ninterrupted\n")
+    os._exit(130)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``strol-bench`` console script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread:
+        signal.signal(signal.SIGINT, _interrupted_at_start)
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    finally:  # from here on an interrupt is a KeyboardInterrupt: runs save what is finished
+        if main_thread:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+    if getattr(args, "out", None) == "":  # would silently mean the default folder
+        parser.error("--out must name a path, got an empty string")
     try:
         from strol_gym.registry import import_plugin
 
         for plugin in getattr(args, "plugin", None) or ():
             import_plugin(plugin)
         return COMMANDS[args.command](args, parser)
-    except ResultsError as e:
+    except (ResultsError, LearnerFailed) as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)
         return 2
-    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
-        parser.exit(2, f"strol-bench: error: {e}\n")
-    except KeyboardInterrupt:
-        print(
-            "\ninterrupted: finished runs are saved; rerun the same command to resume",
-            file=sys.stderr,
-        )
-        return 130
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         sys.stderr.close()
         return 0
+    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
+        parser.exit(2, f"strol-bench: error: {e}\n")
+    except KeyboardInterrupt:
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return 130
+    except ImportError as e:  # an interrupt inside a C extension's import surfaces as this
+        if not isinstance(e.__context__, KeyboardInterrupt):
+            raise
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":
