@@ -128,14 +128,17 @@ def run_replay(
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """Replay ``log`` through ``learners``; print the table; write CSV (+ PNG) into ``out``."""
     session = read_session(log)
-    results = replay_session(session, learners, learner_kwargs)
-    rows = summary_rows(session, results)
     folder = (
         Path(out)
         if out is not None
         else Path(log).with_suffix("").with_name(Path(log).stem + "_replay")
     )
-    folder.mkdir(parents=True, exist_ok=True)
+    try:  # before the replay, not after it
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OSError(f"--out {folder}: cannot create this folder ({e.strerror or e})") from None
+    results = replay_session(session, learners, learner_kwargs)
+    rows = summary_rows(session, results)
     written = [folder / "replay.csv"]
     write_csv(written[0], session, results)
     if plots:
