@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from strol_gym.benchmarks import basin, changing, confirm, lambda_sweep
 from strol_gym.benchmarks.backends import add_backend_options, backend_kwargs
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
@@ -159,8 +158,23 @@ _COMMON = types.SimpleNamespace(
 """The option helpers the experiment presets' own parser blocks use."""
 
 
-PRESETS = {"changing": changing, "lambda": lambda_sweep, "basin": basin, "confirm": confirm}
-"""The experiment presets (issue 10): each module has ``add_parser(sub, common)`` and ``cmd``."""
+PRESETS = {"changing": "changing", "lambda": "lambda_sweep", "basin": "basin", "confirm": "confirm"}
+"""The experiment presets: command -> module of ``strol_gym.benchmarks`` with
+``add_parser(sub, common)`` and ``cmd``. Imported when the parser is built, inside ``main``
+(they pull in scipy: seconds), so a Ctrl-C meanwhile is handled."""
+
+
+def _preset(name: str) -> types.ModuleType:
+    import importlib
+
+    return importlib.import_module(f"strol_gym.benchmarks.{PRESETS[name]}")
+
+
+def _preset_cmd(name: str):
+    def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+        return _preset(name).cmd(args, parser)
+
+    return cmd
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -261,8 +275,8 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_parser(sub, _learner_list, _plugin_option)
     interact.add_parser(sub, _plugin_option)
 
-    for preset in PRESETS.values():
-        preset.add_parser(sub, _COMMON)
+    for name in PRESETS:
+        _preset(name).add_parser(sub, _COMMON)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -418,7 +432,7 @@ COMMANDS = {
     "train": cmd_train,
     "list": cmd_list,
     "report": cmd_report,
-    **{name: preset.cmd for name, preset in PRESETS.items()},
+    **{name: _preset_cmd(name) for name in PRESETS},
 }
 
 
@@ -434,14 +448,19 @@ def _interrupted_at_start(signum: int, frame: Any) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``strol-bench`` console script."""
-    main_thread = threading.current_thread() is threading.main_thread()
-    if main_thread:
+    # Only where Ctrl-C would raise KeyboardInterrupt (not in another thread, nor where it is
+    # ignored, as for a background job)
+    watch = (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
+    if watch:
         signal.signal(signal.SIGINT, _interrupted_at_start)
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
     finally:  # from here on an interrupt is a KeyboardInterrupt: runs save what is finished
-        if main_thread:
+        if watch:
             signal.signal(signal.SIGINT, signal.default_int_handler)
     if getattr(args, "out", None) == "":  # would silently mean the default folder
         parser.error("--out must name a path, got an empty string")
