@@ -34,6 +34,7 @@ from strol_gym.benchmarks.config import BenchConfig, Unit
 from strol_gym.benchmarks.results import ResultsDir
 from strol_gym.wrappers.online_learning import cosine_error, episode_regret
 
+from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import make_learner
 from strol_gym.registry import install_specs
 
@@ -258,7 +259,17 @@ def _run_block(
     task = wrapped[0].unwrapped.task
     bound = np.asarray(task.robot_action_bound, dtype=np.float64)
     b = len(seeds)
-    obs = [w.reset(seed=int(s))[0] for w, s in zip(wrapped, seeds, strict=True)]
+
+    def failed(i: int, e: Exception) -> LearnerFailed:
+        where = f"in run seed {seeds[i]} ({env}, condition {cond})"
+        return LearnerFailed.of(str(runs[i][0]), where, e)
+
+    obs = []
+    for i, (w, s) in enumerate(zip(wrapped, seeds, strict=True)):
+        try:
+            obs.append(w.reset(seed=int(s))[0])
+        except Exception as e:  # a user's learner may raise anything: name it and the run
+            raise failed(i, e) from None
     x0 = [_state(o) for o in obs]
     thetas = [[np.array(w.learner.theta, dtype=np.float64)] for w in wrapped]
     alive = np.ones(b, dtype=bool)
@@ -275,7 +286,10 @@ def _run_block(
         u = policy(x, th)
         action = np.clip(u / bound, -1.0, 1.0).astype(np.float32)
         for j, i in enumerate(idx):
-            o, _, term, trunc, info = wrapped[i].step(action[j])
+            try:
+                o, _, term, trunc, info = wrapped[i].step(action[j])
+            except Exception as e:
+                raise failed(i, e) from None
             obs[i], last_info[i] = o, info
             n_steps[i] += 1
             thetas[i].append(np.array(wrapped[i].learner.theta, dtype=np.float64))
@@ -317,12 +331,33 @@ def _run_block(
 _WORKER: _Worker | None = None
 
 
-def _init_worker(config_dict: dict) -> None:
+def _init_worker(config_dict: dict, parent: int | None = None) -> None:
     global _WORKER
     # Ctrl-C is the parent's to handle: it stops the pool; finished units are already stored.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent)
     _limit_threads()
     _WORKER = _Worker(BenchConfig.from_dict(config_dict))
+
+
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int | None) -> None:
+    """Have the kernel kill this worker when the process that started it dies (Linux), even by
+    SIGKILL, so no orphan goes on computing and writing BrokenPipe tracebacks into the log."""
+    import ctypes
+    import sys
+
+    if sys.platform != "linux":
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+    if parent is not None and os.getppid() != parent:  # it died before prctl took effect
+        os._exit(1)
 
 
 def _work(unit: Unit) -> tuple[Unit, list[dict]]:
@@ -378,14 +413,35 @@ def _iter_results(
             worker.close()
         return
     ctx = mp.get_context("spawn")
-    with ctx.Pool(
-        min(jobs, len(units)), initializer=_init_worker, initargs=(config.to_dict(),)
-    ) as pool:
+    # The workers start with SIGINT ignored (a disposition exec keeps), so a Ctrl-C while they
+    # import reaches only this process, which stops the pool: no worker tracebacks.
+    with _sigint_ignored():
+        pool = ctx.Pool(
+            min(jobs, len(units)),
+            initializer=_init_worker,
+            initargs=(config.to_dict(), os.getpid()),
+        )
+    with pool:
         try:
             yield from pool.imap_unordered(_work, units)
         except BaseException:
             pool.terminate()
             raise
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the block runs (in the main thread; elsewhere it cannot be set)."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def default_jobs() -> int:
