@@ -97,6 +97,10 @@ def test_vector_env_rejects_bad_arguments():
         env.step(np.zeros((3, 3)))
     with pytest.raises(ValueError, match="finite"):
         env.step(np.full((2, 3), np.nan))
+    with pytest.raises(ValueError, match="real"):
+        env.step(np.full((2, 3), 1j))
+    with pytest.raises(ValueError, match="numbers"):
+        env.step([["a", "b", "c"]] * 2)
     env.close()
 
 

@@ -175,7 +175,12 @@ class VectorCorrectionEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, dict]:
         n, t = self.num_envs, self.task
-        actions = np.asarray(actions, dtype=np.float64)
+        if np.iscomplexobj(actions):  # float64 would drop the imaginary part silently
+            raise ValueError("actions must be real numbers")
+        try:
+            actions = np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"actions must be numbers, got {actions!r}") from None
         if actions.shape != (n, t.action_dim):
             raise ValueError(f"actions must have shape ({n}, {t.action_dim}), got {actions.shape}")
         if not self._started.all():
