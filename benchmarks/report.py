@@ -200,8 +200,12 @@ def pooled_tests(
 
 def pooled_lines(result: dict[str, Any]) -> list[str]:
     """Markdown bullets: the ANOVA, then each pair (Holm)."""
-    out = [f"- repeated-measures ANOVA over {', '.join(map(display, result['learners']))}: "
-           f"{result['anova'].line()}"]  # fmt: skip
+    an = result["anova"]
+    names = ", ".join(map(display, result["learners"]))
+    out = [
+        f"- repeated-measures ANOVA over {names}: {an.line()}; uncorrected "
+        f"F({an.df1:g}, {an.df2:g}), {stats.format_p(an.p)}"
+    ]
     for r in result["pairs"]:
         out.append(
             f"  - {display(r['a'])} − {display(r['b'])}: Δ = {_num(r['mean_diff'])}, paired t "

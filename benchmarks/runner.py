@@ -40,8 +40,9 @@ from strol_gym.registry import install_specs
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
-# shipped data, by data package and the suffixes setup.cfg installs.
-BENCHMARK_CODE = ("runner", "config", "conditions")
+# shipped data, by data package and the suffixes setup.cfg installs. ``study_authors`` computes
+# a recorded value (the authors'-way correction time), so it counts.
+BENCHMARK_CODE = ("runner", "config", "conditions", "study_authors")
 MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")
 DATA_FILES = {"strol_gym.assets": (".xml", ".npz"), "strol_gym.pretrained": (".pt", ".json")}
 
