@@ -142,7 +142,7 @@ def pooled_matrix(
     """(seeds, learners): each run seed's mean of ``key`` over every (env, condition) cell of
     ``envs`` it ran in, as the paper pools a participant over its Tasks (or a simulated human
     over the conditions). Listwise: a seed enters only with a finite value for every learner
-    in every one of its cells."""
+    in every cell, and only if it ran in as many cells as any seed did."""
     cells: dict[tuple[int, str, str], dict[str, float]] = {}
     for r in records:
         if r["env"] in envs and r["learner"] in learners:
@@ -156,7 +156,8 @@ def pooled_matrix(
         if not np.isfinite(row).all():
             bad.add(seed)
         per_seed.setdefault(seed, []).append(row)
-    seeds = sorted(s for s in per_seed if s not in bad)
+    full = max((len(v) for v in per_seed.values()), default=0)
+    seeds = sorted(s for s, v in per_seed.items() if s not in bad and len(v) == full)
     y = np.array([np.mean(per_seed[s], axis=0) for s in seeds], dtype=np.float64)
     return seeds, y.reshape(len(seeds), len(learners))
 

@@ -112,7 +112,8 @@ def test_pooled_matrix_averages_each_subject_over_the_tasks():
     assert seeds == [1, 2, 3]
     np.testing.assert_allclose(y, [[2, 11], [3, 21], [4, 31]])
     recs.append(_rec("t2", 4, "a", 1.0))  # seed 4 lacks b: left out (listwise)
-    recs.append(_rec("t1", 2, "a", math.nan, cond="d"))  # a NaN cell drops seed 2
+    recs += [_rec("t1", 5, lr, 1.0) for lr in "ab"]  # seed 5 lacks Task t2: left out
+    recs[0 * 6 + 1 * 2] = _rec("t1", 2, "a", math.nan)  # a NaN value drops seed 2
     seeds, _ = pooled_matrix(recs, ["t1", "t2"], ["a", "b"], "m")
     assert seeds == [1, 3]
 
