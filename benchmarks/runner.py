@@ -32,6 +32,7 @@ import numpy as np
 from strol_gym.benchmarks import study_authors
 from strol_gym.benchmarks.conditions import env_preset
 from strol_gym.benchmarks.config import BenchConfig, Unit
+from strol_gym.benchmarks.kernels import kernel_label
 from strol_gym.benchmarks.results import ResultsDir
 from strol_gym.wrappers.online_learning import cosine_error, episode_regret
 
@@ -190,6 +191,9 @@ class _Worker:
         ]
         out = _run_block(runs, exp.corrections, exp.env, exp.condition.name, policy)
         _score_regret(task, out)
+        label = kernel_label()  # this process's: a Ray worker's own CPU
+        for r in out:
+            r["kernels"] = label
         return out
 
 
