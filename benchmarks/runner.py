@@ -29,8 +29,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from strol_gym.benchmarks import study_authors
 from strol_gym.benchmarks.conditions import env_preset
 from strol_gym.benchmarks.config import BenchConfig, Unit
+from strol_gym.benchmarks.kernels import kernel_label
 from strol_gym.benchmarks.results import ResultsDir
 from strol_gym.wrappers.online_learning import cosine_error, episode_regret
 
@@ -40,8 +42,9 @@ from strol_gym.registry import install_specs
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
-# shipped data, by data package and the suffixes setup.cfg installs.
-BENCHMARK_CODE = ("runner", "config", "conditions")
+# shipped data, by data package and the suffixes setup.cfg installs. ``study_authors`` computes
+# a recorded value (the authors'-way correction time), so it counts.
+BENCHMARK_CODE = ("runner", "config", "conditions", "study_authors")
 MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")
 DATA_FILES = {"strol_gym.assets": (".xml", ".npz"), "strol_gym.pretrained": (".pt", ".json")}
 
@@ -188,6 +191,9 @@ class _Worker:
         ]
         out = _run_block(runs, exp.corrections, exp.env, exp.condition.name, policy)
         _score_regret(task, out)
+        label = kernel_label()  # this process's: a Ray worker's own CPU
+        for r in out:
+            r["kernels"] = label
         return out
 
 
@@ -226,6 +232,12 @@ def _zero_policy(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
 INFO_METRICS = ("correction_time", "corrections")
 """Per-episode totals an env may report in its last ``info`` (the study env does); copied into
 the record when present."""
+CORRECTION_METRICS: dict[str, Callable[[dict], float]] = {
+    "correction_time_authors": study_authors.correction_time,
+}
+"""Per-correction values summed over an episode, from the ``correction_record`` an env puts in
+``info`` when a correction ends (the study env does); recorded for envs that report
+``correction_time``."""
 
 
 def _state(obs: Any) -> np.ndarray:
@@ -275,6 +287,7 @@ def _run_block(
     alive = np.ones(b, dtype=bool)
     last_info: list[dict] = [{} for _ in range(b)]
     first_corr: list[Any] = [None] * b
+    per_corr = [dict.fromkeys(CORRECTION_METRICS, 0.0) for _ in range(b)]
     terminated = np.zeros(b, dtype=bool)
     n_steps = np.zeros(b, dtype=int)
     for _ in range(steps):
@@ -295,6 +308,9 @@ def _run_block(
             thetas[i].append(np.array(wrapped[i].learner.theta, dtype=np.float64))
             if first_corr[i] is None and info.get("is_correction", False):
                 first_corr[i] = np.asarray(info["correction"], dtype=np.float64).tolist()
+            if "correction_record" in info:
+                for name, fn in CORRECTION_METRICS.items():
+                    per_corr[i][name] += fn(info["correction_record"])
             if term or trunc:
                 alive[i] = False
                 terminated[i] = bool(term)
@@ -323,6 +339,7 @@ def _run_block(
                 "first_correction": first_corr[i],
             }
             | {k: float(info[k]) for k in INFO_METRICS if k in info}
+            | (per_corr[i] if "correction_time" in info else {})
         )
     return records
 
