@@ -40,7 +40,7 @@ from strol_gym.envs.study_user import SimulatedUser, angle_delta
 from strol_gym.humans import check_fraction
 from strol_gym.tasks.study import StudyTask
 
-THRESHOLD = 0.5
+THRESHOLD = 0.4
 """Default acceptance threshold on the motion's score (calibrated, docs/study.md)."""
 
 
