@@ -77,9 +77,11 @@ def test_reaction_time_delays_the_first_push():
 
 
 def test_an_impatient_participant_gives_up_on_a_robot_that_never_learns():
-    # No learner: θ̂ never moves, so no push improves what it sees.
-    env = gym.make("StROL-Study-v1", task=1, user_kwargs={"patience": 1}).unwrapped
+    # No learner, and θ̂ = −θ*: the robot does the opposite of what the participant wants and
+    # no push changes θ̂, so no push improves what it sees.
+    env = gym.make("StROL-Study-v1", task=1, user_kwargs={"patience": 2}).unwrapped
     env.reset(seed=SEED)
+    env.theta_hat = -env.theta_star
     infos = run(env, 1200)
     assert env.human.gave_up
     last = max(k for k, i in enumerate(infos) if i["correction_active"])

@@ -12,16 +12,19 @@ taper, release, rest), but decides differently:
   the best gain of a move of the same size from x_then (over the candidate directions below).
   1 = the best it could imagine, 0 = useless, < 0 = the wrong way. It accepts the motion if
   the score is at least its threshold: ``threshold`` plus N(0, ``threshold_noise``²) drawn
-  per judgment. A cup at rest is not judged (the robot returns home and plays its plan again).
+  per judgment. A cup at rest is not judged, nor one heading back to where the trial began
+  (the robot returns home and plays its plan again, as participants are told).
 - **Reaction time.** It starts pushing ``reaction`` s after it rejected the motion, from the
   pose it sees then.
 - **Where it pushes (θ*-greedy).** Over candidate displacements of the pose it sees, each axis
-  in {−1, 0, 1} × a_max (position; and roll, pitch for Tasks 2-3: yaw does not matter to it),
+  in {−1, 0, 1} × ``step`` × a_max (``step`` 0.5: position; and roll, pitch for Tasks 2-3: yaw
+  does not matter to it; it pushes with up to 60 N, so the target is within reach),
   it takes the one with the best θ*·φ(x + d), then adds its hand's noise: N(0, σ²) and the bias
   ε per axis, as fractions of a_max (the env's ``sigma`` and ``bias``, the training human's).
-- **Patience.** After each push it keeps the best score it has seen since; if ``patience``
-  pushes in a row bring no better score (by ``improvement``), it gives up and pushes no more
-  this episode (``gave_up``), as some of the paper's participants did.
+- **Patience.** After each push it compares the next motion it judges with the one it
+  pushed against; if ``patience`` pushes in a row bring no better score (by ``improvement``),
+  it gives up and pushes no more this episode (``gave_up``), as some of the paper's
+  participants did.
 
 Its randomness (threshold noise, hand noise) is drawn from the generator it is given.
 Calibration of ``threshold`` on seeds outside the study's: ``docs/study.md``.
@@ -64,15 +67,17 @@ class Participant(SimulatedUser):
         min_motion: float = 0.2,
         reaction: float = 0.4,
         patience: int = 3,
-        improvement: float = 0.05,
+        improvement: float = 0.25,
         model: Any = None,
         beta: float = 50.0,
         human_kwargs: dict[str, Any] | None = None,
         satisfied_regret: float | None = None,
+        step: float = 0.5,
+        push_force: float = 60.0,
         **push: Any,
     ) -> None:
         del model, beta, human_kwargs, satisfied_regret  # v0's user takes them; it uses none
-        super().__init__(task, theta_star, rng, **push)
+        super().__init__(task, theta_star, rng, push_force=push_force, **push)
         self.task = task
         self._theta_star = np.asarray(theta_star, dtype=np.float64).copy()
         self.rng = rng
@@ -84,6 +89,7 @@ class Participant(SimulatedUser):
             ("min_motion", min_motion, 1e-9),
             ("reaction", reaction, 0.0),
             ("improvement", improvement, 0.0),
+            ("step", step, 1e-9),
         ):
             v = float(value)
             if not (math.isfinite(v) and v >= low):
@@ -101,12 +107,13 @@ class Participant(SimulatedUser):
         grid = grid[np.any(grid != 0.0, axis=1)]
         full = np.zeros((len(grid), task.action_dim))
         full[:, :axes] = grid
-        self._candidates = full * a_max
+        self._candidates = full * a_max * self.step
         self._unit = full / np.linalg.norm(full, axis=1, keepdims=True)  # in a_max units
         self._a_max = a_max
         self._seen: collections.deque[tuple[float, np.ndarray]] = collections.deque()
+        self._home: np.ndarray | None = None
         self._push_at: float | None = None
-        self._best = -math.inf
+        self._rejected = -math.inf
         self._since_better = 0
         self._pending_score: float | None = None
         self.gave_up = False
@@ -154,6 +161,8 @@ class Participant(SimulatedUser):
     ) -> tuple[np.ndarray, np.ndarray]:
         """(force N, torque N m) at time ``t`` with the cup at pose ``x`` (θ̂ is not used)."""
         del theta_hat
+        if self._home is None:
+            self._home = np.array(x, dtype=np.float64)  # where the robot starts each trial
         self._seen.append((t, np.array(x, dtype=np.float64)))
         while len(self._seen) > 1 and self._seen[1][0] <= t - self.window + 1e-9:
             self._seen.popleft()
@@ -175,30 +184,39 @@ class Participant(SimulatedUser):
         t0, x0 = self._seen[0]
         if t - t0 < self.window - 1e-9:
             return None
+        if self._returning(x0, x):
+            return None
         s = self.score(x0, x)
         if s is None:
             return None
         self.judgments += 1
-        if self._pending_score is None:  # the first judgment since its last push
-            self._pending_score = s
-            if s > self._best + self.improvement:
-                self._best, self._since_better = s, 0
-            elif self._best > -math.inf:
+        if self._pending_score is not None:  # the first judgment since its last push
+            if s > self._pending_score + self.improvement:
+                self._since_better = 0
+            else:
                 self._since_better += 1
                 if self._since_better >= self.patience:
                     self.gave_up = True
                     return None
-            else:
-                self._best = s
+            self._pending_score = None
         accept = s >= self.threshold + self.threshold_noise * self.rng.normal()
         if accept:
             return None
         self.rejections += 1
+        self._rejected = s
         self._push_at = t + self.reaction
         if self.reaction <= 0.0:
             return self._decide(t, x, None)
         return None
 
+    def _returning(self, x_then: np.ndarray, x_now: np.ndarray) -> bool:
+        """Whether the cup is heading back to where the trial started (the robot resets
+        between trials, as the participant was told): not the behaviour it is judging."""
+        assert self._home is not None
+        step, back = x_now[:3] - x_then[:3], self._home[:3] - x_then[:3]
+        n_s, n_b = float(np.linalg.norm(step)), float(np.linalg.norm(back))
+        return n_s > 0.0 and n_b > 0.0 and float(step @ back) > 0.9 * n_s * n_b
+
     def _released(self, t: float, x: np.ndarray) -> None:
-        self._pending_score = None
+        self._pending_score = self._rejected  # what the push was meant to improve
         self._seen.clear()  # judge the robot's motion after the push, not the push itself
