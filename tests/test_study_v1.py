@@ -209,3 +209,23 @@ def test_v0_is_deprecated_on_make_and_v1_is_not():
         warnings.simplefilter("always")
         gym.make(ENV_ID, human=None).close()
     assert not any("out of date" in str(w.message) for w in caught)
+
+
+def test_u_h_is_measured_from_the_cup_where_the_setpoint_is_out_of_reach():
+    # Seed 20000's θ̂0 plans beyond the elbow's reach on Task 1: 3.5 s in, the cup trails its
+    # setpoint by centimetres; the arm would rest where it is, not at the setpoint.
+    env = make(task=1)
+    env.reset(seed=20000)
+    infos = steps(env, 70)
+    assert infos[-1]["lag"] > 0.01
+    zero = np.zeros(3, dtype=np.float32)
+    env.apply_wrench((0.0, 0.0, 30.0), duration=1.0)
+    seen = [env._x.copy()]
+    for _ in range(30):
+        obs, _, _, _, info = env.step(zero)
+        if info["is_correction"]:
+            break
+        seen.append(obs["state"])
+    assert info["is_correction"]
+    assert np.linalg.norm(info["correction_state"] - info["setpoint"]) > 0.01
+    assert np.allclose(info["correction_state"], seen[0], atol=1e-5)

@@ -9,7 +9,9 @@ What changes from v0 (``strol_gym.envs.study``), and why (measurements in ``docs
 - **u_H is measured against the rest pose.** While a correction lasts the setpoint is held; the
   held arm would rest there. u_H = the cup's pose when the push ends minus the held setpoint
   (``info["correction_state"]`` is that setpoint), so whatever the arm was still doing on its
-  own (catching up, stopping) is not read as the person's push.
+  own (catching up, stopping) is not read as the person's push. Where the setpoint is out of
+  reach (the cup more than 1 cm from it when the push begins: a stretched elbow, a joint
+  limit, a contact) the arm would rest where it is, and u_H is measured from the cup's pose.
 - **The Panda's datasheet limits.** Joint torques are clipped to 87 N m (joints 1-4) and
   12 N m (5-7) by the actuators' control range; joint speeds are held at 2.175 rad/s (1-4) and
   2.61 rad/s (5-7) after every physics step once any joint passes half its limit.
@@ -47,6 +49,8 @@ INTEGRAL_MAX = (8.0, 0.8)
 """Bounds of the integral wrench per axis (N, N m): it can cancel a few newtons of unmodelled
 force (joint friction, the elbow's pull), never fight a person."""
 K_NULL, D_NULL = 0.5, 0.5
+REST_TRUST = 0.01
+"""m: beyond this lag at a correction's start, u_H is measured from the cup's pose (v0's way)."""
 MODEL_EVERY = 4
 """Control steps between refreshes of Λ, D and the null-space projector (0.2 s)."""
 _ZERO6 = [0.0] * 6
@@ -190,6 +194,11 @@ class StudyEnvV1(StudyEnv):
         self._replan()
 
     def _correction_start(self) -> np.ndarray:
+        """Where the held arm would rest: its setpoint, unless the cup is more than
+        ``REST_TRUST`` from it (a setpoint beyond reach or behind an obstacle, where the arm
+        rests short of it): then the cup's pose, as in v0."""
+        if math.dist(self._sp[:3].tolist(), self._x[:3].tolist()) > REST_TRUST:
+            return self._x.copy()
         return self._sp.copy()
 
     # ------------------------------------------------------------------ physics
