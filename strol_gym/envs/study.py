@@ -125,7 +125,10 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Version History
 
-    - v0: initial version.
+    - v1 (``strol_gym.envs.study_v1``): u_H is measured from the held setpoint, tracking that
+      makes the arm's catch-up negligible, the Panda's joint limits, a force reflex, and a
+      participant who judges what it sees. Use it.
+    - v0: initial version; kept unchanged for the published results (deprecated).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
