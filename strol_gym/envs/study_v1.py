@@ -70,7 +70,8 @@ class StudyEnvV1(StudyEnv):
     simulated person when ``human`` is not None), ``reflex_force`` (N, > 0, default 100),
     ``reflex_torque`` (N m, > 0, default 10), ``reflex_recover`` (s, > 0, default 0.5).
     Extra ``info``: ``reflex`` (the reflex tripped this step), ``braked``, ``reflexes`` (count
-    this episode), ``lag`` (the cup's distance to its setpoint, m). ``pause(seconds)`` holds
+    this episode), ``lag`` (the cup's distance to its setpoint, m), ``gave_up`` (1.0 once the
+    participant has given up, else 0.0). ``pause(seconds)`` holds
     the setpoint where it is.
 
     ## Version History
@@ -155,6 +156,7 @@ class StudyEnvV1(StudyEnv):
             braked=self._braked,
             reflexes=self._n_reflex,
             lag=math.dist(self._sp[:3].tolist(), self._x[:3].tolist()),
+            gave_up=float(getattr(self.human, "gave_up", False)),
         )
         return obs, reward, term, trunc, info
 
