@@ -229,3 +229,25 @@ def test_u_h_is_measured_from_the_cup_where_the_setpoint_is_out_of_reach():
     assert info["is_correction"]
     assert np.linalg.norm(info["correction_state"] - info["setpoint"]) > 0.01
     assert np.allclose(info["correction_state"], seen[0], atol=1e-5)
+
+
+@pytest.mark.parametrize("task", [1, 2])
+def test_gymnasium_check_env_and_pickle(task):
+    import pickle
+
+    from env_checks import unexpected
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(ENV_ID, task=task, max_episode_steps=20)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=True)
+    assert unexpected(caught) == []
+    a = make(task=task, human="nominal", sigma=0.25)  # with the participant
+    a.reset(seed=SEED)
+    steps(a, 30)
+    b = pickle.loads(pickle.dumps(a))
+    zero = np.zeros(a.action_space.shape, dtype=np.float32)
+    for _ in range(20):
+        oa, ob = a.step(zero)[0], b.step(zero)[0]
+        assert all(np.array_equal(oa[k], ob[k]) for k in oa)
