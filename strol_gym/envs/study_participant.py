@@ -18,7 +18,8 @@ taper, release, rest), but decides differently:
   pose it sees then.
 - **Where it pushes (θ*-greedy).** Over candidate displacements of the pose it sees, each axis
   in {−1, 0, 1} × ``step`` × a_max (``step`` 0.5: position; and roll, pitch for Tasks 2-3: yaw
-  does not matter to it; it pushes with up to 60 N, so the target is within reach),
+  does not matter to it; it pushes with up to 60 N and 8 N m, below the reflex, so the target
+  is within reach),
   it takes the one with the best θ*·φ(x + d), then adds its hand's noise: N(0, σ²) and the bias
   ε per axis, as fractions of a_max (the env's ``sigma`` and ``bias``, the training human's).
 - **Patience.** After each push it compares the next motion it judges with the one it
@@ -74,10 +75,13 @@ class Participant(SimulatedUser):
         satisfied_regret: float | None = None,
         step: float = 0.5,
         push_force: float = 60.0,
+        push_torque: float = 8.0,
         **push: Any,
     ) -> None:
         del model, beta, human_kwargs, satisfied_regret  # v0's user takes them; it uses none
-        super().__init__(task, theta_star, rng, push_force=push_force, **push)
+        super().__init__(
+            task, theta_star, rng, push_force=push_force, push_torque=push_torque, **push
+        )
         self.task = task
         self._theta_star = np.asarray(theta_star, dtype=np.float64).copy()
         self.rng = rng
