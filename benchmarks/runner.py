@@ -229,7 +229,7 @@ def _zero_policy(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return np.zeros_like(x)
 
 
-INFO_METRICS = ("correction_time", "corrections")
+INFO_METRICS = ("correction_time", "corrections", "gave_up")
 """Per-episode totals an env may report in its last ``info`` (the study env does); copied into
 the record when present."""
 CORRECTION_METRICS: dict[str, Callable[[dict], float]] = {
