@@ -14,11 +14,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.session_log import Session, read_session
+from strol_gym.benchmarks.session_log import Session, read_session, session_task
 from strol_gym.wrappers.online_learning import cosine_error
 
 from strol_gym.learners.registry import display_name, make_learner
-from strol_gym.tasks import make_task
 
 
 def replay_session(
@@ -26,12 +25,7 @@ def replay_session(
 ) -> dict[str, list[np.ndarray]]:
     """θ̂ after 0, 1, ..., n corrections of each episode, concatenated over episodes, per learner
     (a list of (n_e + 1, d) arrays, one per episode)."""
-    task = make_task(session.header["task"])
-    if len(task.feature_names) != len(session.header["task_describe"]["feature_names"]):
-        raise ValueError(
-            f"{session.path}: task {session.header['task']!r} has {task.dim} features, the log "
-            f"{len(session.header['task_describe']['feature_names'])}"
-        )
+    task = session_task(session)
     out: dict[str, list[np.ndarray]] = {}
     for name in learners:
         learner = make_learner(name, task=task, **(learner_kwargs or {}).get(name, {}))

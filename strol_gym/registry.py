@@ -22,8 +22,10 @@ __all__ = [
     "Registry",
     "import_spec",
     "install_specs",
+    "plugin_modules",
     "registries",
     "resolve",
+    "resolve_logged",
     "spec_of",
     "user_specs",
 ]
@@ -227,6 +229,48 @@ def install_specs(specs: dict[str, dict[str, Any]]) -> None:
                 reg.register(name, spec if reg.decode is None else reg.decode(spec))
 
 
+_PLUGIN_MODULES: set[str] = set()
+"""Modules the user made available (``--plugin``, or an installed ``strol_gym.plugins`` entry
+point): the only ones whose ``module:attr`` data written by someone else may name."""
+
+
+def plugin_modules() -> frozenset[str]:
+    """The modules imported as plugins in this process."""
+    return frozenset(_PLUGIN_MODULES)
+
+
+def resolve_logged(kind: str, spec: Any) -> Any:
+    """The piece a file written elsewhere (a session log, a dataset) names, without importing.
+
+    Such a file may name a registered piece, or a ``module:attr`` inside a module the user made
+    available with ``--plugin``; anything else is refused, so reading data never runs code.
+    """
+    if not isinstance(spec, str) or not spec:
+        raise ValueError(f"the {kind} must be a registered name, got {spec!r}")
+    reg = registries()[kind]
+    if spec in reg:
+        return reg.get(spec)
+    module, sep, attr = spec.partition(":")
+    if not sep:
+        raise ValueError(
+            f"unknown {kind} {spec!r}; known {kind}s: {', '.join(reg.names())} "
+            "(a plugin that registers it is loaded with --plugin)"
+        )
+    trusted = any(module == m or module.startswith(m + ".") for m in _PLUGIN_MODULES)
+    if not trusted or module not in sys.modules:
+        raise ValueError(
+            f"{kind} {spec!r} is not a registered name, and data may not import code; if you "
+            f"trust module {module!r}, make it available with --plugin {module}"
+        )
+    obj: Any = sys.modules[module]
+    try:
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except AttributeError:
+        raise ValueError(f"{kind} {spec!r}: module {module!r} has no {attr!r}") from None
+    return obj
+
+
 def import_plugin(spec: str) -> None:
     """Import a module of user pieces (which registers them): a module name, or a ``.py`` file
     whose folder then joins ``sys.path`` (so worker processes import it by the same name)."""
@@ -246,3 +290,4 @@ def import_plugin(spec: str) -> None:
         raise ValueError(f"plugin {spec!r} called sys.exit({e.code}) on import") from e
     except Exception as e:  # a user module may raise anything on import
         raise ValueError(f"plugin {spec!r} failed to import: {type(e).__name__}: {e}") from e
+    _PLUGIN_MODULES.add(spec)
