@@ -418,8 +418,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        from strol_gym.registry import import_plugin
+        from strol_gym.registry import import_plugin, load_installed_plugins
 
+        load_installed_plugins()  # installed packages' strol_gym.plugins entry points
         for plugin in getattr(args, "plugin", None) or ():
             import_plugin(plugin)
         return COMMANDS[args.command](args, parser)

@@ -37,24 +37,10 @@ import numpy as np
 from strol_gym.benchmarks.results import package_versions
 
 from strol_gym.registry import spec_of
-from strol_gym.tasks import TASKS, Task
+from strol_gym.tasks import Task, task_name
 from strol_gym.tasks.base import _jsonable
 
 FORMAT, VERSION = "strol-session", 1
-
-
-def task_name(task: Task) -> str:
-    """The registry name of ``task``'s class, else its "module:attr" (what replay rebuilds)."""
-    for name in TASKS.names():
-        try:
-            if TASKS.get(name) is type(task):
-                return name
-        except ValueError:
-            continue
-    spec = spec_of(type(task))
-    if spec is None:
-        raise ValueError(f"task {type(task).__name__} has no registry name or module:attr")
-    return spec
 
 
 def _json(value: Any) -> Any:

@@ -22,6 +22,8 @@ __all__ = [
     "Registry",
     "import_spec",
     "install_specs",
+    "load_installed_plugins",
+    "plugin_argument",
     "plugin_modules",
     "registries",
     "resolve",
@@ -155,6 +157,8 @@ class Registry:
         """The piece for a registered name or a ``"module:attr"``; ValueError listing names."""
         if not isinstance(spec, str):
             raise ValueError(f"{self.kind} must be a name or 'module:attr', got {spec!r}")
+        if spec not in self.table and ":" not in spec and load_installed_plugins():
+            return self.get(spec)  # an installed plugin may have registered it
         if spec in self.table:
             entry = self.table[spec]
             return import_spec(entry, self.kind) if isinstance(entry, str) else entry
@@ -229,9 +233,49 @@ def install_specs(specs: dict[str, dict[str, Any]]) -> None:
                 reg.register(name, spec if reg.decode is None else reg.decode(spec))
 
 
-_PLUGIN_MODULES: set[str] = set()
-"""Modules the user made available (``--plugin``, or an installed ``strol_gym.plugins`` entry
-point): the only ones whose ``module:attr`` data written by someone else may name."""
+PLUGIN_GROUP = "strol_gym.plugins"
+"""The entry-point group of installed plugins: a package that declares
+``[options.entry_points] strol_gym.plugins = mine = my_package.pieces`` is imported by
+``strol-bench`` (and on the first unknown name) without ``--plugin``."""
+
+_PLUGIN_MODULES: dict[str, str] = {}
+"""Modules the user made available -> the ``--plugin`` argument that loads them again ("" for an
+installed entry point, which needs none): the only modules whose ``module:attr`` data written by
+someone else may name."""
+_INSTALLED_LOADED = False
+
+
+def load_installed_plugins() -> list[str]:
+    """Import every installed ``strol_gym.plugins`` entry point once (they register their
+    pieces); the modules imported. A plugin that fails to import is a ValueError naming it."""
+    global _INSTALLED_LOADED
+    if _INSTALLED_LOADED:
+        return []
+    _INSTALLED_LOADED = True
+    from importlib.metadata import entry_points
+
+    loaded = []
+    for ep in entry_points(group=PLUGIN_GROUP):
+        try:
+            importlib.import_module(ep.module)
+        except (Exception, SystemExit) as e:  # a user package may raise anything on import
+            raise ValueError(
+                f"installed plugin {ep.name!r} ({ep.value}, entry point group {PLUGIN_GROUP!r}) "
+                f"failed to import: {type(e).__name__}: {e}"
+            ) from e
+        _PLUGIN_MODULES.setdefault(ep.module, "")
+        loaded.append(ep.module)
+    return loaded
+
+
+def plugin_argument(obj: Any) -> str | None:
+    """The ``--plugin`` argument that makes ``obj`` (a class or function of a plugin) available
+    in a new process; None for strol-gym's own pieces and those of installed plugins."""
+    module = getattr(obj, "__module__", None) or ""
+    for name, how in _PLUGIN_MODULES.items():
+        if module == name or module.startswith(name + "."):
+            return how or None
+    return None
 
 
 def plugin_modules() -> frozenset[str]:
@@ -277,9 +321,11 @@ def import_plugin(spec: str) -> None:
     from pathlib import Path
 
     path = Path(spec)
+    how = spec
     if spec.endswith(".py"):
         if not path.is_file():
             raise ValueError(f"plugin {spec!r}: no such file")
+        how = str(path.resolve())
         folder = str(path.resolve().parent)
         if folder not in sys.path:
             sys.path.insert(0, folder)
@@ -290,4 +336,4 @@ def import_plugin(spec: str) -> None:
         raise ValueError(f"plugin {spec!r} called sys.exit({e.code}) on import") from e
     except Exception as e:  # a user module may raise anything on import
         raise ValueError(f"plugin {spec!r} failed to import: {type(e).__name__}: {e}") from e
-    _PLUGIN_MODULES.add(spec)
+    _PLUGIN_MODULES[spec] = how
