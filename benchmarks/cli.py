@@ -248,9 +248,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
     _plugin_option(p)
 
-    from strol_gym.benchmarks import interact, replay
+    from strol_gym.benchmarks import export, interact, replay
 
     replay.add_parser(sub, _learner_list, _plugin_option)
+    export.add_parser(sub, _plugin_option)
     interact.add_parser(sub, _plugin_option)
 
     for preset in PRESETS.values():
@@ -388,6 +389,12 @@ def cmd_replay(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
     return command(args, parser)
 
 
+def cmd_export(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.export import command
+
+    return command(args, parser)
+
+
 def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.interact import command
 
@@ -405,6 +412,7 @@ COMMANDS = {
     "study": cmd_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
+    "export": cmd_export,
     "run": cmd_run,
     "train": cmd_train,
     "list": cmd_list,

@@ -14,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.session_log import Session, read_session, session_task
+from strol_gym.benchmarks.export import read_any
+from strol_gym.benchmarks.session_log import Session, session_task
 from strol_gym.wrappers.online_learning import cosine_error
 
 from strol_gym.learners.registry import display_name, make_learner
@@ -116,7 +117,7 @@ def run_replay(
     plots: bool = True,
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """Replay ``log`` through ``learners``; print the table; write CSV (+ PNG) into ``out``."""
-    session = read_session(log)
+    session = read_any(log)
     results = replay_session(session, learners, learner_kwargs)
     rows = summary_rows(session, results)
     folder = (
@@ -158,7 +159,7 @@ def add_parser(sub: Any, learner_list: Any, plugin_option: Any) -> None:
         "SessionLogger) through learners: each starts at the logged θ̂0 and updates on the "
         "logged (x, u_H, u_R). Prints final θ̂, error to the logged θ* and 1 − cos.",
     )
-    p.add_argument("log", help="a session log (.jsonl)")
+    p.add_argument("log", help="a session log (.jsonl), or a Minari dataset (strol-bench export)")
     p.add_argument(
         "--learners",
         type=learner_list,
