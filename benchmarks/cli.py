@@ -251,7 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
     from strol_gym.benchmarks import export, interact, replay
 
     replay.add_parser(sub, _learner_list, _plugin_option)
-    export.add_parser(sub, _plugin_option)
+    export.add_parser(sub, _plugin_option, _positive_int)
     interact.add_parser(sub, _plugin_option)
 
     for preset in PRESETS.values():

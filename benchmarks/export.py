@@ -199,27 +199,117 @@ def read_any(source: str | Path) -> Session:
     return read_dataset(str(source))
 
 
-__all__ = ["export_session", "read_any", "read_dataset"]
+def export_runs(
+    dataset_id: str,
+    env: str,
+    learner: str,
+    condition: str = "training",
+    runs: int = 10,
+    seed: int = 0,
+    corrections: int | None = None,
+    task: str | None = None,
+    learner_kwargs: dict[str, Any] | None = None,
+) -> Any:
+    """Benchmark runs as Minari dataset ``dataset_id``: ``learner`` on env preset ``env`` under
+    ``condition``, run seeds ``seed … seed + runs − 1`` as ``strol-bench run`` plays them (same
+    env kwargs, robot policy and step count), each episode logged and then exported."""
+    import tempfile
+
+    import gymnasium as gym
+    from strol_gym.benchmarks.conditions import env_preset, make_condition
+    from strol_gym.benchmarks.config import Experiment
+    from strol_gym.benchmarks.runner import _MemoPolicy, _run_block, _zero_policy
+    from strol_gym.benchmarks.session_log import SessionLogger
+    from strol_gym.wrappers import OnlineLearningWrapper
+
+    from strol_gym.learners.registry import make_learner
+
+    _minari()  # before any work
+    exp = Experiment(
+        env,
+        make_condition(env, condition),
+        runs=runs,
+        seed=seed,
+        n_corrections=corrections,
+        task=task,
+    )
+    genv = gym.make(exp.env_id, **exp.env_kwargs())
+    model = make_learner(learner, task=genv.unwrapped.task, **(learner_kwargs or {}))
+    policy = _MemoPolicy(genv.unwrapped.task) if env_preset(env).robot == "task" else _zero_policy
+    extra = {
+        "benchmark": {
+            "env": env,
+            "condition": exp.condition.to_dict(),
+            "seeds": [seed, seed + runs - 1],
+        }
+    }
+    with tempfile.TemporaryDirectory() as folder:
+        logged = SessionLogger(
+            OnlineLearningWrapper(genv, model, regret=False), Path(folder) / "runs.jsonl", extra
+        )
+        try:
+            for run_seed in exp.seeds:
+                _run_block([(learner, run_seed, logged)], exp.corrections, env, condition, policy)
+        finally:
+            logged.close()
+        return export_session(Path(folder) / "runs.jsonl", dataset_id)
+
+
+__all__ = ["export_runs", "export_session", "read_any", "read_dataset"]
 
 
 # ---------------------------------------------------------------------- CLI (strol-bench export)
-def add_parser(sub: Any, plugin_option: Any) -> None:
+def add_parser(sub: Any, plugin_option: Any, positive_int: Any) -> None:
     p = sub.add_parser(
         "export",
-        help="write a session log as a Minari dataset (the [data] extra)",
-        description="Write a session log (strol-bench interact, or any SessionLogger) as a "
-        "Minari dataset: one step per correction, float32 observations (state, correction, "
-        "θ̂), u_R as the action, exact float64 x, u_H, u_R, θ̂ and θ* in the infos. Datasets "
-        "go under MINARI_DATASETS_PATH (default ~/.minari/datasets); strol-bench replay reads "
-        "them back.",
+        help="write a session log, or benchmark runs, as a Minari dataset (the [data] extra)",
+        description="Write a session log (--log: strol-bench interact, or any SessionLogger) or "
+        "benchmark runs (--env, --learner, --condition, --runs, --seed: episodes played as "
+        "strol-bench run plays them) as a Minari dataset: one step per correction, float32 "
+        "observations (state, correction, θ̂), u_R as the action, exact float64 x, u_H, u_R, θ̂ "
+        "and θ* in the infos. Datasets go under MINARI_DATASETS_PATH (default "
+        "~/.minari/datasets); strol-bench replay reads them back.",
     )
-    p.add_argument("log", help="a session log (.jsonl)")
     p.add_argument("dataset_id", help="Minari dataset id, e.g. strol/study-task1-strol-v0")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--log", help="a session log (.jsonl)")
+    what.add_argument("--env", help="benchmark runs on this env preset (strol-bench list)")
+    p.add_argument("--learner", default="strol", help="with --env: the learner (default strol)")
+    p.add_argument("--condition", default="training", help="with --env: a condition (training)")
+    p.add_argument("--runs", type=positive_int("--runs", 10_000), default=10, help="with --env")
+    p.add_argument("--seed", type=positive_int("--seed", low=0), default=0, help="first run seed")
+    p.add_argument("--corrections", type=positive_int("--corrections"), default=None)
+    p.add_argument("--task", default=None, help="with --env: a Task name (default: the env's)")
+    p.add_argument("--learner-kwargs", default=None, help="with --env: JSON, e.g. '{\"lam\": 0.5}'")
     plugin_option(p)
 
 
 def command(args: Any, parser: Any) -> int:
-    dataset = export_session(args.log, args.dataset_id)
+    if args.log is not None:
+        dataset = export_session(args.log, args.dataset_id)
+    else:
+        kwargs = {}
+        if args.learner_kwargs:
+            try:
+                kwargs = json.loads(args.learner_kwargs)
+            except (ValueError, RecursionError) as e:
+                parser.error(f"--learner-kwargs must be a JSON object ({e})")
+            if not isinstance(kwargs, dict):
+                parser.error("--learner-kwargs must be a JSON object: the learner's kwargs")
+        from strol_gym.benchmarks.cli import check_learner_names
+
+        check_learner_names([args.learner])
+        dataset = export_runs(
+            args.dataset_id,
+            args.env,
+            args.learner,
+            args.condition,
+            args.runs,
+            args.seed,
+            args.corrections,
+            args.task,
+            kwargs,
+        )
     print(
         f"wrote Minari dataset {args.dataset_id}: {dataset.total_episodes} episode(s), "
         f"{dataset.total_steps} correction(s), in {Path(dataset.storage.data_path).parent}"

@@ -128,6 +128,11 @@ class SessionLogger(gym.Wrapper):
         self._index = 0
         self._steps = 0
 
+    @property
+    def learner(self) -> Any:
+        """The wrapped OnlineLearningWrapper's learner (what the benchmark's loop reads)."""
+        return self._learning.learner
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
         self._x = np.asarray(obs["state"], dtype=np.float64).copy()

@@ -49,7 +49,7 @@ def log(tmp_path, monkeypatch):
 
 
 def test_session_round_trips_through_minari(log, tmp_path, capsys):
-    assert cli(["export", str(log), DATASET]) == 0
+    assert cli(["export", DATASET, "--log", str(log)]) == 0
     assert str(tmp_path / "minari") in capsys.readouterr().out
     session = read_session(log)
     dataset = minari.load_dataset(DATASET)
@@ -78,13 +78,13 @@ def test_session_round_trips_through_minari(log, tmp_path, capsys):
     out = tmp_path / "replayed"
     assert cli(["replay", DATASET, "--learners", "strol", "--no-plots", "--out", str(out)]) == 0
     assert (out / "replay.csv").is_file()
-    assert cli(["export", str(log), DATASET]) == 2  # never overwrites a dataset
+    assert cli(["export", DATASET, "--log", str(log)]) == 2  # never overwrites a dataset
     assert "already exists" in capsys.readouterr().err
 
 
 def test_dataset_header_is_checked_like_a_log(log, capsys):
     """A dataset whose header names code is refused as a log would be."""
-    assert cli(["export", str(log), DATASET]) == 0
+    assert cli(["export", DATASET, "--log", str(log)]) == 0
     dataset = minari.load_dataset(DATASET)
     header = json.loads(dataset.storage.metadata["strol_session_header"])
     dataset.storage.update_metadata(
@@ -95,3 +95,22 @@ def test_dataset_header_is_checked_like_a_log(log, capsys):
     assert "os:abort" in err and "--plugin os" in err
     assert cli(["replay", "strol/no-such-v0", "--learners", "gradient"]) == 2
     assert "neither a session log" in capsys.readouterr().err
+
+
+def test_benchmark_runs_as_a_dataset(tmp_path, monkeypatch, capsys):
+    """strol-bench export --env: the runs strol-bench run plays (same seeds, so the same θ*)."""
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    argv = ["export", "strol/robot-runs-v0", "--env", "robot", "--learner", "gradient"]
+    assert cli([*argv, "--condition", "noisy-biased", "--runs", "2", "--seed", "7"]) == 0
+    dataset = minari.load_dataset("strol/robot-runs-v0")
+    assert dataset.total_episodes == 2
+    session = read_any("strol/robot-runs-v0")
+    assert session.header["extra"]["benchmark"]["condition"]["name"] == "noisy-biased"
+    for ep, seed in zip(session.episodes, (7, 8), strict=True):
+        env = gym.make("StROL-Robot-v0", sigma=0.5, bias=0.5)
+        _, info = env.reset(seed=seed)
+        env.close()
+        np.testing.assert_array_equal(ep.theta_star, info["theta_star"])
+    replayed = replay_session(session, ["gradient"])["gradient"]
+    for curve, ep in zip(replayed, session.episodes, strict=True):
+        np.testing.assert_array_equal(curve[1:], [c["theta_hat_after"] for c in ep.corrections])
