@@ -16,7 +16,7 @@ Format (JSON Lines, UTF-8, one object per line, ``"type"`` says which):
   ``trace`` = {``t``, ``force``, ``torque``} (the external wrench per control step; null when
   the env reports none).
 - ``end`` (optional): ``steps``, ``corrections``, ``theta_hat``, ``error``, ``cosine_error``,
-  ``regret``, ``reason``.
+  ``regret``, ``reason``, ``interrupted`` (true when the person stopped it with Ctrl-C).
 
 Each line is flushed and fsynced when written, so a crash loses at most the correction under
 way. :func:`read_session` validates a file and names the file and line of the first bad one.
@@ -177,11 +177,15 @@ class SessionLogger(gym.Wrapper):
             self.end_session("truncated" if truncated else "terminated", info)
         return obs, reward, terminated, truncated, info
 
-    def end_session(self, reason: str, info: dict[str, Any] | None = None) -> None:
-        """Write the ``end`` line (once per episode end, or when a front end stops early)."""
+    def end_session(
+        self, reason: str, info: dict[str, Any] | None = None, interrupted: bool = False
+    ) -> None:
+        """Write the ``end`` line (once per episode end, or when a front end stops early;
+        ``interrupted``: the person stopped it with Ctrl-C)."""
         info = info or {}
         self.writer.end(
             reason=reason,
+            interrupted=interrupted,
             steps=self._steps,
             corrections=self._index,
             theta_hat=np.asarray(self._learning.learner.theta, dtype=np.float64),
