@@ -66,6 +66,7 @@ class _Passive(PassiveViewer):
             cam.distance, cam.azimuth, cam.elevation = 2.2, 150.0, -20.0
 
     def set_texts(self, texts: Any) -> None:
+        self.texts = texts  # the panel as last shown (the viewer has no getter)
         self.handle.set_texts(texts)
 
     def draw_plan(self, points: np.ndarray) -> None:
@@ -228,7 +229,7 @@ def run_interactive(
     duration: float = 120.0,
     max_steps: int | None = None,
     realtime: bool = True,
-    viewer_factory: ViewerFactory = passive_viewer,
+    viewer_factory: ViewerFactory | None = None,
     env_kwargs: dict[str, Any] | None = None,
 ) -> tuple[Path, dict[str, Any]]:
     """Run one interactive session; returns the log's path and the last step's ``info``.
@@ -238,6 +239,8 @@ def run_interactive(
     """
     if isinstance(task, bool) or task not in (1, 2, 3):
         raise ValueError(f"task must be 1, 2 or 3, got {task!r}")
+    if viewer_factory is None:  # looked up now, so a front end can wrap it
+        viewer_factory = passive_viewer
     if viewer_factory is passive_viewer and not has_display():
         raise ValueError(NO_DISPLAY)
     from strol_gym.tasks.study import CONTROL_DT
