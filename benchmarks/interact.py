@@ -42,9 +42,12 @@ class Viewer(Protocol):
 
     def set_texts(self, texts: Any) -> None: ...
 
-    def draw_plan(self, points: np.ndarray) -> None: ...
+    def draw_plan(self, points: np.ndarray, target: np.ndarray | None = None) -> None: ...
 
     def close(self) -> None: ...
+
+    show_target: bool
+    """Whether the person asked to see the plan for θ* (a key); the front end reads it."""
 
 
 ViewerFactory = Callable[[mujoco.MjModel, mujoco.MjData], Viewer]
@@ -59,7 +62,10 @@ class _Passive(PassiveViewer):
     camera on the person's side of the table."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
-        super().__init__(model, data, show_left_ui=False, show_right_ui=False)
+        self.show_target = False
+        super().__init__(
+            model, data, show_left_ui=False, show_right_ui=False, key_callback=self._key
+        )
         with self.handle.lock():  # look at the workspace from the person's side of the table
             cam = self.handle.cam
             cam.lookat[:] = LOOKAT
@@ -69,29 +75,41 @@ class _Passive(PassiveViewer):
         self.texts = texts  # the panel as last shown (the viewer has no getter)
         self.handle.set_texts(texts)
 
-    def draw_plan(self, points: np.ndarray) -> None:
-        """The plan's waypoints (cup positions, m) as small spheres in the user scene."""
+    def _key(self, keycode: int) -> None:  # the viewer's thread: only flip a flag
+        if keycode == TARGET_KEY:
+            self.show_target = not self.show_target
+
+    def draw_plan(self, points: np.ndarray, target: np.ndarray | None = None) -> None:
+        """The plan's waypoints (cup positions, m) as small spheres in the user scene, and the
+        plan for θ* (``target``) in green."""
         with self.handle.lock():
-            draw_plan(self.handle.user_scn, points)
+            draw_plan(self.handle.user_scn, points, target)
 
 
+TARGET_KEY = ord("T")
+"""The key that shows or hides the plan for θ* (GLFW key codes of letters are upper case)."""
 PLAN_RGBA = np.array([0.1, 0.55, 1.0, 0.7], dtype=np.float32)
+TARGET_RGBA = np.array([0.1, 0.8, 0.2, 0.7], dtype=np.float32)
 PLAN_RADIUS = 0.012
 
 
-def draw_plan(scene: mujoco.MjvScene, points: np.ndarray) -> None:
-    """Replace ``scene``'s geoms with one sphere per waypoint (as many as fit)."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)[: scene.maxgeom]
-    for i, p in enumerate(pts):
-        mujoco.mjv_initGeom(
-            scene.geoms[i],
-            mujoco.mjtGeom.mjGEOM_SPHERE,
-            np.array([PLAN_RADIUS, 0.0, 0.0]),
-            p,
-            np.eye(3).ravel(),
-            PLAN_RGBA,
-        )
-    scene.ngeom = len(pts)
+def draw_plan(scene: mujoco.MjvScene, points: np.ndarray, target: np.ndarray | None = None) -> None:
+    """Replace ``scene``'s geoms with one sphere per waypoint of ``points`` (blue), then of
+    ``target`` (green), as many as fit."""
+    layers = [(points, PLAN_RGBA)] + ([] if target is None else [(target, TARGET_RGBA)])
+    n = 0
+    for pts, rgba in layers:
+        for p in np.asarray(pts, dtype=np.float64).reshape(-1, 3)[: scene.maxgeom - n]:
+            mujoco.mjv_initGeom(
+                scene.geoms[n],
+                mujoco.mjtGeom.mjGEOM_SPHERE,
+                np.array([PLAN_RADIUS, 0.0, 0.0]),
+                p,
+                np.eye(3).ravel(),
+                rgba,
+            )
+            n += 1
+    scene.ngeom = n
 
 
 def passive_viewer(model: mujoco.MjModel, data: mujoco.MjData) -> Viewer:
@@ -149,7 +167,8 @@ INSTRUCTIONS = (
     "HOW: double-click a link of the arm to select it,",
     "then Ctrl + right-drag to push it.",
     "A push above {threshold:.0f} N is a correction.",
-    "Blue dots: the robot's plan. Close the window to end.",
+    "Blue dots: the robot's plan; T: the plan for what you teach (green).",
+    "Close the window to end.",
 )
 CUE_SECONDS = 2.0
 """How long (simulated s) the panel shows a recorded correction."""
@@ -265,7 +284,8 @@ def run_interactive(
         action = np.zeros(env.action_space.shape, dtype=np.float32)
         steps, reason, ended = 0, "viewer closed", False
         last_correction: tuple[float, np.ndarray] | None = None
-        drawn: int | None = None
+        drawn: tuple[int, int] | None = None
+        target: np.ndarray | None = None
         rtf = RealTimeFactor()
         t_next = time.perf_counter()
         try:
@@ -279,13 +299,20 @@ def run_interactive(
                     study.model, study.data, site, study.task.oriented
                 )
                 study.hold_wrench(force, torque)
-                _, _, terminated, truncated, info = env.step(action)
+                obs, _, terminated, truncated, info = env.step(action)
                 steps += 1
                 if info["is_correction"]:
                     last_correction = (info["time"], np.asarray(info["correction"]))
-                if id(study.plan_waypoints) != drawn:  # a new plan (or leg): draw it
-                    drawn = id(study.plan_waypoints)
-                    viewer.draw_plan(study.plan_waypoints[:, :3])
+                want = bool(getattr(viewer, "show_target", False))
+                if want and target is None:  # θ*'s plan from where the cup is now
+                    start = np.asarray(obs["state"], dtype=np.float64)[None]
+                    target = study.task.plan(study.task.theta_star[None], start)[0][:, :3]
+                elif not want:
+                    target = None
+                key = (id(study.plan_waypoints), id(target))
+                if key != drawn:  # a new plan (or leg), or θ*'s plan shown or hidden
+                    drawn = key
+                    viewer.draw_plan(study.plan_waypoints[:, :3], target)
                 felt = float(np.linalg.norm(info["wrench"][:3]))
                 factor = rtf.update(info["time"])
                 texts = overlay(

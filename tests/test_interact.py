@@ -34,6 +34,8 @@ class FakeViewer:
         self.texts = None
         self.history = []
         self.plans = []
+        self.targets = []
+        self.show_target = False  # the T key
         self.closed = False
 
     def sync(self) -> None:
@@ -49,8 +51,9 @@ class FakeViewer:
         self.texts = texts
         self.history.append(texts)
 
-    def draw_plan(self, points) -> None:
+    def draw_plan(self, points, target=None) -> None:
         self.plans.append(np.array(points))
+        self.targets.append(None if target is None else np.array(target))
 
     def close(self) -> None:
         self.closed = True
@@ -213,3 +216,34 @@ def test_real_passive_viewer_under_xvfb(tmp_path):
     assert s.header["extra"]["interact"]["max_steps"] == 20
     end = json.loads(log.read_text().splitlines()[-1])
     assert end["type"] == "end" and end["steps"] == 20 and end["corrections"] == 0
+
+
+def test_t_key_shows_the_plan_for_theta_star(tmp_path):
+    """With the T key's flag set, the plan for θ* (from the cup's pose) is drawn beside the
+    robot's own plan."""
+    from strol_gym.tasks.study import StudyTask1
+
+    viewers = []
+
+    def factory(model, data):
+        viewers.append(FakeViewer(model, data, steps=0))
+        viewers[-1].show_target = True
+        return viewers[-1]
+
+    log, _ = run_interactive(
+        task=1,
+        seed=3,
+        log=tmp_path / "t.jsonl",
+        max_steps=3,
+        realtime=False,
+        viewer_factory=factory,
+    )
+    (viewer,) = viewers
+    assert viewer.targets[0] is not None and viewer.targets[0].shape[1] == 3
+    task = StudyTask1()
+    x0 = np.array(json.loads(log.read_text().splitlines()[1])["x0"])
+    start = viewer.targets[0][0]  # the cup where the key was read (Task 1's state is x, y, z)
+    assert np.linalg.norm(start - x0) < 0.01
+    planned = task.plan(task.theta_star[None], start[None])[0]
+    np.testing.assert_allclose(viewer.targets[0], planned, atol=1e-9)
+    assert not np.allclose(viewer.plans[0][-1], viewer.targets[0][-1])  # θ̂0 ≠ θ*

@@ -61,8 +61,8 @@ class ScriptedPerson(interact._Passive):
         super().set_texts(texts)
         out["texts"].append([t[2] for t in self.texts])  # read back from the front end
 
-    def draw_plan(self, points):
-        super().draw_plan(points)
+    def draw_plan(self, points, target=None):
+        super().draw_plan(points, target)
         site = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
         with self.handle.lock():
             scn = self.handle.user_scn
