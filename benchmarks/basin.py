@@ -17,6 +17,8 @@ import numpy as np
 from strol_gym.benchmarks import presets
 from strol_gym.benchmarks.conditions import env_preset
 
+from strol_gym.limits import BASIN_CAPS, add_allow_large, check_size_caps
+
 LEARNERS = {"gradient": "g (Gradient)", "strol": "g + ĝ (StROL)"}
 COLUMNS = ("learner", "theta0_a", "theta0_b", "error", "converged")
 DEFAULT_SEED = 1000
@@ -51,6 +53,7 @@ def add_parser(sub: argparse._SubParsersAction, common) -> None:
     )
     p.add_argument("--out", default=None, help="results folder (default results/basin-<env>)")
     p.add_argument("--no-plots", action="store_true")
+    add_allow_large(p)
 
 
 def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
@@ -58,6 +61,7 @@ def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
     from strol_gym.analysis import CONVERGED_TOL, basin_map
 
+    check_size_caps(args, BASIN_CAPS)
     env = gym.make(env_preset(args.env).env_id)
     task = env.unwrapped.task
     env.close()

@@ -2,9 +2,10 @@
 
 The human (``human="changing"``, :class:`strol_gym.humans.ChangingHuman`) teaches θ* for its
 first k corrections and −θ* after that; every run is scored against the final preference (the
-envs report the human's current θ*). Paper defaults: Robot 2 corrections then 3, noise 0.025
-(a fraction of a_max here). The Highway has 10 corrections; its default switch keeps the same
-proportion (4, then 6). The five paper learners, paired runs, the one runner.
+envs report the human's current θ*). Defaults as the authors ran it: Robot 2 corrections then 3,
+noise σ = 0.25 of a_max (their absolute 0.025 with a per-axis bound of 0.1, i.e. 25 %). The
+Highway has 10 corrections; its default switch keeps the same proportion (4, then 6). The five
+paper learners, paired runs, the one runner.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from strol_gym.benchmarks.conditions import PAPER_ENVS, PAPER_LEARNERS, Conditio
 from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment
 from strol_gym.benchmarks.paper_numbers import PAPER_CHANGING
 
-DEFAULT_SIGMA = 0.025
+DEFAULT_SIGMA = 0.25
+"""Noise σ as a fraction of a_max: the authors' absolute 0.025 over their a_max = 0.1."""
 DEFAULT_SWITCH = {"robot": 2, "highway": 4}
 COLUMNS = (
     "env",
@@ -129,6 +131,8 @@ def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         {
             "preset": "changing",
             "config": config.to_dict(),
+            "sigma": config.experiments[0].condition.sigma,
+            "switch_after": k,
             "seeds": [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1],
             "wall_time_s": wall,
         },

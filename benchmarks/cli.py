@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
+import threading
 import time
 import types
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
-from strol_gym.benchmarks import basin, changing, confirm, lambda_sweep
 from strol_gym.benchmarks.backends import add_backend_options, backend_kwargs
 from strol_gym.benchmarks.conditions import (
     CONDITION_NAMES,
@@ -35,6 +38,9 @@ from strol_gym.benchmarks.config import (
     paper_config,
 )
 from strol_gym.benchmarks.results import ResultsError
+
+from strol_gym.learners.protocol import LearnerFailed
+from strol_gym.limits import RUN_CAPS, add_allow_large, check_size_caps
 
 
 # ---------------------------------------------------------------------- argument types
@@ -152,8 +158,23 @@ _COMMON = types.SimpleNamespace(
 """The option helpers the experiment presets' own parser blocks use."""
 
 
-PRESETS = {"changing": changing, "lambda": lambda_sweep, "basin": basin, "confirm": confirm}
-"""The experiment presets (issue 10): each module has ``add_parser(sub, common)`` and ``cmd``."""
+PRESETS = {"changing": "changing", "lambda": "lambda_sweep", "basin": "basin", "confirm": "confirm"}
+"""The experiment presets: command -> module of ``strol_gym.benchmarks`` with
+``add_parser(sub, common)`` and ``cmd``. Imported when the parser is built, inside ``main``
+(they pull in scipy: seconds), so a Ctrl-C meanwhile is handled."""
+
+
+def _preset(name: str) -> types.ModuleType:
+    import importlib
+
+    return importlib.import_module(f"strol_gym.benchmarks.{PRESETS[name]}")
+
+
+def _preset_cmd(name: str):
+    def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+        return _preset(name).cmd(args, parser)
+
+    return cmd
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -230,6 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
         help='JSON: constructor kwargs per learner, e.g. \'{"strol": {"lam": 0.5}}\'',
     )
     _common_run_options(p)
+    add_allow_large(p)
 
     from strol_gym.benchmarks import study
 
@@ -254,8 +276,8 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_parser(sub, _plugin_option, _positive_int)
     interact.add_parser(sub, _plugin_option)
 
-    for preset in PRESETS.values():
-        preset.add_parser(sub, _COMMON)
+    for name in PRESETS:
+        _preset(name).add_parser(sub, _COMMON)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -328,6 +350,7 @@ def cmd_paper(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
 
 def cmd_run(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     try:
+        check_size_caps(args, RUN_CAPS)
         check_learner_names(args.learners)
         config = _config_for_run(args, parser)
     except ValueError as e:
@@ -417,14 +440,38 @@ COMMANDS = {
     "train": cmd_train,
     "list": cmd_list,
     "report": cmd_report,
-    **{name: preset.cmd for name, preset in PRESETS.items()},
+    **{name: _preset_cmd(name) for name in PRESETS},
 }
+
+
+INTERRUPTED = "interrupted: finished runs are saved; rerun the same command to resume"
+
+
+def _interrupted_at_start(signum: int, frame: Any) -> None:
+    """SIGINT before any work: nothing to save or release, so one line and status 130 at once
+    (a KeyboardInterrupt inside an import can surface as another error, or a traceback)."""
+    os.write(2, b"\ninterrupted\n")
+    os._exit(130)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``strol-bench`` console script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    # Only where Ctrl-C would raise KeyboardInterrupt (not in another thread, nor where it is
+    # ignored, as for a background job)
+    watch = (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
+    if watch:
+        signal.signal(signal.SIGINT, _interrupted_at_start)
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    finally:  # from here on an interrupt is a KeyboardInterrupt: runs save what is finished
+        if watch:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+    if getattr(args, "out", None) == "":  # would silently mean the default folder
+        parser.error("--out must name a path, got an empty string")
     try:
         from strol_gym.registry import import_plugin, load_installed_plugins
 
@@ -432,20 +479,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         for plugin in getattr(args, "plugin", None) or ():
             import_plugin(plugin)
         return COMMANDS[args.command](args, parser)
-    except ResultsError as e:
+    except (ResultsError, LearnerFailed) as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)
         return 2
-    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
-        parser.exit(2, f"strol-bench: error: {e}\n")
-    except KeyboardInterrupt:
-        print(
-            "\ninterrupted: finished runs are saved; rerun the same command to resume",
-            file=sys.stderr,
-        )
-        return 130
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         sys.stderr.close()
         return 0
+    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
+        parser.exit(2, f"strol-bench: error: {e}\n")
+    except KeyboardInterrupt:
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return 130
+    except ImportError as e:  # an interrupt inside a C extension's import surfaces as this
+        if not isinstance(e.__context__, KeyboardInterrupt):
+            raise
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

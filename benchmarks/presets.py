@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.config import BenchConfig
+from strol_gym.benchmarks.kernels import float_kernels
 from strol_gym.benchmarks.results import (
     ResultsDir,
     git_revision,
@@ -101,13 +102,15 @@ def write_table(
 
 
 def write_meta(out: Path, stem: str, meta: dict[str, Any]) -> Path:
-    """``stem.json``: the preset's own settings plus package versions, git revision and load."""
+    """``stem.json``: the preset's own settings plus package versions, git revision, the
+    floating-point kernels and the load."""
     out.mkdir(parents=True, exist_ok=True)
     full = {
         "tool": "strol-bench",
         **meta,
         "versions": package_versions(),
         "git": git_revision(),
+        "kernels": float_kernels(),
         "load": load(),
     }
     path = out / f"{stem}.json"

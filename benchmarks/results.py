@@ -17,6 +17,7 @@ raises :class:`ResultsError` and is never overwritten unless the caller asks (``
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as _dt
 import json
@@ -25,12 +26,13 @@ import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.config import BenchConfig, Unit, diff_configs
+from strol_gym.benchmarks.kernels import float_kernels, kernel_label, mixed_kernels_message
 
 META = "meta.json"
 RECORDS = "records"
@@ -92,11 +94,28 @@ def write_json_atomic(path: Path, obj: Any) -> None:
     """Write JSON to a temp file beside ``path``, fsync it, then os.replace: all or nothing."""
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     data = json.dumps(obj, indent=1, allow_nan=True).encode()
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    with naming_file(path):
+        try:
+            with open(tmp, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError:
+            tmp.unlink(missing_ok=True)
+            raise
+        os.replace(tmp, path)
+
+
+@contextlib.contextmanager
+def naming_file(path: Path) -> Iterator[None]:
+    """Re-raise an OSError that names no file (a full disk: "[Errno 28] No space left on
+    device") with ``path``, so the error says which file could not be written."""
+    try:
+        yield
+    except OSError as e:
+        if e.filename is not None or e.errno is None:
+            raise
+        raise OSError(e.errno, f"cannot write it: {e.strerror}", str(path)) from None
 
 
 def _explain(diff: str) -> str:
@@ -181,10 +200,12 @@ class ResultsDir:
                         "Use another --out, or --force to delete those results and start over."
                     )
                 _acquire_lock(path)
+                rd = cls(path, config, chash, meta)
+                rd.warn_mixed_kernels()
                 # A deleted records/ folder (or one lost otherwise) is recreated: its units
                 # are simply missing and this run computes them again.
                 (path / RECORDS).mkdir(exist_ok=True)
-                return cls(path, config, chash, meta)
+                return rd
         path.mkdir(parents=True, exist_ok=True)
         _acquire_lock(path)
         seeds = {
@@ -200,6 +221,7 @@ class ResultsDir:
             "created": _now(),
             "versions": package_versions(),
             "git": git_revision(),
+            "kernels": float_kernels(),
             "sessions": [],
             "status": "running",
         }
@@ -273,13 +295,38 @@ class ResultsDir:
         return [u for u in self.config.units() if u.key not in done]
 
     def write_unit(self, unit: Unit, records: Sequence[dict]) -> None:
-        """Store a finished unit atomically."""
+        """Store a finished unit atomically, with the kernels of the process that computed it
+        (the workers stamp each record with ``kernels``; stored once per unit)."""
+        labels = sorted({str(r["kernels"]) for r in records if "kernels" in r})
         payload = {
             "config_hash": self.config_hash,
             "unit": {"experiment": unit.experiment, "seeds": list(unit.seeds)},
-            "records": list(records),
+            "kernels": "; ".join(labels) or None,
+            "records": [{k: v for k, v in r.items() if k != "kernels"} for r in records],
         }
         write_json_atomic(self.record_path(unit), payload)
+
+    def kernels_by_unit(self) -> dict[str, list[str]]:
+        """Unit keys grouped by the kernels their records were computed with ("unrecorded" for
+        records written before kernels were recorded, "unreadable" for a corrupt file)."""
+        out: dict[str, list[str]] = {}
+        for p in sorted((self.path / RECORDS).glob("*.json")):
+            if p.name.startswith("."):
+                continue
+            try:
+                label = json.loads(p.read_text()).get("kernels") or "unrecorded"
+            except (OSError, ValueError, AttributeError):
+                label = "unreadable"
+            out.setdefault(str(label), []).append(p.stem)
+        return out
+
+    def warn_mixed_kernels(self) -> str | None:
+        """Print (stderr) and return one line if the records came from other kernels than this
+        process's, or from several."""
+        msg = mixed_kernels_message(self.path, self.kernels_by_unit(), kernel_label())
+        if msg:
+            print(msg, file=sys.stderr)
+        return msg
 
     def read_records(self) -> list[dict]:
         """Every record, validated, in canonical order (experiment, seed, learner order)."""
@@ -296,7 +343,7 @@ class ResultsDir:
                 ok = payload["config_hash"] == self.config_hash
                 recs = payload["records"]
                 seeds = tuple(payload["unit"]["seeds"])
-            except (OSError, json.JSONDecodeError, KeyError, TypeError) as e:
+            except (OSError, ValueError, KeyError, TypeError) as e:  # ValueError: not UTF-8/JSON
                 raise ResultsError(f"{p} is corrupt ({e}); delete it to rerun that unit") from e
             if not ok:
                 raise ResultsError(f"{p} was written by another config (hash differs)")
@@ -326,8 +373,13 @@ class ResultsDir:
                     "wall_time_s": wall_time_s,
                     "units_run": units_run,
                     "jobs": jobs,
+                    "kernels": kernel_label(),
                 }
             )
+            by_label = self.kernels_by_unit()
+            self.meta["record_kernels"] = {k: len(v) for k, v in by_label.items()}
+            if len(by_label) > 1:  # e.g. Ray workers on different CPUs within this session
+                self.warn_mixed_kernels()
             complete = not self.missing_units()
             if complete:
                 try:
@@ -433,7 +485,7 @@ def _fmt(x: Any) -> str:
 
 def write_csv(path: Path, rows: Iterable[dict], columns: Sequence[str]) -> Path:
     """Write dict rows with the given column order; floats at full precision."""
-    with open(path, "w", newline="") as f:
+    with naming_file(path), open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(columns)
         for r in rows:

@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from strol_gym.benchmarks import cli, confirm
+from strol_gym.benchmarks.kernels import float_kernels
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.analysis import basin_map
@@ -158,9 +159,22 @@ def test_preset_writes_table_meta_and_plot(argv, stem, tmp_path, capsys):
         assert (out / name).is_file(), name
     meta = json.loads((out / f"{stem}.json").read_text())
     assert meta["preset"] == stem and "versions" in meta
+    assert meta["kernels"] == float_kernels()  # which arithmetic made these numbers
+    folders = list(out.glob("**/meta.json"))  # the runner's results folders (none for basin)
+    assert folders or stem == "basin"
+    assert all(json.loads(m.read_text())["kernels"] == float_kernels() for m in folders)
     if stem == "confirm":
         assert "EXPLORATORY" in text and meta["protocol"] is False
         assert meta["seeds"] == [SEED, SEED + 1]
+    if stem == "changing":  # the authors' noise: absolute 0.025 over a_max 0.1 = 25 %
+        assert meta["sigma"] == 0.25 and meta["switch_after"] == 2
+        run_meta = json.loads((out / "meta.json").read_text())
+        assert run_meta["config"]["experiments"][0]["condition"]["sigma"] == 0.25
+
+
+def test_lambda_sweeps_seven_values_by_default():
+    args = cli.build_parser().parse_args(["lambda"])
+    assert args.lambdas == [0.0, 0.1, 0.5, 1.0, 2.0, 5.0, 10.0]
 
 
 @pytest.mark.parametrize(
