@@ -270,9 +270,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
     _plugin_option(p)
 
-    from strol_gym.benchmarks import interact, replay
+    from strol_gym.benchmarks import export, interact, replay
 
     replay.add_parser(sub, _learner_list, _plugin_option)
+    export.add_parser(sub, _plugin_option, _positive_int)
     interact.add_parser(sub, _plugin_option)
 
     for name in PRESETS:
@@ -411,6 +412,12 @@ def cmd_replay(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
     return command(args, parser)
 
 
+def cmd_export(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.export import command
+
+    return command(args, parser)
+
+
 def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.interact import command
 
@@ -428,6 +435,7 @@ COMMANDS = {
     "study": cmd_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
+    "export": cmd_export,
     "run": cmd_run,
     "train": cmd_train,
     "list": cmd_list,
@@ -465,8 +473,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "out", None) == "":  # would silently mean the default folder
         parser.error("--out must name a path, got an empty string")
     try:
-        from strol_gym.registry import import_plugin
+        from strol_gym.registry import import_plugin, load_installed_plugins
 
+        load_installed_plugins()  # installed packages' strol_gym.plugins entry points
         for plugin in getattr(args, "plugin", None) or ():
             import_plugin(plugin)
         return COMMANDS[args.command](args, parser)
