@@ -29,7 +29,7 @@ from strol_gym.envs.panda import PassiveViewer, has_display
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "
     "`xvfb-run -a strol-bench interact ...`, or use the headless simulated users, "
-    'gymnasium.make("StROL-Study-v0", human="nominal")'
+    'gymnasium.make("StROL-Study-v1", human="nominal")'
 )
 
 
@@ -268,7 +268,7 @@ def run_interactive(
     if path.exists():
         raise ValueError(f"log {path} exists; sessions are never overwritten")
     kwargs = {"task": task, "human": None, "duration": duration, **(env_kwargs or {})}
-    base = gym.make("StROL-Study-v0", **kwargs)
+    base = gym.make("StROL-Study-v1", **kwargs)
     learning = OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
     study = base.unwrapped
     site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
@@ -348,7 +348,7 @@ def add_parser(sub: Any, plugin_option: Any) -> None:
     p = sub.add_parser(
         "interact",
         help="push the study arm yourself in MuJoCo's viewer; the robot learns (needs a display)",
-        description="Open MuJoCo's passive viewer on StROL-Study-v0 (no simulated user). Push "
+        description="Open MuJoCo's passive viewer on StROL-Study-v1 (no simulated user). Push "
         "the arm with Ctrl + right-drag (double-click a link first to select it): a push above "
         "15 N is a correction; the learner updates and the robot replans. The session is "
         "logged for strol-bench replay. Without a display: xvfb-run -a strol-bench interact.",
