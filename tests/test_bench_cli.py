@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.conditions import Condition, env_preset, paper_condition
-from strol_gym.benchmarks.config import BenchConfig, Experiment, paper_config
+from strol_gym.benchmarks.engine.conditions import Condition, env_preset, paper_condition
+from strol_gym.benchmarks.engine.config import BenchConfig, Experiment, paper_config
 
 
 @pytest.mark.parametrize(

@@ -9,7 +9,7 @@ import math
 
 import pytest
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.study import METRICS
+from strol_gym.benchmarks.experiments.study import METRICS
 
 
 @pytest.mark.parametrize(

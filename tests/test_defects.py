@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import torch
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.config import MAX_RUNS, paper_config
-from strol_gym.benchmarks.results import LOCK, META, RECORDS, ResultsDir, ResultsError
+from strol_gym.benchmarks.engine.config import MAX_RUNS, paper_config
+from strol_gym.benchmarks.engine.results import LOCK, META, RECORDS, ResultsDir, ResultsError
 
 from strol_gym.humans import MAX_BETA, MAX_FRACTION, make_human
 from strol_gym.learners import checkpoint as ckpt

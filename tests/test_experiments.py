@@ -9,7 +9,8 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
-from strol_gym.benchmarks import cli, confirm
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.experiments import confirm
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.analysis import basin_map
@@ -191,7 +192,8 @@ def test_reference_learner_has_one_definition():
     import ast
     import inspect
 
-    from strol_gym.benchmarks import compare_learners, conditions
+    from strol_gym.benchmarks.analysis import compare_learners
+    from strol_gym.benchmarks.engine import conditions
 
     for mod in (confirm, compare_learners):
         for node in ast.parse(inspect.getsource(mod)).body:

@@ -33,8 +33,8 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from strol_gym.benchmarks.results import package_versions
 
+from strol_gym.provenance import package_versions
 from strol_gym.registry import spec_of
 from strol_gym.tasks import TASKS, Task
 from strol_gym.tasks.base import _jsonable

@@ -1,6 +1,6 @@
 """Paired tests of candidate learners against StROL and against the best paper baseline.
 
-    .venv/bin/python -m strol_gym.benchmarks.compare_learners results/learners-robot [...]
+    .venv/bin/python -m strol_gym.benchmarks.analysis.compare_learners results/learners-robot [...]
         [--learners bayes,bayes-teacher,strol-adaptive,strol-unrolled] [--metrics regret,error]
 
 Reads ``runs.csv`` of ``strol-bench`` results folders and prints, per env and condition, a
@@ -21,12 +21,14 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from strol_gym.benchmarks.conditions import REFERENCE_LEARNER as REFERENCE
-from strol_gym.benchmarks.stats import holm, paired_test, stars
+from strol_gym.benchmarks.analysis.stats import holm, paired_test, stars
+from strol_gym.benchmarks.engine.conditions import REFERENCE_LEARNER as REFERENCE
+
+from strol_gym.metrics import RUN_METRICS
 
 BASELINES = ("gradient", "one", "mof", "e2e")
 CANDIDATES = ("bayes", "bayes-teacher", "strol-adaptive", "strol-unrolled")
-METRICS = ("regret", "error", "cos_error")
+METRICS = RUN_METRICS
 
 
 def load_runs(folder: Path) -> dict[tuple[str, str, str], dict[int, dict[str, float]]]:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from strol_gym.benchmarks.report import Analysis, display
+from strol_gym.benchmarks.analysis.base import Analysis, display
 
 PAPER: dict[tuple[str, str], dict[str, dict[str, tuple[float, float]]]] = {
     ("robot", "regret"): {

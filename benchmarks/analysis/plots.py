@@ -14,9 +14,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from strol_gym.benchmarks import stats
-from strol_gym.benchmarks.conditions import env_preset
-from strol_gym.benchmarks.report import METRIC_LABELS, Analysis, display
+from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.analysis.base import METRIC_LABELS, Analysis, display
+from strol_gym.benchmarks.engine.conditions import env_preset
+
+from strol_gym.metrics import short
 
 COLORS = {
     "gradient": "#7f7f7f",
@@ -25,7 +27,6 @@ COLORS = {
     "e2e": "#ff7f0e",
     "strol": "#d62728",
 }
-SHORT = {"error": "Error", "cos_error": "1 − cos", "regret": "Regret"}
 
 
 def _color(i: int, name: str) -> str:
@@ -89,7 +90,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
             ax.tick_params(axis="y", labelsize=8)
             ax.set_title(cond, fontsize=10)
             if c == 0:
-                ax.set_ylabel(f"{env_preset(env).env_id}\n{SHORT[metric]}", fontsize=9)
+                ax.set_ylabel(f"{env_preset(env).env_id}\n{short(metric)}", fontsize=9)
     ref = display(a.config.reference)
     fig.suptitle(
         f"mean ± SEM; * {ref} differs from that learner (paired t, Holm p<0.05): black = {ref} "

@@ -13,17 +13,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks import stats
-from strol_gym.benchmarks.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, env_preset
-from strol_gym.benchmarks.config import BenchConfig
-from strol_gym.benchmarks.results import ResultsDir, write_csv
-
-METRICS: tuple[str, ...] = ("regret", "error", "cos_error")
-METRIC_LABELS = {
-    "error": "Error ‖θ* − θ̂‖₂ (raw, final)",
-    "cos_error": "Scale-free error 1 − cos(θ*, θ̂) (final)",
-    "regret": "Regret (eq. S1) of the plan for the final θ̂",
-}
+from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.analysis.base import (
+    METRIC_LABELS,
+    METRICS,
+    Analysis,
+    _f,
+    _matrix,
+    display,
+)
+from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, env_preset
+from strol_gym.benchmarks.engine.config import BenchConfig
+from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 
 SUMMARY_COLUMNS = (
     "env",
@@ -77,60 +78,6 @@ ANOVA_COLUMNS = (
     "df2_gg",
     "p_gg",
 )
-
-
-def display(name: str) -> str:
-    """How tables spell a learner (its registration's display name; else its name)."""
-    from strol_gym.learners.registry import display_name
-
-    return display_name(name)
-
-
-@dataclasses.dataclass
-class Analysis:
-    """Everything the tables, plots and verdicts need."""
-
-    config: BenchConfig
-    summary: list[dict[str, Any]]
-    posthoc: list[dict[str, Any]]
-    anova: list[dict[str, Any]]
-    curves: dict[tuple[str, str, str], dict[str, np.ndarray]]
-    verdicts: list[dict[str, Any]]
-
-    def cell(self, env: str, cond: str, learner: str, metric: str) -> dict[str, Any] | None:
-        for r in self.summary:
-            key = (r["env"], r["condition"], r["learner"], r["metric"])
-            if key == (env, cond, learner, metric):
-                return r
-        return None
-
-    def test(self, env: str, cond: str, baseline: str, metric: str) -> dict[str, Any] | None:
-        for r in self.posthoc:
-            key = (r["env"], r["condition"], r["baseline"], r["metric"])
-            if key == (env, cond, baseline, metric):
-                return r
-        return None
-
-    def metrics_for(self, env: str) -> list[str]:
-        """The metrics with data for ``env`` (regret is NaN where a task has no planner)."""
-        return [
-            m for m in METRICS if any(r["env"] == env and r["metric"] == m for r in self.summary)
-        ]
-
-
-def _matrix(records: Sequence[dict], env: str, cond: str, learners: Sequence[str], key: str):
-    """(seeds, learners) array of ``key``; rows are run seeds in ascending order."""
-    by = {
-        (r["seed"], r["learner"]): r[key]
-        for r in records
-        if (r["env"], r["condition"]) == (env, cond)
-    }
-    seeds = sorted({s for s, _ in by})
-    return seeds, np.array([[_f(by[(s, lr)]) for lr in learners] for s in seeds], dtype=np.float64)
-
-
-def _f(v: Any) -> float:
-    return math.nan if v is None else float(v)
 
 
 def analyse(
@@ -329,7 +276,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                 out += [f"Median [Q1, Q3] of {metric}:", ""]
                 out += median_table(a, env, metric)
                 out.append("")
-        from strol_gym.benchmarks.paper_numbers import PAPER, side_by_side
+        from strol_gym.benchmarks.analysis.paper_numbers import PAPER, side_by_side
 
         baselines = set(PAPER_LEARNERS) - {REFERENCE_LEARNER}
         if (env, primary) in PAPER and set(cfg.learners) & baselines:
@@ -383,7 +330,7 @@ def write_reports(rd: ResultsDir, *, plots: bool = True) -> tuple[Analysis, list
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
     paths: list[Path] = []
     if plots:
-        from strol_gym.benchmarks import plots as plotting
+        from strol_gym.benchmarks.analysis import plots as plotting
 
         paths = plotting.make_plots(a, rd.path / "plots")
     rel = [p.relative_to(rd.path) for p in paths]

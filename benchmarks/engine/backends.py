@@ -1,8 +1,9 @@
 """Where a benchmark's units of work run: ``local`` processes (the default) or a Ray cluster.
 
-Both backends run the same units (blocks of run seeds × every learner) through the same
-:class:`~strol_gym.benchmarks.runner._Worker`, one intra-op thread per worker, so the records
-are identical whichever computed them, and a folder started on one backend resumes on the other.
+Both backends run the same units (blocks of run seeds × every learner) through the same worker
+(``strol_gym.benchmarks.engine.runner.new_worker``, one intra-op thread per process), so the
+records are identical whichever computed them, and a folder started on one backend resumes on
+the other.
 Ray is optional (``pip install "strol-gym[ray]"``); a local cluster listens on 127.0.0.1 only.
 """
 
@@ -14,10 +15,10 @@ import importlib.util
 import json
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
-from strol_gym.benchmarks.config import BenchConfig, Unit
+from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 
 BACKENDS = ("local", "ray")
 LOOPBACK = "127.0.0.1"
@@ -64,11 +65,11 @@ def check_backend(backend: str, ray_address: str | None) -> None:
 _CACHE: dict[str, Any] = {}
 
 
-def _ray_unit(config_dict: dict, sys_path: list[str], unit: Unit) -> tuple[Unit, list[dict]]:
+def _ray_unit(
+    config_dict: dict, sys_path: list[str], unit: Unit, make_worker: Callable[[BenchConfig], Any]
+) -> tuple[Unit, list[dict]]:
     """One unit in a Ray worker process. The worker keeps its envs and learners between units of
     the same config (as a local pool process does), keyed by the config's JSON."""
-    from strol_gym.benchmarks.runner import _limit_threads, _Worker
-
     for entry in sys_path:  # the driver's path: user plugins given as .py files import here
         if entry not in sys.path:
             sys.path.append(entry)
@@ -76,8 +77,7 @@ def _ray_unit(config_dict: dict, sys_path: list[str], unit: Unit) -> tuple[Unit,
     if _CACHE.get("key") != key:
         if "worker" in _CACHE:
             _CACHE.pop("worker").close()
-        _limit_threads()
-        _CACHE["worker"] = _Worker(BenchConfig.from_dict(config_dict))
+        _CACHE["worker"] = make_worker(BenchConfig.from_dict(config_dict))
         _CACHE["key"] = key
     return unit, _CACHE["worker"].run_unit(unit)
 
@@ -109,9 +109,15 @@ def _start_ray(jobs: int, address: str | None) -> bool:
 
 
 def iter_ray(
-    config: BenchConfig, units: list[Unit], jobs: int, address: str | None = None
+    config: BenchConfig,
+    units: list[Unit],
+    jobs: int,
+    address: str | None,
+    make_worker: Callable[[BenchConfig], Any],
 ) -> Iterator[tuple[Unit, list[dict]]]:
     """Run ``units`` as Ray tasks (one CPU each) and yield ``(unit, records)`` as they finish.
+    ``make_worker(config)`` builds a Ray process's worker (the runner's, passed in: a backend
+    does not import the runner).
 
     On an error or an interrupt the pending tasks are cancelled; a cluster started here is shut
     down when the iteration ends.
@@ -122,7 +128,7 @@ def iter_ray(
     try:
         task = ray.remote(num_cpus=1, max_retries=0)(_ray_unit)
         config_ref = ray.put(config.to_dict())
-        pending = [task.remote(config_ref, list(sys.path), u) for u in units]
+        pending = [task.remote(config_ref, list(sys.path), u, make_worker) for u in units]
         try:
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)

@@ -14,6 +14,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from strol_gym.metrics import RUN_METRICS
 from strol_gym.registry import Registry
 
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
@@ -87,7 +88,8 @@ class Condition:
         return f"σ={self.sigma:g}, ε={self.bias:g}, {self.prior} prior, {h} human"
 
 
-PRIMARY_METRICS = ("regret", "error", "cos_error")
+PRIMARY_METRICS = RUN_METRICS
+"""What an env preset may rank by: the metrics every run has (``strol_gym.metrics``)."""
 ROBOTS = ("task", "zeros")
 
 

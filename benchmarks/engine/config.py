@@ -13,7 +13,7 @@ import json
 from collections.abc import Sequence
 from typing import Any
 
-from strol_gym.benchmarks.conditions import (
+from strol_gym.benchmarks.engine.conditions import (
     PAPER_LEARNERS,
     REFERENCE_LEARNER,
     Condition,
@@ -21,6 +21,8 @@ from strol_gym.benchmarks.conditions import (
     is_paper_condition,
 )
 
+import strol_gym
+import strol_gym.learners.registry  # noqa: F401
 from strol_gym.registry import install_specs, user_specs
 
 DEFAULT_BLOCK = 25

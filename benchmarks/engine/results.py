@@ -23,14 +23,15 @@ import json
 import math
 import os
 import shutil
-import subprocess
 import sys
 from collections.abc import Iterable, Sequence
-from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from strol_gym.benchmarks.config import BenchConfig, Unit, diff_configs
+from strol_gym.benchmarks.engine.config import BenchConfig, Unit, diff_configs
+
+from strol_gym.metrics import RUN_METRICS
+from strol_gym.provenance import git_revision, package_versions
 
 META = "meta.json"
 RECORDS = "records"
@@ -38,54 +39,13 @@ LOCK = ".lock"
 """Holds the pid of the process running into the folder; a second run is refused while that
 process lives. A lock whose process is gone (killed, crashed) is taken over with a note."""
 RUN_FIELDS = ("error", "cos_error", "regret")
-"""Scalar metrics of a run (error = final ‖θ* − θ̂‖); lower is better for each."""
-
-PACKAGES = (
-    "strol-gym",
-    "numpy",
-    "scipy",
-    "torch",
-    "gymnasium",
-    "mujoco",
-    "highway-env",
-    "gymnasium-robotics",
-    "matplotlib",
-)
+"""The column order of the run metrics in runs.csv (a file format: it stays as it is); the
+metrics themselves are ``strol_gym.metrics.RUN_METRICS``."""
+assert set(RUN_FIELDS) == set(RUN_METRICS), "runs.csv must hold every run metric"
 
 
 class ResultsError(RuntimeError):
     """A results folder that cannot be used as asked: mismatched config, corrupt, or not ours."""
-
-
-def package_versions() -> dict[str, str | None]:
-    out: dict[str, str | None] = {}
-    for name in PACKAGES:
-        try:
-            out[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            out[name] = None
-    return out
-
-
-def git_revision() -> dict[str, Any] | None:
-    """HEAD of the repository this package runs from, and whether the tree had edits."""
-    here = Path(__file__).resolve().parent
-    try:
-        rev = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10
-        )
-        if rev.returncode != 0:
-            return None
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=here,
-            capture_output=True,
-            text=True,
-            timeout=10,
-        )
-        return {"commit": rev.stdout.strip(), "dirty": bool(dirty.stdout.strip())}
-    except (OSError, subprocess.SubprocessError):
-        return None
 
 
 def write_json_atomic(path: Path, obj: Any) -> None:

@@ -29,18 +29,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.conditions import env_preset
-from strol_gym.benchmarks.config import BenchConfig, Unit
-from strol_gym.benchmarks.results import ResultsDir
-from strol_gym.wrappers.online_learning import cosine_error, episode_regret
+from strol_gym.benchmarks.engine.conditions import env_preset
+from strol_gym.benchmarks.engine.config import BenchConfig, Unit
+from strol_gym.benchmarks.engine.results import ResultsDir
 
 from strol_gym.learners.registry import make_learner
+from strol_gym.metrics import cosine_error, episode_regret, error, info_metrics
 from strol_gym.registry import install_specs
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
 # shipped data, by data package and the suffixes setup.cfg installs.
-BENCHMARK_CODE = ("runner", "config", "conditions")
+BENCHMARK_CODE = ("engine", "engine.runner", "engine.config", "engine.conditions")
 MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")
 DATA_FILES = {"strol_gym.assets": (".xml", ".npz"), "strol_gym.pretrained": (".pt", ".json")}
 
@@ -222,11 +222,6 @@ def _zero_policy(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return np.zeros_like(x)
 
 
-INFO_METRICS = ("correction_time", "corrections")
-"""Per-episode totals an env may report in its last ``info`` (the study env does); copied into
-the record when present."""
-
-
 def _state(obs: Any) -> np.ndarray:
     return np.asarray(obs["state"] if isinstance(obs, dict) else obs, dtype=np.float64)
 
@@ -288,7 +283,7 @@ def _run_block(
     for i, seed in enumerate(seeds):
         info = last_info[i]
         star = np.asarray(info["theta_star"], dtype=np.float64)
-        errs = [float(np.linalg.norm(star - t)) for t in thetas[i]]
+        errs = [error(star, t) for t in thetas[i]]
         coss = [cosine_error(star, t) for t in thetas[i]]
         records.append(
             {
@@ -308,7 +303,7 @@ def _run_block(
                 "x0": x0[i].tolist(),
                 "first_correction": first_corr[i],
             }
-            | {k: float(info[k]) for k in INFO_METRICS if k in info}
+            | {k: float(info[k]) for k in info_metrics() if k in info}  # the env's own totals
         )
     return records
 
@@ -321,8 +316,13 @@ def _init_worker(config_dict: dict) -> None:
     global _WORKER
     # Ctrl-C is the parent's to handle: it stops the pool; finished units are already stored.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _WORKER = new_worker(BenchConfig.from_dict(config_dict))
+
+
+def new_worker(config: BenchConfig) -> _Worker:
+    """A worker for a process of its own (a pool or Ray process): one intra-op thread."""
     _limit_threads()
-    _WORKER = _Worker(BenchConfig.from_dict(config_dict))
+    return _Worker(config)
 
 
 def _work(unit: Unit) -> tuple[Unit, list[dict]]:
@@ -364,9 +364,9 @@ def _iter_results(
     ray_address: str | None = None,
 ) -> Iterator[tuple[Unit, list[dict]]]:
     if backend == "ray":
-        from strol_gym.benchmarks.backends import iter_ray
+        from strol_gym.benchmarks.engine.backends import iter_ray
 
-        yield from iter_ray(config, units, jobs, ray_address)
+        yield from iter_ray(config, units, jobs, ray_address, new_worker)
         return
     if jobs <= 1 or len(units) <= 1:
         worker = _Worker(config)
@@ -416,8 +416,8 @@ def run_benchmark(
     """
     if int(jobs) < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
-    from strol_gym.benchmarks.backends import check_backend
-    from strol_gym.benchmarks.results import package_versions
+    from strol_gym.benchmarks.engine.backends import check_backend
+    from strol_gym.benchmarks.engine.results import package_versions
 
     check_backend(backend, ray_address)
     config, stuck = config.with_user_specs()

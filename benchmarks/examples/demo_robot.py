@@ -1,6 +1,6 @@
 """A short StROL-Robot-v0 rollout, rendered to a GIF and a PNG whose paths it prints.
 
-    .venv/bin/python benchmarks/demo_robot.py [--seed 0] [--learner strol] [--out DIR]
+    .venv/bin/python benchmarks/examples/demo_robot.py [--seed 0] [--learner strol] [--out DIR]
 
 A simulated human (eq. M6, 25 % noise) with hidden θ* corrects the Panda during the first 5
 of 12 steps; the learner updates θ̂ after each correction; the robot moves by the first step

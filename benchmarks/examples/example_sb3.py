@@ -1,6 +1,6 @@
 """Train a stable-baselines3 PPO agent on StROL-Robot-v0 wrapped with an online learner.
 
-    .venv/bin/python benchmarks/example_sb3.py [--learner strol] [--steps 2048] [--seed 0]
+    .venv/bin/python benchmarks/examples/example_sb3.py [--learner strol] [--steps 2048] [--seed 0]
 
 The wrapper updates θ̂ from the human's corrections and puts it in ``obs["theta_hat"]``, so a
 ``MultiInputPolicy`` can condition on the robot's current belief. With ``--belief-reward`` the

@@ -14,8 +14,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from strol_gym.benchmarks import presets
-from strol_gym.benchmarks.conditions import env_preset
+from strol_gym.benchmarks.args import finite, float_list, nonneg_int, positive_int
+from strol_gym.benchmarks.engine.conditions import env_preset
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 
 LEARNERS = {"gradient": "g (Gradient)", "strol": "g + ĝ (StROL)"}
 COLUMNS = ("learner", "theta0_a", "theta0_b", "error", "converged")
@@ -23,87 +24,84 @@ DEFAULT_SEED = 1000
 """In the diagnostics range (contract 6): the human's draws, not an evaluation run."""
 
 
-def add_parser(sub: argparse._SubParsersAction, common) -> None:
-    p = sub.add_parser(
-        "basin",
-        help="basin-of-attraction maps for g and g + ĝ (Fig. 2 style)",
-        description="Final error from every θ̂0 of a grid (a 2-D slice), for Gradient's g and "
-        "StROL's g + ĝ, with one fixed seeded human; prints the fraction that converges.",
-    )
-    p.add_argument("--env", choices=("robot", "highway"), default="robot")
-    p.add_argument(
-        "--grid", type=common.positive_int("--grid", low=2), default=41, help="cells per axis (≥ 2)"
-    )
-    p.add_argument(
-        "--steps", type=common.positive_int("--steps"), default=10, help="corrections (10)"
-    )
-    p.add_argument(
-        "--sigma", type=presets.finite("--sigma", low=0.0), default=0.25, help="noise σ (0.25)"
-    )
-    p.add_argument(
-        "--seed", type=common.nonneg_int("--seed"), default=DEFAULT_SEED, help="the human's seed"
-    )
-    p.add_argument(
-        "--theta-star",
-        type=presets.float_list("--theta-star", low=-math.inf),
-        default=None,
-        help="the human's θ*, comma-separated (default: the first prior mode)",
-    )
-    p.add_argument("--out", default=None, help="results folder (default results/basin-<env>)")
-    p.add_argument("--no-plots", action="store_true")
+class Basin(BenchExperiment):
+    """Basin-of-attraction maps as an experiment (no runner: ``strol_gym.analysis.basin_map``)."""
 
+    name = "basin"
+    help = "basin-of-attraction maps for g and g + ĝ (Fig. 2 style)"
+    description = (
+        "Final error from every θ̂0 of a grid (a 2-D slice), for Gradient's g and "
+        "StROL's g + ĝ, with one fixed seeded human; prints the fraction that converges."
+    )
+    columns = COLUMNS
 
-def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    import gymnasium as gym
-
-    from strol_gym.analysis import CONVERGED_TOL, basin_map
-
-    env = gym.make(env_preset(args.env).env_id)
-    task = env.unwrapped.task
-    env.close()
-    out = Path(args.out or f"results/basin-{args.env}")
-    t0 = time.perf_counter()
-    maps = {
-        lr: basin_map(
-            task,
-            lr,
-            args.grid,
-            theta_star=args.theta_star,
-            steps=args.steps,
-            sigma=args.sigma,
-            seed=args.seed,
+    def add_arguments(self, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--env", choices=("robot", "highway"), default="robot")
+        p.add_argument(
+            "--grid", type=positive_int("--grid", low=2), default=41, help="cells per axis (≥ 2)"
         )
-        for lr in LEARNERS
-    }
-    wall = time.perf_counter() - t0
-    rows = []
-    for lr, m in maps.items():
-        g0, g1 = np.meshgrid(m.axis0, m.axis1)
-        for a, b, e, c in zip(
-            g0.ravel(), g1.ravel(), m.error.ravel(), m.converged.ravel(), strict=True
-        ):
-            rows.append(
-                {"learner": lr, "theta0_a": a, "theta0_b": b, "error": e, "converged": bool(c)}
+        p.add_argument("--steps", type=positive_int("--steps"), default=10, help="corrections (10)")
+        p.add_argument(
+            "--sigma", type=finite("--sigma", low=0.0), default=0.25, help="noise σ (0.25)"
+        )
+        p.add_argument(
+            "--seed", type=nonneg_int("--seed"), default=DEFAULT_SEED, help="the human's seed"
+        )
+        p.add_argument(
+            "--theta-star",
+            type=float_list("--theta-star", low=-math.inf),
+            default=None,
+            help="the human's θ*, comma-separated (default: the first prior mode)",
+        )
+        p.add_argument("--out", default=None, help="results folder (default results/basin-<env>)")
+        p.add_argument("--no-plots", action="store_true")
+
+    def execute(self, plan: None, args: argparse.Namespace, out: Path) -> Outcome:
+        import gymnasium as gym
+
+        from strol_gym.analysis import CONVERGED_TOL, basin_map
+
+        env = gym.make(env_preset(args.env).env_id)
+        task = env.unwrapped.task
+        env.close()
+        t0 = time.perf_counter()
+        maps = {
+            lr: basin_map(
+                task,
+                lr,
+                args.grid,
+                theta_star=args.theta_star,
+                steps=args.steps,
+                sigma=args.sigma,
+                seed=args.seed,
             )
-    star = next(iter(maps.values())).theta_star
-    md = [
-        f"Basin of attraction, {env_preset(args.env).env_id}: θ* = {np.round(star, 3).tolist()}, "
-        f"{args.grid}×{args.grid} grid of θ̂0, {args.steps} corrections, σ = {args.sigma:g}, "
-        f"seed {args.seed}. Converges: final error ≤ {CONVERGED_TOL:g}·‖θ*‖.",
-        "",
-        "| rule | fraction converged | median final error |",
-        "|---|---|---|",
-        *(
-            f"| {LEARNERS[lr]} | {m.fraction_converged:.3f} | {np.median(m.error):.3f} |"
-            for lr, m in maps.items()
-        ),
-    ]
-    files = presets.write_table(out, "basin", rows, COLUMNS, md)
-    presets.write_meta(
-        out,
-        "basin",
-        {
-            "preset": "basin",
+            for lr in LEARNERS
+        }
+        wall = time.perf_counter() - t0
+        rows = []
+        for lr, m in maps.items():
+            g0, g1 = np.meshgrid(m.axis0, m.axis1)
+            for a, b, e, c in zip(
+                g0.ravel(), g1.ravel(), m.error.ravel(), m.converged.ravel(), strict=True
+            ):
+                rows.append(
+                    {"learner": lr, "theta0_a": a, "theta0_b": b, "error": e, "converged": bool(c)}
+                )
+        star = next(iter(maps.values())).theta_star
+        md = [
+            f"Basin of attraction, {env_preset(args.env).env_id}: θ* = "
+            f"{np.round(star, 3).tolist()}, {args.grid}×{args.grid} grid of θ̂0, {args.steps} "
+            f"corrections, σ = {args.sigma:g}, seed {args.seed}. Converges: final error ≤ "
+            f"{CONVERGED_TOL:g}·‖θ*‖.",
+            "",
+            "| rule | fraction converged | median final error |",
+            "|---|---|---|",
+            *(
+                f"| {LEARNERS[lr]} | {m.fraction_converged:.3f} | {np.median(m.error):.3f} |"
+                for lr, m in maps.items()
+            ),
+        ]
+        meta = {
             "env": args.env,
             "grid": args.grid,
             "steps": args.steps,
@@ -114,20 +112,17 @@ def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
             "converged_tol": CONVERGED_TOL,
             "fraction_converged": {lr: m.fraction_converged for lr, m in maps.items()},
             "wall_time_s": wall,
-        },
-    )
-    plots = [] if args.no_plots else plot(maps, task, out / "plots")
-    print("\n".join(md))
-    print(f"\nwall time {wall:.1f} s ({presets.load()}); results in {out}/")
-    for f in [*files, *(p for p in plots if p.suffix == ".png")]:
-        print(f"wrote {f}")
-    return 0
+        }
+        return Outcome(out, md, rows, meta, self.wall(wall, out), state=(maps, task))
+
+    def plot(self, outcome: Outcome, folder: Path) -> list[Path]:
+        return plot(*outcome.state, folder)
 
 
 def plot(maps: dict, task, out: Path) -> list[Path]:
     """Side-by-side maps of the final error; the converged region outlined, θ* and the prior
     modes marked."""
-    from strol_gym.benchmarks.plots import _save, plt
+    from strol_gym.benchmarks.analysis.plots import _save, plt
 
     out.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(1, len(maps), figsize=(4.2 * len(maps), 3.6), squeeze=False)

@@ -12,10 +12,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from strol_gym.benchmarks import presets
-from strol_gym.benchmarks.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
-from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment
-from strol_gym.benchmarks.paper_numbers import PAPER_CHANGING
+from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
+from strol_gym.benchmarks.args import finite, nonneg_int, positive_int, run_options
+from strol_gym.benchmarks.engine.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
+from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt
+
+from strol_gym.metrics import short
 
 DEFAULT_SIGMA = 0.025
 DEFAULT_SWITCH = {"robot": 2, "highway": 4}
@@ -34,30 +37,6 @@ COLUMNS = (
     "p_wilcoxon_holm",
     "paper_mean",
 )
-
-
-def add_parser(sub: argparse._SubParsersAction, common) -> None:
-    p = sub.add_parser(
-        "changing",
-        help="changing preferences: the human teaches θ* for k corrections, then −θ*",
-        description="The paper's changing-preference simulation with the five paper learners; "
-        "scored against the final preference.",
-    )
-    p.add_argument("--env", choices=PAPER_ENVS, default="robot")
-    p.add_argument("--runs", type=common.positive_int("--runs"), default=None)
-    p.add_argument(
-        "--switch-after",
-        type=common.nonneg_int("--switch-after"),
-        default=None,
-        help="corrections toward θ* before the switch (default: robot 2, highway 4)",
-    )
-    p.add_argument(
-        "--sigma",
-        type=presets.finite("--sigma", low=0.0),
-        default=DEFAULT_SIGMA,
-        help=f"noise σ, a fraction of a_max (default {DEFAULT_SIGMA})",
-    )
-    common.run_options(p)
 
 
 def make_config(
@@ -82,9 +61,36 @@ def make_config(
     return BenchConfig((exp,), PAPER_LEARNERS, "strol", block)
 
 
-def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    try:
-        config = make_config(
+class Changing(BenchExperiment):
+    """The changing-preference simulation as an experiment."""
+
+    name = "changing"
+    help = "changing preferences: the human teaches θ* for k corrections, then −θ*"
+    description = (
+        "The paper's changing-preference simulation with the five paper learners; "
+        "scored against the final preference."
+    )
+    columns = COLUMNS
+
+    def add_arguments(self, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--env", choices=PAPER_ENVS, default="robot")
+        p.add_argument("--runs", type=positive_int("--runs"), default=None)
+        p.add_argument(
+            "--switch-after",
+            type=nonneg_int("--switch-after"),
+            default=None,
+            help="corrections toward θ* before the switch (default: robot 2, highway 4)",
+        )
+        p.add_argument(
+            "--sigma",
+            type=finite("--sigma", low=0.0),
+            default=DEFAULT_SIGMA,
+            help=f"noise σ, a fraction of a_max (default {DEFAULT_SIGMA})",
+        )
+        run_options(p)
+
+    def plan(self, args: argparse.Namespace) -> BenchConfig:
+        return make_config(
             args.env,
             runs=args.runs,
             seed=args.seed,
@@ -92,59 +98,49 @@ def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
             sigma=args.sigma,
             block=args.block,
         )
-    except ValueError as e:
-        parser.error(str(e))
-    out = Path(args.out or f"results/changing-{args.env}")
-    rd, a, wall = presets.run_config(config, out, args)
-    env = args.env
-    metric = env_preset(env).primary_metric
-    metric = metric if metric in a.metrics_for(env) else "error"
-    paper = PAPER_CHANGING.get(env, {})
-    rows = []
-    for lr in config.learners:
-        c = a.cell(env, "changing", lr, metric) or {}
-        t = a.test(env, "changing", lr, metric) or {}
-        err = a.cell(env, "changing", lr, "error") or {}
-        cos = a.cell(env, "changing", lr, "cos_error") or {}
-        rows.append(
-            {
-                "env": env,
-                "learner": lr,
-                "metric": metric,
-                **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
-                "error_mean": err.get("mean"),
-                "cos_error_mean": cos.get("mean"),
-                "p_t_holm": t.get("p_holm"),
-                "p_wilcoxon_holm": t.get("wilcoxon_p_holm"),
-                "paper_mean": paper.get(lr),
-            }
-        )
-    k = config.experiments[0].condition.human_kwargs["switch_after"]
-    n_corr = config.experiments[0].corrections
-    md = table_markdown(rows, metric, k, n_corr, config.experiments[0].condition.sigma)
-    files = presets.write_table(rd.path, "changing", rows, COLUMNS, md)
-    presets.write_meta(
-        rd.path,
-        "changing",
-        {
-            "preset": "changing",
+
+    def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
+        rd, a, wall = self.run(config, out, args)
+        env = args.env
+        metric = env_preset(env).primary_metric
+        metric = metric if metric in a.metrics_for(env) else "error"
+        paper = PAPER_CHANGING.get(env, {})
+        rows = []
+        for lr in config.learners:
+            c = a.cell(env, "changing", lr, metric) or {}
+            t = a.test(env, "changing", lr, metric) or {}
+            err = a.cell(env, "changing", lr, "error") or {}
+            cos = a.cell(env, "changing", lr, "cos_error") or {}
+            rows.append(
+                {
+                    "env": env,
+                    "learner": lr,
+                    "metric": metric,
+                    **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                    "error_mean": err.get("mean"),
+                    "cos_error_mean": cos.get("mean"),
+                    "p_t_holm": t.get("p_holm"),
+                    "p_wilcoxon_holm": t.get("wilcoxon_p_holm"),
+                    "paper_mean": paper.get(lr),
+                }
+            )
+        exp = config.experiments[0]
+        k = exp.condition.human_kwargs["switch_after"]
+        md = table_markdown(rows, metric, k, exp.corrections, exp.condition.sigma)
+        meta = {
             "config": config.to_dict(),
-            "seeds": [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1],
+            "seeds": [exp.seeds.start, exp.seeds.stop - 1],
             "wall_time_s": wall,
-        },
-    )
-    plots = [] if args.no_plots else plot(rows, metric, rd.path / "plots" / "changing")
-    print("\n".join(md))
-    print(f"\nwall time {wall:.1f} s ({presets.load()}); results in {rd.path}/")
-    for f in [*files, *(p for p in plots if p.suffix == ".png")]:
-        print(f"wrote {f}")
-    return 0
+        }
+        return Outcome(rd.path, md, rows, meta, self.wall(wall, rd.path), state=metric)
+
+    def plot(self, outcome: Outcome, folder: Path) -> list[Path]:
+        return plot(outcome.rows, outcome.state, folder / "changing")
 
 
 def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) -> list[str]:
-    from strol_gym.benchmarks.report import display
+    from strol_gym.benchmarks.analysis.report import display
 
-    fmt = presets.fmt
     lines = [
         f"Changing preferences: θ* for {k} corrections, then −θ* for {n - k}; σ = {sigma:g}; "
         f"scored against the final preference. {metric} (mean ± std, SEM, median); p: StROL vs "
@@ -166,8 +162,8 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Bars: mean ± SEM per learner; the paper's values as black diamonds."""
-    from strol_gym.benchmarks.plots import COLORS, SHORT, _save, plt
-    from strol_gym.benchmarks.report import display
+    from strol_gym.benchmarks.analysis.plots import COLORS, _save, plt
+    from strol_gym.benchmarks.analysis.report import display
 
     stem.parent.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(4.8, 3.2))
@@ -184,7 +180,7 @@ def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     if paper:
         ax.scatter(*zip(*paper, strict=True), marker="D", color="k", zorder=3, label="paper")
     ax.set_xticks(list(xs), [display(r["learner"]) for r in rows])
-    ax.set_ylabel(SHORT.get(metric, metric))
+    ax.set_ylabel(short(metric))
     ax.set_title("Changing preferences")
     ax.legend(fontsize=8)
     return _save(fig, stem.parent, stem.name)

@@ -20,9 +20,15 @@ from typing import Any
 
 import numpy as np
 from scipy import stats as sps
-from strol_gym.benchmarks import presets, stats
-from strol_gym.benchmarks.conditions import CONDITION_NAMES, REFERENCE_LEARNER, make_condition
-from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.args import nonneg_int, positive_int
+from strol_gym.benchmarks.engine.conditions import (
+    CONDITION_NAMES,
+    REFERENCE_LEARNER,
+    make_condition,
+)
+from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt, load
 
 PROTOCOL_RUNS = 1000
 PROTOCOL_SEED = 3_000_000
@@ -66,35 +72,6 @@ COLUMNS = (
     "prob_improvement_ci95_low",
     "prob_improvement_ci95_high",
 )
-
-
-def add_parser(sub: argparse._SubParsersAction, common) -> None:
-    p = sub.add_parser(
-        "confirm",
-        help="the pre-registered confirmatory Robot test (docs/confirmatory.md)",
-        description="Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other "
-        "than the protocol's make an exploratory run (for tests), labelled as such.",
-    )
-    p.add_argument("--env", choices=("robot",), default="robot")
-    p.add_argument(
-        "--runs",
-        type=common.positive_int("--runs"),
-        default=PROTOCOL_RUNS,
-        help=f"runs per condition (protocol: {PROTOCOL_RUNS})",
-    )
-    p.add_argument(
-        "--seed",
-        type=common.nonneg_int("--seed"),
-        default=PROTOCOL_SEED,
-        help=f"first run seed (protocol: {PROTOCOL_SEED}; tests use other seeds)",
-    )
-    p.add_argument(
-        "--jobs", type=common.positive_int("--jobs"), default=None, help="worker processes"
-    )
-    p.add_argument("--out", default=None, help="results folder (default results/confirm-<env>)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--force", action="store_true", help="replace a folder of another config")
-    p.add_argument("--no-plots", action="store_true")
 
 
 def make_config(env: str = "robot", *, runs: int = PROTOCOL_RUNS, seed: int = PROTOCOL_SEED):
@@ -160,7 +137,7 @@ def analyse(
     boot_seed: int = BOOTSTRAP_SEED,
 ) -> dict[str, Any]:
     """The protocol's analysis of the per-run records: test rows, verdicts, descriptives."""
-    from strol_gym.benchmarks.report import _matrix
+    from strol_gym.benchmarks.analysis.base import _matrix
 
     rng = np.random.default_rng(boot_seed)
     learners = list(LEARNERS)
@@ -254,31 +231,55 @@ def analyse(
 
 
 # ---------------------------------------------------------------------- the command
-def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    t0 = time.perf_counter()
-    try:
-        config = make_config(args.env, runs=args.runs, seed=args.seed)
-    except ValueError as e:
-        parser.error(str(e))
-    protocol = is_protocol(args.runs, args.seed)
-    out = Path(args.out or f"results/confirm-{args.env}")
-    rd, _, run_wall = presets.run_config(config, out, args)
-    result = analyse(rd.read_records(), args.env)
-    wall = time.perf_counter() - t0
-    label = (
-        "PRE-REGISTERED confirmatory run (docs/confirmatory.md)"
-        if protocol
-        else "EXPLORATORY run (not the pre-registered seeds or run count; no confirmatory claim)"
+class Confirm(BenchExperiment):
+    """The confirmatory protocol as an experiment."""
+
+    name = "confirm"
+    help = "the pre-registered confirmatory Robot test (docs/confirmatory.md)"
+    description = (
+        "Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other "
+        "than the protocol's make an exploratory run (for tests), labelled as such."
     )
-    seeds = [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1]
-    md = markdown(result, label, seeds, rd.meta)
-    files = presets.write_table(rd.path, "confirm", result["rows"], COLUMNS, md)
-    load = presets.load()
-    presets.write_meta(
-        rd.path,
-        "confirm",
-        {
-            "preset": "confirm",
+    columns = COLUMNS
+
+    def add_arguments(self, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--env", choices=("robot",), default="robot")
+        p.add_argument(
+            "--runs",
+            type=positive_int("--runs"),
+            default=PROTOCOL_RUNS,
+            help=f"runs per condition (protocol: {PROTOCOL_RUNS})",
+        )
+        p.add_argument(
+            "--seed",
+            type=nonneg_int("--seed"),
+            default=PROTOCOL_SEED,
+            help=f"first run seed (protocol: {PROTOCOL_SEED}; tests use other seeds)",
+        )
+        p.add_argument("--jobs", type=positive_int("--jobs"), default=None, help="worker processes")
+        p.add_argument("--out", default=None, help="results folder (default results/confirm-<env>)")
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        p.add_argument("--force", action="store_true", help="replace a folder of another config")
+        p.add_argument("--no-plots", action="store_true")
+
+    def plan(self, args: argparse.Namespace) -> BenchConfig:
+        self._t0 = time.perf_counter()
+        return make_config(args.env, runs=args.runs, seed=args.seed)
+
+    def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
+        protocol = is_protocol(args.runs, args.seed)
+        rd, _, run_wall = self.run(config, out, args)
+        result = analyse(rd.read_records(), args.env)
+        wall = time.perf_counter() - self._t0
+        label = (
+            "PRE-REGISTERED confirmatory run (docs/confirmatory.md)"
+            if protocol
+            else "EXPLORATORY run (not the pre-registered seeds or run count; no confirmatory "
+            "claim)"
+        )
+        seeds = [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1]
+        md = markdown(result, label, seeds, rd.meta)
+        meta = {
             "protocol": protocol,
             "config": config.to_dict(),
             "seeds": seeds,
@@ -289,20 +290,19 @@ def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
             "verdicts": result["verdicts"],
             "verdicts_holm_12": result["verdicts_holm_12"],
             "wall_time_s": {"total": wall, "episodes": run_wall},
-        },
-    )
-    plots = [] if args.no_plots else plot(result, rd.path / "plots")
-    print("\n".join(md))
-    print(f"\nwall time {wall:.1f} s (episodes {run_wall:.1f} s; {load}); results in {rd.path}/")
-    for f in [*files, *(p for p in plots if p.suffix == ".png")]:
-        print(f"wrote {f}")
-    return 0
+        }
+        line = (
+            f"\nwall time {wall:.1f} s (episodes {run_wall:.1f} s; {load()}); results in {rd.path}/"
+        )
+        return Outcome(rd.path, md, result["rows"], meta, line, state=result)
+
+    def plot(self, outcome: Outcome, folder: Path) -> list[Path]:
+        return plot(outcome.state, folder)
 
 
 def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str]:
-    from strol_gym.benchmarks.report import display
+    from strol_gym.benchmarks.analysis.report import display
 
-    fmt = presets.fmt
     git = meta.get("git") or {}
     lines = [
         f"# Confirmatory Robot test — {label}",
@@ -372,8 +372,8 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
 def plot(result: dict, out: Path) -> list[Path]:
     """Probability that StROL's regret is lower than each baseline's, with bootstrap CIs, per
     condition (0.5 = no difference)."""
-    from strol_gym.benchmarks.plots import COLORS, _save, plt
-    from strol_gym.benchmarks.report import display
+    from strol_gym.benchmarks.analysis.plots import COLORS, _save, plt
+    from strol_gym.benchmarks.analysis.report import display
 
     out.mkdir(parents=True, exist_ok=True)
     conds = list(result["verdicts"])

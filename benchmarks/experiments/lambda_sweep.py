@@ -11,33 +11,18 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from strol_gym.benchmarks import presets
-from strol_gym.benchmarks.conditions import env_preset, make_condition
-from strol_gym.benchmarks.config import DEFAULT_BLOCK, BenchConfig, Experiment
-from strol_gym.benchmarks.paper_numbers import PAPER_LAMBDA
+from strol_gym.benchmarks.analysis.paper_numbers import PAPER_LAMBDA
+from strol_gym.benchmarks.args import float_list, positive_int, run_options
+from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
+from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt
+
+from strol_gym.metrics import short
 
 DEFAULT_LAMBDAS = (0.0, 0.1, 1.0, 10.0)
 PRIOR_CONDITIONS = {"bimodal": "training", "uniform": "uniform-prior"}
 """The prior θ* is drawn from -> the paper condition that has it (σ = the training noise)."""
 COLUMNS = ("env", "prior", "lam", "metric", "mean", "std", "sem", "median", "n", "paper_mean")
-
-
-def add_parser(sub: argparse._SubParsersAction, common) -> None:
-    p = sub.add_parser(
-        "lambda",
-        help="StROL at several λ under the bimodal and the uniform prior",
-        description="StROL's λ sweep (G = g + λ·ĝ) under the designer's bimodal prior and the "
-        "uniform prior; regret (Robot) against λ with SEM bars and the paper's values.",
-    )
-    p.add_argument("--env", choices=("robot",), default="robot")
-    p.add_argument(
-        "--lambdas",
-        type=presets.float_list("--lambdas", low=0.0),
-        default=list(DEFAULT_LAMBDAS),
-        help="comma-separated λ >= 0 (default 0,0.1,1,10)",
-    )
-    p.add_argument("--runs", type=common.positive_int("--runs"), default=None)
-    common.run_options(p)
 
 
 def lam_key(lam: float) -> str:
@@ -56,59 +41,70 @@ def make_config(
     return BenchConfig(exps, ("strol",), "strol", block, {"strol": {"lam": float(lam)}})
 
 
-def cmd(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    configs = {}
-    try:
-        for lam in dict.fromkeys(args.lambdas):
-            configs[lam] = make_config(
-                args.env, lam, runs=args.runs, seed=args.seed, block=args.block
-            )
-    except ValueError as e:
-        parser.error(str(e))
-    out = Path(args.out or f"results/lambda-{args.env}")
-    metric = env_preset(args.env).primary_metric
-    rows, walls = [], {}
-    for lam, config in configs.items():
-        _, a, wall = presets.run_config(config, out / f"lam-{lam_key(lam)}", args)
-        walls[lam_key(lam)] = wall
-        for prior, cond in PRIOR_CONDITIONS.items():
-            c = a.cell(args.env, cond, "strol", metric) or {}
-            rows.append(
-                {
-                    "env": args.env,
-                    "prior": prior,
-                    "lam": lam,
-                    "metric": metric,
-                    **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
-                    "paper_mean": PAPER_LAMBDA.get(prior, {}).get(lam),
-                }
-            )
-    md = table_markdown(rows, metric)
-    files = presets.write_table(out, "lambda", rows, COLUMNS, md)
-    first = next(iter(configs.values()))
-    presets.write_meta(
-        out,
-        "lambda",
-        {
-            "preset": "lambda",
+class LambdaSweep(BenchExperiment):
+    """StROL's λ sweep as an experiment: one results folder per λ, the sweep's table above."""
+
+    name = "lambda"
+    help = "StROL at several λ under the bimodal and the uniform prior"
+    description = (
+        "StROL's λ sweep (G = g + λ·ĝ) under the designer's bimodal prior and the "
+        "uniform prior; regret (Robot) against λ with SEM bars and the paper's values."
+    )
+    columns = COLUMNS
+
+    def add_arguments(self, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--env", choices=("robot",), default="robot")
+        p.add_argument(
+            "--lambdas",
+            type=float_list("--lambdas", low=0.0),
+            default=list(DEFAULT_LAMBDAS),
+            help="comma-separated λ >= 0 (default 0,0.1,1,10)",
+        )
+        p.add_argument("--runs", type=positive_int("--runs"), default=None)
+        run_options(p)
+
+    def plan(self, args: argparse.Namespace) -> dict[float, BenchConfig]:
+        return {
+            lam: make_config(args.env, lam, runs=args.runs, seed=args.seed, block=args.block)
+            for lam in dict.fromkeys(args.lambdas)
+        }
+
+    def execute(
+        self, configs: dict[float, BenchConfig], args: argparse.Namespace, out: Path
+    ) -> Outcome:
+        metric = env_preset(args.env).primary_metric
+        rows, walls = [], {}
+        for lam, config in configs.items():
+            _, a, wall = self.run(config, out / f"lam-{lam_key(lam)}", args)
+            walls[lam_key(lam)] = wall
+            for prior, cond in PRIOR_CONDITIONS.items():
+                c = a.cell(args.env, cond, "strol", metric) or {}
+                rows.append(
+                    {
+                        "env": args.env,
+                        "prior": prior,
+                        "lam": lam,
+                        "metric": metric,
+                        **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                        "paper_mean": PAPER_LAMBDA.get(prior, {}).get(lam),
+                    }
+                )
+        first = next(iter(configs.values()))
+        meta = {
             "lambdas": list(args.lambdas),
-            "conditions": {p: c for p, c in PRIOR_CONDITIONS.items()},
+            "conditions": dict(PRIOR_CONDITIONS),
             "configs": {lam_key(k): c.to_dict() for k, c in configs.items()},
             "seeds": [first.experiments[0].seeds.start, first.experiments[0].seeds.stop - 1],
             "wall_time_s": walls,
-        },
-    )
-    plots = [] if args.no_plots else plot(rows, metric, out / "plots" / "lambda")
-    print("\n".join(md))
-    total = sum(walls.values())
-    print(f"\nwall time {total:.1f} s ({presets.load()}); results in {out}/")
-    for f in [*files, *(p for p in plots if p.suffix == ".png")]:
-        print(f"wrote {f}")
-    return 0
+        }
+        md = table_markdown(rows, metric)
+        return Outcome(out, md, rows, meta, self.wall(sum(walls.values()), out), state=metric)
+
+    def plot(self, outcome: Outcome, folder: Path) -> list[Path]:
+        return plot(outcome.rows, outcome.state, folder / "lambda")
 
 
 def table_markdown(rows: list[dict], metric: str) -> list[str]:
-    fmt = presets.fmt
     lines = [
         f"StROL's {metric} against λ (G = g + λ·ĝ; λ = 0 is Gradient): mean ± std, SEM, median; "
         "the paper's values are read off its figure.",
@@ -127,7 +123,7 @@ def table_markdown(rows: list[dict], metric: str) -> list[str]:
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Regret against λ (symlog x), mean ± SEM per prior; the paper's values as hollow marks."""
-    from strol_gym.benchmarks.plots import SHORT, _save, plt
+    from strol_gym.benchmarks.analysis.plots import _save, plt
 
     stem.parent.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(4.8, 3.2))
@@ -155,7 +151,7 @@ def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
             )
     ax.set_xscale("symlog", linthresh=0.1)
     ax.set_xlabel("λ")
-    ax.set_ylabel(SHORT.get(metric, metric))
+    ax.set_ylabel(short(metric))
     ax.set_title("StROL: G = g + λ·ĝ")
     ax.legend(fontsize=7)
     return _save(fig, stem.parent, stem.name)

@@ -13,16 +13,19 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
-from strol_gym.benchmarks.config import BenchConfig, Experiment
-from strol_gym.benchmarks.report import Analysis, analyse, display
-from strol_gym.benchmarks.results import ResultsDir, write_csv
+from strol_gym.benchmarks.analysis.report import Analysis, analyse, display
+from strol_gym.benchmarks.args import nonneg_int, positive_int
+from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
+from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
+from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
+
+from strol_gym.metrics import short
 
 TASKS = (1, 2, 3)
 DEFAULT_USERS = 20
@@ -35,12 +38,8 @@ BLOCK = 4
 SIGMA = 0.25
 """The users' noise (fraction of a_max), as the study's ĝ were trained."""
 METRICS = ("regret", "error", "correction_time", "corrections")
-LABELS = {
-    "regret": "Regret",
-    "error": "Final error ‖θ* − θ̂‖",
-    "correction_time": "Correction time (s)",
-    "corrections": "Corrections",
-}
+LABELS = {m: short(m) for m in METRICS}
+"""How the study's tables and axes spell its metrics (``strol_gym.metrics``)."""
 H3_BASELINES = ("one", "mof")
 H3_METRICS = ("regret", "correction_time")
 PAPER = {
@@ -168,7 +167,7 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strol_gym.benchmarks.plots import _color, _save
+    from strol_gym.benchmarks.analysis.plots import _color, _save
 
     out.mkdir(parents=True, exist_ok=True)
     envs = [e.env for e in a.config.experiments]
@@ -204,7 +203,7 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
 def _anova_text(r: dict[str, Any]) -> str:
     """'F(df1, df2) = F, p_GG = p', or, when F is undefined, ``AnovaResult.line``'s reason
     (never "F = inf, p = 0")."""
-    from strol_gym.benchmarks.stats import AnovaResult
+    from strol_gym.benchmarks.analysis.stats import AnovaResult
 
     if not math.isfinite(r["F"]):
         return AnovaResult.from_row(r).line()
@@ -213,7 +212,7 @@ def _anova_text(r: dict[str, Any]) -> str:
 
 def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]:
     """Tables (CSV + markdown), statistics, verdicts (study.json) and plots from ``rd``."""
-    from strol_gym.benchmarks.report import ANOVA_COLUMNS, STATS_COLUMNS, SUMMARY_COLUMNS
+    from strol_gym.benchmarks.analysis.report import ANOVA_COLUMNS, STATS_COLUMNS, SUMMARY_COLUMNS
 
     records = rd.read_records()
     if not records:
@@ -261,48 +260,54 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     return result
 
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    """The ``study`` subcommand's options (checked by argparse: bad ones exit 2 up front)."""
-    from strol_gym.benchmarks.cli import _nonneg_int, _positive_int
+class Study(BenchExperiment):
+    """The simulated user study as an experiment; it writes its own tables (study_table.*)."""
 
-    p.add_argument("--task", type=parse_tasks, default=TASKS, help="Tasks, e.g. 1,3 (1,2,3)")
-    p.add_argument(
-        "--users",
-        type=_positive_int("--users", 10_000),
-        default=DEFAULT_USERS,
-        help=f"simulated users per Task (default {DEFAULT_USERS})",
+    name = "study"
+    help = "the user study (H3) with simulated users: Tasks 1-3 of StROL-Study-v0"
+    description = (
+        "StROL-Study-v0's Tasks x Gradient, One, MOF, e2e, StROL x simulated users "
+        "(paired); regret, correction time, H3 verdicts, table beside the paper's, plots."
     )
-    p.add_argument(
-        "--seed", type=_nonneg_int("--seed"), default=SEED, help=f"first user seed ({SEED})"
-    )
-    p.add_argument("--out", default=None, help="results folder (default results/study)")
-    p.add_argument(
-        "--jobs",
-        type=_positive_int("--jobs"),
-        default=None,
-        help="worker processes (default: every available CPU); results do not depend on it",
-    )
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument(
-        "--force", action="store_true", help="replace a results folder made with another config"
-    )
-    p.add_argument("--no-plots", action="store_true", help="skip the figures")
 
+    def add_arguments(self, p: argparse.ArgumentParser) -> None:
+        """The ``study`` subcommand's options (checked by argparse: bad ones exit 2 up front)."""
+        p.add_argument("--task", type=parse_tasks, default=TASKS, help="Tasks, e.g. 1,3 (1,2,3)")
+        p.add_argument(
+            "--users",
+            type=positive_int("--users", 10_000),
+            default=DEFAULT_USERS,
+            help=f"simulated users per Task (default {DEFAULT_USERS})",
+        )
+        p.add_argument(
+            "--seed", type=nonneg_int("--seed"), default=SEED, help=f"first user seed ({SEED})"
+        )
+        p.add_argument("--out", default=None, help="results folder (default results/study)")
+        p.add_argument(
+            "--jobs",
+            type=positive_int("--jobs"),
+            default=None,
+            help="worker processes (default: every available CPU); results do not depend on it",
+        )
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        p.add_argument(
+            "--force", action="store_true", help="replace a results folder made with another config"
+        )
+        p.add_argument("--no-plots", action="store_true", help="skip the figures")
 
-def cmd_study(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    """Run (or resume) the study, print its table, verdicts and wall time."""
-    from strol_gym.benchmarks.runner import default_jobs, run_benchmark
+    def plan(self, args: argparse.Namespace) -> BenchConfig:
+        return study_config(args.task, args.users, args.seed)
 
-    config = study_config(args.task, args.users, args.seed)
-    out = Path(args.out or "results/study")
-    jobs = args.jobs or default_jobs()
-    t0 = time.perf_counter()
-    rd = run_benchmark(config, out, jobs=jobs, quiet=args.quiet, force=args.force)
-    wall = time.perf_counter() - t0
-    result = write_study_reports(rd, plots=not args.no_plots)
-    print(result["markdown"])
-    print(f"\nwall time {wall:.1f} s (jobs={jobs}); results in {rd.path}/")
-    for p in result["plots"]:
-        if p.endswith(".png"):
-            print(f"plot: {p}")
-    return 0
+    def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
+        """Run (or resume) the study; its table, verdicts and plots."""
+        from strol_gym.benchmarks.engine.runner import default_jobs
+
+        jobs = args.jobs or default_jobs()
+        rd, _, wall = self.run(config, out, args, reports=False)
+        result = write_study_reports(rd, plots=not args.no_plots)
+        line = f"\nwall time {wall:.1f} s (jobs={jobs}); results in {rd.path}/"
+        notes = [f"plot: {p}" for p in result["plots"] if p.endswith(".png")]
+        return Outcome(rd.path, [result["markdown"]], wall_line=line, notes=notes)
+
+    def default_out(self, args: argparse.Namespace) -> str:
+        return "results/study"

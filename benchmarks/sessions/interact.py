@@ -21,7 +21,7 @@ from typing import Any, Protocol
 import gymnasium as gym
 import mujoco
 import numpy as np
-from strol_gym.benchmarks.session_log import SessionLogger
+from strol_gym.wrappers.session_log import SessionLogger
 from strol_gym.wrappers import OnlineLearningWrapper
 
 from strol_gym.envs.panda import PassiveViewer, has_display
@@ -185,7 +185,9 @@ def run_interactive(
 
 
 # ---------------------------------------------------------------------- CLI (strol-bench interact)
-def add_parser(sub: Any, plugin_option: Any) -> None:
+def add_parser(sub: Any) -> None:
+    from strol_gym.benchmarks.args import plugin_option
+
     p = sub.add_parser(
         "interact",
         help="push the study arm yourself in MuJoCo's viewer; the robot learns (needs a display)",
@@ -208,7 +210,7 @@ def add_parser(sub: Any, plugin_option: Any) -> None:
 def command(args: Any, parser: Any) -> int:
     import json
 
-    from strol_gym.benchmarks.cli import check_learner_names
+    from strol_gym.benchmarks.args import check_learner_names
 
     if args.task not in ("1", "2", "3"):
         raise ValueError(f"--task must be 1, 2 or 3, got {args.task!r}")

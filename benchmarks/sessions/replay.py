@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.session_log import Session, read_session
+from strol_gym.wrappers.session_log import Session, read_session
 from strol_gym.wrappers.online_learning import cosine_error
 
 from strol_gym.learners.registry import display_name, make_learner
@@ -96,7 +96,7 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strol_gym.benchmarks.plots import _color
+    from strol_gym.benchmarks.analysis.plots import _color
 
     names = session.header["task_describe"]["feature_names"]
     fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 2.8), squeeze=False)
@@ -156,7 +156,9 @@ __all__ = ["plot_thetas", "replay_session", "run_replay", "summary_rows", "write
 
 
 # ---------------------------------------------------------------------- CLI (strol-bench replay)
-def add_parser(sub: Any, learner_list: Any, plugin_option: Any) -> None:
+def add_parser(sub: Any) -> None:
+    from strol_gym.benchmarks.args import learner_list, plugin_option
+
     p = sub.add_parser(
         "replay",
         help="feed a session log's corrections through learners (table, CSV, plot)",
@@ -180,7 +182,7 @@ def add_parser(sub: Any, learner_list: Any, plugin_option: Any) -> None:
 def command(args: Any, parser: Any) -> int:
     import json
 
-    from strol_gym.benchmarks.cli import check_learner_names
+    from strol_gym.benchmarks.args import check_learner_names
 
     check_learner_names(args.learners)
     kwargs: dict[str, dict] = {}

@@ -1,7 +1,8 @@
 """Speed of StROL-Highway-v0 (env steps/s, rendering off), human controller included.
 
-    .venv/bin/python benchmarks/bench_highway_env.py [--steps 5000] [--repeats 3] [--compare]
-    .venv/bin/python benchmarks/bench_highway_env.py --learning 50 [--sigma S --bias B --prior P]
+    .venv/bin/python benchmarks/speed/bench_highway_env.py [--steps 5000] [--repeats 3] [--compare]
+    .venv/bin/python benchmarks/speed/bench_highway_env.py --learning 50
+        [--sigma S --bias B --prior P]
 
 Rows: the default env (eq. M6 "nominal" human with 512 candidates, 10-step episodes, resets
 included), the human correcting on every step (no resets), the "boltzmann" and "driver" humans,
@@ -23,7 +24,7 @@ from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
-from strol_gym.benchmarks.timing import env_steps_per_second
+from strol_gym.benchmarks.speed.timing import env_steps_per_second
 
 import strol_gym
 from strol_gym.envs.highway import HighwayEnv

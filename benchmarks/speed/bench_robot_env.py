@@ -1,6 +1,6 @@
 """Speed of StROL-Robot-v0 (env steps/s, rendering off) and of the Robot planner (plans/s).
 
-    .venv/bin/python benchmarks/bench_robot_env.py [--steps 20000] [--repeats 3]
+    .venv/bin/python benchmarks/speed/bench_robot_env.py [--steps 20000] [--repeats 3]
 
 Env rows, each through ``gymnasium.make`` (so with its wrappers), random actions, resets
 included: the default env (eq. M6 human with 512 candidates during the first 5 of 10 steps),
@@ -23,7 +23,7 @@ import time  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
-from strol_gym.benchmarks.timing import env_steps_per_second  # noqa: E402
+from strol_gym.benchmarks.speed.timing import env_steps_per_second  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
 from strol_gym.tasks.robot import RobotTask  # noqa: E402

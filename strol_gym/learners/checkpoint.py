@@ -259,7 +259,7 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
     if not found:
         raise FileNotFoundError(
             f"no pretrained {kind} ĝ for {task.task_id} in {directory}; train one with "
-            f"`python -m strol_gym.learners.training --task {task.task_id} --kind {kind} "
+            f"`strol-bench train --task {task.task_id} --kind {kind} "
             f"--out FILE.pt` and pass checkpoint=FILE.pt"
         )
     if len(found) > 1:
