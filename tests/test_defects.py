@@ -1,4 +1,4 @@
-"""Regression tests for the defects a probe of ~150 bad inputs found (issue 12, item 6).
+"""Regression tests for the defects a probe of ~150 bad inputs found.
 
 Each test names the defect it guards; every one failed before its fix. Errors must name the
 argument (or the file) and its valid range; the CLI exits with status 2 and one line.

@@ -1,4 +1,4 @@
-"""The paper's remaining experiments (issue 10): the changing human, basin_map, and the
+"""The paper's remaining experiments: the changing human, basin_map, and the
 changing / lambda / basin / confirm presets from the CLI (tiny runs on diagnostic seeds; the
 confirmatory protocol's seeds 3_000_000+ are never used here)."""
 
@@ -18,7 +18,7 @@ from strol_gym.humans import HUMANS, ChangingHuman
 from strol_gym.learners.registry import make_learner
 from strol_gym.tasks.robot import RobotTask
 
-SEED = 1000  # diagnostics range (contract 6)
+SEED = 1000  # the diagnostics seed range
 
 
 # ---------------------------------------------------------------------- the changing human

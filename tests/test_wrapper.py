@@ -22,7 +22,7 @@ CONTRACT_ID = "StROLTest-Contract-v0"
 
 
 class ContractEnv(gym.Env):
-    """The env contract of CONVENTIONS.md in miniature: the kinematics of ``task.dynamics``,
+    """The env contract in miniature: the kinematics of ``task.dynamics``,
     an eq. M6 human for the first ``n_corrections`` steps, reward R(x', θ*)."""
 
     metadata: ClassVar[dict] = {"render_modes": []}

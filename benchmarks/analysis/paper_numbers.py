@@ -1,4 +1,4 @@
-"""The numbers the authors report (DESIGN.md; mean ± std), to set beside ours. A reference to
+"""The numbers the authors report (mean ± std), to set beside ours. A reference to
 compare against, never a target: they come from the authors' released code, which differs from
 the paper and from us (unbounded ĝ, greedy evaluation human, unpaired runs; docs/fidelity.md).
 """

@@ -281,7 +281,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
         baselines = set(PAPER_LEARNERS) - {REFERENCE_LEARNER}
         if (env, primary) in PAPER and set(cfg.learners) & baselines:
             out += [
-                f"### {primary} beside the authors' reported numbers (DESIGN.md; their released "
+                f"### {primary} beside the authors' reported numbers (their released "
                 "code, not a target)",
                 "",
                 *side_by_side(a, env, primary, cfg.learners),

@@ -26,7 +26,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
-from strol_gym.benchmarks.args import finite, float_list  # noqa: F401  (the experiments' types)
+from strol_gym.benchmarks.args import plugin_option
 from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.benchmarks.engine.results import (
     ResultsDir,
@@ -94,6 +94,8 @@ class BenchExperiment:
     def add_parser(self, sub: argparse._SubParsersAction) -> argparse.ArgumentParser:
         p = sub.add_parser(self.name, help=self.help, description=self.description or self.help)
         self.add_arguments(p)
+        if "--plugin" not in p._option_string_actions:  # every experiment takes --plugin
+            plugin_option(p)
         return p
 
     def __call__(self, args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:

@@ -21,7 +21,7 @@ from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 LEARNERS = {"gradient": "g (Gradient)", "strol": "g + ĝ (StROL)"}
 COLUMNS = ("learner", "theta0_a", "theta0_b", "error", "converged")
 DEFAULT_SEED = 1000
-"""In the diagnostics range (contract 6): the human's draws, not an evaluation run."""
+"""In the diagnostics seed range: the human's draws, not an evaluation run."""
 
 
 class Basin(BenchExperiment):

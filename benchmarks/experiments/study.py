@@ -32,7 +32,7 @@ DEFAULT_USERS = 20
 """Simulated users per Task; the default run (3 Tasks × 5 learners × 20) fits in 10 minutes on
 2 cores (docs/results.md has the measured wall time)."""
 SEED = 20_000
-"""First user seed: the study's range is 20000–29999 (HELPERS.md contract 6)."""
+"""First user seed: the study's seeds are 20000–29999, apart from evaluation and training."""
 BLOCK = 4
 """Users per unit of work: small, so 2+ processes share the 60 s episodes evenly."""
 SIGMA = 0.25

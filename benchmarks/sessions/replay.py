@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.wrappers.session_log import Session, read_session
 from strol_gym.wrappers.online_learning import cosine_error
+from strol_gym.wrappers.session_log import Session, read_session
 
 from strol_gym.learners.registry import display_name, make_learner
 from strol_gym.tasks import make_task

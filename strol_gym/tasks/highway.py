@@ -31,7 +31,7 @@ step's acceleration or steering shows in φ; "T ahead" below means at that predi
   lane change). Its heading is what moves it within a step, as the paper's "heading direction
   indicating whether the human will change lane".
 
-Prior modes over (gap, speed, lane_change) (DESIGN.md gives the authors' numbers, "tailgate"
+Prior modes over (gap, speed, lane_change) (the paper's numbers, "tailgate"
 (1.0, 1.0, 0.1) and "pass on the right" (0.1, −1.0, 1.0), in *their* feature signs): "tailgate"
 (1.0, 1.0, 0.1) keeps its lane and closes in to the slot; "pass on the right" (0.1, 1.0, 1.0)
 ignores the gap, prefers speed and changes lane, as the paper's text describes. The speed sign
@@ -51,7 +51,6 @@ from strol_gym.tasks.base import Task, positive_field, vector_field
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
 """Prior modes over (gap, speed, lane_change): "tailgate" and "pass on the right"."""
-MODE_NAMES = ("tailgate", "pass on the right")
 
 # highway-env's Vehicle constants (highway_env.vehicle.kinematics.Vehicle); a test checks them.
 CAR_LENGTH = 5.0
