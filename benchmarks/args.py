@@ -77,6 +77,20 @@ def check_learner_names(names: list[str] | tuple[str, ...]) -> None:
         LEARNERS.check_name(name)
 
 
+def learner_kwargs(text: str | None) -> dict[str, dict[str, Any]]:
+    """``--learner-kwargs``: a JSON object of constructor kwargs per learner (``{}`` for None);
+    ValueError naming the option otherwise."""
+    if not text:
+        return {}
+    try:
+        kwargs = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--learner-kwargs must be JSON ({e})") from None
+    if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
+        raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {...}}')
+    return kwargs
+
+
 def float_list(name: str, *, low: float = 0.0):
     """An argparse type: comma-separated finite numbers >= ``low``, at least one."""
 

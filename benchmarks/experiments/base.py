@@ -187,6 +187,19 @@ def write_meta(out: Path, stem: str, meta: dict[str, Any]) -> Path:
     return path
 
 
+def fmt_paper(v: float | None) -> str:
+    """A value read off the paper's figure: "≈ v", or "—" when the paper has none."""
+    return "—" if v is None else f"≈ {v:g}"
+
+
+def small_figure(stem: Path) -> tuple[Any, Any]:
+    """A one-panel figure for an experiment's plot, its folder made: (fig, ax)."""
+    from strol_gym.benchmarks.analysis.plots import plt
+
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    return plt.subplots(figsize=(4.8, 3.2))
+
+
 def fmt(v: float, digits: int = 3) -> str:
     """A table number: fixed digits, scientific for tiny non-zero values, 'n/a' for NaN."""
     if v is None or not math.isfinite(v):

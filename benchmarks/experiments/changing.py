@@ -16,7 +16,13 @@ from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
 from strol_gym.benchmarks.args import finite, nonneg_int, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
-from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt
+from strol_gym.benchmarks.experiments.base import (
+    BenchExperiment,
+    Outcome,
+    fmt,
+    fmt_paper,
+    small_figure,
+)
 
 from strol_gym.metrics import short
 
@@ -151,7 +157,7 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        paper = "—" if r["paper_mean"] is None else f"≈ {r['paper_mean']:g}"
+        paper = fmt_paper(r["paper_mean"])
         lines.append(
             f"| {display(r['learner'])} | {fmt(r['mean'])} ± {fmt(r['std'])} | {fmt(r['sem'])} | "
             f"{fmt(r['median'])} | {paper} | {fmt(r['error_mean'])} | "
@@ -162,11 +168,10 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Bars: mean ± SEM per learner; the paper's values as black diamonds."""
-    from strol_gym.benchmarks.analysis.plots import COLORS, _save, plt
+    from strol_gym.benchmarks.analysis.plots import COLORS, _save
     from strol_gym.benchmarks.analysis.report import display
 
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(4.8, 3.2))
+    fig, ax = small_figure(stem)
     xs = range(len(rows))
     ax.bar(
         xs,

@@ -15,7 +15,13 @@ from strol_gym.benchmarks.analysis.paper_numbers import PAPER_LAMBDA
 from strol_gym.benchmarks.args import float_list, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
-from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt
+from strol_gym.benchmarks.experiments.base import (
+    BenchExperiment,
+    Outcome,
+    fmt,
+    fmt_paper,
+    small_figure,
+)
 
 from strol_gym.metrics import short
 
@@ -113,7 +119,7 @@ def table_markdown(rows: list[dict], metric: str) -> list[str]:
         "|---|---|---|---|---|---|",
     ]
     for r in rows:
-        paper = "—" if r["paper_mean"] is None else f"≈ {r['paper_mean']:g}"
+        paper = fmt_paper(r["paper_mean"])
         lines.append(
             f"| {r['prior']} | {r['lam']:g} | {fmt(r['mean'])} ± {fmt(r['std'])} | "
             f"{fmt(r['sem'])} | {fmt(r['median'])} | {paper} |"
@@ -123,10 +129,9 @@ def table_markdown(rows: list[dict], metric: str) -> list[str]:
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Regret against λ (symlog x), mean ± SEM per prior; the paper's values as hollow marks."""
-    from strol_gym.benchmarks.analysis.plots import _save, plt
+    from strol_gym.benchmarks.analysis.plots import _save
 
-    stem.parent.mkdir(parents=True, exist_ok=True)
-    fig, ax = plt.subplots(figsize=(4.8, 3.2))
+    fig, ax = small_figure(stem)
     for i, prior in enumerate(PRIOR_CONDITIONS):
         rs = sorted((r for r in rows if r["prior"] == prior), key=lambda r: r["lam"])
         color = f"C{i}"

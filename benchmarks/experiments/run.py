@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -12,6 +11,7 @@ from strol_gym.benchmarks.args import (
     check_learner_names,
     fraction,
     json_object,
+    learner_kwargs,
     learner_list,
     positive_int,
     run_options,
@@ -147,14 +147,7 @@ def config_for_run(args: argparse.Namespace) -> BenchConfig:
         )
         for c in conds
     )
-    kwargs = {}
-    if args.learner_kwargs:
-        try:
-            kwargs = json.loads(args.learner_kwargs)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"--learner-kwargs must be JSON ({e})") from None
-        if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
-            raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {...}}')
+    kwargs = learner_kwargs(args.learner_kwargs)
     learners = list(dict.fromkeys(args.learners))
     reference = args.reference or (
         REFERENCE_LEARNER if REFERENCE_LEARNER in learners else learners[0]

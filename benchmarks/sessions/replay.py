@@ -180,18 +180,9 @@ def add_parser(sub: Any) -> None:
 
 
 def command(args: Any, parser: Any) -> int:
-    import json
-
-    from strol_gym.benchmarks.args import check_learner_names
+    from strol_gym.benchmarks.args import check_learner_names, learner_kwargs
 
     check_learner_names(args.learners)
-    kwargs: dict[str, dict] = {}
-    if args.learner_kwargs:
-        try:
-            kwargs = json.loads(args.learner_kwargs)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"--learner-kwargs must be JSON ({e})") from None
-        if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
-            raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {}}')
+    kwargs = learner_kwargs(args.learner_kwargs)
     run_replay(args.log, args.learners, args.out, kwargs, plots=not args.no_plots)
     return 0
