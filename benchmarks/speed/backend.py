@@ -3,7 +3,7 @@
 the Ray figure includes starting and stopping the local cluster, as a user of the CLI pays it.
 The load average is printed beside the figures: on a shared machine they are noisy.
 
-    python -m strol_gym.benchmarks.speed.bench_backend [--env robot|highway] [--runs N] [--jobs N]
+    python -m strol_gym.benchmarks.speed.backend [--env robot|highway] [--runs N] [--jobs N]
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ def _timed(config, jobs: int, backend: str) -> float:
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(prog="python -m strol_gym.benchmarks.speed.bench_backend")
+    p = argparse.ArgumentParser(prog="python -m strol_gym.benchmarks.speed.backend")
     p.add_argument("--env", choices=("robot", "highway"), default="robot")
     p.add_argument("--runs", type=int, default=None, help="runs per condition (default: paper's)")
     p.add_argument("--jobs", type=int, default=2, help="workers for both backends (2)")

@@ -1,7 +1,7 @@
 """Speed of StROL-Highway-v0 (env steps/s, rendering off), human controller included.
 
-    .venv/bin/python benchmarks/speed/bench_highway_env.py [--steps 5000] [--repeats 3] [--compare]
-    .venv/bin/python benchmarks/speed/bench_highway_env.py --learning 50
+    .venv/bin/python benchmarks/speed/highway_env.py [--steps 5000] [--repeats 3] [--compare]
+    .venv/bin/python benchmarks/speed/highway_env.py --learning 50
         [--sigma S --bias B --prior P]
 
 Rows: the default env (eq. M6 "nominal" human with 512 candidates, 10-step episodes, resets

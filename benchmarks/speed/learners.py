@@ -1,6 +1,6 @@
 """Per-update cost of every registered learner, batch 1 and batch 256, beside Gradient's.
 
-    .venv/bin/python benchmarks/speed/bench_learners.py [--env robot|highway|all] [--repeats 5]
+    .venv/bin/python benchmarks/speed/learners.py [--env robot|highway|all] [--repeats 5]
 
 Each figure is the best of ``--repeats`` timings of ``--updates`` consecutive updates (after one
 warm-up update), in µs per update call, on one torch thread. Inputs are random admissible

@@ -1,7 +1,7 @@
 """Wall time of the full paper comparison per env (targets on 2 cores: Robot ≤ 60 s, Highway
 ≤ 5 min). Runs into fresh temporary folders, so nothing is resumed and nothing is kept.
 
-    python -m strol_gym.benchmarks.speed.bench_paper [--env robot|highway|all] [--jobs N] [--runs N]
+    python -m strol_gym.benchmarks.speed.paper [--env robot|highway|all] [--jobs N] [--runs N]
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ TARGETS_S = {"robot": 60.0, "highway": 300.0}
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(prog="python -m strol_gym.benchmarks.speed.bench_paper")
+    p = argparse.ArgumentParser(prog="python -m strol_gym.benchmarks.speed.paper")
     p.add_argument("--env", choices=("robot", "highway", "all"), default="all")
     p.add_argument("--jobs", type=int, default=default_jobs())
     p.add_argument("--runs", type=int, default=None, help="override the paper's run counts")

@@ -1,6 +1,6 @@
 """Speed of StROL-Robot-v0 (env steps/s, rendering off) and of the Robot planner (plans/s).
 
-    .venv/bin/python benchmarks/speed/bench_robot_env.py [--steps 20000] [--repeats 3]
+    .venv/bin/python benchmarks/speed/robot_env.py [--steps 20000] [--repeats 3]
 
 Env rows, each through ``gymnasium.make`` (so with its wrappers), random actions, resets
 included: the default env (eq. M6 human with 512 candidates during the first 5 of 10 steps),

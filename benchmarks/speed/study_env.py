@@ -1,6 +1,6 @@
 """Speed of StROL-Study-v0: physics overhead and a full simulated-user episode with StROL.
 
-    .venv/bin/python benchmarks/speed/bench_study_env.py [--task 1] [--repeats 3]
+    .venv/bin/python benchmarks/speed/study_env.py [--task 1] [--repeats 3]
 
 1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
    feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics

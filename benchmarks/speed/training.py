@@ -1,6 +1,6 @@
 """Speed and sanity benchmark for ĝ training on the Robot task (Algorithm 1).
 
-    .venv/bin/python benchmarks/speed/bench_training.py [--steps 500] [--batch 100] [--runs 500]
+    .venv/bin/python benchmarks/speed/training.py [--steps 500] [--batch 100] [--runs 500]
 
 Prints the wall time (min / median / max of ``--repeats`` runs) of a 500-step, batch-100
 training run for StROL and e2e (target ≤ 5 s on 2 cores), the held-out eq. M5 term with the
