@@ -52,7 +52,10 @@ def build_parser() -> argparse.ArgumentParser:
 def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.registry import registries
 
-    for kind, reg in registries().items():
+    regs = registries()
+    order = ["env", "learner", "human", "task", "condition"]  # then any other kind
+    for kind in sorted(regs, key=lambda k: order.index(k) if k in order else len(order)):
+        reg = regs[kind]
         user = set(reg.user_names())
         names = [f"{n} (yours)" if n in user else n for n in reg.names()]
         tail = "" if reg.decode is not None else " (or module:attr)"
