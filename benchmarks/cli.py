@@ -9,13 +9,19 @@ module given to ``--plugin`` is a subcommand like the built-in ones.
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
+from typing import Any
 
 from strol_gym.benchmarks.args import plugin_option
 from strol_gym.benchmarks.engine.conditions import ENV_PRESETS, make_condition
 from strol_gym.benchmarks.engine.results import ResultsError
 from strol_gym.benchmarks.experiments import EXPERIMENTS, make_experiment
+
+from strol_gym.learners.protocol import LearnerFailed
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -131,33 +137,59 @@ def _import_plugins(argv: Sequence[str]) -> None:
         import_plugin(plugin)
 
 
+INTERRUPTED = "interrupted: finished runs are saved; rerun the same command to resume"
+
+
+def _interrupted_at_start(signum: int, frame: Any) -> None:
+    """SIGINT before any work: nothing to save or release, so one line and status 130 at once
+    (a KeyboardInterrupt inside an import can surface as another error, or a traceback)."""
+    os.write(2, b"\ninterrupted\n")
+    os._exit(130)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``strol-bench`` console script."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    # Only where Ctrl-C would raise KeyboardInterrupt (not in another thread, nor where it is
+    # ignored, as for a background job)
+    watch = (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
+    if watch:
+        signal.signal(signal.SIGINT, _interrupted_at_start)
     try:
-        _import_plugins(argv)
-    except ValueError as e:  # as main's own handler below says it: exit status 2
-        print(f"strol-bench: error: {e}", file=sys.stderr)
-        raise SystemExit(2) from None
-    parser = build_parser()
-    args = parser.parse_args(argv)
+        try:
+            _import_plugins(argv)
+        except ValueError as e:  # as main's own handler below says it: exit status 2
+            print(f"strol-bench: error: {e}", file=sys.stderr)
+            raise SystemExit(2) from None
+        parser = build_parser()
+        args = parser.parse_args(argv)
+    finally:  # from here on an interrupt is a KeyboardInterrupt: runs save what is finished
+        if watch:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+    if getattr(args, "out", None) == "":  # would silently mean the default folder
+        parser.error("--out must name a path, got an empty string")
     try:
         command = COMMANDS.get(args.command) or make_experiment(args.command)
         return command(args, parser)
-    except ResultsError as e:
+    except (ResultsError, LearnerFailed) as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)
         return 2
-    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
-        parser.exit(2, f"strol-bench: error: {e}\n")
-    except KeyboardInterrupt:
-        print(
-            "\ninterrupted: finished runs are saved; rerun the same command to resume",
-            file=sys.stderr,
-        )
-        return 130
     except BrokenPipeError:  # output piped into `head` and the like: not an error
         sys.stderr.close()
         return 0
+    except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
+        parser.exit(2, f"strol-bench: error: {e}\n")
+    except KeyboardInterrupt:
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return 130
+    except ImportError as e:  # an interrupt inside a C extension's import surfaces as this
+        if not isinstance(e.__context__, KeyboardInterrupt):
+            raise
+        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ from strol_gym.learners.training import (
     train_correction,
     training_prior,
 )
+from strol_gym.limits import TRAIN_CAPS, add_allow_large, check_size_caps
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
 
@@ -87,11 +88,16 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     )
     a("--heldout", type=int, default=10_000, help="held-out samples for the eq. M5 check")
     a("--quiet", action="store_true", help="no progress bar")
+    add_allow_large(parser)
     return parser
 
 
 def run_train(args: argparse.Namespace) -> Path:
     """Train, check on held-out samples (seed + 1), save weights + sidecar; print a summary."""
+    check_size_caps(args, TRAIN_CAPS)
+    out = Path(args.out) if args.out is not None else None
+    if out is not None:
+        check_weights_path(out, "--out")  # before any work, not after it
     task = resolve_task(args.task)
     config = TrainConfig(
         kind=args.kind,
@@ -116,9 +122,10 @@ def run_train(args: argparse.Namespace) -> Path:
     )
     if args.heldout < 1:
         raise ValueError(f"heldout must be >= 1, got {args.heldout}")
-    short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
-    out = Path(args.out) if args.out else Path(f"{short}_{config.kind}.pt")
-    check_weights_path(out, "--out")  # before training, not after it
+    if out is None:
+        short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
+        out = Path(f"{short}_{config.kind}.pt")
+        check_weights_path(out, "--out")
     model, history = train_correction(task, config, quiet=args.quiet)
     check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)
     prior = training_prior(task, config)
@@ -157,7 +164,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = add_train_arguments(parser).parse_args(argv)
     try:
         run_train(args)
-    except (ValueError, FileNotFoundError) as e:  # bad options: one line, exit status 2
+    except (ValueError, OSError) as e:  # bad options or files: one line, exit status 2
         print(f"{parser.prog}: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
 

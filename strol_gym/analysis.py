@@ -21,6 +21,8 @@ from strol_gym.tasks.base import Task
 CONVERGED_TOL = 0.25
 """A cell *converges* when its final error ‖θ̂_K − θ*‖ is at most ``CONVERGED_TOL · ‖θ*‖``
 (a quarter of the preference's length: the estimate ends in θ*'s neighbourhood)."""
+MAX_THETA = 1e6
+"""Largest |θ*_i| a basin map takes: the prior modes are O(1); far beyond, errors overflow."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,8 +107,10 @@ def basin_map(
         ax0 = ax1 = _grid_axis("grid", grid, span)
     modes = np.asarray(task.prior_modes, dtype=np.float64)
     star = modes[0].copy() if theta_star is None else np.asarray(theta_star, dtype=np.float64)
-    if star.shape != (d,) or not np.isfinite(star).all():
-        raise ValueError(f"theta_star must be {d} finite numbers, got {theta_star!r}")
+    if star.shape != (d,) or not (np.abs(star) <= MAX_THETA).all():
+        raise ValueError(
+            f"theta_star must be {d} numbers in [-{MAX_THETA:g}, {MAX_THETA:g}], got {theta_star!r}"
+        )
     base = modes.mean(axis=0) if fixed is None else np.asarray(fixed, dtype=np.float64)
     if base.shape != (d,) or not np.isfinite(base).all():
         raise ValueError(f"fixed must be {d} finite numbers (all coordinates), got {fixed!r}")
@@ -135,4 +139,6 @@ def basin_map(
         x = task.dynamics(x, u_h, u_r)
     final = np.atleast_2d(np.asarray(lr.theta, dtype=np.float64))
     err = np.linalg.norm(final - star, axis=1).reshape(g0.shape)
+    if not np.isfinite(err).all():  # θ̂ itself is checked by every update; its error too
+        raise ValueError("the final errors overflow: theta_star or the grid is too large")
     return BasinMap(ax0, ax1, (i0, i1), star, err, float(tol))

@@ -52,12 +52,24 @@ def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):
     ]
     for r in rows:
         assert math.isfinite(float(r["task1_mean"])) and int(r["all_n"]) == 2
+    # the published numbers sit beside the authors'-way rows only (they were computed that way)
     paper = {(r["metric"], r["learner"]): r["paper_mean"] for r in rows}
-    assert float(paper[("regret", "strol")]) == 1.03
-    assert float(paper[("correction_time", "one")]) == 2.5
+    assert float(paper[("regret_authors", "strol")]) == 1.03
+    assert float(paper[("correction_time_authors", "one")]) == 2.5
+    assert math.isnan(float(paper[("regret", "strol")]))
 
     md = (out / "study_table.md").read_text()
-    assert "| Regret | StROL |" in md and "Task 1: H3" in md
+    assert "| Regret (ours, eq. S1) | StROL |" in md and "| Regret (authors' way) | StROL |" in md
+    assert "Task 1: H3" in md and "no like-for-like number" in md
+    assert "## H3 pooled the paper's way" in md and "over One, MOF, StROL: F(" in md
+    pooled = json.loads((out / "study.json").read_text())["pooled"]
+    assert [p["metric"] for p in pooled] == [
+        "regret",
+        "regret_authors",
+        "correction_time",
+        "correction_time_authors",
+    ]
+    assert all(p["n"] == 2 and len(p["pairs"]) == 3 for p in pooled)
     assert (out / "plots" / "study.png").stat().st_size > 0
     verdicts = json.loads((out / "study.json").read_text())["verdicts"]
     assert [v["task"] for v in verdicts] == [1] and len(verdicts[0]["details"]) == 4
@@ -73,6 +85,9 @@ def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):
     )
     for r in recs:
         assert r["steps"] == 1200 and (r["corrections"] >= 1) == (r["correction_time"] > 0)
+        # the authors' count logs at most one sample per 0.05 s tick of a correction
+        assert 0.0 <= r["correction_time_authors"] <= r["correction_time"] + 1e-9
+        assert (r["correction_time_authors"] > 0) == (r["corrections"] >= 1)
     # user 20000 pushes; user 20001's θ̂0 already plans with regret 0 under θ*: satisfied at once
     assert all(r["corrections"] >= 1 for r in recs if r["seed"] == 20000)
     assert all(r["corrections"] == 0 for r in recs if r["seed"] == 20001)

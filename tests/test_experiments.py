@@ -162,6 +162,15 @@ def test_preset_writes_table_meta_and_plot(argv, stem, tmp_path, capsys):
     if stem == "confirm":
         assert "EXPLORATORY" in text and meta["protocol"] is False
         assert meta["seeds"] == [SEED, SEED + 1]
+    if stem == "changing":  # the authors' noise: absolute 0.025 over a_max 0.1 = 25 %
+        assert meta["sigma"] == 0.25 and meta["switch_after"] == 2
+        run_meta = json.loads((out / "meta.json").read_text())
+        assert run_meta["config"]["experiments"][0]["condition"]["sigma"] == 0.25
+
+
+def test_lambda_sweeps_seven_values_by_default():
+    args = cli.build_parser().parse_args(["lambda"])
+    assert args.lambdas == [0.0, 0.1, 0.5, 1.0, 2.0, 5.0, 10.0]
 
 
 @pytest.mark.parametrize(

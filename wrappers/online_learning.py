@@ -68,6 +68,11 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 "env must be a strol-gym env (env.unwrapped needs .task and .set_theta_hat), "
                 f"got {type(base).__name__}"
             )
+        for name, flag in (("replace_reward", replace_reward), ("regret", regret)):
+            if not isinstance(flag, bool | np.bool_):  # "no" would be true: refuse, not guess
+                raise ValueError(f"{name} must be True or False, got {flag!r}")
+        if learner_kwargs is not None and not isinstance(learner_kwargs, dict):
+            raise ValueError(f"learner_kwargs must be a dict, got {learner_kwargs!r}")
         self.learner = make_learner(learner, task=base.task, **(learner_kwargs or {}))
         self.replace_reward = bool(replace_reward)
         self.score_regret = bool(regret)

@@ -38,6 +38,9 @@ class Analysis:
     anova: list[dict[str, Any]]
     curves: dict[tuple[str, str, str], dict[str, np.ndarray]]
     verdicts: list[dict[str, Any]]
+    pooled: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    """Per env with several conditions: the whole-experiment test on its primary metric
+    (``pooled_tests`` over the conditions; the paper's "across all trials and conditions")."""
 
     def cell(self, env: str, cond: str, learner: str, metric: str) -> dict[str, Any] | None:
         for r in self.summary:

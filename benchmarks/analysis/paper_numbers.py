@@ -1,6 +1,16 @@
-"""The numbers the authors report (mean ± std), to set beside ours. A reference to
-compare against, never a target: they come from the authors' released code, which differs from
-the paper and from us (unbounded ĝ, greedy evaluation human, unpaired runs; docs/fidelity.md).
+"""The numbers the authors report, to set beside ours. A reference to compare against, never a
+target: they come from the authors' released code, which differs from the paper and from us
+(unbounded ĝ, greedy evaluation human, unpaired runs; docs/fidelity.md).
+
+Sources, one per table (the paper's text gives only test statistics; its figures' numbers are in
+the authors' repository, which the paper cites for "a tabular version"):
+
+- ``PAPER``: the Fig. 4 tables (mean ± std) of the authors' repository README, as printed there
+  (one value, a misprint, left out).
+- ``PAPER_CHANGING``: bar heights read off the authors' changing-preference figure
+  (``figs/ch_pref_noise_0.025_bias_0.0.png``), approximate.
+- ``PAPER_LAMBDA``: bar heights read off the authors' λ figure (``figs/regret_gvar.png``), which
+  shows λ = 0, 0.1, 1 and 10 only, approximate.
 """
 
 from __future__ import annotations
@@ -36,7 +46,7 @@ PAPER: dict[tuple[str, str], dict[str, dict[str, tuple[float, float]]]] = {
             "gradient": (0.17, 0.47),
             "one": (0.18, 0.50),
             "mof": (0.18, 0.46),
-            "e2e": (1.12, 1.48),
+            "e2e": (1.12, 0.49),
             "strol": (0.12, 0.34),
         },
     },
@@ -63,11 +73,12 @@ PAPER: dict[tuple[str, str], dict[str, dict[str, tuple[float, float]]]] = {
             "strol": (1.09, 0.60),
         },
         "uniform-prior": {
-            "gradient": (1.08, 0.43),
+            "gradient": (1.07, 0.43),
             "one": (1.10, 0.45),
-            "mof": (1.02, 0.42),
+            "mof": (1.01, 0.42),
             "e2e": (0.98, 0.40),
-            "strol": (1.02, 0.42),
+            # StROL left out: the source prints "0.10 ± 0.42", a mean that its own std and the
+            # paper's text (no StROL advantage under the uniform prior) make a misprint.
         },
     },
 }
@@ -76,15 +87,16 @@ PAPER: dict[tuple[str, str], dict[str, dict[str, tuple[float, float]]]] = {
 PAPER_CHANGING: dict[str, dict[str, float]] = {
     "robot": {"gradient": 0.63, "one": 0.51, "mof": 0.65, "e2e": 2.93, "strol": 0.16},
 }
-"""Changing preferences (θ* for 2 corrections, then −θ* for 3; noise 0.025), mean regret read
-off the authors' figure (approximate: ≈ values, no spread reported)."""
+"""Changing preferences (θ* for 2 corrections, then −θ* for 3; the authors' noise 0.025 absolute =
+σ 0.25 of a_max), mean regret read off the authors' figure (approximate: ≈ values; spread only
+as SEM bars)."""
 
 PAPER_LAMBDA: dict[str, dict[float, float]] = {
     "bimodal": {0.0: 0.185, 0.1: 0.04, 1.0: 0.005, 10.0: 0.012},
     "uniform": {0.0: 0.135, 0.1: 0.11, 1.0: 0.10, 10.0: 0.51},
 }
-"""StROL's Robot regret at λ ∈ {0, 0.1, 1, 10} under the designer's (bimodal) prior and the
-uniform prior, read off the authors' figure (approximate)."""
+"""StROL's Robot regret at λ ∈ {0, 0.1, 1, 10} (the only λ the authors' figure shows) under the
+designer's (bimodal) prior and the uniform prior, read off that figure (approximate)."""
 
 
 def side_by_side(a: Analysis, env: str, metric: str, learners: Sequence[str]) -> list[str]:

@@ -80,6 +80,86 @@ ANOVA_COLUMNS = (
 )
 
 
+def pooled_matrix(
+    records: Sequence[dict], envs: Sequence[str], learners: Sequence[str], key: str
+) -> tuple[list[int], np.ndarray]:
+    """(seeds, learners): each run seed's mean of ``key`` over every (env, condition) cell of
+    ``envs`` it ran in, as the paper pools a participant over its Tasks (or a simulated human
+    over the conditions). Listwise: a seed enters only with a finite value for every learner
+    in every cell, and only if it ran in as many cells as any seed did."""
+    cells: dict[tuple[int, str, str], dict[str, float]] = {}
+    for r in records:
+        if r["env"] in envs and r["learner"] in learners:
+            cells.setdefault((r["seed"], r["env"], r["condition"]), {})[r["learner"]] = _f(
+                r.get(key)
+            )
+    per_seed: dict[int, list[list[float]]] = {}
+    bad: set[int] = set()
+    for (seed, _, _), vals in cells.items():
+        row = [vals.get(lr, math.nan) for lr in learners]
+        if not np.isfinite(row).all():
+            bad.add(seed)
+        per_seed.setdefault(seed, []).append(row)
+    full = max((len(v) for v in per_seed.values()), default=0)
+    seeds = sorted(s for s, v in per_seed.items() if s not in bad and len(v) == full)
+    y = np.array([np.mean(per_seed[s], axis=0) for s in seeds], dtype=np.float64)
+    return seeds, y.reshape(len(seeds), len(learners))
+
+
+def pooled_tests(
+    records: Sequence[dict], envs: Sequence[str], learners: Sequence[str], key: str
+) -> dict[str, Any]:
+    """The paper's pooled analysis: ``pooled_matrix``, a repeated-measures ANOVA over the
+    learners (Greenhouse–Geisser), then every pair of learners (paired t and Wilcoxon, each
+    Holm-corrected over the pairs). Pair rows: first minus second."""
+    seeds, y = pooled_matrix(records, envs, learners, key)
+    pairs = [(i, j) for i in range(len(learners)) for j in range(i + 1, len(learners))]
+    tests = [stats.paired_test(y[:, i], y[:, j]) for i, j in pairs]
+    p_holm = stats.holm([t.p_t for t in tests])
+    pw_holm = stats.holm([t.p_wilcoxon for t in tests])
+    rows = [
+        {
+            "a": learners[i],
+            "b": learners[j],
+            "n": t.n,
+            "mean_diff": t.mean_diff,
+            "t": t.t,
+            "p_t": t.p_t,
+            "p_holm": float(ph),
+            "p_wilcoxon": t.p_wilcoxon,
+            "wilcoxon_p_holm": float(pwh),
+        }
+        for (i, j), t, ph, pwh in zip(pairs, tests, p_holm, pw_holm, strict=True)
+    ]
+    means = dict(zip(learners, y.mean(axis=0).tolist() if len(seeds) else [], strict=False))
+    return {
+        "envs": list(envs),
+        "learners": list(learners),
+        "metric": key,
+        "n": len(seeds),
+        "means": means,
+        "anova": stats.rm_anova(y),
+        "pairs": rows,
+    }
+
+
+def pooled_lines(result: dict[str, Any]) -> list[str]:
+    """Markdown bullets: the ANOVA, then each pair (Holm)."""
+    an = result["anova"]
+    names = ", ".join(map(display, result["learners"]))
+    out = [
+        f"- repeated-measures ANOVA over {names}: {an.line()}; uncorrected "
+        f"F({an.df1:g}, {an.df2:g}), {stats.format_p(an.p)}"
+    ]
+    for r in result["pairs"]:
+        out.append(
+            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {_num(r['mean_diff'])}, paired t "
+            f"{stats.format_p(r['p_holm'])} (Holm; raw {stats.format_p(r['p_t'])}), Wilcoxon "
+            f"{stats.format_p(r['wilcoxon_p_holm'])} (Holm)"
+        )
+    return out
+
+
 def analyse(
     config: BenchConfig, records: Sequence[dict], metrics: Sequence[str] = METRICS
 ) -> Analysis:
@@ -130,6 +210,11 @@ def analyse(
             )
             curves[(env, cond, lr)] = {"mean": mean, "sem": sd / np.sqrt(np.maximum(n, 1)), "n": n}
     analysis = Analysis(config, summary, posthoc, anova, curves, [])
+    for env in dict.fromkeys(e.env for e in config.experiments):
+        n_cond = sum(e.env == env for e in config.experiments)
+        primary = env_preset(env).primary_metric
+        if n_cond > 1 and len(learners) > 1 and primary in metrics:
+            analysis.pooled.append(pooled_tests(records, [env], learners, primary))
     analysis.verdicts = verdicts(analysis)
     return analysis
 
@@ -281,8 +366,8 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
         baselines = set(PAPER_LEARNERS) - {REFERENCE_LEARNER}
         if (env, primary) in PAPER and set(cfg.learners) & baselines:
             out += [
-                f"### {primary} beside the authors' reported numbers (their released "
-                "code, not a target)",
+                f"### {primary} beside the authors' reported numbers (their repository's tables, "
+                "from their released code; not a target)",
                 "",
                 *side_by_side(a, env, primary, cfg.learners),
                 "",
@@ -311,6 +396,16 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                         f"[{_num(t['ci95_low'])}, {_num(t['ci95_high'])}], "
                         f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}"
                     )
+        for pooled in a.pooled:
+            if pooled["envs"] == [env]:
+                out += [
+                    "",
+                    f"Whole experiment ({pooled['metric']}: each run seed's mean over the "
+                    f"{sum(e.env == env for e in cfg.experiments)} conditions, n = "
+                    f'{pooled["n"]}; the paper\'s test "across all trials and conditions"):',
+                    "",
+                    *pooled_lines(pooled),
+                ]
         out.append("")
     if plots:
         out += ["## Plots", ""] + [f"- ![{p.stem}]({p})" for p in plots if p.suffix == ".png"]

@@ -20,6 +20,8 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 
+from strol_gym.learners.protocol import LearnerFailed
+
 BACKENDS = ("local", "ray")
 LOOPBACK = "127.0.0.1"
 RAY_SINGLE_MACHINE = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
@@ -59,6 +61,33 @@ def check_backend(backend: str, ray_address: str | None) -> None:
         raise ValueError(f"ray_address must be a non-empty address string, got {ray_address!r}")
     if backend == "ray" and importlib.util.find_spec("ray") is None:
         raise ValueError(RAY_MISSING)
+    if ray_address is not None:
+        check_reachable(ray_address)  # before any work: Ray itself retries for minutes
+
+
+RAY_CONNECT_TIMEOUT = 10.0
+"""Seconds to wait for a Ray cluster's address to accept a connection (Ray itself retries for
+minutes)."""
+
+
+def check_reachable(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> None:
+    """ValueError naming ``address`` unless a TCP connection to it opens within ``timeout`` s.
+
+    Only for ``host:port`` addresses; ``auto`` and ``ray://`` addresses are left to Ray.
+    """
+    import socket
+
+    if address == "auto" or "://" in address:
+        return
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"--ray-address must be HOST:PORT (port in [1, 65535]), got {address!r}")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as e:
+        raise ValueError(
+            f"--ray-address {address}: no Ray cluster reachable there within {timeout:g} s ({e})"
+        ) from None
 
 
 # ---------------------------------------------------------------------- inside a Ray worker
@@ -132,7 +161,13 @@ def iter_ray(
         try:
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)
-                yield ray.get(done[0])
+                try:
+                    result = ray.get(done[0])
+                except ray.exceptions.RayTaskError as e:  # one line, as with local workers
+                    if isinstance(e.cause, LearnerFailed):
+                        raise e.cause from None
+                    raise
+                yield result
         except BaseException:
             for ref in pending:
                 ray.cancel(ref, force=True)

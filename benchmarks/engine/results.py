@@ -17,6 +17,7 @@ raises :class:`ResultsError` and is never overwritten unless the caller asks (``
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import datetime as _dt
 import json
@@ -24,7 +25,7 @@ import math
 import os
 import shutil
 import sys
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -52,11 +53,28 @@ def write_json_atomic(path: Path, obj: Any) -> None:
     """Write JSON to a temp file beside ``path``, fsync it, then os.replace: all or nothing."""
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     data = json.dumps(obj, indent=1, allow_nan=True).encode()
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    with naming_file(path):
+        try:
+            with open(tmp, "wb") as f:
+                f.write(data)
+                f.flush()
+                os.fsync(f.fileno())
+        except OSError:
+            tmp.unlink(missing_ok=True)
+            raise
+        os.replace(tmp, path)
+
+
+@contextlib.contextmanager
+def naming_file(path: Path) -> Iterator[None]:
+    """Re-raise an OSError that names no file (a full disk: "[Errno 28] No space left on
+    device") with ``path``, so the error says which file could not be written."""
+    try:
+        yield
+    except OSError as e:
+        if e.filename is not None or e.errno is None:
+            raise
+        raise OSError(e.errno, f"cannot write it: {e.strerror}", str(path)) from None
 
 
 def _explain(diff: str) -> str:
@@ -256,7 +274,7 @@ class ResultsDir:
                 ok = payload["config_hash"] == self.config_hash
                 recs = payload["records"]
                 seeds = tuple(payload["unit"]["seeds"])
-            except (OSError, json.JSONDecodeError, KeyError, TypeError) as e:
+            except (OSError, ValueError, KeyError, TypeError) as e:  # ValueError: not UTF-8/JSON
                 raise ResultsError(f"{p} is corrupt ({e}); delete it to rerun that unit") from e
             if not ok:
                 raise ResultsError(f"{p} was written by another config (hash differs)")
@@ -393,7 +411,7 @@ def _fmt(x: Any) -> str:
 
 def write_csv(path: Path, rows: Iterable[dict], columns: Sequence[str]) -> Path:
     """Write dict rows with the given column order; floats at full precision."""
-    with open(path, "w", newline="") as f:
+    with naming_file(path), open(path, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(columns)
         for r in rows:

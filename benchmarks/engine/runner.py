@@ -29,18 +29,27 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from strol_gym.benchmarks.engine import study_authors
 from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.results import ResultsDir
 
+from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cosine_error, episode_regret, error, info_metrics
 from strol_gym.registry import install_specs
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
-# shipped data, by data package and the suffixes setup.cfg installs.
-BENCHMARK_CODE = ("engine", "engine.runner", "engine.config", "engine.conditions")
+# shipped data, by data package and the suffixes setup.cfg installs. ``study_authors`` computes
+# a recorded value (the authors'-way correction time), so it counts.
+BENCHMARK_CODE = (
+    "engine",
+    "engine.runner",
+    "engine.config",
+    "engine.conditions",
+    "engine.study_authors",
+)
 MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")
 DATA_FILES = {"strol_gym.assets": (".xml", ".npz"), "strol_gym.pretrained": (".pt", ".json")}
 
@@ -222,6 +231,14 @@ def _zero_policy(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
     return np.zeros_like(x)
 
 
+CORRECTION_METRICS: dict[str, Callable[[dict], float]] = {
+    "correction_time_authors": study_authors.correction_time,
+}
+"""Per-correction values summed over an episode, from the ``correction_record`` an env puts in
+``info`` when a correction ends (the study env does); recorded for envs that report
+``correction_time``."""
+
+
 def _state(obs: Any) -> np.ndarray:
     return np.asarray(obs["state"] if isinstance(obs, dict) else obs, dtype=np.float64)
 
@@ -253,12 +270,23 @@ def _run_block(
     task = wrapped[0].unwrapped.task
     bound = np.asarray(task.robot_action_bound, dtype=np.float64)
     b = len(seeds)
-    obs = [w.reset(seed=int(s))[0] for w, s in zip(wrapped, seeds, strict=True)]
+
+    def failed(i: int, e: Exception) -> LearnerFailed:
+        where = f"in run seed {seeds[i]} ({env}, condition {cond})"
+        return LearnerFailed.of(str(runs[i][0]), where, e)
+
+    obs = []
+    for i, (w, s) in enumerate(zip(wrapped, seeds, strict=True)):
+        try:
+            obs.append(w.reset(seed=int(s))[0])
+        except Exception as e:  # a user's learner may raise anything: name it and the run
+            raise failed(i, e) from None
     x0 = [_state(o) for o in obs]
     thetas = [[np.array(w.learner.theta, dtype=np.float64)] for w in wrapped]
     alive = np.ones(b, dtype=bool)
     last_info: list[dict] = [{} for _ in range(b)]
     first_corr: list[Any] = [None] * b
+    per_corr = [dict.fromkeys(CORRECTION_METRICS, 0.0) for _ in range(b)]
     terminated = np.zeros(b, dtype=bool)
     n_steps = np.zeros(b, dtype=int)
     for _ in range(steps):
@@ -270,12 +298,18 @@ def _run_block(
         u = policy(x, th)
         action = np.clip(u / bound, -1.0, 1.0).astype(np.float32)
         for j, i in enumerate(idx):
-            o, _, term, trunc, info = wrapped[i].step(action[j])
+            try:
+                o, _, term, trunc, info = wrapped[i].step(action[j])
+            except Exception as e:
+                raise failed(i, e) from None
             obs[i], last_info[i] = o, info
             n_steps[i] += 1
             thetas[i].append(np.array(wrapped[i].learner.theta, dtype=np.float64))
             if first_corr[i] is None and info.get("is_correction", False):
                 first_corr[i] = np.asarray(info["correction"], dtype=np.float64).tolist()
+            if "correction_record" in info:
+                for name, fn in CORRECTION_METRICS.items():
+                    per_corr[i][name] += fn(info["correction_record"])
             if term or trunc:
                 alive[i] = False
                 terminated[i] = bool(term)
@@ -304,6 +338,7 @@ def _run_block(
                 "first_correction": first_corr[i],
             }
             | {k: float(info[k]) for k in info_metrics() if k in info}  # the env's own totals
+            | (per_corr[i] if "correction_time" in info else {})
         )
     return records
 
@@ -312,10 +347,11 @@ def _run_block(
 _WORKER: _Worker | None = None
 
 
-def _init_worker(config_dict: dict) -> None:
+def _init_worker(config_dict: dict, parent: int | None = None) -> None:
     global _WORKER
     # Ctrl-C is the parent's to handle: it stops the pool; finished units are already stored.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent)
     _WORKER = new_worker(BenchConfig.from_dict(config_dict))
 
 
@@ -323,6 +359,26 @@ def new_worker(config: BenchConfig) -> _Worker:
     """A worker for a process of its own (a pool or Ray process): one intra-op thread."""
     _limit_threads()
     return _Worker(config)
+
+
+PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent(parent: int | None) -> None:
+    """Have the kernel kill this worker when the process that started it dies (Linux), even by
+    SIGKILL, so no orphan goes on computing and writing BrokenPipe tracebacks into the log."""
+    import ctypes
+    import sys
+
+    if sys.platform != "linux":
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+    if parent is not None and os.getppid() != parent:  # it died before prctl took effect
+        os._exit(1)
 
 
 def _work(unit: Unit) -> tuple[Unit, list[dict]]:
@@ -378,14 +434,35 @@ def _iter_results(
             worker.close()
         return
     ctx = mp.get_context("spawn")
-    with ctx.Pool(
-        min(jobs, len(units)), initializer=_init_worker, initargs=(config.to_dict(),)
-    ) as pool:
+    # The workers start with SIGINT ignored (a disposition exec keeps), so a Ctrl-C while they
+    # import reaches only this process, which stops the pool: no worker tracebacks.
+    with _sigint_ignored():
+        pool = ctx.Pool(
+            min(jobs, len(units)),
+            initializer=_init_worker,
+            initargs=(config.to_dict(), os.getpid()),
+        )
+    with pool:
         try:
             yield from pool.imap_unordered(_work, units)
         except BaseException:
             pool.terminate()
             raise
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored while the block runs (in the main thread; elsewhere it cannot be set)."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
 
 
 def default_jobs() -> int:

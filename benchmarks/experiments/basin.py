@@ -18,6 +18,8 @@ from strol_gym.benchmarks.args import finite, float_list, nonneg_int, positive_i
 from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 
+from strol_gym.limits import BASIN_CAPS, add_allow_large, check_size_caps
+
 LEARNERS = {"gradient": "g (Gradient)", "strol": "g + ĝ (StROL)"}
 COLUMNS = ("learner", "theta0_a", "theta0_b", "error", "converged")
 DEFAULT_SEED = 1000
@@ -55,6 +57,10 @@ class Basin(BenchExperiment):
         )
         p.add_argument("--out", default=None, help="results folder (default results/basin-<env>)")
         p.add_argument("--no-plots", action="store_true")
+        add_allow_large(p)
+
+    def plan(self, args: argparse.Namespace) -> None:
+        check_size_caps(args, BASIN_CAPS)
 
     def execute(self, plan: None, args: argparse.Namespace, out: Path) -> Outcome:
         import gymnasium as gym

@@ -2,9 +2,10 @@
 
 The human (``human="changing"``, :class:`strol_gym.humans.ChangingHuman`) teaches θ* for its
 first k corrections and −θ* after that; every run is scored against the final preference (the
-envs report the human's current θ*). Paper defaults: Robot 2 corrections then 3, noise 0.025
-(a fraction of a_max here). The Highway has 10 corrections; its default switch keeps the same
-proportion (4, then 6). The five paper learners, paired runs, the one runner.
+envs report the human's current θ*). Defaults as the authors ran it: Robot 2 corrections then 3,
+noise σ = 0.25 of a_max (their absolute 0.025 with a per-axis bound of 0.1, i.e. 25 %). The
+Highway has 10 corrections; its default switch keeps the same proportion (4, then 6). The five
+paper learners, paired runs, the one runner.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from strol_gym.benchmarks.experiments.base import (
 
 from strol_gym.metrics import short
 
-DEFAULT_SIGMA = 0.025
+DEFAULT_SIGMA = 0.25
+"""Noise σ as a fraction of a_max: the authors' absolute 0.025 over their a_max = 0.1."""
 DEFAULT_SWITCH = {"robot": 2, "highway": 4}
 COLUMNS = (
     "env",
@@ -135,6 +137,8 @@ class Changing(BenchExperiment):
         md = table_markdown(rows, metric, k, exp.corrections, exp.condition.sigma)
         meta = {
             "config": config.to_dict(),
+            "sigma": exp.condition.sigma,
+            "switch_after": k,
             "seeds": [exp.seeds.start, exp.seeds.stop - 1],
             "wall_time_s": wall,
         }

@@ -29,6 +29,8 @@ from strol_gym.benchmarks.engine.conditions import (
 from strol_gym.benchmarks.engine.config import MAX_RUNS, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 
+from strol_gym.limits import RUN_CAPS, add_allow_large, check_size_caps
+
 
 class RunsAndReports(BenchExperiment):
     """An experiment that runs one config and writes the standard reports with their figures
@@ -112,8 +114,10 @@ class Run(RunsAndReports):
             help='JSON: constructor kwargs per learner, e.g. \'{"strol": {"lam": 0.5}}\'',
         )
         run_options(p)
+        add_allow_large(p)
 
     def plan(self, args: argparse.Namespace) -> BenchConfig:
+        check_size_caps(args, RUN_CAPS)
         check_learner_names(args.learners)
         return config_for_run(args)
 

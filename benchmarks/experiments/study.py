@@ -18,14 +18,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.analysis.report import Analysis, analyse, display
+from strol_gym.benchmarks.analysis.report import (
+    Analysis,
+    analyse,
+    display,
+    pooled_lines,
+    pooled_tests,
+)
 from strol_gym.benchmarks.args import nonneg_int, positive_int
+from strol_gym.benchmarks.engine import study_authors
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
-
-from strol_gym.metrics import short
 
 TASKS = (1, 2, 3)
 DEFAULT_USERS = 20
@@ -37,16 +42,45 @@ BLOCK = 4
 """Users per unit of work: small, so 2+ processes share the 60 s episodes evenly."""
 SIGMA = 0.25
 """The users' noise (fraction of a_max), as the study's ĝ were trained."""
-METRICS = ("regret", "error", "correction_time", "corrections")
-LABELS = {m: short(m) for m in METRICS}
-"""How the study's tables and axes spell its metrics (``strol_gym.metrics``)."""
+METRICS = (
+    "regret",
+    "regret_authors",
+    "error",
+    "correction_time",
+    "correction_time_authors",
+    "corrections",
+)
+LABELS = {
+    "regret": "Regret (ours, eq. S1)",
+    "regret_authors": "Regret (authors' way)",
+    "error": "Final error ‖θ* − θ̂‖",
+    "correction_time": "Correction time (s; ours, > 15 N)",
+    "correction_time_authors": "Correction time (s; authors' way)",
+    "corrections": "Corrections",
+}
 H3_BASELINES = ("one", "mof")
 H3_METRICS = ("regret", "correction_time")
+POOLED_LEARNERS = ("one", "mof", "strol")
+"""The paper's H3 analysis compares these three (its study had no Gradient or e2e)."""
+POOLED_METRICS = ("regret", "regret_authors", "correction_time", "correction_time_authors")
 PAPER = {
-    "regret": {"one": 4.90, "mof": 2.42, "strol": 1.03},
-    "correction_time": {"one": 2.50, "mof": 2.22, "strol": 1.38},
+    "regret_authors": {"one": (4.904, 1.125), "mof": (2.42, 0.48), "strol": (1.03, 0.08)},
+    "correction_time_authors": {
+        "one": (2.50, 1.57),
+        "mof": (2.22, 1.53),
+        "strol": (1.382, 1.40),
+    },
 }
-"""The paper's user-study means (averaged over its three Tasks; no spread given in the text)."""
+"""The authors' published study means ± spread (their repository's table, averaged over the
+three Tasks and 12 participants; the spread is unlabelled there, the paper's figure shows SEM).
+They were computed the authors' way (``study_authors``), so they sit beside those rows only;
+our own metrics have no published counterpart."""
+PAPER_POOLED = {
+    "regret_authors": "F(1.332, 14.651) = 9.108, p < 0.05",
+    "correction_time_authors": "F(2, 22) = 5.602, p < 0.05",
+}
+"""The paper's text: repeated-measures ANOVA over One, MOF, StROL, participants' values
+averaged over the Tasks (12 participants)."""
 USERS = Condition("simulated-users", sigma=SIGMA, bias=0.0, prior="bimodal")
 
 
@@ -134,7 +168,8 @@ def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
             row["all_mean"] = float(v.mean()) if v.size else math.nan
             row["all_sem"] = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan
             row["all_n"] = int(v.size)
-            row["paper_mean"] = PAPER.get(metric, {}).get(lr, math.nan)
+            paper = PAPER.get(metric, {}).get(lr, (math.nan, math.nan))
+            row["paper_mean"], row["paper_spread"] = paper
             rows.append(row)
     return rows
 
@@ -146,15 +181,21 @@ def _pm(m: float, s: float) -> str:
 
 
 def table_markdown(rows: Sequence[dict[str, Any]], tasks: Sequence[int]) -> list[str]:
-    """Markdown: mean ± SEM per Task and over the Tasks, the paper's mean beside."""
+    """Markdown: mean ± SEM per Task and over the Tasks, the paper's mean beside (authors'-way
+    rows only: the published numbers were computed that way)."""
     head = ["metric", "learner", *[f"Task {t}" for t in tasks], "all Tasks", "paper"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [LABELS[r["metric"]], display(r["learner"])]
         cells += [_pm(r[f"task{t}_mean"], r[f"task{t}_sem"]) for t in tasks]
         cells.append(_pm(r["all_mean"], r["all_sem"]))
-        p = r["paper_mean"]
-        cells.append(f"{p:g}" if math.isfinite(p) else "—")
+        p, sp = r["paper_mean"], r["paper_spread"]
+        if math.isfinite(p):
+            cells.append(f"{p:g} ± {sp:g}")
+        elif r["metric"] in PAPER:
+            cells.append("—")
+        else:
+            cells.append("no like-for-like number")
         lines.append("| " + " | ".join(cells) + " |")
     return lines
 
@@ -217,12 +258,14 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     records = rd.read_records()
     if not records:
         raise ValueError(f"{rd.path} holds no finished runs yet")
-    a = analyse(rd.config, records, METRICS)
+    add_authors_regret(records)
+    metrics = [m for m in METRICS if any(m in r for r in records)]
+    a = analyse(rd.config, records, metrics)
     tasks = [_task_of(e.env) for e in rd.config.experiments]
     rows = table_rows(a, records)
     cols = ["metric", "learner"]
     cols += [f"task{t}_{s}" for t in tasks for s in ("mean", "sem")]
-    cols += ["all_mean", "all_sem", "all_n", "paper_mean"]
+    cols += ["all_mean", "all_sem", "all_n", "paper_mean", "paper_spread"]
     write_csv(rd.path / "study_table.csv", rows, cols)
     write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
     write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
@@ -252,12 +295,68 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     for v in verd:
         md.append(f"- **Task {v['task']}: {v['verdict']}**")
         md += [f"  - {d}" for d in v["details"]]
+    envs = [e.env for e in rd.config.experiments]
+    pooled = [
+        pooled_tests(records, envs, POOLED_LEARNERS, m)
+        for m in POOLED_METRICS
+        if any(m in r for r in records)
+    ]
+    md += ["", *pooled_markdown(pooled, len(envs))]
     (rd.path / "study_table.md").write_text("\n".join(md) + "\n")
     paths = make_plots(a, records, rd.path / "plots") if plots else []
-    result = {"tasks": tasks, "verdicts": verd, "table": rows, "plots": [str(p) for p in paths]}
+    result = {
+        "tasks": tasks,
+        "verdicts": verd,
+        "pooled": [_pooled_json(r) for r in pooled],
+        "table": rows,
+        "plots": [str(p) for p in paths],
+    }
     (rd.path / "study.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
     result["markdown"] = "\n".join(md)
     return result
+
+
+def add_authors_regret(records: list[dict]) -> None:
+    """Each record's regret the authors' way (``study_authors.regret``), batched per Task."""
+    from strol_gym.tasks.study import STUDY_TASKS
+
+    for env in dict.fromkeys(r["env"] for r in records):
+        rs = [r for r in records if r["env"] == env]
+        cols = [np.array([r[k] for r in rs], dtype=np.float64) for k in _REGRET_INPUTS]
+        for r, v in zip(rs, study_authors.regret(STUDY_TASKS[_task_of(env)](), *cols), strict=True):
+            r["regret_authors"] = float(v)
+
+
+_REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
+
+
+def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int) -> list[str]:
+    """The paper's H3 analysis: each user's values averaged over the Tasks, a repeated-measures
+    ANOVA over One, MOF and StROL, then the pairs (Holm)."""
+    md = [
+        "## H3 pooled the paper's way",
+        "",
+        f"Each simulated user's value averaged over the {n_tasks} Tasks, then a "
+        "repeated-measures ANOVA over One, MOF and StROL (Greenhouse–Geisser) and paired tests "
+        "of every pair (Holm over the three pairs), as the paper analysed its 12 participants. "
+        "The per-Task verdicts above are the stricter test (each Task alone, 20 users, Holm "
+        "over four baselines).",
+        "",
+    ]
+    for r in pooled:
+        means = ", ".join(f"{display(k)} {v:.3f}" for k, v in r["means"].items())
+        paper = PAPER_POOLED.get(r["metric"])
+        md.append(f"**{LABELS[r['metric']]}** (n = {r['n']} users; means {means})")
+        if paper:
+            md.append(f"(paper: {paper})")
+        md += ["", *pooled_lines(r), ""]
+    return md
+
+
+def _pooled_json(r: dict[str, Any]) -> dict[str, Any]:
+    import dataclasses
+
+    return {**r, "anova": dataclasses.asdict(r["anova"])}
 
 
 class Study(BenchExperiment):

@@ -17,6 +17,7 @@ import numpy as np
 from strol_gym.wrappers.online_learning import cosine_error
 from strol_gym.wrappers.session_log import Session, read_session
 
+from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import display_name, make_learner
 from strol_gym.tasks import make_task
 
@@ -36,11 +37,15 @@ def replay_session(
     for name in learners:
         learner = make_learner(name, task=task, **(learner_kwargs or {}).get(name, {}))
         curves = []
-        for ep in session.episodes:
+        for k, ep in enumerate(session.episodes):
             learner.reset(ep.theta_hat0.copy())
             thetas = [np.asarray(learner.theta, dtype=np.float64).copy()]
-            for c in ep.corrections:
-                learner.update(c["x"], c["u_h"], c["u_r"])
+            for j, c in enumerate(ep.corrections):
+                try:
+                    learner.update(c["x"], c["u_h"], c["u_r"])
+                except Exception as e:  # a user's learner may raise anything: say where
+                    where = f"in episode {k}, correction {j} of {session.path}"
+                    raise LearnerFailed.of(str(name), where, e) from None
                 thetas.append(np.asarray(learner.theta, dtype=np.float64).copy())
             curves.append(np.array(thetas))
         out[name] = curves
@@ -123,14 +128,17 @@ def run_replay(
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """Replay ``log`` through ``learners``; print the table; write CSV (+ PNG) into ``out``."""
     session = read_session(log)
-    results = replay_session(session, learners, learner_kwargs)
-    rows = summary_rows(session, results)
     folder = (
         Path(out)
         if out is not None
         else Path(log).with_suffix("").with_name(Path(log).stem + "_replay")
     )
-    folder.mkdir(parents=True, exist_ok=True)
+    try:  # before the replay, not after it
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OSError(f"--out {folder}: cannot create this folder ({e.strerror or e})") from None
+    results = replay_session(session, learners, learner_kwargs)
+    rows = summary_rows(session, results)
     written = [folder / "replay.csv"]
     write_csv(written[0], session, results)
     if plots:

@@ -72,6 +72,17 @@ def vector_arg(name: str, value: Any, n: int) -> np.ndarray:
     return v.copy()
 
 
+class RenderModes(list):
+    """An env's ``metadata["render_modes"]``. ``gymnasium.make`` asks whether ``render_mode``
+    is one of them before the env can check it, and a non-string then fails inside gymnasium
+    with an AttributeError; asking here raises the env's own ValueError instead."""
+
+    def __contains__(self, mode: object) -> bool:
+        if not isinstance(mode, str):
+            raise ValueError(f"render_mode must be None or one of {list(self)}, got {mode!r}")
+        return super().__contains__(mode)
+
+
 class CorrectionEnv:
     """The human-correction half of a strol-gym env (a mixin and template; see the module
     docstring). Subclasses set ``env_id``, ``task_cls`` and the defaults, and fill the hooks."""
@@ -325,7 +336,12 @@ class CorrectionEnv:
             raise ValueError(
                 f"action must have shape ({self.task.action_dim},), got {np.shape(action)}"
             )
-        a = np.asarray(action, dtype=np.float64)
+        if np.iscomplexobj(action):  # float64 would drop the imaginary part silently
+            raise ValueError(f"action must be real numbers, got {action}")
+        try:
+            a = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be numbers, got {action!r}") from None
         # Checked in plain floats: numpy's per-call cost dominates on a few numbers, every step.
         values = a.tolist()
         if not all(map(math.isfinite, values)):

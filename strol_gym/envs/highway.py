@@ -13,7 +13,7 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.envs.base import CorrectionEnv
+from strol_gym.envs.base import CorrectionEnv, RenderModes
 from strol_gym.humans import Human
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
@@ -143,7 +143,10 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 4}
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": RenderModes(["human", "rgb_array"]),
+        "render_fps": 4,
+    }
 
     env_id: ClassVar[str] = "StROL-Highway-v0"
     task_cls: ClassVar[type[HighwayTask]] = HighwayTask
@@ -171,6 +174,9 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
             },
             render_mode=self.render_mode,
         )
+        # highway-env's constructor resets once; the episode starts at the caller's reset(),
+        # so step() before it raises, as in every strol-gym env.
+        self.human = None
 
     # ------------------------------------------------------------------ spaces, θ̂
     def define_spaces(self) -> None:

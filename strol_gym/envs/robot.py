@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.base import CorrectionEnv
+from strol_gym.envs.base import CorrectionEnv, RenderModes
 from strol_gym.envs.panda import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.panda_ik import IK_ITERS, PandaIK
 from strol_gym.envs.robot_scene import TABLE_TOP, build_model
@@ -117,7 +117,10 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 5}
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": RenderModes(["human", "rgb_array"]),
+        "render_fps": 5,
+    }
 
     env_id: ClassVar[str] = "StROL-Robot-v0"
     task_cls: ClassVar[type[RobotTask]] = RobotTask

@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.base import CorrectionEnv, int_arg, vector_arg
+from strol_gym.envs.base import CorrectionEnv, RenderModes, int_arg, vector_arg
 from strol_gym.envs.panda import FINGER_OPEN, N_ARM, MujocoRendering
 from strol_gym.envs.study_scene import build_model, model_q
 from strol_gym.envs.study_user import SimulatedUser, angle_delta, rotation_error
@@ -128,7 +128,10 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+    metadata: ClassVar[dict[str, Any]] = {
+        "render_modes": RenderModes(["human", "rgb_array"]),
+        "render_fps": 20,
+    }
 
     def __init__(
         self,

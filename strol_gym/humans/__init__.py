@@ -38,6 +38,10 @@ MAX_BETA = 1e6
 
 
 def _number(name: str, value: Any, rng: str) -> float:
+    """``value`` as a float: a number or a numeric string ("0.1", as a command line gives it);
+    never a bool (``True`` is not a noise level), else ValueError naming ``name``."""
+    if isinstance(value, bool | np.bool_):
+        raise ValueError(f"{name} must be {rng}, got {value!r}")
     try:
         return float(value)
     except (TypeError, ValueError):

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.learners.correction import StROLLearner
+from strol_gym.learners.correction import MAX_LAM, StROLLearner
 from strol_gym.learners.network import CorrectionNet
-from strol_gym.learners.protocol import batch_inputs, checked_theta
+from strol_gym.learners.protocol import batch_inputs, check_state, checked_theta
 from strol_gym.priors import MixturePrior
 from strol_gym.tasks.base import Task
 
@@ -76,8 +76,10 @@ class AdaptiveStROLLearner(StROLLearner):
         for name, value in (("gain", gain), ("prior_count", prior_count)):
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if not (np.isfinite(lam_max) and lam_max >= float(lam)):
-            raise ValueError(f"lam_max must be a finite number >= lam ({lam}), got {lam_max!r}")
+        if not (np.isfinite(lam_max) and float(lam) <= lam_max <= MAX_LAM):
+            raise ValueError(
+                f"lam_max must be a number in [lam ({lam}), {MAX_LAM:g}], got {lam_max!r}"
+            )
         for name, value, least in (
             ("calibration_runs", calibration_runs, 1),
             ("calibration_steps", calibration_steps, 2),
@@ -192,6 +194,7 @@ class AdaptiveStROLLearner(StROLLearner):
         return state
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        check_state(state, self.name)
         try:  # read everything before anything is assigned: a failed load changes nothing
             stats = [
                 np.asarray(state[k], dtype=np.float64).copy()

@@ -12,7 +12,12 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.learners.protocol import LinearRuleLearner, _as_float_array, batch_inputs
+from strol_gym.learners.protocol import (
+    LinearRuleLearner,
+    _as_float_array,
+    batch_inputs,
+    check_state,
+)
 from strol_gym.priors import HedgedPrior
 from strol_gym.tasks.base import Task
 
@@ -263,6 +268,7 @@ class BayesLearner(LinearRuleLearner):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         # Read and check everything before anything is assigned: a failed load changes nothing.
+        check_state(state, self.name)
         missing = [k for k in ("particles", "beta_idx", "logw", "updates") if k not in state]
         if missing:
             raise ValueError(f"state lacks {self.name}'s posterior: missing key(s) {missing}")
@@ -273,6 +279,16 @@ class BayesLearner(LinearRuleLearner):
             updates = int(state["updates"])
         except (TypeError, ValueError) as e:
             raise ValueError(f"state has an invalid {self.name} posterior ({e})") from None
+        for key, arr in (("particles", particles), ("logw", logw)):
+            if not np.isfinite(arr).all():
+                raise ValueError(f"state[{key!r}] must be finite (no NaN or inf)")
+        if particles.shape[:-1] != logw.shape or particles.shape[-1:] != (self.task.dim,):
+            raise ValueError(
+                f"state['particles'] {particles.shape} must be logw's shape {logw.shape} "
+                f"+ ({self.task.dim},)"
+            )
+        if beta_idx.shape != logw.shape:
+            raise ValueError(f"state['beta_idx'] {beta_idx.shape} must match logw {logw.shape}")
         super().load_state_dict(state)
         self._particles, self._beta_idx, self._logw = particles, beta_idx, logw
         self._updates = updates

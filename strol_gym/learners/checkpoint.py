@@ -42,6 +42,31 @@ def check_finite_weights(weights: dict[str, Any], where: str) -> None:
             raise ValueError(f"{where}: weight {key!r} contains NaN or inf")
 
 
+def check_shapes(weights: Any, net: Any, where: str) -> None:
+    """ValueError unless ``weights`` has exactly the tensors, of the shapes, that the sidecar's
+    ``network`` (in_dim, out_dim, hidden, bound) needs.
+
+    The expected shapes come from the network built on torch's "meta" device, which stores no
+    data, so an edited sidecar (``hidden: [1000000000]``) costs nothing here, and the real
+    network is built only once it is known to be as large as the weights file itself.
+    """
+    if not isinstance(weights, dict) or not all(torch.is_tensor(v) for v in weights.values()):
+        raise ValueError(f"{where}: the weights file must hold a dict of tensors")
+    if not isinstance(net, dict):
+        raise ValueError(f"{where}: the sidecar's 'network' must be an object")
+    try:
+        with torch.device("meta"):
+            ghost = CorrectionNet(net["in_dim"], net["out_dim"], net["hidden"], net["bound"])
+    except (KeyError, TypeError, ValueError) as e:
+        raise ValueError(f"{where}: the sidecar's network {net} is invalid ({e})") from None
+    want = {k: tuple(v.shape) for k, v in ghost.state_dict().items()}
+    have = {k: tuple(v.shape) for k, v in weights.items()}
+    if want != have:
+        diff = sorted(k for k in set(want) | set(have) if want.get(k) != have.get(k))
+        detail = ", ".join(f"{k}: sidecar {want.get(k)}, weights {have.get(k)}" for k in diff[:3])
+        raise ValueError(f"{where}: the sidecar's network does not match the weights ({detail})")
+
+
 def check_weights_path(path: str | Path, name: str = "path") -> Path:
     """Where a checkpoint will be written: a ``.pt`` file in a folder we can create and write.
 
@@ -59,7 +84,41 @@ def check_weights_path(path: str | Path, name: str = "path") -> Path:
         raise ValueError(f"{name} {path}: {folder} is not a folder")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ValueError(f"{name} {path}: cannot write in {folder} (permission denied)")
+    probe_writable(folder, f"{name} {path}")
     return path
+
+
+def probe_writable(folder: Path, what: str) -> None:
+    """ValueError naming ``what`` unless a file can be created (and removed) in ``folder``.
+
+    ``os.access`` says yes for root everywhere and for pseudo file systems such as /proc;
+    creating a file is the one test that cannot be wrong.
+    """
+    import tempfile
+
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".strol-probe-"):
+            pass
+    except OSError as e:
+        raise ValueError(f"{what}: cannot write in {folder} ({e.strerror or e})") from None
+
+
+def _write_atomic(path: Path, write: Any) -> Path:
+    """``write(tmp)`` into a temporary file beside ``path``; returns the temporary's path (the
+    caller renames it). On any error the temporary is removed and OSError names ``path``."""
+    import tempfile
+
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        write(tmp)
+    except BaseException as e:
+        tmp.unlink(missing_ok=True)
+        if isinstance(e, Exception):
+            raise OSError(f"cannot write {path}: {' '.join(str(e).split())}") from None
+        raise
+    return tmp
 
 
 def sidecar_path(path: str | Path) -> Path:
@@ -125,18 +184,27 @@ def save_checkpoint(
     path.parent.mkdir(parents=True, exist_ok=True)
     weights = {k: v.detach().cpu().contiguous().clone() for k, v in model.state_dict().items()}
     check_finite_weights(weights, "model")
-    torch.save(weights, path)
+    # Both files go to temporaries first and are renamed, sidecar first: a failure (a full
+    # disk) leaves no partial .pt, and never a .pt without its sidecar.
+    tmp_pt = _write_atomic(path, lambda tmp: torch.save(weights, tmp))
     meta = {
         "format_version": FORMAT_VERSION,
         "kind": kind,
-        "weights_sha256": weights_sha256(path),
+        "weights_sha256": weights_sha256(tmp_pt),
         "task": task_signature(task),
         "network": model.arch(),
         "training": config or {},
         "versions": package_versions(),
         **(extra or {}),
     }
-    sidecar_path(path).write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+    text = json.dumps(meta, indent=2, sort_keys=True) + "\n"
+    side = sidecar_path(path)
+    try:
+        tmp_json = _write_atomic(side, lambda tmp: tmp.write_text(text))
+        os.replace(tmp_json, side)
+        os.replace(tmp_pt, path)
+    finally:
+        tmp_pt.unlink(missing_ok=True)
     return path
 
 
@@ -226,11 +294,15 @@ def load_checkpoint(
         raise ValueError(f"{path}: {e}") from None
     check_weights_hash(path, meta)
     net = meta["network"]
-    model = CorrectionNet(net["in_dim"], net["out_dim"], net["hidden"], net["bound"])
     try:
         weights = torch.load(path, map_location="cpu", weights_only=True)
-        model.load_state_dict(weights)
     except Exception as e:  # a damaged file can fail in torch's reader in many ways
+        raise ValueError(f"{path}: cannot read these weights ({e})") from None
+    check_shapes(weights, net, str(path))  # before the network is built: nothing large
+    model = CorrectionNet(net["in_dim"], net["out_dim"], net["hidden"], net["bound"])
+    try:
+        model.load_state_dict(weights)
+    except Exception as e:
         raise ValueError(
             f"{path}: cannot load these weights into its sidecar's network ({e})"
         ) from None

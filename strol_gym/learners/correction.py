@@ -10,6 +10,7 @@ the task (``strol_gym/pretrained``), looked up by ``task.task_id``.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -26,7 +27,7 @@ from strol_gym.learners.checkpoint import (
     model_input,
 )
 from strol_gym.learners.network import CorrectionNet
-from strol_gym.learners.protocol import LinearRuleLearner
+from strol_gym.learners.protocol import LinearRuleLearner, check_state
 from strol_gym.tasks.base import Task
 
 
@@ -101,6 +102,7 @@ class CorrectionLearner(LinearRuleLearner):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Restore θ̂ and ĝ, or raise and leave both untouched (ĝ is loaded into a copy first)."""
+        check_state(state, self.name)
         if state.get("arch") != self.model.arch():
             raise ValueError(
                 f"state network {state.get('arch')} differs from this learner's {self.model.arch()}"
@@ -118,6 +120,10 @@ class CorrectionLearner(LinearRuleLearner):
         self.model = model.eval()
 
 
+MAX_LAM = 1000.0
+"""Largest λ: 100x the λ sweep's largest; beyond it λ·ĝ swamps g and θ̂ runs off."""
+
+
 class StROLLearner(CorrectionLearner):
     """StROL: θ̂ ← θ̂ + α·(g + λ·ĝ). ``lam`` = λ ≥ 0; default: the Task's ``strol_lambda`` if
     it has one (the user study's 0.25 for Task 1, 1.0 for Tasks 2-3), else 1 (as trained)."""
@@ -132,9 +138,13 @@ class StROLLearner(CorrectionLearner):
         checkpoint: str | Path | None = None,
         model: CorrectionNet | None = None,
     ) -> None:
-        lam = float(getattr(task, "strol_lambda", 1.0) if lam is None else lam)
-        if not (np.isfinite(lam) and lam >= 0):
-            raise ValueError(f"lam must be a finite number >= 0, got {lam}")
+        raw = getattr(task, "strol_lambda", 1.0) if lam is None else lam
+        try:
+            lam = math.nan if isinstance(raw, bool) else float(raw)
+        except (TypeError, ValueError):
+            lam = math.nan
+        if not (np.isfinite(lam) and 0 <= lam <= MAX_LAM):
+            raise ValueError(f"lam must be a number in [0, {MAX_LAM:g}], got {raw!r}")
         self.lam = lam
         super().__init__(task, checkpoint=checkpoint, model=model)
 

@@ -44,6 +44,27 @@ class OnlineRewardLearner(Protocol):
         ...
 
 
+class LearnerFailed(RuntimeError):
+    """A learner raised while a benchmark or a replay ran it. The message names the learner and
+    where (run seed, episode, correction), so the command line reports one line, not a traceback.
+    """
+
+    @classmethod
+    def of(cls, learner: str, where: str, error: BaseException) -> LearnerFailed:
+        """The error for ``learner`` raising ``error`` at ``where``, on one line."""
+        said = " ".join(str(error).split())
+        return cls(f"learner {learner!r} failed {where}: {type(error).__name__}: {said}")
+
+
+def check_state(state: Any, name: str) -> dict[str, Any]:
+    """``state`` for ``load_state_dict``: TypeError unless it is a dict (``None`` included)."""
+    if not isinstance(state, dict):
+        raise TypeError(
+            f"{name}.load_state_dict needs the dict from state_dict(), got {type(state).__name__}"
+        )
+    return state
+
+
 def _as_float_array(name: str, value: np.ndarray, width: int) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64)
     if arr.ndim not in (1, 2) or arr.shape[-1] != width or (arr.ndim == 2 and len(arr) < 1):
@@ -142,6 +163,7 @@ class LinearRuleLearner:
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        check_state(state, self.name)
         if state.get("name") != self.name:
             raise ValueError(f"state is for learner {state.get('name')!r}, not {self.name!r}")
         if state.get("task_id") != self.task.task_id:
@@ -153,7 +175,12 @@ class LinearRuleLearner:
             raise ValueError(
                 f"state config {state.get('config')} differs from this learner's {self.config()}"
             )
-        theta = np.asarray(state["theta"], dtype=np.float64)
+        if "theta" not in state:
+            raise ValueError(f"state lacks {self.name}'s estimate: missing key 'theta'")
+        try:
+            theta = np.asarray(state["theta"], dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"state['theta'] must be {self.task.dim} numbers ({e})") from None
         self.theta = _as_float_array("theta", theta, self.task.dim).copy()
 
     def __repr__(self) -> str:

@@ -43,7 +43,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from strol_gym.humans import HUMANS, check_fraction, human_factory, make_human, perturb
+from strol_gym.humans import (
+    HUMANS,
+    check_fraction,
+    check_human_kwargs,
+    human_factory,
+    make_human,
+    perturb,
+)
 from strol_gym.learners.checkpoint import (
     KINDS,
     THETA_KINDS,
@@ -98,8 +105,8 @@ class TrainConfig:
 
         choice("kind", KINDS)
         HUMANS.check_name(self.human)
-        if self.human_kwargs is not None and not isinstance(self.human_kwargs, dict):
-            raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
+        # the human's own kwargs: a dict of parameters it declares, never σ, ε or β
+        check_human_kwargs(self.human, self.human_kwargs)
         choice("theta_sampling", THETA_SAMPLING)
         choice("robot_action", ROBOT_ACTIONS)
         choice("bound", BOUNDS)
