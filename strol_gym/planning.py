@@ -95,9 +95,10 @@ class _Buffers:
     def ascent(self, jac: np.ndarray) -> np.ndarray:
         """∂R/∂x_t = Σ_i θ_i ∂φ_i/∂x_t, from the Jacobians (B, S, T, d, s) -> (B, S, T, s).
 
-        The very numbers of ``np.matmul(θ, J)``: products summed in feature order (the closing
-        + 0.0 turns a −0 total into +0, as matmul's sum from zero does), without its per-point
-        tiny matrix products. Overwritten by the next call.
+        Products summed in feature order (the closing + 0.0 turns a −0 total into +0, as a sum
+        from zero does): elementwise operations, so the same bits on every CPU, where
+        ``np.matmul(θ, J)``, equal within rounding, sums in an order its BLAS kernel chooses.
+        Without matmul's per-point tiny matrix products. Overwritten by the next call.
         """
         grad, term = self.grad, self.term
         np.multiply(self.theta[0], jac[..., 0, :], out=grad)

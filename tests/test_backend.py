@@ -16,6 +16,7 @@ import pytest
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.engine.backends import check_backend
 from strol_gym.benchmarks.engine.config import paper_config
+from strol_gym.benchmarks.engine.kernels import kernel_label
 from strol_gym.benchmarks.engine.runner import run_benchmark
 
 from strol_gym.learners.registry import register_learner, unregister_learner
@@ -88,6 +89,9 @@ def test_ray_gives_the_records_of_local_resume_included(ray_cluster, config, tmp
     )
     assert len(ran) == len(config.units()) - 1  # the resume ran only the missing units, on Ray
     assert _records(out) == _records(tmp_path / "local")
+    # Each unit names the kernels of the process that computed it: here Ray workers.
+    units = [json.loads(p.read_text()) for p in (out / "records").glob("*.json")]
+    assert {u["kernels"] for u in units} == {kernel_label()}
     assert json.loads((out / "meta.json").read_text())["status"] == "complete"
 
 

@@ -6,6 +6,7 @@ import csv
 import json
 
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label
 
 
 def test_fast_paper_preset_end_to_end(tmp_path, capsys):
@@ -21,6 +22,9 @@ def test_fast_paper_preset_end_to_end(tmp_path, capsys):
     assert meta["status"] == "complete" and meta["git"] is not None
     assert set(meta["extra"]["learners"]["robot"]) == {"gradient", "one", "mof", "e2e", "strol"}
     assert "weights_sha256" in meta["extra"]["learners"]["highway"]["strol"]
+    assert meta["kernels"] == float_kernels()
+    for unit in (out / "records").glob("*.json"):
+        assert json.loads(unit.read_text())["kernels"] == kernel_label()
 
     with open(out / "runs.csv") as f:
         runs = list(csv.DictReader(f))

@@ -9,6 +9,7 @@ import math
 
 import pytest
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.engine.kernels import float_kernels
 from strol_gym.benchmarks.experiments.study import METRICS
 
 
@@ -41,7 +42,7 @@ def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):
     assert "Task 1: H3" in printed and "wall time" in printed
 
     meta = json.loads((out / "meta.json").read_text())
-    assert meta["status"] == "complete"
+    assert meta["status"] == "complete" and meta["kernels"] == float_kernels()
     exps = meta["config"]["experiments"]
     assert [(e["env"], e["runs"], e["seed"]) for e in exps] == [("study1", 2, 20000)]
 

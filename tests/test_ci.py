@@ -25,3 +25,16 @@ def test_ci_lints_and_checks_format_before_the_tests() -> None:
     ruff_format = steps.index(".venv/bin/python -m ruff format --check .")
     tests = next(i for i, s in enumerate(steps) if "-m pytest" in s)
     assert ruff_check < tests and ruff_format < tests
+
+
+def test_ci_reruns_the_kernel_sensitive_tests_under_other_kernels() -> None:
+    """After the suite, the tests that compare numbers across batches, jobs, resumes and Ray run
+    again under other OpenBLAS and torch kernels (SkylakeX only where the CPU has AVX-512)."""
+    steps = [s.strip() for s in _ci_command().split("&&")]
+    assert steps[-1] == "bash .ci/kernels"
+    script = (ROOT / ".ci" / "kernels").read_text()
+    for name in ("test_planning", "test_bench_runner", "test_backend", "test_bench_e2e"):
+        assert f"tests/{name}.py" in script
+    for setting in ("Prescott:default", "Haswell:default", "SkylakeX:avx512"):
+        assert setting in script
+    assert "grep -qw avx512f /proc/cpuinfo" in script

@@ -10,6 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.engine.kernels import float_kernels
 from strol_gym.benchmarks.experiments import confirm
 
 import strol_gym  # noqa: F401  (registers the envs)
@@ -159,6 +160,10 @@ def test_preset_writes_table_meta_and_plot(argv, stem, tmp_path, capsys):
         assert (out / name).is_file(), name
     meta = json.loads((out / f"{stem}.json").read_text())
     assert meta["preset"] == stem and "versions" in meta
+    assert meta["kernels"] == float_kernels()  # which arithmetic made these numbers
+    folders = list(out.glob("**/meta.json"))  # the runner's results folders (none for basin)
+    assert folders or stem == "basin"
+    assert all(json.loads(m.read_text())["kernels"] == float_kernels() for m in folders)
     if stem == "confirm":
         assert "EXPLORATORY" in text and meta["protocol"] is False
         assert meta["seeds"] == [SEED, SEED + 1]

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit, diff_configs
+from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label, mixed_kernels_message
 
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.provenance import git_revision, package_versions
@@ -159,10 +160,12 @@ class ResultsDir:
                         "Use another --out, or --force to delete those results and start over."
                     )
                 _acquire_lock(path)
+                rd = cls(path, config, chash, meta)
+                rd.warn_mixed_kernels()
                 # A deleted records/ folder (or one lost otherwise) is recreated: its units
                 # are simply missing and this run computes them again.
                 (path / RECORDS).mkdir(exist_ok=True)
-                return cls(path, config, chash, meta)
+                return rd
         path.mkdir(parents=True, exist_ok=True)
         _acquire_lock(path)
         seeds = {
@@ -178,6 +181,7 @@ class ResultsDir:
             "created": _now(),
             "versions": package_versions(),
             "git": git_revision(),
+            "kernels": float_kernels(),
             "sessions": [],
             "status": "running",
         }
@@ -251,13 +255,38 @@ class ResultsDir:
         return [u for u in self.config.units() if u.key not in done]
 
     def write_unit(self, unit: Unit, records: Sequence[dict]) -> None:
-        """Store a finished unit atomically."""
+        """Store a finished unit atomically, with the kernels of the process that computed it
+        (the workers stamp each record with ``kernels``; stored once per unit)."""
+        labels = sorted({str(r["kernels"]) for r in records if "kernels" in r})
         payload = {
             "config_hash": self.config_hash,
             "unit": {"experiment": unit.experiment, "seeds": list(unit.seeds)},
-            "records": list(records),
+            "kernels": "; ".join(labels) or None,
+            "records": [{k: v for k, v in r.items() if k != "kernels"} for r in records],
         }
         write_json_atomic(self.record_path(unit), payload)
+
+    def kernels_by_unit(self) -> dict[str, list[str]]:
+        """Unit keys grouped by the kernels their records were computed with ("unrecorded" for
+        records written before kernels were recorded, "unreadable" for a corrupt file)."""
+        out: dict[str, list[str]] = {}
+        for p in sorted((self.path / RECORDS).glob("*.json")):
+            if p.name.startswith("."):
+                continue
+            try:
+                label = json.loads(p.read_text()).get("kernels") or "unrecorded"
+            except (OSError, ValueError, AttributeError):
+                label = "unreadable"
+            out.setdefault(str(label), []).append(p.stem)
+        return out
+
+    def warn_mixed_kernels(self) -> str | None:
+        """Print (stderr) and return one line if the records came from other kernels than this
+        process's, or from several."""
+        msg = mixed_kernels_message(self.path, self.kernels_by_unit(), kernel_label())
+        if msg:
+            print(msg, file=sys.stderr)
+        return msg
 
     def read_records(self) -> list[dict]:
         """Every record, validated, in canonical order (experiment, seed, learner order)."""
@@ -304,8 +333,13 @@ class ResultsDir:
                     "wall_time_s": wall_time_s,
                     "units_run": units_run,
                     "jobs": jobs,
+                    "kernels": kernel_label(),
                 }
             )
+            by_label = self.kernels_by_unit()
+            self.meta["record_kernels"] = {k: len(v) for k, v in by_label.items()}
+            if len(by_label) > 1:  # e.g. Ray workers on different CPUs within this session
+                self.warn_mixed_kernels()
             complete = not self.missing_units()
             if complete:
                 try:

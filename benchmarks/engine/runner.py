@@ -32,6 +32,7 @@ import numpy as np
 from strol_gym.benchmarks.engine import study_authors
 from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
+from strol_gym.benchmarks.engine.kernels import kernel_label
 from strol_gym.benchmarks.engine.results import ResultsDir
 
 from strol_gym.learners.protocol import LearnerFailed
@@ -196,6 +197,9 @@ class _Worker:
         ]
         out = _run_block(runs, exp.corrections, exp.env, exp.condition.name, policy)
         _score_regret(task, out)
+        label = kernel_label()  # this process's: a Ray worker's own CPU
+        for r in out:
+            r["kernels"] = label
         return out
 
 

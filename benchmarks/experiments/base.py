@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 
 from strol_gym.benchmarks.args import plugin_option
 from strol_gym.benchmarks.engine.config import BenchConfig
+from strol_gym.benchmarks.engine.kernels import float_kernels
 from strol_gym.benchmarks.engine.results import (
     ResultsDir,
     git_revision,
@@ -173,13 +174,15 @@ def write_table(
 
 
 def write_meta(out: Path, stem: str, meta: dict[str, Any]) -> Path:
-    """``stem.json``: the experiment's own settings plus package versions, git revision, load."""
+    """``stem.json``: the experiment's own settings plus package versions, git revision, the
+    floating-point kernels and the load."""
     out.mkdir(parents=True, exist_ok=True)
     full = {
         "tool": "strol-bench",
         **meta,
         "versions": package_versions(),
         "git": git_revision(),
+        "kernels": float_kernels(),
         "load": load(),
     }
     path = out / f"{stem}.json"
