@@ -49,6 +49,7 @@ for _m in (
     Metric("cos_error", "Scale-free error 1 − cos(θ*, θ̂) (final)", "1 − cos"),
     Metric("correction_time", "Correction time (s)", "Correction time (s)", from_info=True),
     Metric("corrections", "Corrections", "Corrections", from_info=True),
+    Metric("gave_up", "Gave up (the participant stopped correcting)", "Gave up", from_info=True),
 ):
     register_metric(_m)
 

@@ -21,7 +21,9 @@ from strol_gym.benchmarks.engine.config import BenchConfig, Experiment, paper_co
         (["run", "--env", "robot", "--condition", "windy"], "unknown condition 'windy'"),
         (
             ["run", "--env", "boat"],
-            "env must be one of ['highway', 'robot', 'study1', 'study2', 'study3'], got 'boat'",
+            "env must be one of ['highway', 'robot', 'study1', 'study1-v1', 'study1-v1-oracle', "
+            "'study2', 'study2-v1', 'study2-v1-oracle', 'study3', 'study3-v1', "
+            "'study3-v1-oracle'], got 'boat'",
         ),
         (["paper", "--runs", "0"], "--runs must be an integer in [1, "),
         (["paper", "--jobs", "0"], "--jobs must be an integer >= 1"),

@@ -43,7 +43,11 @@ def test_gradient_never_increases_error_with_noise_free_m6_human(seed, k, spread
 @given(
     seed=seeds,
     scale=st.floats(1e-3, 1e4),
-    g_scale=st.floats(0.0, 1e3),
+    # g = 0 exactly, or a scale whose squared norm is a normal float in float32 as well: below
+    # about 1e-19 (float32) or 1e-154 (float64) the squares underflow to subnormals, vector_norm
+    # loses ~1e-3 of relative precision and no 1e-6 margin can be measured (such g are zero
+    # for every Task: φ differences are 1e-4 and up).
+    g_scale=st.one_of(st.just(0.0), st.floats(1e-6, 1e3)),
     bound=st.sampled_from(["radial", "box"]),
     d=st.integers(1, 5),
 )

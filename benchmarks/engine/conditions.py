@@ -179,6 +179,16 @@ for _k in (1, 2, 3):  # the user study's Tasks (``strol-bench study``), not part
         robot="zeros",
         corrections_kwarg=False,
     )
+    # StROL-Study-v1 (u_H = the person's push): the held-out participant who judges what it
+    # sees, and v0's regret-judging user with the training human's corrections ("oracle").
+    for _who in ("observer", "oracle"):
+        _key = f"study{_k}-v1" + ("" if _who == "observer" else "-oracle")
+        ENV_PRESETS[_key] = dataclasses.replace(
+            ENV_PRESETS[f"study{_k}"],
+            key=_key,
+            env_id="StROL-Study-v1",
+            make_kwargs={"task": _k, "participant": _who},
+        )
 
 
 def _check_preset(key: str, preset: object) -> None:

@@ -98,19 +98,34 @@ def parse_tasks(text: str) -> tuple[int, ...]:
     return tasks
 
 
+ENV_VERSIONS = ("v0", "v1")
+PARTICIPANTS = ("observer", "oracle")
+
+
+def study_env(task: int, version: str = "v0", participant: str = "observer") -> str:
+    """The env preset of a study Task: v0's, or v1's with its participant (``conditions.py``)."""
+    if version == "v0":
+        return f"study{task}"
+    return f"study{task}-v1" + ("" if participant == "observer" else "-oracle")
+
+
 def study_config(
     tasks: Sequence[int] = TASKS,
     users: int = DEFAULT_USERS,
     seed: int = SEED,
     learners: Sequence[str] = PAPER_LEARNERS,
+    version: str = "v0",
+    participant: str = "observer",
 ) -> BenchConfig:
     """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
-    exps = tuple(Experiment(f"study{t}", USERS, runs=users, seed=seed) for t in tasks)
+    exps = tuple(
+        Experiment(study_env(t, version, participant), USERS, runs=users, seed=seed) for t in tasks
+    )
     return BenchConfig(exps, tuple(learners), REFERENCE_LEARNER, BLOCK)
 
 
 def _task_of(env: str) -> int:
-    return int(env.removeprefix("study"))
+    return int(env.removeprefix("study")[0])
 
 
 def verdicts(a: Analysis) -> list[dict[str, Any]]:
@@ -381,6 +396,19 @@ class Study(BenchExperiment):
         p.add_argument(
             "--seed", type=nonneg_int("--seed"), default=SEED, help=f"first user seed ({SEED})"
         )
+        p.add_argument(
+            "--env-version",
+            choices=ENV_VERSIONS,
+            default="v0",
+            help="StROL-Study-v0 (the published results) or v1 (u_H = the person's push)",
+        )
+        p.add_argument(
+            "--participant",
+            choices=PARTICIPANTS,
+            default="observer",
+            help="v1's simulated person: observer (held out, judges what it sees) or oracle "
+            "(v0's user: the training human, satisfied by the plan's regret)",
+        )
         p.add_argument("--out", default=None, help="results folder (default results/study)")
         p.add_argument(
             "--jobs",
@@ -395,7 +423,8 @@ class Study(BenchExperiment):
         p.add_argument("--no-plots", action="store_true", help="skip the figures")
 
     def plan(self, args: argparse.Namespace) -> BenchConfig:
-        return study_config(args.task, args.users, args.seed)
+        version, who = getattr(args, "env_version", "v0"), getattr(args, "participant", "observer")
+        return study_config(args.task, args.users, args.seed, version=version, participant=who)
 
     def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
         """Run (or resume) the study; its table, verdicts and plots."""

@@ -1,6 +1,6 @@
-"""Speed of StROL-Study-v0: physics overhead and a full simulated-user episode with StROL.
+"""Speed of StROL-Study-v0/v1: physics overhead and a full simulated-user episode with StROL.
 
-    .venv/bin/python benchmarks/speed/study_env.py [--task 1] [--repeats 3]
+    .venv/bin/python benchmarks/speed/study_env.py [--task 1] [--repeats 3] [--version v1]
 
 1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
    feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics
@@ -8,7 +8,8 @@
    same compiled model from the same state (the env's after 1 s of motion, its last torques
    held), timed alternately in one process; best of ``--repeats`` each. Target ≥ 0.5.
 2. **Real-time factor**: one 60 s episode (1,200 steps) with the simulated user (eq. M6,
-   σ = 0.25) and StROL through ``OnlineLearningWrapper``, replanning included: simulated
+   σ = 0.25; on v1 the default participant, who judges what it sees) and StROL through
+   ``OnlineLearningWrapper``, replanning included: simulated
    seconds per wall-clock second. Target ≥ 30.
 
 One core (BLAS and torch threads pinned to 1). Seeds from the study range (20000-).
@@ -30,13 +31,16 @@ import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
 from strol_gym.envs.study import StudyEnv  # noqa: E402
+from strol_gym.envs.study_v1 import StudyEnvV1  # noqa: E402
 
 SEED = 20100
 
 
-def physics_ratio(task: int, repeats: int, env_steps: int = 200) -> tuple[float, float, float]:
+def physics_ratio(
+    task: int, repeats: int, env_steps: int = 200, version: str = "v0"
+) -> tuple[float, float, float]:
     """(env physics steps/s, bare mj_step steps/s, ratio)."""
-    env = StudyEnv(task=task, human=None)
+    env = (StudyEnvV1 if version == "v1" else StudyEnv)(task=task, human=None)
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
     n_sub = env._n_sub
     bare_data = mujoco.MjData(env.model)
@@ -70,14 +74,14 @@ def _state(env: StudyEnv) -> np.ndarray:
     return out
 
 
-def realtime_factor(task: int, repeats: int) -> tuple[float, dict]:
+def realtime_factor(task: int, repeats: int, version: str = "v0") -> tuple[float, dict]:
     """(best simulated s / wall s over ``repeats`` episodes, the last episode's summary)."""
     import torch
     from strol_gym.wrappers import OnlineLearningWrapper
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
-        gym.make("StROL-Study-v0", task=task, human="nominal", sigma=0.25), "strol"
+        gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
     )
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
     best, summary = 0.0, {}
@@ -105,15 +109,16 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--task", type=int, default=1, choices=(1, 2, 3))
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--version", default="v1", choices=("v0", "v1"), help="the env version")
     args = p.parse_args()
     load = os.getloadavg()
-    print(f"StROL-Study-v0 task {args.task}; load average before: {load[0]:.2f}")
-    env_rate, bare_rate, ratio = physics_ratio(args.task, args.repeats)
+    print(f"StROL-Study-{args.version} task {args.task}; load average before: {load[0]:.2f}")
+    env_rate, bare_rate, ratio = physics_ratio(args.task, args.repeats, version=args.version)
     print(
         f"physics overhead: env {env_rate:,.0f} physics steps/s, bare mj_step "
         f"{bare_rate:,.0f}/s, ratio {ratio:.2f} (target >= 0.50)"
     )
-    factor, summary = realtime_factor(args.task, args.repeats)
+    factor, summary = realtime_factor(args.task, args.repeats, args.version)
     print(
         f"60 s episode, simulated user + StROL: {factor:.1f}x real time (target >= 30); {summary}"
     )

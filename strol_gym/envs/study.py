@@ -125,13 +125,17 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Version History
 
-    - v0: initial version.
+    - v1 (``strol_gym.envs.study_v1``): u_H is measured from the held setpoint, tracking that
+      makes the arm's catch-up negligible, the Panda's joint limits, a force reflex, and a
+      participant who judges what it sees. Use it.
+    - v0: initial version; kept unchanged for the published results (deprecated).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
         "render_modes": RenderModes(["human", "rgb_array"]),
         "render_fps": 20,
     }
+    env_id: ClassVar[str] = "StROL-Study-v0"
 
     def __init__(
         self,
@@ -159,7 +163,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
             raise ValueError(f"task must be 1, 2 or 3 (or a StudyTask), got {task!r}")
         task_obj = make_task(task, of=StudyTask)
         self._configure(
-            "StROL-Study-v0",
+            self.env_id,
             task_obj,
             StudyTask,
             unknown,
@@ -177,9 +181,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self.user_enabled = human is not None
         self.user_kwargs = dict(user_kwargs or {})
         if self.user_enabled:  # fail at construction, not at the first reset
-            SimulatedUser(
-                self.task, self.task.theta_star, np.random.default_rng(0), **self._user_params()
-            )
+            self._new_user(self.task.theta_star, np.random.default_rng(0))
         self.force_threshold = _positive("force_threshold", force_threshold)
         self.duration = _positive("duration", duration)
         self.stiffness = _positive("stiffness", stiffness)
@@ -295,7 +297,9 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
             w += ws
             self._scripted = (ws, n - 1) if n > 1 else None
         if self.user_enabled and self.human is not None:
-            f, tq = self.human.wrench(self._time, self._x, self.theta_hat)
+            # A participant who only sees the cup is handed no θ̂.
+            seen = self.theta_hat if getattr(self.human, "needs_theta_hat", True) else None
+            f, tq = self.human.wrench(self._time, self._x, seen)
             w[:3] += f
             w[3:] += tq
         return w
@@ -420,6 +424,10 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
         if not self.user_enabled:
             return None
+        return self._new_user(theta_star, rng)
+
+    def _new_user(self, theta_star: np.ndarray, rng: np.random.Generator) -> SimulatedUser:
+        """The simulated person who pushes (v0: ``SimulatedUser``, the regret-judging user)."""
         return SimulatedUser(self.task, theta_star, rng, **self._user_params())
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
@@ -453,10 +461,11 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._wrench = self._external_wrench()
         fx, fy, fz, tx, ty, tz = self._wrench.tolist()
         felt = math.hypot(fx, fy, fz) + math.hypot(tx, ty, tz) / TORQUE_LEVER
-        pushing = felt > self.force_threshold
+        pushing = self._pushing(felt)
         u_h, is_correction, record = self._zeros, False, None
         if pushing and not self._active:
-            self._active, self._corr_start_x, self._corr_t0 = True, self._x.copy(), self._time
+            self._active, self._corr_t0 = True, self._time
+            self._corr_start_x = self._correction_start()
             self._trace = []
         elif not pushing and self._active:
             self._active = False
@@ -487,6 +496,14 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         if self.render_mode == "human":
             self.render()
         return self._observation(u_h, phi), reward, False, bool(truncated), info
+
+    def _pushing(self, felt: float) -> bool:
+        """Whether the felt wrench (N, torques at ``TORQUE_LEVER``) is a correction's."""
+        return felt > self.force_threshold
+
+    def _correction_start(self) -> np.ndarray:
+        """The pose a correction's u_H is measured from: v0, the cup's pose when it begins."""
+        return self._x.copy()
 
     def _record(self, u_h: np.ndarray) -> dict[str, Any]:
         times = np.array([t for t, _ in self._trace])

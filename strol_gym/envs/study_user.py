@@ -128,6 +128,22 @@ class SimulatedUser:
         """Whether the robot's current plan is good enough: regret <= ``satisfied_regret``."""
         return self.regret(theta_hat) <= self.satisfied_regret
 
+    def _released(self, t: float, x: np.ndarray) -> None:
+        """Called when a push has been let go (a hook for participants that keep count)."""
+
+    def _decide(self, t: float, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray | None:
+        """While idle: the pose to push the cup to now, or None (judged every
+        ``decide_every`` s: unsatisfied by the plan's regret, and a large enough correction)."""
+        if t + 1e-9 < self._t_next:
+            return None
+        self._t_next = t + self.decide_every
+        if self.satisfied(theta_hat):
+            return None
+        u = np.asarray(self.act(x, np.zeros(self.task.action_dim), theta_hat))
+        if np.max(np.abs(u) / self.task.action_bound) < self.min_correction:
+            return None
+        return self.task.dynamics(x, u, np.zeros_like(u))
+
     def _error(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(position error (3,), rotation error (3,)) from the cup's pose to the target."""
         assert self.target is not None
@@ -142,15 +158,10 @@ class SimulatedUser:
         """(force N, torque N m) on the hand at time ``t`` (s), the cup at pose ``x``."""
         zero = np.zeros(3)
         if self.phase == "idle":
-            if t + 1e-9 < self._t_next:
+            target = self._decide(t, x, theta_hat)
+            if target is None:
                 return zero, zero
-            self._t_next = t + self.decide_every
-            if self.satisfied(theta_hat):
-                return zero, zero
-            u = np.asarray(self.act(x, np.zeros(self.task.action_dim), theta_hat))
-            if np.max(np.abs(u) / self.task.action_bound) < self.min_correction:
-                return zero, zero
-            self.target = self.task.dynamics(x, u, np.zeros_like(u))
+            self.target = target
             self.phase, self._t0 = "push", t
         if self.target is None:
             return zero, zero
@@ -166,6 +177,7 @@ class SimulatedUser:
             level = self._level * max(0.0, 1.0 - (t - self._t0) / self.ramp)
             if level <= 0.0:
                 self.phase, self._t_next, self.target = "idle", t + self.rest, None
+                self._released(t, x)
                 return zero, zero
         n_p, n_r = np.linalg.norm(dp), np.linalg.norm(dr)
         force = dp / max(n_p, 1e-9) * self.push_force * min(1.0, n_p / 0.03)

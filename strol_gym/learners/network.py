@@ -24,7 +24,12 @@ DEFAULT_HIDDEN = (256, 256, 128, 64)
 
 
 def bound_correction(raw: torch.Tensor, g: torch.Tensor, mode: str = "radial") -> torch.Tensor:
-    """Map raw network outputs (..., d) to ĝ with ‖ĝ‖ < ‖g‖ (for g ≠ 0; ĝ = 0 where g = 0)."""
+    """Map raw network outputs (..., d) to ĝ with ‖ĝ‖ < ‖g‖ (for g ≠ 0; ĝ = 0 where g = 0).
+
+    The margin is 1e-6 relative: it holds as long as ‖g‖² is a normal float of g's dtype
+    (‖g‖ above about 1e-19 in float32, 1e-154 in float64); below that the norms themselves
+    are computed from subnormal squares and carry more rounding than the margin.
+    """
     if mode == "radial":
         r = torch.sqrt((raw * raw).sum(dim=-1, keepdim=True) + 1e-12)
         s = raw * (torch.tanh(r) / r)
