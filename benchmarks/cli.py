@@ -43,9 +43,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
     plugin_option(p)
 
-    from strol_gym.benchmarks.sessions import interact, replay
+    from strol_gym.benchmarks.sessions import export, interact, replay
 
     replay.add_parser(sub)
+    export.add_parser(sub)
     interact.add_parser(sub)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
@@ -110,6 +111,12 @@ def cmd_replay(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
     return command(args, parser)
 
 
+def cmd_export(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.export import command
+
+    return command(args, parser)
+
+
 def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.interact import command
 
@@ -119,6 +126,7 @@ def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> i
 COMMANDS = {
     "replay": cmd_replay,
     "interact": cmd_interact,
+    "export": cmd_export,
     "train": cmd_train,
     "list": cmd_list,
     "report": cmd_report,
@@ -129,8 +137,9 @@ COMMANDS = {
 def _import_plugins(argv: Sequence[str]) -> None:
     """Import every ``--plugin`` module named in ``argv`` before the parser is built, so the
     experiments they register are subcommands."""
-    from strol_gym.registry import import_plugin
+    from strol_gym.registry import import_plugin, load_installed_plugins
 
+    load_installed_plugins()  # installed packages' strol_gym.plugins entry points
     pre = argparse.ArgumentParser(add_help=False)
     pre.add_argument("--plugin", action="append", default=[])
     for plugin in pre.parse_known_args(list(argv))[0].plugin:

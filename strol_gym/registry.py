@@ -24,8 +24,12 @@ __all__ = [
     "Registry",
     "import_spec",
     "install_specs",
+    "load_installed_plugins",
+    "plugin_argument",
+    "plugin_modules",
     "registries",
     "resolve",
+    "resolve_logged",
     "spec_of",
     "user_specs",
 ]
@@ -159,6 +163,8 @@ class Registry:
         """The piece for a registered name or a ``"module:attr"``; ValueError listing names."""
         if not isinstance(spec, str):
             raise ValueError(f"{self.kind} must be a name or 'module:attr', got {spec!r}")
+        if spec not in self.table and ":" not in spec and load_installed_plugins():
+            return self.get(spec)  # an installed plugin may have registered it
         if spec in self.table:
             entry = self.table[spec]
             return import_spec(entry, self.kind) if isinstance(entry, str) else entry
@@ -229,15 +235,99 @@ def install_specs(specs: dict[str, dict[str, Any]]) -> None:
                 reg.register(name, spec if reg.decode is None else reg.decode(spec))
 
 
+PLUGIN_GROUP = "strol_gym.plugins"
+"""The entry-point group of installed plugins: a package that declares
+``[options.entry_points] strol_gym.plugins = mine = my_package.pieces`` is imported by
+``strol-bench`` (and on the first unknown name) without ``--plugin``."""
+
+_PLUGIN_MODULES: dict[str, str] = {}
+"""Modules the user made available -> the ``--plugin`` argument that loads them again ("" for an
+installed entry point, which needs none): the only modules whose ``module:attr`` data written by
+someone else may name."""
+_INSTALLED_LOADED = False
+
+
+def load_installed_plugins() -> list[str]:
+    """Import every installed ``strol_gym.plugins`` entry point once (they register their
+    pieces); the modules imported. A plugin that fails to import is a ValueError naming it."""
+    global _INSTALLED_LOADED
+    if _INSTALLED_LOADED:
+        return []
+    _INSTALLED_LOADED = True
+    from importlib.metadata import entry_points
+
+    loaded = []
+    for ep in entry_points(group=PLUGIN_GROUP):
+        try:
+            importlib.import_module(ep.module)
+        except (Exception, SystemExit) as e:  # a user package may raise anything on import
+            raise ValueError(
+                f"installed plugin {ep.name!r} ({ep.value}, entry point group {PLUGIN_GROUP!r}) "
+                f"failed to import: {type(e).__name__}: {e}"
+            ) from e
+        _PLUGIN_MODULES.setdefault(ep.module, "")
+        loaded.append(ep.module)
+    return loaded
+
+
+def plugin_argument(obj: Any) -> str | None:
+    """The ``--plugin`` argument that makes ``obj`` (a class or function of a plugin) available
+    in a new process; None for strol-gym's own pieces and those of installed plugins."""
+    module = getattr(obj, "__module__", None) or ""
+    for name, how in _PLUGIN_MODULES.items():
+        if module == name or module.startswith(name + "."):
+            return how or None
+    return None
+
+
+def plugin_modules() -> frozenset[str]:
+    """The modules imported as plugins in this process."""
+    return frozenset(_PLUGIN_MODULES)
+
+
+def resolve_logged(kind: str, spec: Any) -> Any:
+    """The piece a file written elsewhere (a session log, a dataset) names, without importing.
+
+    Such a file may name a registered piece, or a ``module:attr`` inside a module the user made
+    available with ``--plugin``; anything else is refused, so reading data never runs code.
+    """
+    if not isinstance(spec, str) or not spec:
+        raise ValueError(f"the {kind} must be a registered name, got {spec!r}")
+    reg = registries()[kind]
+    if spec in reg:
+        return reg.get(spec)
+    module, sep, attr = spec.partition(":")
+    if not sep:
+        raise ValueError(
+            f"unknown {kind} {spec!r}; known {kind}s: {', '.join(reg.names())} "
+            "(a plugin that registers it is loaded with --plugin)"
+        )
+    trusted = any(module == m or module.startswith(m + ".") for m in _PLUGIN_MODULES)
+    if not trusted or module not in sys.modules:
+        raise ValueError(
+            f"{kind} {spec!r} is not a registered name, and data may not import code; if you "
+            f"trust module {module!r}, make it available with --plugin {module}"
+        )
+    obj: Any = sys.modules[module]
+    try:
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except AttributeError:
+        raise ValueError(f"{kind} {spec!r}: module {module!r} has no {attr!r}") from None
+    return obj
+
+
 def import_plugin(spec: str) -> None:
     """Import a module of user pieces (which registers them): a module name, or a ``.py`` file
     whose folder then joins ``sys.path`` (so worker processes import it by the same name)."""
     from pathlib import Path
 
     path = Path(spec)
+    how = spec
     if spec.endswith(".py"):
         if not path.is_file():
             raise ValueError(f"plugin {spec!r}: no such file")
+        how = str(path.resolve())
         folder = str(path.resolve().parent)
         if folder not in sys.path:
             sys.path.insert(0, folder)
@@ -248,3 +338,4 @@ def import_plugin(spec: str) -> None:
         raise ValueError(f"plugin {spec!r} called sys.exit({e.code}) on import") from e
     except Exception as e:  # a user module may raise anything on import
         raise ValueError(f"plugin {spec!r} failed to import: {type(e).__name__}: {e}") from e
+    _PLUGIN_MODULES[spec] = how

@@ -32,6 +32,10 @@ class FakeViewer:
         self.window = range(start, start + steps)
         self.syncs = 0
         self.texts = None
+        self.history = []
+        self.plans = []
+        self.targets = []
+        self.show_target = False  # the T key
         self.closed = False
 
     def sync(self) -> None:
@@ -45,6 +49,11 @@ class FakeViewer:
 
     def set_texts(self, texts) -> None:
         self.texts = texts
+        self.history.append(texts)
+
+    def draw_plan(self, points, target=None) -> None:
+        self.plans.append(np.array(points))
+        self.targets.append(None if target is None else np.array(target))
 
     def close(self) -> None:
         self.closed = True
@@ -101,8 +110,34 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     np.testing.assert_allclose(info["theta_hat"], rec["theta_hat_after"])
     assert lines[-1]["type"] == "end" and lines[-1]["reason"] == "max_steps"
     # the overlay shows θ̂, the correction time and the features
-    (text,) = viewer.texts
+    text = viewer.texts[0]
     assert "correction time" in text[2] and "pitcher" in text[2] and "1.00 s" in text[3]
+    assert lines[-1]["interrupted"] is False
+
+
+def test_panel_tells_how_to_push_what_to_teach_and_cues_the_correction(session):
+    from strol_gym.benchmarks.sessions.interact import teach_words
+
+    from strol_gym.tasks.study import StudyTask1
+
+    log, _, viewer = session
+    how = viewer.texts[1][2]
+    task = StudyTask1()
+    assert "Ctrl + right-drag" in how and "15 N" in how
+    assert how.endswith("TEACH: " + teach_words(task.feature_names, task.theta_star))
+    assert teach_words(("pitcher", "table"), np.array([-1.0, 0.5])) == (
+        "carry the cup away from the pitcher, low, near the table"
+    )
+    cues = ["\n".join(t[2] for t in texts[2:]) for texts in viewer.history]
+    pushing = [k for k, c in enumerate(cues) if "PUSH COUNTS: 30 N > 15 N" in c]
+    assert pushing == list(range(PUSH_START, PUSH_START + PUSH_STEPS))
+    (c,) = read_session(log).episodes[0].corrections
+    u_h = "CORRECTION RECORDED: u_H = (" + ", ".join(f"{v:+.3f}" for v in c["u_h"]) + ")"
+    recorded = [k for k, c in enumerate(cues) if u_h in c]
+    assert recorded and recorded[0] == PUSH_START + PUSH_STEPS  # the step the push ended
+    # the plan: drawn at reset, redrawn after the correction (θ̂ changed)
+    assert len(viewer.plans) >= 2 and viewer.plans[0].shape[1] == 3
+    assert not np.array_equal(viewer.plans[0], viewer.plans[-1])
 
 
 def test_replay_two_learners(session, tmp_path, capsys):
@@ -181,3 +216,34 @@ def test_real_passive_viewer_under_xvfb(tmp_path):
     assert s.header["extra"]["interact"]["max_steps"] == 20
     end = json.loads(log.read_text().splitlines()[-1])
     assert end["type"] == "end" and end["steps"] == 20 and end["corrections"] == 0
+
+
+def test_t_key_shows_the_plan_for_theta_star(tmp_path):
+    """With the T key's flag set, the plan for θ* (from the cup's pose) is drawn beside the
+    robot's own plan."""
+    from strol_gym.tasks.study import StudyTask1
+
+    viewers = []
+
+    def factory(model, data):
+        viewers.append(FakeViewer(model, data, steps=0))
+        viewers[-1].show_target = True
+        return viewers[-1]
+
+    log, _ = run_interactive(
+        task=1,
+        seed=3,
+        log=tmp_path / "t.jsonl",
+        max_steps=3,
+        realtime=False,
+        viewer_factory=factory,
+    )
+    (viewer,) = viewers
+    assert viewer.targets[0] is not None and viewer.targets[0].shape[1] == 3
+    task = StudyTask1()
+    x0 = np.array(json.loads(log.read_text().splitlines()[1])["x0"])
+    start = viewer.targets[0][0]  # the cup where the key was read (Task 1's state is x, y, z)
+    assert np.linalg.norm(start - x0) < 0.01
+    planned = task.plan(task.theta_star[None], start[None])[0]
+    np.testing.assert_allclose(viewer.targets[0], planned, atol=1e-9)
+    assert not np.allclose(viewer.plans[0][-1], viewer.targets[0][-1])  # θ̂0 ≠ θ*

@@ -230,7 +230,7 @@ def test_registry_errors_and_user_learners():
 
 
 def test_strol_without_shipped_weights_says_how_to_train():
-    with pytest.raises(FileNotFoundError, match=r"strol-bench train --task"):
+    with pytest.raises(FileNotFoundError, match=r"`strol-bench train --task \S+ --kind strol"):
         strol_gym.make_learner("strol", task=LinearTask())
 
 

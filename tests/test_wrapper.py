@@ -22,8 +22,8 @@ CONTRACT_ID = "StROLTest-Contract-v0"
 
 
 class ContractEnv(gym.Env):
-    """The env contract in miniature: the kinematics of ``task.dynamics``,
-    an eq. M6 human for the first ``n_corrections`` steps, reward R(x', θ*)."""
+    """The env contract (docs/extending.md, "Your own env") in miniature: the kinematics of
+    ``task.dynamics``, an eq. M6 human for the first ``n_corrections`` steps, reward R(x', θ*)."""
 
     metadata: ClassVar[dict] = {"render_modes": []}
 

@@ -3,8 +3,9 @@
 Format (JSON Lines, UTF-8, one object per line, ``"type"`` says which):
 
 - ``header`` (line 1): ``format`` = "strol-session", ``version`` = 1, ``created`` (UTC ISO
-  time), ``env_id``, ``env_kwargs``, ``task`` (a registered Task name or "module:attr", rebuilt
-  by :func:`strol_gym.tasks.make_task` on replay), ``task_describe`` (``Task.describe()``),
+  time), ``env_id``, ``env_kwargs``, ``task`` (a registered Task name, or the "module:attr" of a
+  Task of a plugin; :func:`session_task` looks it up and never imports what a log names),
+  ``task_describe`` (``Task.describe()``),
   ``learner`` and ``learner_kwargs``, ``packages`` (versions), ``extra`` (anything the front end
   adds, e.g. the interactive mode's options).
 - ``episode``: ``seed``, ``theta_hat0`` (where the learner started), ``theta_star`` (the
@@ -15,7 +16,7 @@ Format (JSON Lines, UTF-8, one object per line, ``"type"`` says which):
   ``trace`` = {``t``, ``force``, ``torque``} (the external wrench per control step; null when
   the env reports none).
 - ``end`` (optional): ``steps``, ``corrections``, ``theta_hat``, ``error``, ``cosine_error``,
-  ``regret``, ``reason``.
+  ``regret``, ``reason``, ``interrupted`` (true when the person stopped it with Ctrl-C).
 
 Each line is flushed and fsynced when written, so a crash loses at most the correction under
 way. :func:`read_session` validates a file and names the file and line of the first bad one.
@@ -36,24 +37,10 @@ import numpy as np
 
 from strol_gym.provenance import package_versions
 from strol_gym.registry import spec_of
-from strol_gym.tasks import TASKS, Task
+from strol_gym.tasks import Task, task_name
 from strol_gym.tasks.base import _jsonable
 
 FORMAT, VERSION = "strol-session", 1
-
-
-def task_name(task: Task) -> str:
-    """The registry name of ``task``'s class, else its "module:attr" (what replay rebuilds)."""
-    for name in TASKS.names():
-        try:
-            if TASKS.get(name) is type(task):
-                return name
-        except ValueError:
-            continue
-    spec = spec_of(type(task))
-    if spec is None:
-        raise ValueError(f"task {type(task).__name__} has no registry name or module:attr")
-    return spec
 
 
 def _json(value: Any) -> Any:
@@ -141,6 +128,11 @@ class SessionLogger(gym.Wrapper):
         self._index = 0
         self._steps = 0
 
+    @property
+    def learner(self) -> Any:
+        """The wrapped OnlineLearningWrapper's learner (what the benchmark's loop reads)."""
+        return self._learning.learner
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
         self._x = np.asarray(obs["state"], dtype=np.float64).copy()
@@ -185,11 +177,15 @@ class SessionLogger(gym.Wrapper):
             self.end_session("truncated" if truncated else "terminated", info)
         return obs, reward, terminated, truncated, info
 
-    def end_session(self, reason: str, info: dict[str, Any] | None = None) -> None:
-        """Write the ``end`` line (once per episode end, or when a front end stops early)."""
+    def end_session(
+        self, reason: str, info: dict[str, Any] | None = None, interrupted: bool = False
+    ) -> None:
+        """Write the ``end`` line (once per episode end, or when a front end stops early;
+        ``interrupted``: the person stopped it with Ctrl-C)."""
         info = info or {}
         self.writer.end(
             reason=reason,
+            interrupted=interrupted,
             steps=self._steps,
             corrections=self._index,
             theta_hat=np.asarray(self._learning.learner.theta, dtype=np.float64),
@@ -233,7 +229,7 @@ def _vector(where: str, rec: dict, key: str, dim: int | None, optional: bool = F
         return None
     try:
         arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         arr = np.array([np.nan])
     if arr.ndim != 1 or (dim is not None and arr.shape[0] != dim) or not np.isfinite(arr).all():
         size = f"{dim} " if dim is not None else ""
@@ -241,66 +237,128 @@ def _vector(where: str, rec: dict, key: str, dim: int | None, optional: bool = F
     return arr
 
 
+def _dimension(where: str, desc: dict, key: str) -> int:
+    value = desc.get(key)
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 < value <= 10_000:
+        raise SessionLogError(f"{where}: 'task_describe' needs {key!r} (an integer in [1, 10000])")
+    return value
+
+
+def _header(where: str, rec: dict) -> tuple[dict[str, Any], dict[str, int]]:
+    """Check line 1 (types only: resolving the Task is the reader's business, never an import)."""
+    if rec.get("type") != "header" or rec.get("format") != FORMAT:
+        raise SessionLogError(f"{where}: not a {FORMAT} log (line 1 must be its header)")
+    if rec.get("version") != VERSION:
+        raise SessionLogError(f"{where}: version {rec.get('version')!r}, want {VERSION}")
+    for key in ("task", "env_id"):
+        if not isinstance(rec.get(key), str) or not rec[key]:
+            raise SessionLogError(f"{where}: the header needs {key!r} (a name)")
+    if rec.get("learner") is not None and not isinstance(rec["learner"], str):
+        raise SessionLogError(f"{where}: the header's 'learner' must be a name")
+    desc = rec.get("task_describe")
+    if not isinstance(desc, dict):
+        raise SessionLogError(f"{where}: 'task_describe' must be an object (Task.describe())")
+    names = desc.get("feature_names")
+    if not isinstance(names, list) or not names or not all(isinstance(n, str) for n in names):
+        raise SessionLogError(f"{where}: 'task_describe' needs 'feature_names' (a list of names)")
+    dims = {"d": len(names), "s": _dimension(where, desc, "state_dim")}
+    dims["a"] = _dimension(where, desc, "action_dim")
+    return rec, dims
+
+
+def _parse(where: str, text: str) -> Any:
+    """One line's JSON; every failure (deep nesting, huge integers...) names file:line."""
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise SessionLogError(f"{where}: not JSON ({e.msg})") from None
+    except RecursionError:
+        raise SessionLogError(f"{where}: not a session log line (nested too deeply)") from None
+    except ValueError as e:  # e.g. an integer beyond Python's digit limit
+        raise SessionLogError(f"{where}: not a session log line ({e})") from None
+
+
 def read_session(path: str | Path) -> Session:
-    """Parse and validate a session log; :class:`SessionLogError` names the file and line."""
+    """Parse and validate a session log; :class:`SessionLogError` names the file and line.
+
+    Reading runs no code: the header's Task is a name, looked up by :func:`session_task`.
+    """
     path = Path(path)
     try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as e:
+        raw = path.read_bytes()
+    except OSError as e:
         raise SessionLogError(f"{path}: cannot read the session log ({e})") from e
     header: dict[str, Any] | None = None
     episodes: list[Episode] = []
     dims: dict[str, int] = {}
-    for no, text in enumerate(lines, start=1):
+    for no, line in enumerate(raw.split(b"\n"), start=1):
         where = f"{path}:{no}"
+        try:
+            text = line.decode("utf-8")
+        except UnicodeDecodeError:
+            raise SessionLogError(f"{where}: not UTF-8 text (not a session log line)") from None
         if not text.strip():
             continue
-        try:
-            rec = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise SessionLogError(f"{where}: not JSON ({e.msg})") from None
-        kind = rec.get("type") if isinstance(rec, dict) else None
+        rec = _parse(where, text)
+        if not isinstance(rec, dict):
+            raise SessionLogError(f"{where}: a session log line must be a JSON object")
+        kind = rec.get("type")
         if header is None:
-            if kind != "header" or rec.get("format") != FORMAT:
-                raise SessionLogError(f"{where}: not a {FORMAT} log (line 1 must be its header)")
-            if rec.get("version") != VERSION:
-                raise SessionLogError(f"{where}: version {rec.get('version')!r}, want {VERSION}")
-            if not isinstance(rec.get("task"), str):
-                raise SessionLogError(f"{where}: the header needs 'task' (a Task name)")
-            desc = rec.get("task_describe") or {}
-            dims = {
-                "d": len(desc.get("feature_names", [])),
-                "s": desc.get("state_dim"),
-                "a": desc.get("action_dim"),
-            }
-            if not all(isinstance(v, int) and v > 0 for v in dims.values()):
-                raise SessionLogError(f"{where}: 'task_describe' lacks the Task's dimensions")
-            header = rec
+            header, dims = _header(where, rec)
         elif kind == "episode":
             theta0 = _vector(where, rec, "theta_hat0", dims["d"])
             star = _vector(where, rec, "theta_star", dims["d"], optional=True)
-            episodes.append(Episode(rec.get("seed"), theta0, star, []))
+            seed = rec.get("seed")
+            if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
+                raise SessionLogError(f"{where}: 'seed' must be an integer or null")
+            episodes.append(Episode(seed, theta0, star, []))
         elif kind == "correction":
             if not episodes:
                 raise SessionLogError(f"{where}: a correction before any 'episode' line")
+            ctime = rec.get("correction_time")
+            if ctime is not None and (
+                isinstance(ctime, bool) or not isinstance(ctime, int | float)
+            ):
+                raise SessionLogError(f"{where}: 'correction_time' must be a number or null")
             c = {
                 "x": _vector(where, rec, "x", dims["s"]),
                 "u_h": _vector(where, rec, "u_h", dims["a"]),
                 "u_r": _vector(where, rec, "u_r", dims["a"]),
                 "theta_hat_after": _vector(where, rec, "theta_hat_after", dims["d"], True),
-                "correction_time": rec.get("correction_time"),
+                "correction_time": ctime,
             }
             episodes[-1].corrections.append(c)
-        elif kind in ("end", "header"):
-            if kind == "header":
-                raise SessionLogError(f"{where}: a second header")
-        else:
+        elif kind == "header":
+            raise SessionLogError(f"{where}: a second header")
+        elif kind != "end":
             raise SessionLogError(f"{where}: unknown line type {kind!r}")
     if header is None:
         raise SessionLogError(f"{path}: empty session log")
     if not episodes:
         raise SessionLogError(f"{path}: no 'episode' line")
     return Session(path, header, episodes)
+
+
+def session_task(session: Session) -> Task:
+    """The header's Task: a registered name, or a ``module:attr`` in a module the user loaded
+    with ``--plugin`` (never imported from the log); it must match the logged dimensions."""
+    from strol_gym.registry import resolve_logged
+    from strol_gym.tasks import make_task
+
+    where = f"{session.path}:1"
+    name = session.header["task"]
+    try:
+        task = make_task(resolve_logged("task", name))
+    except ValueError as e:
+        raise SessionLogError(f"{where}: {e}") from None
+    desc = session.header["task_describe"]
+    logged = (len(desc["feature_names"]), desc["state_dim"], desc["action_dim"])
+    if (task.dim, task.state_dim, task.action_dim) != logged:
+        raise SessionLogError(
+            f"{where}: task {name!r} has (features, state, action) dimensions "
+            f"{(task.dim, task.state_dim, task.action_dim)}, the log {logged}"
+        )
+    return task
 
 
 __all__ = [
@@ -310,5 +368,6 @@ __all__ = [
     "SessionLogger",
     "SessionWriter",
     "read_session",
+    "session_task",
     "task_name",
 ]

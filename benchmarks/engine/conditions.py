@@ -1,7 +1,7 @@
 """The paper's evaluation conditions (Fig. 4 columns) and the per-env presets.
 
 A :class:`Condition` is everything about the simulated human that the benchmark varies: noise σ
-and bias ε (fractions of a_max), the prior θ* is drawn from, and the human model.
+and bias ε (fractions of a_max, docs/benchmark.md), the prior θ* is drawn from, and the human model.
 The robot's initial estimate θ̂0 is *not* part of a condition: in every condition it is the mean
 of the designer's bimodal prior modes (``task.prior_modes.mean(0)``), which is what the envs and
 learners use by default. The uniform-prior condition changes only where θ* comes from.
@@ -62,7 +62,7 @@ class Condition:
             raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
 
     def env_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments for ``gymnasium.make`` (the arguments every strol-gym env takes)."""
+        """Keyword arguments for ``gymnasium.make`` (the env contract in docs/extending.md)."""
         kw: dict[str, Any] = {"sigma": self.sigma, "bias": self.bias, "prior": self.prior}
         if self.human is not None:
             kw["human"] = self.human
@@ -137,7 +137,7 @@ class EnvPreset:
             raise ValueError(f"make_kwargs must be a dict or None, got {self.make_kwargs!r}")
 
     def conditions(self) -> dict[str, Condition]:
-        """The paper's four conditions for this env, in figure order."""
+        """The paper's four conditions for this env (docs/benchmark.md's table), in figure order."""
         return {name: make_condition(self.key, name) for name in CONDITION_NAMES}
 
 

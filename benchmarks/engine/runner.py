@@ -1,6 +1,7 @@
 """The paired benchmark runner.
 
-Paired runs: a run's seed fixes θ*, the start state and every noise draw.
+Design (docs/benchmark.md, paired runs): a run's seed fixes θ*, the start state and every
+noise draw.
 For every run seed, each learner gets ``env.reset(seed=run_seed)`` on an env built for the
 condition, wrapped in ``OnlineLearningWrapper(env, learner)``; each step the robot acts by
 ``task.robot_policy(state, θ̂)`` for *that learner's* θ̂, scaled to the action space by

@@ -14,12 +14,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from strol_gym.benchmarks.sessions.export import read_any
 from strol_gym.wrappers.online_learning import cosine_error
-from strol_gym.wrappers.session_log import Session, read_session
+from strol_gym.wrappers.session_log import Session, session_task
 
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import display_name, make_learner
-from strol_gym.tasks import make_task
 
 
 def replay_session(
@@ -27,12 +27,7 @@ def replay_session(
 ) -> dict[str, list[np.ndarray]]:
     """θ̂ after 0, 1, ..., n corrections of each episode, concatenated over episodes, per learner
     (a list of (n_e + 1, d) arrays, one per episode)."""
-    task = make_task(session.header["task"])
-    if len(task.feature_names) != len(session.header["task_describe"]["feature_names"]):
-        raise ValueError(
-            f"{session.path}: task {session.header['task']!r} has {task.dim} features, the log "
-            f"{len(session.header['task_describe']['feature_names'])}"
-        )
+    task = session_task(session)
     out: dict[str, list[np.ndarray]] = {}
     for name in learners:
         learner = make_learner(name, task=task, **(learner_kwargs or {}).get(name, {}))
@@ -127,7 +122,8 @@ def run_replay(
     plots: bool = True,
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """Replay ``log`` through ``learners``; print the table; write CSV (+ PNG) into ``out``."""
-    session = read_session(log)
+    session = read_any(log)
+    session_task(session)  # a log naming code is refused before anything is written
     folder = (
         Path(out)
         if out is not None
@@ -174,7 +170,7 @@ def add_parser(sub: Any) -> None:
         "SessionLogger) through learners: each starts at the logged θ̂0 and updates on the "
         "logged (x, u_H, u_R). Prints final θ̂, error to the logged θ* and 1 − cos.",
     )
-    p.add_argument("log", help="a session log (.jsonl)")
+    p.add_argument("log", help="a session log (.jsonl), or a Minari dataset (strol-bench export)")
     p.add_argument(
         "--learners",
         type=learner_list,

@@ -307,6 +307,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     # ------------------------------------------------------------------ plan and setpoint
     def _set_plan(self, waypoints: np.ndarray, leg: str) -> None:
         plan = np.asarray(waypoints, dtype=np.float64)
+        self.plan_waypoints = plan  # what the robot follows now (a viewer draws it)
         # The segments' displacements (angles wrapped) once per plan, not twice per step.
         self._segments = angle_delta(plan[1:], plan[:-1])
         self._leg = leg

@@ -2,7 +2,8 @@
 
 A human holds hidden weights θ* and answers ``act(x, u_R, theta_hat)`` with a correction u_H.
 Real and simulated humans share this interface, so a user can pass their own object to the envs.
-Noise and bias are fractions of the action bound a_max: δ ~ N(ε·a_max, (σ·a_max)²).
+Noise and bias are fractions of the action bound a_max (docs/benchmark.md, "Conditions"):
+δ ~ N(ε·a_max, (σ·a_max)²).
 """
 
 from __future__ import annotations

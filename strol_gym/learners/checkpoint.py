@@ -330,13 +330,36 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
                 found.append(weights)
     if not found:
         raise FileNotFoundError(
-            f"no pretrained {kind} ĝ for {task.task_id} in {directory}; train one with "
-            f"`strol-bench train --task {task.task_id} --kind {kind} "
-            f"--out FILE.pt` and pass checkpoint=FILE.pt"
+            f"no pretrained {kind} ĝ for {task.task_id} in {directory}; {train_hint(task, kind)}"
         )
     if len(found) > 1:
         raise ValueError(f"several pretrained {kind} ĝ for {task.task_id}: {found}")
     return found[0]
+
+
+def train_hint(task: Task, kind: str) -> str:
+    """How to train a ``kind`` ĝ for ``task`` and use it, as commands that work when pasted
+    (the Task's registry name, and the ``--plugin`` that defines it)."""
+    import shlex
+
+    from strol_gym.registry import plugin_argument
+    from strol_gym.tasks import task_name
+
+    try:
+        name = task_name(task)
+    except ValueError:  # a Task defined where no other process can import it
+        name = task.task_id
+    stem = name if ":" not in name else type(task).__name__
+    out = f"{stem}_{kind}.pt"
+    plugin = plugin_argument(type(task))
+    train = ["strol-bench", "train", *(["--plugin", plugin] if plugin else [])]
+    train += ["--task", name, "--kind", kind, "--out", out]
+    kwargs = json.dumps({kind: {"checkpoint": out}})
+    return (
+        f"train one with `{shlex.join(train)}` and pass it to the learner: "
+        f"`--learner-kwargs {shlex.quote(kwargs)}` on the strol-bench command line, "
+        f"checkpoint={out!r} in Python"
+    )
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -25,6 +25,7 @@ from strol_gym.learners.checkpoint import (
     input_dim,
     load_checkpoint,
     model_input,
+    train_hint,
 )
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.protocol import LinearRuleLearner, check_state
@@ -62,7 +63,13 @@ class CorrectionLearner(LinearRuleLearner):
             raise ValueError("pass either checkpoint or model, not both")
         if model is None:
             path = Path(checkpoint) if checkpoint is not None else find_pretrained(task, self.kind)
-            model, meta = load_checkpoint(path, task, kind=self.kind)
+            try:
+                model, meta = load_checkpoint(path, task, kind=self.kind)
+            except ValueError as e:
+                if checkpoint is not None:
+                    raise
+                # the shipped ĝ of the env's setting, but this Task differs (a variant)
+                raise ValueError(f"{e}; {train_hint(task, self.kind)}") from None
             self.checkpoint = str(path)
             self.checkpoint_meta = meta
         else:

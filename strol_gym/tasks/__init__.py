@@ -63,4 +63,29 @@ def make_task(spec: Any, of: type[Task] | None = None) -> Task:
     return task
 
 
-__all__ = ["TASKS", "HighwayTask", "RobotTask", "Task", "make_task", "register_task"]
+def task_name(task: Task) -> str:
+    """The registry name of ``task``'s class, else its "module:attr" (what a log, a sidecar or
+    a suggested command names it by)."""
+    from strol_gym.registry import spec_of
+
+    for name in TASKS.names():
+        try:
+            if TASKS.get(name) is type(task):
+                return name
+        except ValueError:
+            continue
+    spec = spec_of(type(task))
+    if spec is None:
+        raise ValueError(f"task {type(task).__name__} has no registry name or module:attr")
+    return spec
+
+
+__all__ = [
+    "TASKS",
+    "HighwayTask",
+    "RobotTask",
+    "Task",
+    "make_task",
+    "register_task",
+    "task_name",
+]

@@ -31,7 +31,7 @@ step's acceleration or steering shows in φ; "T ahead" below means at that predi
   lane change). Its heading is what moves it within a step, as the paper's "heading direction
   indicating whether the human will change lane".
 
-Prior modes over (gap, speed, lane_change) (the paper's numbers, "tailgate"
+Prior modes over (gap, speed, lane_change) (the authors' released code gives "tailgate"
 (1.0, 1.0, 0.1) and "pass on the right" (0.1, −1.0, 1.0), in *their* feature signs): "tailgate"
 (1.0, 1.0, 0.1) keeps its lane and closes in to the slot; "pass on the right" (0.1, 1.0, 1.0)
 ignores the gap, prefers speed and changes lane, as the paper's text describes. The speed sign
