@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import datetime as dt
 import time
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
@@ -30,7 +29,7 @@ from strol_gym.envs.panda import PassiveViewer, has_display
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "
     "`xvfb-run -a strol-bench interact ...`, or use the headless simulated users, "
-    'gymnasium.make("StROL-Study-v0", human="nominal")'
+    'gymnasium.make("StROL-Study-v1", human="nominal")'
 )
 
 
@@ -269,9 +268,7 @@ def run_interactive(
     if path.exists():
         raise ValueError(f"log {path} exists; sessions are never overwritten")
     kwargs = {"task": task, "human": None, "duration": duration, **(env_kwargs or {})}
-    with warnings.catch_warnings():  # v0 on purpose (the published study); v1 exists too
-        warnings.filterwarnings("ignore", message=".*out of date", category=DeprecationWarning)
-        base = gym.make("StROL-Study-v0", **kwargs)
+    base = gym.make("StROL-Study-v1", **kwargs)
     learning = OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
     study = base.unwrapped
     site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
@@ -353,7 +350,7 @@ def add_parser(sub: Any) -> None:
     p = sub.add_parser(
         "interact",
         help="push the study arm yourself in MuJoCo's viewer; the robot learns (needs a display)",
-        description="Open MuJoCo's passive viewer on StROL-Study-v0 (no simulated user). Push "
+        description="Open MuJoCo's passive viewer on StROL-Study-v1 (no simulated user). Push "
         "the arm with Ctrl + right-drag (double-click a link first to select it): a push above "
         "15 N is a correction; the learner updates and the robot replans. The session is "
         "logged for strol-bench replay. Without a display: xvfb-run -a strol-bench interact.",
