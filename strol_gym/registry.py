@@ -1,9 +1,11 @@
 """One open registry of names -> pieces: learners, humans, Tasks and benchmark conditions.
 
-Each kind of piece keeps its built-in table where it is defined (``learners/registry.py``,
-``humans.py``, ``tasks/__init__.py``, ``benchmarks/conditions.py``); a :class:`Registry` wraps
-that table. Wherever strol-gym accepts a name it also accepts ``"module:attr"`` (imported on
-use), and a user adds a name with ``register(name, piece)``.
+Each kind of piece keeps its built-in table where it is defined (learners, humans and Tasks
+here; env presets and conditions in the benchmark); a :class:`Registry` wraps that table and,
+when built, joins the registries of this process (:func:`registries`). This module imports none
+of them: a kind is known once the module defining it is imported. Wherever strol-gym accepts a
+name it also accepts ``"module:attr"`` (imported on use), and a user adds a name with
+``register(name, piece)``.
 
 User entries must reach the benchmark's worker processes, which start fresh (spawn). So what
 travels is a *spec*, a ``"module:attr"`` string a worker can import, never a closure:
@@ -96,7 +98,9 @@ class Registry:
         hint: str = "",
         encode: Callable[[Any], Any] | None = None,
         decode: Callable[[Any], Any] | None = None,
+        shared: bool = True,
     ) -> None:
+        """``shared``: the kind's user entries travel to worker processes (``user_specs``)."""
         self.kind = kind
         self.table = table
         self.builtin = tuple(table)
@@ -106,6 +110,8 @@ class Registry:
         self.decode = decode
         """Pieces that are plain data (env presets) travel as ``encode(piece)`` (JSON) and are
         rebuilt with ``decode``; every other piece travels as its ``"module:attr"``."""
+        if shared:
+            _KINDS[kind] = self
 
     def names(self) -> list[str]:
         """Registered names, built-ins first, in registration order."""
@@ -175,25 +181,21 @@ class Registry:
         return spec
 
 
-_REGISTRIES: dict[str, Callable[[], Registry]] = {
-    "env": lambda: importlib.import_module("strol_gym.benchmarks.conditions").ENVS,
-    "learner": lambda: importlib.import_module("strol_gym.learners.registry").LEARNERS,
-    "human": lambda: importlib.import_module("strol_gym.humans").HUMANS,
-    "task": lambda: importlib.import_module("strol_gym.tasks").TASKS,
-    "condition": lambda: importlib.import_module("strol_gym.benchmarks.conditions").CONDITIONS,
-}
+_KINDS: dict[str, Registry] = {}
+"""Every shared registry of this process, by kind (each joins when it is built)."""
 
 
 def registries() -> dict[str, Registry]:
-    """Every registry by kind: env (benchmark presets), learner, human, task, condition."""
-    return {kind: get() for kind, get in _REGISTRIES.items()}
+    """Every registry of this process by kind: learner, human, task, and the benchmark's env
+    presets and conditions once it is imported."""
+    return dict(_KINDS)
 
 
 def resolve(kind: str, spec: str) -> Any:
     """The piece of ``kind`` named ``spec`` (a registered name or ``"module:attr"``)."""
-    if kind not in _REGISTRIES:
-        raise ValueError(f"kind must be one of {list(_REGISTRIES)}, got {kind!r}")
-    return _REGISTRIES[kind]().get(spec)
+    if kind not in _KINDS:
+        raise ValueError(f"kind must be one of {list(_KINDS)}, got {kind!r}")
+    return _KINDS[kind].get(spec)
 
 
 def user_specs(

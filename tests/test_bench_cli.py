@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import json
+import sys
+
 import pytest
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.conditions import Condition, env_preset, paper_condition
-from strol_gym.benchmarks.config import BenchConfig, Experiment, paper_config
+from strol_gym.benchmarks.engine.conditions import Condition, env_preset, paper_condition
+from strol_gym.benchmarks.engine.config import BenchConfig, Experiment, paper_config
 
 
 @pytest.mark.parametrize(
@@ -86,3 +89,65 @@ def test_config_round_trip_and_units():
     assert list(exp.seeds) == [5, 6] and exp.env_kwargs()["max_episode_steps"] == 5
     with pytest.raises(ValueError, match=r"runs must be an integer in \[1, "):
         Experiment("robot", paper_condition("robot", "clean"), runs=0)
+
+
+PLUGIN_EXPERIMENT = """
+from strol_gym.benchmarks.args import positive_int
+from strol_gym.benchmarks.experiments import register_experiment
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
+
+
+class Squares(BenchExperiment):
+    help = "squares of 1..n"
+    columns = ("k", "square")
+
+    def add_arguments(self, p):
+        p.add_argument("--n", type=positive_int("--n"), default=3)
+        p.add_argument("--out", default=None)
+        p.add_argument("--no-plots", action="store_true")
+
+    def plan(self, args):
+        if args.n > 5:
+            raise ValueError(f"--n must be at most 5, got {args.n}")
+        return list(range(1, args.n + 1))
+
+    def execute(self, ks, args, out):
+        rows = [{"k": k, "square": k * k} for k in ks]
+        md = [f"{r['k']}^2 = {r['square']}" for r in rows]
+        return Outcome(out, md, rows, meta={"n": args.n})
+
+
+register_experiment("squares-test", Squares)
+"""
+
+
+def test_an_experiment_of_ones_own_is_one_plugin_file(tmp_path, capsys):
+    from strol_gym.benchmarks.experiments import EXPERIMENTS
+
+    plugin = tmp_path / "squares_plugin.py"
+    plugin.write_text(PLUGIN_EXPERIMENT)
+    out = tmp_path / "sq"
+    try:
+        code = cli.main(["squares-test", "--plugin", str(plugin), "--n", "4", "--out", str(out)])
+        assert code == 0
+        printed = capsys.readouterr().out
+        assert "4^2 = 16" in printed
+        assert (out / "squares-test.csv").read_text().splitlines() == [
+            "k,square",
+            "1,1",
+            "2,4",
+            "3,9",
+            "4,16",
+        ]
+        meta = json.loads((out / "squares-test.json").read_text())
+        assert meta["preset"] == "squares-test" and meta["n"] == 4 and "versions" in meta
+        # the plan's ValueError is a usage error: exit status 2, the message, no folder
+        with pytest.raises(SystemExit) as e:
+            cli.main(["squares-test", "--plugin", str(plugin), "--n", "9", "--out", str(out / "x")])
+        assert e.value.code == 2
+        assert "--n must be at most 5, got 9" in capsys.readouterr().err
+        assert not (out / "x").exists()
+    finally:
+        if "squares-test" in EXPERIMENTS:
+            EXPERIMENTS.unregister("squares-test")
+        sys.modules.pop("squares_plugin", None)

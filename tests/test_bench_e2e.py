@@ -6,7 +6,7 @@ import csv
 import json
 
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.kernels import float_kernels, kernel_label
+from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label
 
 
 def test_fast_paper_preset_end_to_end(tmp_path, capsys):

@@ -8,10 +8,10 @@ import math
 
 import numpy as np
 import pytest
-from strol_gym.benchmarks.conditions import PAPER_LEARNERS
-from strol_gym.benchmarks.config import paper_config
-from strol_gym.benchmarks.report import analyse, write_reports
-from strol_gym.benchmarks.results import ResultsDir, ResultsError
+from strol_gym.benchmarks.analysis.report import analyse, write_reports
+from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS
+from strol_gym.benchmarks.engine.config import paper_config
+from strol_gym.benchmarks.engine.results import ResultsDir, ResultsError
 
 
 def _config(runs=4, learners=("gradient", "strol")):

@@ -6,9 +6,9 @@ import json
 
 import numpy as np
 import pytest
-from strol_gym.benchmarks.config import BenchConfig, paper_config
-from strol_gym.benchmarks.results import ResultsDir
-from strol_gym.benchmarks.runner import _Worker, run_benchmark
+from strol_gym.benchmarks.engine.config import BenchConfig, paper_config
+from strol_gym.benchmarks.engine.results import ResultsDir
+from strol_gym.benchmarks.engine.runner import _Worker, run_benchmark
 
 GRADIENT_COPY = "strol_gym.learners.rules:GradientLearner"
 """Gradient again, by module:attr: its records must equal Gradient's if the draws are paired."""
@@ -66,14 +66,14 @@ def small_config():
 def uninterrupted(small_config, tmp_path_factory):
     out = tmp_path_factory.mktemp("bench") / "jobs1"
     rd = run_benchmark(small_config, out, jobs=1, quiet=True)
-    from strol_gym.benchmarks.report import write_reports
+    from strol_gym.benchmarks.analysis.report import write_reports
 
     write_reports(rd, plots=False)
     return out
 
 
 def test_jobs_2_gives_identical_results(small_config, uninterrupted, tmp_path):
-    from strol_gym.benchmarks.report import write_reports
+    from strol_gym.benchmarks.analysis.report import write_reports
 
     rd = run_benchmark(small_config, tmp_path / "jobs2", jobs=2, quiet=True)
     write_reports(rd, plots=False)
@@ -83,7 +83,7 @@ def test_jobs_2_gives_identical_results(small_config, uninterrupted, tmp_path):
 
 
 def test_resume_after_interruption_matches_uninterrupted(small_config, uninterrupted, tmp_path):
-    from strol_gym.benchmarks.report import write_reports
+    from strol_gym.benchmarks.analysis.report import write_reports
 
     class Crash(Exception):
         pass

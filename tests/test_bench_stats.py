@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from scipy import stats as sps
-from strol_gym.benchmarks import stats
+from strol_gym.benchmarks.analysis import stats
 
 # 4 subjects (runs) × 3 levels (learners).
 Y = np.array(
@@ -119,8 +119,8 @@ def test_rm_anova_without_error_variance_is_undefined_not_significant(y):
     assert res.no_variance
     assert "inf" not in res.line() and "p <" not in res.line()
     assert "undefined (no within-subject error variance" in res.line()
-    from strol_gym.benchmarks.report import ANOVA_COLUMNS
-    from strol_gym.benchmarks.study import _anova_text
+    from strol_gym.benchmarks.analysis.report import ANOVA_COLUMNS
+    from strol_gym.benchmarks.experiments.study import _anova_text
 
     row = {"env": "x", "condition": "c", "metric": "m"} | dataclasses.asdict(res)
     assert stats.AnovaResult.from_row(row) == res

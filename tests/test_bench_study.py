@@ -9,8 +9,8 @@ import math
 
 import pytest
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.kernels import float_kernels
-from strol_gym.benchmarks.study import METRICS
+from strol_gym.benchmarks.engine.kernels import float_kernels
+from strol_gym.benchmarks.experiments.study import METRICS
 
 
 @pytest.mark.parametrize(

@@ -1,4 +1,4 @@
-"""Regression tests for the defects a probe of ~150 bad inputs found (issue 12, item 6).
+"""Regression tests for the defects a probe of ~150 bad inputs found.
 
 Each test names the defect it guards; every one failed before its fix. Errors must name the
 argument (or the file) and its valid range; the CLI exits with status 2 and one line.
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import torch
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.config import MAX_RUNS, paper_config
-from strol_gym.benchmarks.results import LOCK, META, RECORDS, ResultsDir, ResultsError
+from strol_gym.benchmarks.engine.config import MAX_RUNS, paper_config
+from strol_gym.benchmarks.engine.results import LOCK, META, RECORDS, ResultsDir, ResultsError
 
 from strol_gym.humans import MAX_BETA, MAX_FRACTION, make_human
 from strol_gym.learners import checkpoint as ckpt

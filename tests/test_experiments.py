@@ -1,4 +1,4 @@
-"""The paper's remaining experiments (issue 10): the changing human, basin_map, and the
+"""The paper's remaining experiments: the changing human, basin_map, and the
 changing / lambda / basin / confirm presets from the CLI (tiny runs on diagnostic seeds; the
 confirmatory protocol's seeds 3_000_000+ are never used here)."""
 
@@ -9,8 +9,9 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
-from strol_gym.benchmarks import cli, confirm
-from strol_gym.benchmarks.kernels import float_kernels
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.engine.kernels import float_kernels
+from strol_gym.benchmarks.experiments import confirm
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.analysis import basin_map
@@ -18,7 +19,7 @@ from strol_gym.humans import HUMANS, ChangingHuman
 from strol_gym.learners.registry import make_learner
 from strol_gym.tasks.robot import RobotTask
 
-SEED = 1000  # diagnostics range (contract 6)
+SEED = 1000  # the diagnostics seed range
 
 
 # ---------------------------------------------------------------------- the changing human
@@ -205,7 +206,8 @@ def test_reference_learner_has_one_definition():
     import ast
     import inspect
 
-    from strol_gym.benchmarks import compare_learners, conditions
+    from strol_gym.benchmarks.analysis import compare_learners
+    from strol_gym.benchmarks.engine import conditions
 
     for mod in (confirm, compare_learners):
         for node in ast.parse(inspect.getsource(mod)).body:

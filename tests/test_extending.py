@@ -9,6 +9,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import pytest
+from strol_gym.benchmarks.experiments import EXPERIMENTS
 
 from strol_gym.humans import HUMANS
 from strol_gym.tasks import TASKS
@@ -29,7 +30,8 @@ def test_extending_examples_run(capsys):
             exec(compile(block, f"{PAGE}:block{i}", "exec"), namespace)
         out = capsys.readouterr().out.split("\n")
     finally:
-        for reg, name in ((TASKS, "point"), (TASKS, "near-cup"), (HUMANS, "shy")):
+        pieces = ((TASKS, "point"), (TASKS, "near-cup"), (HUMANS, "shy"))
+        for reg, name in (*pieces, (EXPERIMENTS, "noise-sweep")):
             if name in reg:
                 reg.unregister(name)
         gym.registry.pop("Point-v0", None)
@@ -38,3 +40,8 @@ def test_extending_examples_run(capsys):
     assert out[1].startswith("True [")  # the shy human corrected on the first step
     error = float(out[2].split()[1])
     assert 0.0 <= error < 5.0
+    # the experiment of one's own ran through the CLI: its table, printed and written
+    assert "| σ | learner | final error |" in out
+    rows = [line for line in out if line.startswith("| 0")]
+    assert len(rows) == 4  # 2 noise levels x Gradient, StROL
+    assert any(line.startswith("wrote ") and line.endswith("noise-sweep.csv") for line in out)

@@ -25,9 +25,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
-from strol_gym.benchmarks import cli, results, runner
-from strol_gym.benchmarks.config import BenchConfig, Experiment
-from strol_gym.benchmarks.results import LOCK, META, ResultsDir, ResultsError
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.engine import results, runner
+from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
+from strol_gym.benchmarks.engine.results import LOCK, META, ResultsDir, ResultsError
+from strol_gym.benchmarks.train import add_train_arguments, run_train
 from strol_gym.wrappers import OnlineLearningWrapper
 
 import strol_gym  # noqa: F401  (registers the envs)
@@ -35,7 +37,6 @@ from strol_gym.analysis import basin_map
 from strol_gym.learners import checkpoint as ckpt
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.registry import list_learners, make_learner
-from strol_gym.learners.training import add_train_arguments, run_train
 from strol_gym.limits import BASIN_CAPS, RUN_CAPS, TRAIN_CAPS
 from strol_gym.tasks.robot import RobotTask
 
@@ -124,7 +125,7 @@ def test_a_learner_raising_mid_run_is_named_with_its_run_seed_and_the_folder_res
 
 
 def _session_log(path: Path) -> Path:
-    from strol_gym.benchmarks.session_log import SessionLogger
+    from strol_gym.wrappers.session_log import SessionLogger
 
     env = SessionLogger(OnlineLearningWrapper(gym.make("StROL-Robot-v0"), "gradient"), path)
     env.reset(seed=0)
@@ -321,7 +322,7 @@ def test_basin_refuses_a_theta_star_whose_errors_overflow(capsys, tmp_path):
 
 # ---------------------------------------------------------------------- 7. errors name the file
 def _tiny_config() -> BenchConfig:
-    from strol_gym.benchmarks.conditions import make_condition
+    from strol_gym.benchmarks.engine.conditions import make_condition
 
     exp = Experiment("robot", make_condition("robot", "training"), runs=1, n_corrections=1)
     return BenchConfig((exp,), ("gradient",), "gradient", 1)
@@ -361,7 +362,7 @@ def test_replay_out_that_cannot_be_created_is_named(tmp_path, capsys):
 # ---------------------------------------------------------------------- 8. Ray
 def test_an_unreachable_ray_address_fails_within_a_bounded_time(tmp_path):
     pytest.importorskip("ray")
-    from strol_gym.benchmarks.backends import check_backend
+    from strol_gym.benchmarks.engine.backends import check_backend
 
     t0 = time.perf_counter()
     args = ["run", "--env", "robot", "--learners", "gradient", "--runs", "1"]
@@ -430,7 +431,7 @@ import multiprocessing as mp
 import os
 import time
 
-from strol_gym.benchmarks import runner
+from strol_gym.benchmarks.engine import runner
 
 if __name__ == "__main__":
     pool = mp.get_context("spawn").Pool(

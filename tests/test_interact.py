@@ -16,8 +16,8 @@ import mujoco
 import numpy as np
 import pytest
 from strol_gym.benchmarks.cli import main
-from strol_gym.benchmarks.interact import run_interactive
-from strol_gym.benchmarks.session_log import SessionLogError, read_session
+from strol_gym.benchmarks.sessions.interact import run_interactive
+from strol_gym.wrappers.session_log import SessionLogError, read_session
 
 PUSH_START, PUSH_STEPS = 10, 20  # control steps (0.05 s): a 1 s push from t = 0.5 s
 
@@ -116,7 +116,7 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
 
 
 def test_panel_tells_how_to_push_what_to_teach_and_cues_the_correction(session):
-    from strol_gym.benchmarks.interact import teach_words
+    from strol_gym.benchmarks.sessions.interact import teach_words
 
     from strol_gym.tasks.study import StudyTask1
 

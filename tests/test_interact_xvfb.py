@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from strol_gym.benchmarks.interact import teach_words
-from strol_gym.benchmarks.session_log import read_session
+from strol_gym.benchmarks.sessions.interact import teach_words
+from strol_gym.wrappers.session_log import read_session
 
 from strol_gym.tasks.study import StudyTask1
 
@@ -33,7 +33,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-from strol_gym.benchmarks import interact
+from strol_gym.benchmarks.sessions import interact
 from strol_gym.benchmarks.cli import main
 
 out_path, ready_path = Path(sys.argv[1]), Path(sys.argv[2])

@@ -9,8 +9,8 @@ import subprocess
 import sys
 
 import pytest
-from strol_gym.benchmarks.kernels import float_kernels, kernel_label
-from strol_gym.benchmarks.results import ResultsDir
+from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label
+from strol_gym.benchmarks.engine.results import ResultsDir
 from test_bench_results import _config, _fake_records
 
 OTHER = "openblas=SkylakeX numpy=X86_V4 torch=AVX512 torch-blas=mkl"
@@ -26,7 +26,7 @@ def test_this_process_names_its_openblas_core_and_torch_capability():
 
 @pytest.mark.skipif(platform.machine() != "x86_64", reason="x86 kernel names")
 def test_kernel_variables_are_honoured_and_recorded():
-    code = "import json; from strol_gym.benchmarks.kernels import float_kernels as f; "
+    code = "import json; from strol_gym.benchmarks.engine.kernels import float_kernels as f; "
     code += "print(json.dumps(f()))"
     env = {**os.environ, "OPENBLAS_CORETYPE": "Prescott", "ATEN_CPU_CAPABILITY": "default"}
     out = subprocess.run(
@@ -86,8 +86,8 @@ def test_resuming_under_the_same_kernels_is_silent(tmp_path, capsys):
 
 
 def test_a_real_run_stamps_its_records_and_a_resume_under_an_edited_kernel_warns(tmp_path, capsys):
-    from strol_gym.benchmarks.config import paper_config
-    from strol_gym.benchmarks.runner import run_benchmark
+    from strol_gym.benchmarks.engine.config import paper_config
+    from strol_gym.benchmarks.engine.runner import run_benchmark
 
     cfg = paper_config(
         ["robot"], runs=2, learners=("gradient", "one"), block=1, reference="gradient"

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from strol_gym.benchmarks.session_log import SessionWriter
+from strol_gym.wrappers.session_log import SessionWriter
 
 from strol_gym.tasks import make_task
 

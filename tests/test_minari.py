@@ -9,10 +9,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from strol_gym.benchmarks.cli import main
-from strol_gym.benchmarks.export import read_any
-from strol_gym.benchmarks.replay import replay_session
-from strol_gym.benchmarks.session_log import SessionLogger, read_session
+from strol_gym.benchmarks.sessions.export import read_any
+from strol_gym.benchmarks.sessions.replay import replay_session
 from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.session_log import SessionLogger, read_session
 
 import strol_gym  # noqa: F401  (registers the envs)
 

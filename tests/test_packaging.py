@@ -18,7 +18,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from strol_gym.benchmarks.runner import DATA_FILES, code_fingerprint
+from strol_gym.benchmarks.engine.runner import DATA_FILES, code_fingerprint
 
 ROOT = Path(__file__).resolve().parents[1]
 # what a clean clone does not have: build products, caches, venvs and results
@@ -123,7 +123,7 @@ def test_the_wheel_carries_the_assets_and_the_pretrained_weights(wheel_install):
 def test_editable_and_wheel_installs_have_one_code_fingerprint(wheel_install):
     python = wheel_install["venv"] / "bin" / "python"
     probe = subprocess.run(
-        [str(python), "-c", "import strol_gym, strol_gym.benchmarks.runner as r; "
+        [str(python), "-c", "import strol_gym, strol_gym.benchmarks.engine.runner as r; "
          "print(strol_gym.__file__); print(r.code_fingerprint())"],
         capture_output=True,
         text=True,

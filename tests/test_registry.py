@@ -11,7 +11,7 @@ import pytest
 import registry_pieces
 from registry_pieces import HalfGradient, NearCupTask, shy_human
 from strol_gym.benchmarks.cli import main
-from strol_gym.benchmarks.conditions import (
+from strol_gym.benchmarks.engine.conditions import (
     CONDITIONS,
     ENVS,
     Condition,
@@ -21,8 +21,8 @@ from strol_gym.benchmarks.conditions import (
     register_condition,
     register_env_preset,
 )
-from strol_gym.benchmarks.config import BenchConfig, Experiment
-from strol_gym.benchmarks.runner import _Worker, run_benchmark
+from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
+from strol_gym.benchmarks.engine.runner import _Worker, run_benchmark
 from strol_gym.wrappers import OnlineLearningWrapper
 
 import strol_gym

@@ -7,8 +7,8 @@ import math
 
 import numpy as np
 import pytest
-from strol_gym.benchmarks import study_authors as sa
-from strol_gym.benchmarks.report import pooled_matrix, pooled_tests
+from strol_gym.benchmarks.analysis.report import pooled_matrix, pooled_tests
+from strol_gym.benchmarks.engine import study_authors as sa
 
 
 def _record(times, mags):

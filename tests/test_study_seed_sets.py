@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from strol_gym.benchmarks.study_seed_sets import complete_users, decisive_margin
+from strol_gym.benchmarks.experiments.study_seed_sets import complete_users, decisive_margin
 
 
 class _Tests:

@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 import torch
+from strol_gym.benchmarks.train import add_train_arguments, main
 
 from strol_gym import RobotTask
 from strol_gym.learners.checkpoint import (
@@ -23,9 +24,7 @@ from strol_gym.learners.rules import GradientLearner
 from strol_gym.learners.simulate import simulate_errors
 from strol_gym.learners.training import (
     TrainConfig,
-    add_train_arguments,
     heldout_lyapunov,
-    main,
     sample_batch,
     train_correction,
 )
@@ -191,7 +190,7 @@ def test_add_train_arguments_fits_a_subcommand():
 
 def test_module_entry_point_help():
     res = subprocess.run(
-        [sys.executable, "-m", "strol_gym.learners.training", "--help"],
+        [sys.executable, "-m", "strol_gym.benchmarks.train", "--help"],
         capture_output=True,
         text=True,
         check=True,

@@ -107,7 +107,7 @@ def test_weights_of_another_kind_or_task_are_refused_naming_the_file(tmp_path):
 
 
 def test_training_cli_rejects_k_below_one_with_status_2(capsys):
-    from strol_gym.learners import training
+    from strol_gym.benchmarks import train as training
 
     with pytest.raises(SystemExit) as e:
         training.main(["--kind", "strol-unrolled", "-K", "0", "--out", "never.pt"])

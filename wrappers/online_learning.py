@@ -9,14 +9,9 @@ import numpy as np
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
+from strol_gym.metrics import cosine_error, episode_regret, error
 
-
-def cosine_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
-    """1 − cos(θ*, θ̂); 1.0 (no directional information) when either vector is zero."""
-    ns, nh = np.linalg.norm(theta_star), np.linalg.norm(theta_hat)
-    if ns == 0 or nh == 0:
-        return 1.0
-    return float(1.0 - np.dot(theta_star, theta_hat) / (ns * nh))
+__all__ = ["OnlineLearningWrapper", "cosine_error", "episode_regret"]
 
 
 class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -125,19 +120,9 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             reward = float(np.dot(theta_hat, np.asarray(info["phi"], dtype=np.float64)))
         if terminated or truncated:
             theta_star = np.asarray(info["theta_star"], dtype=np.float64)
-            info["error"] = float(np.linalg.norm(theta_star - theta_hat))
+            info["error"] = error(theta_star, theta_hat)
             info["cosine_error"] = cosine_error(theta_star, theta_hat)
             if self.score_regret:
                 info["regret"] = episode_regret(self.task, theta_hat, theta_star, self._x0)[0]
         self._x = np.asarray(obs["state"], dtype=np.float64).copy()
         return obs, reward, terminated, truncated, info
-
-
-def episode_regret(task: Any, theta_hat: Any, theta_star: Any, x0: Any) -> list[float]:
-    """``task.regret`` as floats, NaN for a task without a planner: (B, d), (B, d), (B, s) or
-    single rows -> B floats. The one definition of the score both the wrapper and the benchmark
-    runner (which batches a whole block of episodes) report."""
-    try:
-        return [float(r) for r in task.regret(theta_hat, theta_star, x0)]
-    except NotImplementedError:
-        return [float("nan")] * len(np.atleast_2d(theta_star))

@@ -14,16 +14,28 @@ the learners, the wrapper and the benchmark rely on:
   truncates itself only when given ``max_episode_steps``. One rule, one place: ``_truncated``.
 
 It is a mixin, placed before the simulator's base class (``gym.Env`` or highway-env's
-``AbstractEnv``). An env calls ``_configure`` in ``__init__``, ``_start_episode`` in ``reset``
-and the step helpers in ``step``. ``docs/extending.md`` shows a complete small env.
+``AbstractEnv``), and a template: it owns ``__init__``, ``reset`` and ``step``, and an env
+supplies hooks around its simulator:
+
+- ``_setup()``: build the simulator and the spaces (the shared arguments are checked by then);
+- ``_draw_start(rng)``: the start state x0 and the human's generator, drawn after θ*;
+- ``_place_start(x0)``: put the simulator at x0 and return its state;
+- ``_advance(u_h, u_r)``: one step; returns the new state and the env's own info keys;
+- ``_start_info()`` and ``_terminated()``: the env's own info at reset, and whether the episode
+  ended (default never).
+
+An env with its own ``__init__`` (more arguments than the shared ones) calls ``_configure``
+from it; one with its own ``reset``/``step`` uses ``_start_episode`` and the step helpers.
+``docs/extending.md`` shows a complete small env.
 """
 
 from __future__ import annotations
 
 import inspect
 import math
-from typing import Any
+from typing import Any, ClassVar
 
+import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
@@ -72,7 +84,8 @@ class RenderModes(list):
 
 
 class CorrectionEnv:
-    """The human-correction half of a strol-gym env (a mixin; see the module docstring)."""
+    """The human-correction half of a strol-gym env (a mixin and template; see the module
+    docstring). Subclasses set ``env_id``, ``task_cls`` and the defaults, and fill the hooks."""
 
     metadata: dict[str, Any]
     task: Any
@@ -80,6 +93,123 @@ class CorrectionEnv:
     human: Human | None
     steps: int
     _x: np.ndarray
+    render_mode: str | None
+
+    env_id: ClassVar[str] = ""
+    task_cls: ClassVar[type[Task]] = Task
+    default_corrections: ClassVar[int] = 5
+    """``n_corrections`` when not given."""
+    default_size: ClassVar[tuple[int, int]] = (480, 360)
+    """Frame ``width`` and ``height`` (pixels) when not given."""
+
+    def __init__(
+        self,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        prior: str | Prior | Any = "bimodal",
+        human: str | HumanFactory = "nominal",
+        beta: float = 50.0,
+        n_corrections: int | None = None,
+        max_episode_steps: int | None = None,
+        render_mode: str | None = None,
+        width: int | None = None,
+        height: int | None = None,
+        task: Task | str | None = None,
+        human_kwargs: dict[str, Any] | None = None,
+        **unknown: Any,
+    ) -> None:
+        """The shared arguments (the env's docstring lists them); ``None`` for
+        ``n_corrections``, ``width`` or ``height`` means the env's default."""
+        self._configure(
+            self.env_id,
+            task,
+            self.task_cls,
+            unknown,
+            sigma=sigma,
+            bias=bias,
+            prior=prior,
+            human=human,
+            beta=beta,
+            n_corrections=self.default_corrections if n_corrections is None else n_corrections,
+            render_mode=render_mode,
+            max_episode_steps=max_episode_steps,
+            human_kwargs=human_kwargs,
+        )
+        self.render_mode = render_mode
+        w, h = self.default_size
+        self.width = int_arg("width", w if width is None else width, 16, 4096)
+        self.height = int_arg("height", h if height is None else height, 16, 4096)
+        self._x = np.zeros(self.task.state_dim)
+        self._setup()
+
+    # ------------------------------------------------------------------ the env's hooks
+    def _setup(self) -> None:
+        """Build the simulator and set ``observation_space`` and ``action_space``."""
+        raise NotImplementedError
+
+    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
+        """x0 and the human's generator, drawn from the episode's ``rng`` after θ* (default:
+        ``task.sample_start``; the human draws from ``rng`` itself)."""
+        return self.task.sample_start(rng, 1)[0], rng
+
+    def _start_override(self, x0: np.ndarray) -> np.ndarray:
+        """A start state given as ``reset(options={"state": ...})``, made admissible."""
+        return x0
+
+    def _place_start(self, x0: np.ndarray) -> np.ndarray:
+        """Put the simulator at x0; returns its state (default: x0 itself)."""
+        return x0
+
+    def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+        """One step with the human's and the robot's actions: (new state, the env's info)."""
+        raise NotImplementedError
+
+    def _start_info(self) -> dict[str, Any]:
+        """The env's own info keys after ``reset``."""
+        return {}
+
+    def _terminated(self) -> bool:
+        """Whether the episode ended (a crash, say); default never."""
+        return False
+
+    # ------------------------------------------------------------------ the template
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]
+        theta_override, x_override = self._reset_overrides(options)
+        rng = self.np_random  # type: ignore[attr-defined]
+        theta_star = self.task.prior.sample(rng, 1)[0]
+        x0, human_rng = self._draw_start(rng)
+        if theta_override is not None:
+            theta_star = theta_override
+        if x_override is not None:
+            x0 = self._start_override(x_override)
+        self._start_episode(theta_star, human_rng)
+        self._x = self._place_start(x0)
+        zeros = np.zeros(self.task.action_dim)
+        phi = self.task.features(self._x)
+        obs = self._obs(zeros, phi)
+        info = self._info(phi, zeros, zeros, False)
+        info.update(self._start_info())
+        if self.render_mode == "human":
+            self.render()  # type: ignore[attr-defined]
+        return obs, info
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        u_r = self._robot_action(action)
+        u_h, is_correction = self._human_correction(self._x, u_r)
+        x, extra = self._advance(u_h, u_r)
+        self.steps += 1
+        self._x = x
+        phi = self.task.features(self._x)
+        reward = float(phi @ self.theta_star)
+        terminated = self._terminated()
+        truncated = (not terminated) and self._truncated()
+        obs = self._obs(u_h, phi)
+        info = self._info(phi, u_h, u_r, is_correction)
+        info.update(extra)
+        if self.render_mode == "human":
+            self.render()  # type: ignore[attr-defined]
+        return obs, reward, terminated, truncated, info
 
     def _configure(
         self,

@@ -13,9 +13,8 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes, int_arg
-from strol_gym.humans import Human, HumanFactory
-from strol_gym.priors import Prior
+from strol_gym.envs.base import CorrectionEnv, RenderModes
+from strol_gym.humans import Human
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
 ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
@@ -149,48 +148,22 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         "render_fps": 4,
     }
 
-    def __init__(
-        self,
-        sigma: float = 0.0,
-        bias: float = 0.0,
-        prior: str | Prior | Any = "bimodal",
-        human: str | HumanFactory = "nominal",
-        beta: float = 50.0,
-        n_corrections: int = 10,
-        max_episode_steps: int | None = None,
-        render_mode: str | None = None,
-        width: int = 600,
-        height: int = 150,
-        task: HighwayTask | str | None = None,
-        human_kwargs: dict[str, Any] | None = None,
-        **unknown: Any,
-    ) -> None:
-        self._configure(
-            "StROL-Highway-v0",
-            task,
-            HighwayTask,
-            unknown,
-            sigma=sigma,
-            bias=bias,
-            prior=prior,
-            human=human,
-            beta=beta,
-            n_corrections=n_corrections,
-            render_mode=render_mode,
-            max_episode_steps=max_episode_steps,
-            human_kwargs=human_kwargs,
-        )
+    env_id: ClassVar[str] = "StROL-Highway-v0"
+    task_cls: ClassVar[type[HighwayTask]] = HighwayTask
+    default_corrections: ClassVar[int] = 10
+    default_size: ClassVar[tuple[int, int]] = (600, 150)
+
+    def _setup(self) -> None:
         self.task: HighwayTask
-        width = int_arg("width", width, 16, 4096)
-        height = int_arg("height", height, 16, 4096)
+        width, height = self.width, self.height
         freq = 1.0 / self.task.dt
         self._network = RoadNetwork.straight_road_network(
             lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None
         )
         self.robot_vehicle: Vehicle | None = None
         self.human_vehicle: HumanVehicle | None = None
-        self._x = np.zeros(self.task.state_dim)
-        super().__init__(
+        AbstractEnv.__init__(
+            self,
             config={
                 "simulation_frequency": freq,
                 "policy_frequency": freq,
@@ -199,7 +172,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
                 "centering_position": [0.7, 0.5],
                 "scaling": 5.5 * width / 600,
             },
-            render_mode=render_mode,
+            render_mode=self.render_mode,
         )
         # highway-env's constructor resets once; the episode starts at the caller's reset(),
         # so step() before it raises, as in every strol-gym env.
@@ -214,30 +187,29 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         self.observation_type = None
         self.action_type = None
 
-    # ------------------------------------------------------------------ reset / step
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        gym.Env.reset(self, seed=seed)
-        theta_override, x_override = self._reset_overrides(options)
+    # ------------------------------------------------------------------ the template's hooks
+    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
+        x0 = self.task.sample_episode_start(rng, 1)[0]
+        return x0, np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
+
+    def _place_start(self, x0: np.ndarray) -> np.ndarray:
         self.time = 0
         self.done = False
-        rng = self.np_random
-        theta_star = self.task.prior.sample(rng, 1)[0]
-        x0 = self.task.sample_episode_start(rng, 1)[0]
-        human_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
-        if theta_override is not None:
-            theta_star = theta_override
-        if x_override is not None:
-            x0 = x_override
-        self._start_episode(theta_star, human_rng)
         self._build_scene(x0)
-        self._x = self._read_state()
-        zeros = np.zeros(self.task.action_dim)
-        phi = self.task.features(self._x)
-        obs = self._obs(zeros, phi)
-        info = self._make_info(phi, zeros, zeros, False)
-        if self.render_mode == "human":
-            self.render()
-        return obs, info
+        return self._read_state()
+
+    def _start_info(self) -> dict[str, Any]:
+        return {"crashed": self._is_terminated()}
+
+    def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+        self.human_vehicle.act({"acceleration": float(u_h[0]), "steering": float(u_h[1])})
+        self.robot_vehicle.act({"acceleration": float(u_r[0]), "steering": float(u_r[1])})
+        self.road.step(self.task.dt)
+        self.time += self.task.dt
+        return self._read_state(), {"crashed": self._is_terminated()}
+
+    def _terminated(self) -> bool:
+        return self._is_terminated()
 
     def _build_scene(self, x0: np.ndarray) -> None:
         self.road = Road(
@@ -270,32 +242,6 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
             ],
             dtype=np.float64,
         )
-
-    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        u_r = self._robot_action(action)
-        u_h, is_correction = self._human_correction(self._x, u_r)
-        self.human_vehicle.act({"acceleration": float(u_h[0]), "steering": float(u_h[1])})
-        self.robot_vehicle.act({"acceleration": float(u_r[0]), "steering": float(u_r[1])})
-        self.road.step(self.task.dt)
-        self.steps += 1
-        self.time += self.task.dt
-        self._x = self._read_state()
-        phi = self.task.features(self._x)
-        reward = float(phi @ self.theta_star)
-        terminated = self._is_terminated()
-        truncated = (not terminated) and self._is_truncated()
-        obs = self._obs(u_h, phi)
-        info = self._make_info(phi, u_h, u_r, is_correction)
-        if self.render_mode == "human":
-            self.render()
-        return obs, reward, terminated, truncated, info
-
-    def _make_info(
-        self, phi: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, is_correction: bool
-    ) -> dict[str, Any]:
-        info = self._info(phi, u_h, u_r, is_correction)
-        info["crashed"] = bool(self.robot_vehicle.crashed or self.human_vehicle.crashed)
-        return info
 
     # highway-env's hooks, kept meaningful for code that calls them
     def _reset(self) -> None:

@@ -9,13 +9,11 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes, int_arg
+from strol_gym.envs.base import CorrectionEnv, RenderModes
 from strol_gym.envs.panda import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.panda_ik import IK_ITERS, PandaIK
 from strol_gym.envs.robot_scene import TABLE_TOP, build_model
 from strol_gym.envs.robot_seeds import seed_table
-from strol_gym.humans import HumanFactory
-from strol_gym.priors import Prior
 from strol_gym.tasks.robot import RobotTask
 
 
@@ -124,42 +122,13 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         "render_fps": 5,
     }
 
-    def __init__(
-        self,
-        sigma: float = 0.0,
-        bias: float = 0.0,
-        prior: str | Prior | Any = "bimodal",
-        human: str | HumanFactory = "nominal",
-        beta: float = 50.0,
-        n_corrections: int = 5,
-        max_episode_steps: int | None = None,
-        render_mode: str | None = None,
-        width: int = 480,
-        height: int = 360,
-        task: RobotTask | str | None = None,
-        human_kwargs: dict[str, Any] | None = None,
-        **unknown: Any,
-    ) -> None:
-        self._configure(
-            "StROL-Robot-v0",
-            task,
-            RobotTask,
-            unknown,
-            sigma=sigma,
-            bias=bias,
-            prior=prior,
-            human=human,
-            beta=beta,
-            n_corrections=n_corrections,
-            render_mode=render_mode,
-            max_episode_steps=max_episode_steps,
-            human_kwargs=human_kwargs,
-        )
-        self.task: RobotTask
-        self.render_mode = render_mode
-        self.width = int_arg("width", width, 16, 4096)
-        self.height = int_arg("height", height, 16, 4096)
+    env_id: ClassVar[str] = "StROL-Robot-v0"
+    task_cls: ClassVar[type[RobotTask]] = RobotTask
+    default_corrections: ClassVar[int] = 5
+    default_size: ClassVar[tuple[int, int]] = (480, 360)
 
+    def _setup(self) -> None:
+        self.task: RobotTask
         t = self.task
         margin = 0.1
         f32 = np.float32
@@ -173,7 +142,6 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(t.action_dim,), dtype=f32)
         self._zeros = np.zeros(t.action_dim)
-        self._x = np.zeros(t.state_dim)
         self._renderer: mujoco.Renderer | None = None
         self._viewer: Any = None
         self._build()
@@ -203,56 +171,21 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self.data.ctrl[:N_ARM] = self._ik.q
         return self._ik.ee
 
-    # ------------------------------------------------------------------ reset / step
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        super().reset(seed=seed)
-        theta_override, x_override = self._reset_overrides(options)
-        rng = self.np_random
-        theta_star = self.task.prior.sample(rng, 1)[0]
-        x0 = self.task.sample_start(rng, 1)[0]
-        if theta_override is not None:
-            theta_star = theta_override
-        if x_override is not None:
-            x0 = np.clip(x_override, self.task.workspace_low, self.task.workspace_high)
-        self._start_episode(theta_star, rng)
-        self._x = self.move_to(x0)
-        phi = self.task.features(self._x)
-        obs = self._obs(self._zeros, phi)
-        info = self._make_info(phi, self._zeros, self._zeros, False, self._x, 0.0)
-        if self.render_mode == "human":
-            self.render()
-        return obs, info
+    # ------------------------------------------------------------------ the template's hooks
+    def _start_override(self, x0: np.ndarray) -> np.ndarray:
+        return np.clip(x0, self.task.workspace_low, self.task.workspace_high)
 
-    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        u_r = self._robot_action(action)
-        u_h, is_correction = self._human_correction(self._x, u_r)
+    def _place_start(self, x0: np.ndarray) -> np.ndarray:
+        return self.move_to(x0)
+
+    def _start_info(self) -> dict[str, Any]:
+        return {"target": self._x, "ik_error": 0.0}
+
+    def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         target = self.task.dynamics(self._x, u_h, u_r)
         ik_error = self._ik.solve(target)
         self.data.ctrl[:N_ARM] = self._ik.q
-        self.steps += 1
-        self._x = self._ik.ee
-        phi = self.task.features(self._x)
-        reward = float(phi @ self.theta_star)
-        truncated = self._truncated()
-        obs = self._obs(u_h, phi)
-        info = self._make_info(phi, u_h, u_r, is_correction, target, ik_error)
-        if self.render_mode == "human":
-            self.render()
-        return obs, reward, False, truncated, info
-
-    def _make_info(
-        self,
-        phi: np.ndarray,
-        u_h: np.ndarray,
-        u_r: np.ndarray,
-        is_correction: bool,
-        target: np.ndarray,
-        ik_error: float,
-    ) -> dict[str, Any]:
-        info = self._info(phi, u_h, u_r, is_correction)
-        info["target"] = target
-        info["ik_error"] = ik_error
-        return info
+        return self._ik.ee, {"target": target, "ik_error": ik_error}
 
     # ------------------------------------------------------------------ render, close, pickle
     def __getstate__(self) -> dict:

@@ -432,7 +432,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         return SimulatedUser(self.task, theta_star, rng, **self._user_params())
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        super().reset(seed=seed)
+        gym.Env.reset(self, seed=seed)  # its own sequence, not the CorrectionEnv template
         theta_override, state_override = self._reset_overrides(options)
         if state_override is not None:
             raise ValueError("reset option 'state' is not supported: the study starts at home")

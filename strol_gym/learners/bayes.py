@@ -1,7 +1,7 @@
 """A Bayesian learner: a particle posterior over θ with a Boltzmann model of the human.
 
 Not one of the paper's five rules; the principled baseline a researcher comparing learning
-rules asks for (issue 11). It works for any Task: it needs only ``task.g``, the candidate
+rules asks for. It works for any Task: it needs only ``task.g``, the candidate
 actions and the prior modes.
 """
 

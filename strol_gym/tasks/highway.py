@@ -51,7 +51,6 @@ from strol_gym.tasks.base import Task, positive_field, vector_field
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
 """Prior modes over (gap, speed, lane_change): "tailgate" and "pass on the right"."""
-MODE_NAMES = ("tailgate", "pass on the right")
 
 # highway-env's Vehicle constants (highway_env.vehicle.kinematics.Vehicle); a test checks them.
 CAR_LENGTH = 5.0

@@ -1,0 +1,456 @@
+"""From per-run records to summary.csv, stats.csv, anova.csv, summary.md and the H1/H2 verdicts.
+
+The analysis is a pure function of the records and the config, so ``strol-bench report`` can
+re-render a folder at any time and always produce the same tables.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.analysis.base import (
+    METRIC_LABELS,
+    METRICS,
+    Analysis,
+    _f,
+    _matrix,
+    display,
+)
+from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, env_preset
+from strol_gym.benchmarks.engine.config import BenchConfig
+from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
+
+SUMMARY_COLUMNS = (
+    "env",
+    "condition",
+    "learner",
+    "metric",
+    "mean",
+    "std",
+    "sem",
+    "n",
+    "median",
+    "q1",
+    "q3",
+)
+STATS_COLUMNS = (
+    "env",
+    "condition",
+    "metric",
+    "learner",
+    "baseline",
+    "test",
+    "n",
+    "mean_diff",
+    "ci95_low",
+    "ci95_high",
+    "statistic",
+    "df",
+    "p_raw",
+    "p_holm",
+    "effect_size",
+    "effect_size_name",
+    "wilcoxon_W",
+    "wilcoxon_p_raw",
+    "wilcoxon_p_holm",
+    "hodges_lehmann",
+    "significant",
+    "plain_language",
+)
+ANOVA_COLUMNS = (
+    "env",
+    "condition",
+    "metric",
+    "n",
+    "k",
+    "F",
+    "df1",
+    "df2",
+    "p",
+    "eps_gg",
+    "df1_gg",
+    "df2_gg",
+    "p_gg",
+)
+
+
+def pooled_matrix(
+    records: Sequence[dict], envs: Sequence[str], learners: Sequence[str], key: str
+) -> tuple[list[int], np.ndarray]:
+    """(seeds, learners): each run seed's mean of ``key`` over every (env, condition) cell of
+    ``envs`` it ran in, as the paper pools a participant over its Tasks (or a simulated human
+    over the conditions). Listwise: a seed enters only with a finite value for every learner
+    in every cell, and only if it ran in as many cells as any seed did."""
+    cells: dict[tuple[int, str, str], dict[str, float]] = {}
+    for r in records:
+        if r["env"] in envs and r["learner"] in learners:
+            cells.setdefault((r["seed"], r["env"], r["condition"]), {})[r["learner"]] = _f(
+                r.get(key)
+            )
+    per_seed: dict[int, list[list[float]]] = {}
+    bad: set[int] = set()
+    for (seed, _, _), vals in cells.items():
+        row = [vals.get(lr, math.nan) for lr in learners]
+        if not np.isfinite(row).all():
+            bad.add(seed)
+        per_seed.setdefault(seed, []).append(row)
+    full = max((len(v) for v in per_seed.values()), default=0)
+    seeds = sorted(s for s, v in per_seed.items() if s not in bad and len(v) == full)
+    y = np.array([np.mean(per_seed[s], axis=0) for s in seeds], dtype=np.float64)
+    return seeds, y.reshape(len(seeds), len(learners))
+
+
+def pooled_tests(
+    records: Sequence[dict], envs: Sequence[str], learners: Sequence[str], key: str
+) -> dict[str, Any]:
+    """The paper's pooled analysis: ``pooled_matrix``, a repeated-measures ANOVA over the
+    learners (Greenhouse–Geisser), then every pair of learners (paired t and Wilcoxon, each
+    Holm-corrected over the pairs). Pair rows: first minus second."""
+    seeds, y = pooled_matrix(records, envs, learners, key)
+    pairs = [(i, j) for i in range(len(learners)) for j in range(i + 1, len(learners))]
+    tests = [stats.paired_test(y[:, i], y[:, j]) for i, j in pairs]
+    p_holm = stats.holm([t.p_t for t in tests])
+    pw_holm = stats.holm([t.p_wilcoxon for t in tests])
+    rows = [
+        {
+            "a": learners[i],
+            "b": learners[j],
+            "n": t.n,
+            "mean_diff": t.mean_diff,
+            "t": t.t,
+            "p_t": t.p_t,
+            "p_holm": float(ph),
+            "p_wilcoxon": t.p_wilcoxon,
+            "wilcoxon_p_holm": float(pwh),
+        }
+        for (i, j), t, ph, pwh in zip(pairs, tests, p_holm, pw_holm, strict=True)
+    ]
+    means = dict(zip(learners, y.mean(axis=0).tolist() if len(seeds) else [], strict=False))
+    return {
+        "envs": list(envs),
+        "learners": list(learners),
+        "metric": key,
+        "n": len(seeds),
+        "means": means,
+        "anova": stats.rm_anova(y),
+        "pairs": rows,
+    }
+
+
+def pooled_lines(result: dict[str, Any]) -> list[str]:
+    """Markdown bullets: the ANOVA, then each pair (Holm)."""
+    an = result["anova"]
+    names = ", ".join(map(display, result["learners"]))
+    out = [
+        f"- repeated-measures ANOVA over {names}: {an.line()}; uncorrected "
+        f"F({an.df1:g}, {an.df2:g}), {stats.format_p(an.p)}"
+    ]
+    for r in result["pairs"]:
+        out.append(
+            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {_num(r['mean_diff'])}, paired t "
+            f"{stats.format_p(r['p_holm'])} (Holm; raw {stats.format_p(r['p_t'])}), Wilcoxon "
+            f"{stats.format_p(r['wilcoxon_p_holm'])} (Holm)"
+        )
+    return out
+
+
+def analyse(
+    config: BenchConfig, records: Sequence[dict], metrics: Sequence[str] = METRICS
+) -> Analysis:
+    """Descriptives, RM-ANOVA and post-hoc tests per env × condition × metric; learning curves."""
+    learners = list(config.learners)
+    summary, posthoc, anova = [], [], []
+    curves: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}
+    for exp in config.experiments:
+        env, cond = exp.env, exp.condition.name
+        for metric in metrics:
+            _, y = _matrix(records, env, cond, learners, metric)
+            if y.size == 0 or not np.isfinite(y).any():
+                continue
+            y = y[np.isfinite(y).all(axis=1)]  # listwise: paired tests need every learner's value
+            for j, lr in enumerate(learners):
+                summary.append(
+                    {"env": env, "condition": cond, "learner": lr, "metric": metric}
+                    | stats.describe(y[:, j])
+                )
+            a = stats.rm_anova(y)
+            anova.append({"env": env, "condition": cond, "metric": metric} | dataclasses.asdict(a))
+            if len(learners) > 1:
+                for row in stats.compare_to_reference(y, learners, config.reference):
+                    row = {"env": env, "condition": cond, "metric": metric, **row}
+                    row["plain_language"] = stats.plain_language(
+                        display(row["learner"]),
+                        display(row["baseline"]),
+                        row["mean_diff"],
+                        row["p_holm"],
+                    )
+                    posthoc.append(row)
+        for lr in learners:
+            errs = [
+                r["errors"]
+                for r in records
+                if (r["env"], r["condition"], r["learner"]) == (env, cond, lr)
+            ]
+            if not errs:
+                continue
+            width = max(len(e) for e in errs)
+            arr = np.full((len(errs), width), np.nan)
+            for i, e in enumerate(errs):
+                arr[i, : len(e)] = [_f(v) for v in e]
+            n = np.isfinite(arr).sum(axis=0)
+            mean = np.nanmean(arr, axis=0)
+            sd = np.array(
+                [np.nanstd(c, ddof=1) if k > 1 else np.nan for c, k in zip(arr.T, n, strict=True)]
+            )
+            curves[(env, cond, lr)] = {"mean": mean, "sem": sd / np.sqrt(np.maximum(n, 1)), "n": n}
+    analysis = Analysis(config, summary, posthoc, anova, curves, [])
+    for env in dict.fromkeys(e.env for e in config.experiments):
+        n_cond = sum(e.env == env for e in config.experiments)
+        primary = env_preset(env).primary_metric
+        if n_cond > 1 and len(learners) > 1 and primary in metrics:
+            analysis.pooled.append(pooled_tests(records, [env], learners, primary))
+    analysis.verdicts = verdicts(analysis)
+    return analysis
+
+
+def verdicts(a: Analysis) -> list[dict[str, Any]]:
+    """H1 and H2 per env, on the env's primary metric (Robot: regret; Highway: error).
+
+    H1: in the training condition the reference learner is significantly lower than every
+    baseline (paired t, Holm p < 0.05). H2: in every other paper condition no baseline is
+    significantly lower than the reference (it is better or comparable).
+    Only stated for the paper's comparison (``BenchConfig.is_paper``: its learners, reference,
+    conditions, Tasks and correction counts); anything else gets tables and tests, no verdict.
+    """
+    out: list[dict[str, Any]] = []
+    if not a.config.is_paper():
+        return out
+    ref = a.config.reference
+    envs = list(dict.fromkeys(e.env for e in a.config.experiments))
+    for env in envs:
+        metric = env_preset(env).primary_metric
+        for e in a.config.experiments:
+            cond = e.condition.name
+            if e.env != env:
+                continue
+            tests = [a.test(env, cond, b, metric) for b in a.config.learners if b != ref]
+            tests = [t for t in tests if t is not None]
+            if not tests:
+                continue
+            v: dict[str, Any] = {"env": env, "condition": cond, "metric": metric}
+            v["hypothesis"] = "H1" if cond == "training" else "H2"
+            for test in ("t", "wilcoxon"):
+                dirs = {display(t["baseline"]): stats.direction(t, test) for t in tests}
+                better = [b for b, d in dirs.items() if d < 0]
+                worse = [b for b, d in dirs.items() if d > 0]
+                if v["hypothesis"] == "H1":
+                    holds = len(better) == len(dirs)
+                    detail = (
+                        f"{display(ref)} significantly lower than every baseline"
+                        if holds
+                        else "not significantly lower than "
+                        + ", ".join(b for b in dirs if b not in better)
+                    )
+                else:
+                    holds = not worse
+                    detail = (
+                        f"better than {', '.join(better) or 'none'}; "
+                        f"worse than {', '.join(worse) or 'none'}"
+                    )
+                key = "" if test == "t" else "_wilcoxon"
+                v["holds" + key], v["detail" + key] = holds, detail
+            out.append(v)
+    return out
+
+
+# ---------------------------------------------------------------------- rendering
+def _num(x: float, digits: int = 3) -> str:
+    if x is None or not math.isfinite(x):
+        return "n/a"
+    return f"{x:.{digits}f}" if abs(x) >= 10**-digits or x == 0 else f"{x:.1e}"
+
+
+def median_table(a: Analysis, env: str, metric: str) -> list[str]:
+    """Markdown table of medians [Q1, Q3] (heavy-tailed metrics such as regret)."""
+    learners = list(a.config.learners)
+    conds = [e.condition.name for e in a.config.experiments if e.env == env]
+    lines = ["| condition | " + " | ".join(display(lr) for lr in learners) + " |"]
+    lines.append("|---|" + "---|" * len(learners))
+    for cond in conds:
+        cells = []
+        for lr in learners:
+            c = a.cell(env, cond, lr, metric)
+            cells.append(
+                "n/a" if c is None else f"{_num(c['median'])} [{_num(c['q1'])}, {_num(c['q3'])}]"
+            )
+        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
+    """Markdown table: rows conditions, columns learners, 'mean ± std' with stars vs StROL."""
+    learners = list(a.config.learners)
+    conds = [e.condition.name for e in a.config.experiments if e.env == env]
+    head = "| condition | " + " | ".join(display(lr) for lr in learners) + " |"
+    lines = [head, "|---|" + "---|" * len(learners)]
+    for cond in conds:
+        cells = []
+        for lr in learners:
+            c = a.cell(env, cond, lr, metric)
+            if c is None:
+                cells.append("n/a")
+                continue
+            t = a.test(env, cond, lr, metric)
+            star = stats.stars(t["p_holm"]) if t else ""
+            cells.append(f"{_num(c['mean'])} ± {_num(c['std'])}{star}")
+        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = ()) -> str:
+    cfg = a.config
+    envs = list(dict.fromkeys(e.env for e in cfg.experiments))
+    out = ["# strol-bench summary", ""]
+    git = meta.get("git") or {}
+    out += [
+        f"- learners: {', '.join(display(lr) for lr in cfg.learners)}; post-hoc reference: "
+        f"{display(cfg.reference)}",
+        f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
+        f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
+        f"{_num(meta.get('wall_time_s', math.nan), 1)} s",
+        f"- cells: mean ± std over runs; stars: {display(cfg.reference)} vs that learner, "
+        "paired t-test, "
+        "Holm-corrected across baselines (* p<0.05, ** p<0.01, *** p<0.001). Lower is better.",
+        "",
+    ]
+    if a.verdicts:
+        out += ["## Hypotheses", ""]
+        for v in a.verdicts:
+            word = "HOLDS" if v["holds"] else "FAILS"
+            wil = "holds" if v["holds_wilcoxon"] else "fails"
+            out.append(
+                f"- **{v['hypothesis']} {v['env']} / {v['condition']} ({v['metric']}): "
+                f"{word}** (paired t, Holm) — {v['detail']}. Wilcoxon signed-rank (Holm): "
+                f"{wil} — {v['detail_wilcoxon']}"
+            )
+        out.append("")
+    for env in envs:
+        preset = env_preset(env)
+        out += [f"## {preset.env_id}", ""]
+        for e in cfg.experiments:
+            if e.env == env:
+                out.append(
+                    f"- {e.condition.name}: {e.condition.describe()}; {e.runs} runs "
+                    f"(seeds {e.seeds.start}–{e.seeds.stop - 1}), {e.corrections} corrections"
+                )
+        out.append("")
+        metrics = a.metrics_for(env)
+        primary = preset.primary_metric if preset.primary_metric in metrics else metrics[0]
+        for metric in [primary] + [m for m in metrics if m != primary]:
+            tag = " — primary metric" if metric == primary else ""
+            out += [f"### {METRIC_LABELS[metric]}{tag}", ""]
+            out += metric_table(a, env, metric)
+            out.append("")
+            if metric == primary:
+                out += [f"Median [Q1, Q3] of {metric}:", ""]
+                out += median_table(a, env, metric)
+                out.append("")
+        from strol_gym.benchmarks.analysis.paper_numbers import PAPER, side_by_side
+
+        baselines = set(PAPER_LEARNERS) - {REFERENCE_LEARNER}
+        if (env, primary) in PAPER and set(cfg.learners) & baselines:
+            out += [
+                f"### {primary} beside the authors' reported numbers (their repository's tables, "
+                "from their released code; not a target)",
+                "",
+                *side_by_side(a, env, primary, cfg.learners),
+                "",
+            ]
+        out += [f"### Tests on {primary}", ""]
+        for e in cfg.experiments:
+            if e.env != env:
+                continue
+            cond = e.condition.name
+            an = next(
+                (
+                    r
+                    for r in a.anova
+                    if (r["env"], r["condition"], r["metric"]) == (env, cond, primary)
+                ),
+                None,
+            )
+            if an is not None:
+                line = stats.AnovaResult.from_row(an).line()
+                out.append(f"- **{cond}**: repeated-measures ANOVA across learners: {line}")
+            for t in a.posthoc:
+                if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):
+                    wil = stats.format_p(t["wilcoxon_p_holm"])
+                    out.append(
+                        f"  - {t['plain_language']}; Δ = {_num(t['mean_diff'])} "
+                        f"[{_num(t['ci95_low'])}, {_num(t['ci95_high'])}], "
+                        f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}"
+                    )
+        for pooled in a.pooled:
+            if pooled["envs"] == [env]:
+                out += [
+                    "",
+                    f"Whole experiment ({pooled['metric']}: each run seed's mean over the "
+                    f"{sum(e.env == env for e in cfg.experiments)} conditions, n = "
+                    f'{pooled["n"]}; the paper\'s test "across all trials and conditions"):',
+                    "",
+                    *pooled_lines(pooled),
+                ]
+        out.append("")
+    if plots:
+        out += ["## Plots", ""] + [f"- ![{p.stem}]({p})" for p in plots if p.suffix == ".png"]
+        out.append("")
+    return "\n".join(out)
+
+
+def write_reports(rd: ResultsDir, *, plots: bool = True) -> tuple[Analysis, list[Path]]:
+    """Read the records of ``rd`` and (re)write every table, summary.md and the plots."""
+    records = rd.read_records()
+    if not records:
+        raise ValueError(f"{rd.path} holds no finished runs yet")
+    rd.write_run_tables(records)
+    a = analyse(rd.config, records)
+    write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
+    write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
+    write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
+    paths: list[Path] = []
+    if plots:
+        from strol_gym.benchmarks.analysis import plots as plotting
+
+        paths = plotting.make_plots(a, rd.path / "plots")
+    rel = [p.relative_to(rd.path) for p in paths]
+    (rd.path / "summary.md").write_text(summary_markdown(a, rd.meta, rel))
+    return a, paths
+
+
+def console_summary(a: Analysis) -> str:
+    """The primary-metric tables and the verdicts, for the terminal."""
+    out = []
+    for env in dict.fromkeys(e.env for e in a.config.experiments):
+        metrics = a.metrics_for(env)
+        if not metrics:
+            continue
+        primary = env_preset(env).primary_metric
+        primary = primary if primary in metrics else metrics[0]
+        ref = display(a.config.reference)
+        out += [
+            f"{env_preset(env).env_id}: {METRIC_LABELS[primary]} (mean ± std, * = {ref} vs that "
+            "learner, paired t, Holm p<0.05)"
+        ]
+        out += [*metric_table(a, env, primary), ""]
+    for v in a.verdicts:
+        out.append(
+            f"{v['hypothesis']} {v['env']}/{v['condition']} ({v['metric']}): "
+            f"{'holds' if v['holds'] else 'FAILS'} — {v['detail']}"
+        )
+    return "\n".join(out)

@@ -1,0 +1,184 @@
+"""The argument types and option groups every ``strol-bench`` command shares.
+
+Each type checks its value when argparse reads it, so a bad argument exits with status 2 and a
+message naming it and its valid range before any work starts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from typing import Any
+
+from strol_gym.benchmarks.engine.backends import add_backend_options
+from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK
+
+
+def positive_int(name: str, high: int | None = None, *, low: int = 1):
+    """An argparse type: an integer in [low, high] (low defaults to 1; no upper bound)."""
+    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"{name} must be an integer {rng}, got {text!r}"
+            ) from None
+        if v < low or (high is not None and v > high):
+            raise argparse.ArgumentTypeError(f"{name} must be an integer {rng}, got {v}")
+        return v
+
+    return parse
+
+
+def nonneg_int(name: str):
+    """An argparse type: an integer >= 0."""
+    return positive_int(name, low=0)
+
+
+def fraction(name: str, allow_negative: bool = False):
+    """σ or ε as a fraction of a_max, checked by the humans' own rule (one range everywhere)."""
+    from strol_gym.humans import check_fraction
+
+    def parse(text: str) -> float:
+        try:
+            return check_fraction(name, text, allow_negative=allow_negative)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(str(e)) from None
+
+    return parse
+
+
+def beta(text: str) -> float:
+    """An argparse type: a rationality β, checked by the humans' own rule."""
+    from strol_gym.humans import check_beta
+
+    try:
+        return check_beta(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"--{e}") from None
+
+
+def learner_list(text: str) -> list[str]:
+    """An argparse type: comma-separated learner names (at least one)."""
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if not names:
+        raise argparse.ArgumentTypeError("learners must name at least one learner")
+    return names
+
+
+def check_learner_names(names: list[str] | tuple[str, ...]) -> None:
+    """ValueError for a name that is neither registered nor an importable ``module:attr``."""
+    from strol_gym.learners.registry import LEARNERS
+
+    for name in names:
+        LEARNERS.check_name(name)
+
+
+def learner_kwargs(text: str | None) -> dict[str, dict[str, Any]]:
+    """``--learner-kwargs``: a JSON object of constructor kwargs per learner (``{}`` for None);
+    ValueError naming the option otherwise."""
+    if not text:
+        return {}
+    try:
+        kwargs = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ValueError(f"--learner-kwargs must be JSON ({e})") from None
+    if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
+        raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {...}}')
+    return kwargs
+
+
+def float_list(name: str, *, low: float = 0.0):
+    """An argparse type: comma-separated finite numbers >= ``low``, at least one."""
+
+    def parse(text: str) -> list[float]:
+        out = []
+        for tok in (t.strip() for t in text.split(",")):
+            try:
+                v = float(tok)
+            except ValueError:
+                v = math.nan
+            if not math.isfinite(v) or v < low:
+                bound = "" if low == -math.inf else f" >= {low:g}"
+                raise argparse.ArgumentTypeError(
+                    f"{name} must be comma-separated finite numbers{bound}, got {tok!r}"
+                )
+            out.append(v)
+        if not out:
+            raise argparse.ArgumentTypeError(f"{name} must name at least one value")
+        return out
+
+    return parse
+
+
+def finite(name: str, *, low: float | None = None):
+    """An argparse type: one finite number (>= ``low`` when given)."""
+
+    def parse(text: str) -> float:
+        try:
+            v = float(text)
+        except ValueError:
+            v = math.nan
+        if not math.isfinite(v) or (low is not None and v < low):
+            rng = "a finite number" + ("" if low is None else f" >= {low:g}")
+            raise argparse.ArgumentTypeError(f"{name} must be {rng}, got {text!r}")
+        return v
+
+    return parse
+
+
+def json_object(name: str):
+    """An argparse type: a JSON object (keyword arguments), else an error naming ``name``."""
+
+    def parse(text: str) -> dict[str, Any]:
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError as e:
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object ({e})") from None
+        if not isinstance(value, dict):
+            raise argparse.ArgumentTypeError(f"{name} must be a JSON object, got {text!r}")
+        return value
+
+    return parse
+
+
+def plugin_option(p: argparse.ArgumentParser) -> None:
+    """``--plugin``: modules of user pieces, imported before the command runs."""
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import a module (or a .py file) that registers your own learners, humans, Tasks, "
+        "conditions or experiments (repeatable); see docs/extending.md",
+    )
+
+
+def run_options(p: argparse.ArgumentParser) -> None:
+    """The options of every command that runs a config through the runner."""
+    plugin_option(p)
+    p.add_argument("--out", default=None, help="results folder (default results/<preset>)")
+    p.add_argument(
+        "--jobs",
+        type=positive_int("--jobs"),
+        default=None,
+        help="worker processes (default: every available CPU); results do not depend on it",
+    )
+    p.add_argument("--seed", type=nonneg_int("--seed"), default=0, help="first run seed (0)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="delete an existing results folder made with another config and start over",
+    )
+    p.add_argument(
+        "--block",
+        type=positive_int("--block"),
+        default=DEFAULT_BLOCK,
+        help=f"run seeds per unit of work, batched together (default {DEFAULT_BLOCK})",
+    )
+    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    add_backend_options(p)

@@ -1,0 +1,177 @@
+"""Where a benchmark's units of work run: ``local`` processes (the default) or a Ray cluster.
+
+Both backends run the same units (blocks of run seeds × every learner) through the same worker
+(``strol_gym.benchmarks.engine.runner.new_worker``, one intra-op thread per process), so the
+records are identical whichever computed them, and a folder started on one backend resumes on
+the other.
+Ray is optional (``pip install "strol-gym[ray]"``); a local cluster listens on 127.0.0.1 only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import importlib.util
+import json
+import os
+import sys
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from strol_gym.benchmarks.engine.config import BenchConfig, Unit
+
+from strol_gym.learners.protocol import LearnerFailed
+
+BACKENDS = ("local", "ray")
+LOOPBACK = "127.0.0.1"
+RAY_SINGLE_MACHINE = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
+RAY_MISSING = "--backend ray needs Ray: pip install 'strol-gym[ray]'"
+
+
+def add_backend_options(p: argparse.ArgumentParser) -> None:
+    """``--backend`` and ``--ray-address`` for any subcommand that calls ``run_benchmark``; pass
+    ``**backend_kwargs(args)`` to it."""
+    p.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default="local",
+        help="where units of work run: local processes (default) or Ray tasks; "
+        "results are identical",
+    )
+    p.add_argument(
+        "--ray-address",
+        default=None,
+        help="address of a running Ray cluster (ray.init(address=...)); default: start a local "
+        "one on 127.0.0.1 with --jobs CPUs",
+    )
+
+
+def backend_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The ``run_benchmark`` keyword arguments chosen by :func:`add_backend_options`' options."""
+    return {"backend": args.backend, "ray_address": args.ray_address}
+
+
+def check_backend(backend: str, ray_address: str | None) -> None:
+    """ValueError for an unknown backend, an address without Ray, or Ray not installed."""
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
+    if ray_address is not None and backend != "ray":
+        raise ValueError("ray_address is only used with backend 'ray'")
+    if ray_address is not None and (not isinstance(ray_address, str) or not ray_address):
+        raise ValueError(f"ray_address must be a non-empty address string, got {ray_address!r}")
+    if backend == "ray" and importlib.util.find_spec("ray") is None:
+        raise ValueError(RAY_MISSING)
+    if ray_address is not None:
+        check_reachable(ray_address)  # before any work: Ray itself retries for minutes
+
+
+RAY_CONNECT_TIMEOUT = 10.0
+"""Seconds to wait for a Ray cluster's address to accept a connection (Ray itself retries for
+minutes)."""
+
+
+def check_reachable(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> None:
+    """ValueError naming ``address`` unless a TCP connection to it opens within ``timeout`` s.
+
+    Only for ``host:port`` addresses; ``auto`` and ``ray://`` addresses are left to Ray.
+    """
+    import socket
+
+    if address == "auto" or "://" in address:
+        return
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"--ray-address must be HOST:PORT (port in [1, 65535]), got {address!r}")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+    except OSError as e:
+        raise ValueError(
+            f"--ray-address {address}: no Ray cluster reachable there within {timeout:g} s ({e})"
+        ) from None
+
+
+# ---------------------------------------------------------------------- inside a Ray worker
+_CACHE: dict[str, Any] = {}
+
+
+def _ray_unit(
+    config_dict: dict, sys_path: list[str], unit: Unit, make_worker: Callable[[BenchConfig], Any]
+) -> tuple[Unit, list[dict]]:
+    """One unit in a Ray worker process. The worker keeps its envs and learners between units of
+    the same config (as a local pool process does), keyed by the config's JSON."""
+    for entry in sys_path:  # the driver's path: user plugins given as .py files import here
+        if entry not in sys.path:
+            sys.path.append(entry)
+    key = hashlib.sha256(json.dumps(config_dict, sort_keys=True).encode()).hexdigest()
+    if _CACHE.get("key") != key:
+        if "worker" in _CACHE:
+            _CACHE.pop("worker").close()
+        _CACHE["worker"] = make_worker(BenchConfig.from_dict(config_dict))
+        _CACHE["key"] = key
+    return unit, _CACHE["worker"].run_unit(unit)
+
+
+# ---------------------------------------------------------------------- on the driver
+def _start_ray(jobs: int, address: str | None) -> bool:
+    """Connect to ``address`` or start a local cluster; True when this call started Ray (and
+    so must shut it down)."""
+    common = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+    if address is not None:
+        import ray
+
+        if ray.is_initialized():
+            return False
+        ray.init(address=address, **common)
+        return True
+    # Ray resolves 127.0.0.1 to the host's network address, and its servers then listen on
+    # every interface, unless its single-machine mode is on: read at import by this process,
+    # and from the environment by the cluster's processes this starts.
+    os.environ[RAY_SINGLE_MACHINE] = "0"
+    import ray
+    from ray._private import ray_constants
+
+    if ray.is_initialized():
+        return False
+    ray_constants.ENABLE_RAY_CLUSTER = False
+    ray.init(num_cpus=jobs, _node_ip_address=LOOPBACK, **common)
+    return True
+
+
+def iter_ray(
+    config: BenchConfig,
+    units: list[Unit],
+    jobs: int,
+    address: str | None,
+    make_worker: Callable[[BenchConfig], Any],
+) -> Iterator[tuple[Unit, list[dict]]]:
+    """Run ``units`` as Ray tasks (one CPU each) and yield ``(unit, records)`` as they finish.
+    ``make_worker(config)`` builds a Ray process's worker (the runner's, passed in: a backend
+    does not import the runner).
+
+    On an error or an interrupt the pending tasks are cancelled; a cluster started here is shut
+    down when the iteration ends.
+    """
+    import ray
+
+    started = _start_ray(jobs, address)
+    try:
+        task = ray.remote(num_cpus=1, max_retries=0)(_ray_unit)
+        config_ref = ray.put(config.to_dict())
+        pending = [task.remote(config_ref, list(sys.path), u, make_worker) for u in units]
+        try:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                try:
+                    result = ray.get(done[0])
+                except ray.exceptions.RayTaskError as e:  # one line, as with local workers
+                    if isinstance(e.cause, LearnerFailed):
+                        raise e.cause from None
+                    raise
+                yield result
+        except BaseException:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+            raise
+    finally:
+        if started:
+            ray.shutdown()

@@ -1,0 +1,270 @@
+"""The resolved configuration of a benchmark: what every result in a folder depends on.
+
+A :class:`BenchConfig` is a list of experiments (env × condition × run seeds), the learners and
+the size of a unit of work. Its JSON form goes into ``meta.json``; its hash, into every record,
+so a resumed run can prove it continues the same benchmark.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from collections.abc import Sequence
+from typing import Any
+
+from strol_gym.benchmarks.engine.conditions import (
+    PAPER_LEARNERS,
+    REFERENCE_LEARNER,
+    Condition,
+    env_preset,
+    is_paper_condition,
+)
+
+import strol_gym
+import strol_gym.learners.registry  # noqa: F401
+from strol_gym.registry import install_specs, user_specs
+
+DEFAULT_BLOCK = 25
+"""Run seeds per unit of work. Fixed by the config, never by --jobs, so that batched numerics see
+the same batches whatever the parallelism (and results are identical across --jobs)."""
+
+SCHEMA_VERSION = 1
+MAX_RUNS = 1_000_000
+"""The most runs per experiment (env × condition): the paper uses 100–250, and a run's record
+is kept in memory while the tables are built, so far more than this cannot finish anyway."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Experiment:
+    """One env × one condition: runs with seeds ``seed, seed + 1, …, seed + runs − 1``."""
+
+    env: str
+    condition: Condition
+    runs: int
+    seed: int = 0
+    n_corrections: int | None = None
+    task: str | None = None
+    """A Task name or "module:attr" (``gymnasium.make(..., task=...)``); None: the env's own."""
+
+    def __post_init__(self) -> None:
+        env_preset(self.env)  # validates the key
+        if self.task is not None and (not isinstance(self.task, str) or not self.task):
+            raise ValueError(f"task must be a Task name or 'module:attr', got {self.task!r}")
+        if not 1 <= int(self.runs) <= MAX_RUNS:
+            raise ValueError(f"runs must be an integer in [1, {MAX_RUNS}], got {self.runs}")
+        if int(self.seed) < 0:
+            raise ValueError(f"seed must be >= 0, got {self.seed}")
+        if self.n_corrections is not None and int(self.n_corrections) < 1:
+            raise ValueError(f"n_corrections must be >= 1, got {self.n_corrections}")
+
+    @property
+    def env_id(self) -> str:
+        return env_preset(self.env).env_id
+
+    @property
+    def corrections(self) -> int:
+        """Correction steps per episode (the env's preset unless overridden)."""
+        if self.n_corrections is None:
+            return env_preset(self.env).n_corrections
+        return int(self.n_corrections)
+
+    @property
+    def seeds(self) -> range:
+        return range(int(self.seed), int(self.seed) + int(self.runs))
+
+    def env_kwargs(self) -> dict[str, Any]:
+        """gymnasium.make kwargs: the condition plus exactly ``corrections`` steps per episode."""
+        preset = env_preset(self.env)
+        kw = {
+            **self.condition.env_kwargs(),
+            **(preset.make_kwargs or {}),
+            "max_episode_steps": self.corrections,
+        }
+        if preset.corrections_kwarg:
+            kw["n_corrections"] = self.corrections
+        if self.task is not None:
+            kw["task"] = self.task
+        return kw
+
+    def is_paper(self) -> bool:
+        """The paper's setting: its condition, the env's own Task and correction count."""
+        return (
+            self.task is None
+            and self.corrections == env_preset(self.env).n_corrections
+            and is_paper_condition(self.env, self.condition)
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        d = {
+            "env": self.env,
+            "env_id": self.env_id,
+            "condition": self.condition.to_dict(),
+            "runs": int(self.runs),
+            "seed": int(self.seed),
+            "n_corrections": self.corrections,
+        }
+        if self.task is not None:
+            d["task"] = self.task
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Experiment:
+        return cls(
+            env=d["env"],
+            condition=Condition(**d["condition"]),
+            runs=d["runs"],
+            seed=d["seed"],
+            n_corrections=d["n_corrections"],
+            task=d.get("task"),
+        )
+
+
+@dataclasses.dataclass(frozen=True)
+class Unit:
+    """A unit of work: one block of run seeds of one experiment, every learner."""
+
+    experiment: int
+    seeds: tuple[int, ...]
+
+    @property
+    def key(self) -> str:
+        return f"{self.experiment:03d}-{self.seeds[0]:07d}"
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchConfig:
+    """Everything results depend on (learner names, experiments, block size)."""
+
+    experiments: tuple[Experiment, ...]
+    learners: tuple[str, ...] = PAPER_LEARNERS
+    reference: str = REFERENCE_LEARNER
+    block: int = DEFAULT_BLOCK
+    learner_kwargs: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    plugins: dict[str, dict[str, Any]] = dataclasses.field(default_factory=dict)
+    """User-registered pieces the run uses, as ``{kind: {name: "module:attr"}}``: what a worker
+    process registers before it builds anything (``with_user_specs``)."""
+
+    def __post_init__(self) -> None:
+        if not self.experiments:
+            raise ValueError("a benchmark needs at least one experiment")
+        if not self.learners:
+            raise ValueError("learners must name at least one learner")
+        if len(set(self.learners)) != len(self.learners):
+            raise ValueError(f"learners must be distinct, got {list(self.learners)}")
+        if self.reference not in self.learners:
+            raise ValueError(
+                f"reference learner {self.reference!r} must be one of the learners "
+                f"{list(self.learners)}"
+            )
+        if int(self.block) < 1:
+            raise ValueError(f"block must be >= 1, got {self.block}")
+        unknown = sorted(set(self.learner_kwargs) - set(self.learners))
+        if unknown:
+            raise ValueError(f"learner_kwargs names learners not in the run: {unknown}")
+        keys = [(e.env, e.condition.name) for e in self.experiments]
+        if len(set(keys)) != len(keys):
+            raise ValueError(f"each (env, condition) may appear once, got {keys}")
+
+    def is_paper(self) -> bool:
+        """The paper's comparison: its learners and reference, its settings (H1/H2 apply)."""
+        return (
+            set(self.learners) == set(PAPER_LEARNERS)
+            and self.reference == REFERENCE_LEARNER
+            and not self.learner_kwargs
+            and all(e.is_paper() for e in self.experiments)
+        )
+
+    def with_user_specs(self) -> tuple[BenchConfig, list[str]]:
+        """This config with ``plugins`` set to the user registrations it uses, and the names
+        of those that cannot reach a worker process (lambdas, closures, interactive code)."""
+        used = {
+            "env": [e.env for e in self.experiments],
+            "learner": self.learners,
+            "human": [e.condition.human for e in self.experiments if e.condition.human],
+            "task": [e.task for e in self.experiments if e.task],
+        }
+        specs, stuck = user_specs(used)
+        return dataclasses.replace(self, plugins=specs), stuck
+
+    def kwargs_for(self, learner: str) -> dict[str, Any]:
+        """Constructor keyword arguments for ``learner`` (beyond the task)."""
+        return dict(self.learner_kwargs.get(learner, {}))
+
+    def units(self) -> list[Unit]:
+        """All units of work, in a fixed order (experiment, then seed)."""
+        out = []
+        for i, exp in enumerate(self.experiments):
+            seeds = list(exp.seeds)
+            for j in range(0, len(seeds), self.block):
+                out.append(Unit(i, tuple(seeds[j : j + self.block])))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "schema": SCHEMA_VERSION,
+            "experiments": [e.to_dict() for e in self.experiments],
+            "learners": list(self.learners),
+            "reference": self.reference,
+            "block": int(self.block),
+            "learner_kwargs": {k: dict(v) for k, v in sorted(self.learner_kwargs.items())},
+            **({"plugins": self.plugins} if self.plugins else {}),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> BenchConfig:
+        if d.get("schema") != SCHEMA_VERSION:
+            raise ValueError(
+                f"unknown results schema {d.get('schema')!r}, expected {SCHEMA_VERSION}"
+            )
+        install_specs(d.get("plugins", {}))  # a worker learns the user's names first
+        return cls(
+            experiments=tuple(Experiment.from_dict(e) for e in d["experiments"]),
+            learners=tuple(d["learners"]),
+            reference=d["reference"],
+            block=d["block"],
+            learner_kwargs=d.get("learner_kwargs", {}),
+            plugins=d.get("plugins", {}),
+        )
+
+    def hash(self, extra: dict[str, Any] | None = None) -> str:
+        """A short SHA-256 of the canonical JSON of the config (plus ``extra``, e.g. versions)."""
+        blob = json.dumps({"config": self.to_dict(), "extra": extra or {}}, sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()[:16]
+
+
+def paper_config(
+    envs: Sequence[str],
+    *,
+    runs: int | None = None,
+    seed: int = 0,
+    learners: Sequence[str] = PAPER_LEARNERS,
+    reference: str = REFERENCE_LEARNER,
+    block: int = DEFAULT_BLOCK,
+) -> BenchConfig:
+    """The paper's comparison for ``envs``: four conditions each, the paper's run counts."""
+    exps = []
+    for env in envs:
+        preset = env_preset(env)
+        n = preset.runs if runs is None else int(runs)
+        for cond in preset.conditions().values():
+            exps.append(Experiment(env=env, condition=cond, runs=n, seed=seed))
+    return BenchConfig(tuple(exps), tuple(learners), reference, block)
+
+
+def diff_configs(a: dict[str, Any], b: dict[str, Any], prefix: str = "") -> list[str]:
+    """Human-readable paths where two JSON configs differ (for mismatch errors)."""
+    out: list[str] = []
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            p = f"{prefix}.{k}" if prefix else str(k)
+            if k not in a or k not in b:
+                out.append(f"{p}: {a.get(k, '<missing>')!r} vs {b.get(k, '<missing>')!r}")
+            else:
+                out += diff_configs(a[k], b[k], p)
+    elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            out += diff_configs(x, y, f"{prefix}[{i}]")
+    elif a != b:
+        out.append(f"{prefix}: {a!r} vs {b!r}")
+    return out

@@ -1,0 +1,402 @@
+"""``strol-bench confirm``: the pre-registered confirmatory Robot test (docs/confirmatory.md).
+
+This module implements that protocol and nothing else: 1000 paired runs per paper condition on
+seeds 3_000_000 – 3_000_999, Gradient, One, MOF and StROL; primary outcome regret; the two-sided
+Wilcoxon signed-rank test of StROL against each baseline after the tie rule (|d| ≤ 1e-6 -> 0),
+Holm over the three baselines per condition, direction from the signed ranks; verdicts
+confirmed / not confirmed / contradicted per condition; secondary paired t-tests, error,
+1 − cos and bootstrap effect sizes. Other ``--seed`` or ``--runs`` values give an exploratory
+run, labelled as such (the tests use those, never the protocol's seeds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats as sps
+from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.args import nonneg_int, positive_int
+from strol_gym.benchmarks.engine.conditions import (
+    CONDITION_NAMES,
+    REFERENCE_LEARNER,
+    make_condition,
+)
+from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt, load
+
+PROTOCOL_RUNS = 1000
+PROTOCOL_SEED = 3_000_000
+REFERENCE = REFERENCE_LEARNER
+"""The pre-registered reference learner, "strol" (tests pin it: the protocol fixes it)."""
+BASELINES = ("gradient", "one", "mof")
+LEARNERS = (*BASELINES, REFERENCE)
+PRIMARY = "regret"
+SECONDARY = ("error", "cos_error")
+TIE_TOL = 1e-6
+"""Regret differences with |d| ≤ this are ties (0): floating-point dust of the planner."""
+ALPHA = 0.05
+RESAMPLES = 10_000
+BOOTSTRAP_SEED = 20240610
+SWITCH_REGRET = 0.3
+"""Regret at or above this counts as a "regime switch" run (descriptive only)."""
+
+COLUMNS = (
+    "condition",
+    "metric",
+    "baseline",
+    "n",
+    "n_nonzero",
+    "r_minus",
+    "r_plus",
+    "wilcoxon_p_raw",
+    "wilcoxon_p_holm",
+    "outcome",
+    "wilcoxon_p_raw_no_tie_rule",
+    "wilcoxon_p_holm_12",
+    "t_mean_diff",
+    "t_ci95_low",
+    "t_ci95_high",
+    "t_p_raw",
+    "t_p_holm",
+    "cohen_dz",
+    "median_diff",
+    "median_diff_ci95_low",
+    "median_diff_ci95_high",
+    "prob_improvement",
+    "prob_improvement_ci95_low",
+    "prob_improvement_ci95_high",
+)
+
+
+def make_config(env: str = "robot", *, runs: int = PROTOCOL_RUNS, seed: int = PROTOCOL_SEED):
+    """The protocol's config: the four paper conditions, the four learners, the default block."""
+    exps = tuple(
+        Experiment(env, make_condition(env, c), runs=runs, seed=seed) for c in CONDITION_NAMES
+    )
+    return BenchConfig(exps, LEARNERS, REFERENCE, DEFAULT_BLOCK)
+
+
+def is_protocol(runs: int, seed: int) -> bool:
+    return int(runs) == PROTOCOL_RUNS and int(seed) == PROTOCOL_SEED
+
+
+# ---------------------------------------------------------------------- the analysis
+def tie_rule(d: np.ndarray, metric: str) -> np.ndarray:
+    """Regret differences with |d| ≤ TIE_TOL become 0; other metrics are left as they are."""
+    d = np.asarray(d, dtype=np.float64)
+    return np.where(np.abs(d) <= TIE_TOL, 0.0, d) if metric == PRIMARY else d
+
+
+def signed_rank(d: np.ndarray) -> dict[str, float]:
+    """Two-sided Wilcoxon signed-rank test, zeros discarded, with the rank sums R− and R+."""
+    nz = d[d != 0]
+    if len(nz) == 0:
+        return {"n_nonzero": 0, "r_minus": 0.0, "r_plus": 0.0, "p": 1.0}
+    ranks = sps.rankdata(np.abs(nz))
+    res = sps.wilcoxon(d, zero_method="wilcox", alternative="two-sided")
+    return {
+        "n_nonzero": len(nz),
+        "r_minus": float(ranks[nz < 0].sum()),
+        "r_plus": float(ranks[nz > 0].sum()),
+        "p": float(res.pvalue),
+    }
+
+
+def outcome(p_holm: float, r_minus: float, r_plus: float) -> str:
+    """The protocol's per-comparison outcome."""
+    if math.isfinite(p_holm) and p_holm < ALPHA and r_minus != r_plus:
+        return "StROL lower" if r_minus > r_plus else "StROL higher"
+    return "no significant difference"
+
+
+def verdict(outcomes: Sequence[str]) -> str:
+    """confirmed (lower than all three), contradicted (higher than one), else not confirmed."""
+    if all(o == "StROL lower" for o in outcomes):
+        return "confirmed"
+    if any(o == "StROL higher" for o in outcomes):
+        return "contradicted"
+    return "not confirmed"
+
+
+def _improvement(d: np.ndarray) -> np.ndarray:
+    return (d < 0).astype(np.float64) + 0.5 * (d == 0)
+
+
+def analyse(
+    records: Sequence[dict],
+    env: str = "robot",
+    conditions: Sequence[str] = CONDITION_NAMES,
+    *,
+    resamples: int = RESAMPLES,
+    boot_seed: int = BOOTSTRAP_SEED,
+) -> dict[str, Any]:
+    """The protocol's analysis of the per-run records: test rows, verdicts, descriptives."""
+    from strol_gym.benchmarks.analysis.base import _matrix
+
+    rng = np.random.default_rng(boot_seed)
+    learners = list(LEARNERS)
+    r = learners.index(REFERENCE)
+    rows: list[dict[str, Any]] = []
+    descriptives: list[dict[str, Any]] = []
+    verdicts: dict[str, str] = {}
+    for cond in conditions:
+        ys = {}
+        for metric in (PRIMARY, *SECONDARY):
+            _, y = _matrix(records, env, cond, learners, metric)
+            ys[metric] = y[np.isfinite(y).all(axis=1)]
+            for j, lr in enumerate(learners):
+                row = {"condition": cond, "learner": lr, "metric": metric}
+                row |= stats.describe(ys[metric][:, j])
+                if metric == PRIMARY:
+                    row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
+                descriptives.append(row)
+        n = len(ys[PRIMARY])
+        idx = rng.integers(0, n, size=(int(resamples), n)) if n else np.zeros((0, 0), int)
+        for metric in (PRIMARY, *SECONDARY):
+            y = ys[metric]
+            block = []
+            for b in BASELINES:
+                j = learners.index(b)
+                raw = y[:, r] - y[:, j]
+                d = tie_rule(raw, metric)
+                sr = signed_rank(d)
+                pt = stats.paired_test(y[:, r], y[:, j])
+                imp = _improvement(d)
+                if len(d) and len(idx):
+                    med_ci = np.percentile(np.median(d[idx], axis=1), [2.5, 97.5])
+                    poi_ci = np.percentile(imp[idx].mean(axis=1), [2.5, 97.5])
+                else:
+                    med_ci = poi_ci = (math.nan, math.nan)
+                block.append(
+                    {
+                        "condition": cond,
+                        "metric": metric,
+                        "baseline": b,
+                        "n": len(d),
+                        "n_nonzero": sr["n_nonzero"],
+                        "r_minus": sr["r_minus"],
+                        "r_plus": sr["r_plus"],
+                        "wilcoxon_p_raw": sr["p"],
+                        "wilcoxon_p_raw_no_tie_rule": pt.p_wilcoxon,
+                        "t_mean_diff": pt.mean_diff,
+                        "t_ci95_low": pt.ci_low,
+                        "t_ci95_high": pt.ci_high,
+                        "t_p_raw": pt.p_t,
+                        "cohen_dz": pt.d_z,
+                        "median_diff": float(np.median(d)) if len(d) else math.nan,
+                        "median_diff_ci95_low": float(med_ci[0]),
+                        "median_diff_ci95_high": float(med_ci[1]),
+                        "prob_improvement": float(imp.mean()) if len(d) else math.nan,
+                        "prob_improvement_ci95_low": float(poi_ci[0]),
+                        "prob_improvement_ci95_high": float(poi_ci[1]),
+                    }
+                )
+            for row, ph, th in zip(
+                block,
+                stats.holm([x["wilcoxon_p_raw"] for x in block]),
+                stats.holm([x["t_p_raw"] for x in block]),
+                strict=True,
+            ):
+                row["wilcoxon_p_holm"], row["t_p_holm"] = float(ph), float(th)
+                row["outcome"] = outcome(float(ph), row["r_minus"], row["r_plus"])
+            rows += block
+        verdicts[cond] = verdict(
+            [x["outcome"] for x in rows if x["condition"] == cond and x["metric"] == PRIMARY]
+        )
+    primary = [x for x in rows if x["metric"] == PRIMARY]
+    for row, p12 in zip(primary, stats.holm([x["wilcoxon_p_raw"] for x in primary]), strict=True):
+        row["wilcoxon_p_holm_12"] = float(p12)
+    sensitivity = {
+        cond: verdict(
+            [
+                outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
+                for x in primary
+                if x["condition"] == cond
+            ]
+        )
+        for cond in conditions
+    }
+    return {
+        "rows": rows,
+        "descriptives": descriptives,
+        "verdicts": verdicts,
+        "verdicts_holm_12": sensitivity,
+    }
+
+
+# ---------------------------------------------------------------------- the command
+class Confirm(BenchExperiment):
+    """The confirmatory protocol as an experiment."""
+
+    name = "confirm"
+    help = "the pre-registered confirmatory Robot test (docs/confirmatory.md)"
+    description = (
+        "Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other "
+        "than the protocol's make an exploratory run (for tests), labelled as such."
+    )
+    columns = COLUMNS
+
+    def add_arguments(self, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--env", choices=("robot",), default="robot")
+        p.add_argument(
+            "--runs",
+            type=positive_int("--runs"),
+            default=PROTOCOL_RUNS,
+            help=f"runs per condition (protocol: {PROTOCOL_RUNS})",
+        )
+        p.add_argument(
+            "--seed",
+            type=nonneg_int("--seed"),
+            default=PROTOCOL_SEED,
+            help=f"first run seed (protocol: {PROTOCOL_SEED}; tests use other seeds)",
+        )
+        p.add_argument("--jobs", type=positive_int("--jobs"), default=None, help="worker processes")
+        p.add_argument("--out", default=None, help="results folder (default results/confirm-<env>)")
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        p.add_argument("--force", action="store_true", help="replace a folder of another config")
+        p.add_argument("--no-plots", action="store_true")
+
+    def plan(self, args: argparse.Namespace) -> BenchConfig:
+        self._t0 = time.perf_counter()
+        return make_config(args.env, runs=args.runs, seed=args.seed)
+
+    def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
+        protocol = is_protocol(args.runs, args.seed)
+        rd, _, run_wall = self.run(config, out, args)
+        result = analyse(rd.read_records(), args.env)
+        wall = time.perf_counter() - self._t0
+        label = (
+            "PRE-REGISTERED confirmatory run (docs/confirmatory.md)"
+            if protocol
+            else "EXPLORATORY run (not the pre-registered seeds or run count; no confirmatory "
+            "claim)"
+        )
+        seeds = [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1]
+        md = markdown(result, label, seeds, rd.meta)
+        meta = {
+            "protocol": protocol,
+            "config": config.to_dict(),
+            "seeds": seeds,
+            "tie_tol": TIE_TOL,
+            "alpha": ALPHA,
+            "bootstrap": {"resamples": RESAMPLES, "seed": BOOTSTRAP_SEED},
+            "code_fingerprint": rd.meta.get("extra", {}).get("code"),
+            "verdicts": result["verdicts"],
+            "verdicts_holm_12": result["verdicts_holm_12"],
+            "wall_time_s": {"total": wall, "episodes": run_wall},
+        }
+        line = (
+            f"\nwall time {wall:.1f} s (episodes {run_wall:.1f} s; {load()}); results in {rd.path}/"
+        )
+        return Outcome(rd.path, md, result["rows"], meta, line, state=result)
+
+    def plot(self, outcome: Outcome, folder: Path) -> list[Path]:
+        return plot(outcome.state, folder)
+
+
+def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str]:
+    from strol_gym.benchmarks.analysis.report import display
+
+    git = meta.get("git") or {}
+    lines = [
+        f"# Confirmatory Robot test — {label}",
+        "",
+        f"Run seeds {seeds[0]}–{seeds[1]} per condition; git {git.get('commit', '?')[:10]}"
+        f"{' (dirty tree)' if git.get('dirty') else ''}; code fingerprint "
+        f"{meta.get('extra', {}).get('code', '?')}.",
+        "",
+        "## Verdicts (primary: regret, two-sided Wilcoxon, Holm over 3 per condition)",
+        "",
+    ]
+    for cond, v in result["verdicts"].items():
+        outs = [
+            f"{display(x['baseline'])}: {x['outcome']} (Holm p = {fmt(x['wilcoxon_p_holm'], 4)})"
+            for x in result["rows"]
+            if x["condition"] == cond and x["metric"] == PRIMARY
+        ]
+        lines.append(f"- **{cond}: {v.upper()}** — " + "; ".join(outs))
+    changed = {c: v for c, v in result["verdicts_holm_12"].items() if v != result["verdicts"][c]}
+    lines += [
+        "",
+        "Sensitivity (Holm over all 12 comparisons): "
+        + (
+            "no verdict changes."
+            if not changed
+            else "; ".join(f"{c} would be {v}" for c, v in changed.items())
+        ),
+        "",
+        "## Regret per learner (mean ± std; median; runs with regret ≥ 0.3)",
+        "",
+        "| condition | " + " | ".join(display(lr) for lr in LEARNERS) + " |",
+        "|---|" + "---|" * len(LEARNERS),
+    ]
+    desc = {(x["condition"], x["learner"], x["metric"]): x for x in result["descriptives"]}
+    for cond in result["verdicts"]:
+        cells = []
+        for lr in LEARNERS:
+            x = desc[(cond, lr, PRIMARY)]
+            cells.append(f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])}; {x['n_switch']}")
+        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "## Tests (StROL − baseline; lower is better)",
+        "",
+        "| condition | metric | vs | Wilcoxon p (Holm) | R− / R+ | outcome | median diff [95 % CI] "
+        "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for x in result["rows"]:
+        lines.append(
+            f"| {x['condition']} | {x['metric']} | {display(x['baseline'])} | "
+            f"{fmt(x['wilcoxon_p_holm'], 4)} | {x['r_minus']:.0f} / {x['r_plus']:.0f} | "
+            f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
+            f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
+            f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
+            f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
+            f"{fmt(x['t_p_holm'], 4)}, {fmt(x['cohen_dz'], 2)} |"
+        )
+    lines += [
+        "",
+        f"Outcomes other than regret are secondary (no verdict). Ties: |d| ≤ {TIE_TOL:g} on "
+        f"regret. Bootstrap: {RESAMPLES} paired resamples, seed {BOOTSTRAP_SEED}.",
+    ]
+    return lines
+
+
+def plot(result: dict, out: Path) -> list[Path]:
+    """Probability that StROL's regret is lower than each baseline's, with bootstrap CIs, per
+    condition (0.5 = no difference)."""
+    from strol_gym.benchmarks.analysis.plots import COLORS, _save, plt
+    from strol_gym.benchmarks.analysis.report import display
+
+    out.mkdir(parents=True, exist_ok=True)
+    conds = list(result["verdicts"])
+    fig, ax = plt.subplots(figsize=(5.6, 3.2))
+    width = 0.25
+    for k, b in enumerate(BASELINES):
+        xs, ys, lo, hi = [], [], [], []
+        for i, cond in enumerate(conds):
+            x = next(
+                r
+                for r in result["rows"]
+                if (r["condition"], r["metric"], r["baseline"]) == (cond, PRIMARY, b)
+            )
+            xs.append(i + (k - 1) * width)
+            ys.append(x["prob_improvement"])
+            lo.append(x["prob_improvement"] - x["prob_improvement_ci95_low"])
+            hi.append(x["prob_improvement_ci95_high"] - x["prob_improvement"])
+        ax.errorbar(
+            xs, ys, yerr=[lo, hi], fmt="o", capsize=3, color=COLORS[b], label=f"vs {display(b)}"
+        )
+    ax.axhline(0.5, color="k", lw=0.8, ls="--")
+    ax.set_xticks(range(len(conds)), [f"{c}\n{result['verdicts'][c]}" for c in conds], fontsize=8)
+    ax.set_ylabel("P(StROL regret lower)")
+    ax.set_title("Confirmatory test: probability of improvement (95 % bootstrap CI)")
+    ax.legend(fontsize=7)
+    return _save(fig, out, "confirm")

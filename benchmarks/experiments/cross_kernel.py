@@ -1,0 +1,181 @@
+"""What holds across floating-point kernels: the experiments rerun under several, compared.
+
+Runs ``strol-bench paper --env robot``, ``paper --env highway``, ``confirm`` (a reduced,
+exploratory run by default) and ``study`` (reduced by default) once per kernel setting, each in
+a subprocess with ``OPENBLAS_CORETYPE`` and ``ATEN_CPU_CAPABILITY`` set, then prints for every
+output and setting the largest relative difference of any mean from the first setting's, and
+whether any verdict changed. Settings the CPU cannot run (SkylakeX / avx512 without AVX-512)
+are skipped with a note. docs/reproducibility.md quotes its output.
+
+    python benchmarks/experiments/cross_kernel.py --out results/cross-kernel
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from strol_gym.benchmarks.engine.kernels import kernel_label
+
+DEFAULT_SETTINGS = ("native", "Haswell:default", "Prescott:default")
+"""``native`` is what this CPU picks by itself (the reference); ``CORE:CAPABILITY`` sets
+OPENBLAS_CORETYPE and ATEN_CPU_CAPABILITY. Against native: torch's kernels alone, then both."""
+AVX512_ONLY = {"SkylakeX", "SkylakeX:avx512", "avx512", "Cooperlake", "SapphireRapids"}
+
+
+def _has_avx512() -> bool:
+    try:
+        return " avx512f" in Path("/proc/cpuinfo").read_text()
+    except OSError:
+        return False
+
+
+def setting_env(setting: str) -> dict[str, str]:
+    """The environment variables of a setting ("native": none)."""
+    if setting == "native":
+        return {}
+    core, _, cap = setting.partition(":")
+    if not core or not cap:
+        raise ValueError(f"--settings: each must be 'native' or CORE:CAPABILITY, got {setting!r}")
+    return {"OPENBLAS_CORETYPE": core, "ATEN_CPU_CAPABILITY": cap}
+
+
+def runnable(setting: str) -> bool:
+    parts = set(setting.split(":"))
+    return _has_avx512() or not (parts & AVX512_ONLY)
+
+
+def commands(args: argparse.Namespace) -> dict[str, tuple[list[str], str]]:
+    """Output name -> (strol-bench arguments without --out, what is reduced: "" for none)."""
+    common = ["--quiet", "--no-plots", "--jobs", str(args.jobs)]
+    extra = {
+        "paper --env robot": ["--runs", str(args.robot_runs)] if args.robot_runs else [],
+        "paper --env highway": ["--runs", str(args.highway_runs)] if args.highway_runs else [],
+        "confirm": ["--runs", str(args.confirm_runs), "--seed", "3100000"]
+        if args.confirm_runs
+        else [],
+        "study": ["--users", str(args.study_users)] if args.study_users else [],
+    }
+    return {
+        name: ([*name.split(), *common, *more], " ".join(more))
+        for name, more in extra.items()
+        if name.split()[0] in args.only
+    }
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def means(folder: Path) -> dict[tuple[str, ...], float]:
+    """Every mean of summary.csv, keyed by env, condition, learner and metric."""
+    return {
+        (r["env"], r["condition"], r["learner"], r["metric"]): float(r["mean"])
+        for r in _rows(folder / "summary.csv")
+    }
+
+
+def verdicts(folder: Path) -> dict[tuple[str, ...], str]:
+    """Every verdict of the folder: each post-hoc test's (significant, direction), and the
+    confirmatory or H3 verdicts where the output has them."""
+    out: dict[tuple[str, ...], str] = {}
+    for r in _rows(folder / "stats.csv"):
+        key = tuple(r.get(c, "") for c in ("env", "condition", "metric", "learner", "baseline"))
+        if "significant" in r:
+            sig = r["significant"] == "true"
+            diff = float(r["mean_diff"] or "nan")
+            out[("posthoc", *key)] = ("lower" if diff < 0 else "higher") if sig else "n.s."
+    if (folder / "confirm.json").exists():
+        for cond, v in json.loads((folder / "confirm.json").read_text())["verdicts"].items():
+            out[("confirm", cond)] = v
+    if (folder / "study.json").exists():
+        for v in json.loads((folder / "study.json").read_text())["verdicts"]:
+            out[("H3", f"Task {v['task']}")] = v["verdict"]
+    return out
+
+
+def rel_diff(a: float, b: float) -> float:
+    if a == b or (math.isnan(a) and math.isnan(b)):
+        return 0.0
+    return abs(a - b) / max(abs(a), abs(b))
+
+
+def compare(ref: Path, other: Path) -> tuple[float, tuple[str, ...] | None, list[str]]:
+    """(largest relative difference of a mean, where, verdicts that changed)."""
+    ma, mb = means(ref), means(other)
+    worst, where = 0.0, None
+    for key in ma.keys() & mb.keys():
+        d = rel_diff(ma[key], mb[key])
+        if d > worst:
+            worst, where = d, key
+    va, vb = verdicts(ref), verdicts(other)
+    changed = [f"{'/'.join(k)}: {va[k]} -> {vb.get(k)}" for k in sorted(va) if va[k] != vb.get(k)]
+    return worst, where, changed
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--settings", default=",".join(DEFAULT_SETTINGS), help="comma-separated")
+    p.add_argument("--out", default="results/cross-kernel", help="parent of the result folders")
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--robot-runs", type=int, default=0, help="paper --env robot --runs (paper's)")
+    p.add_argument("--highway-runs", type=int, default=0, help="paper --env highway --runs")
+    p.add_argument("--confirm-runs", type=int, default=200, help="0: the full protocol (200)")
+    p.add_argument("--study-users", type=int, default=4, help="0: the study's default (4)")
+    p.add_argument(
+        "--only", type=lambda s: s.split(","), default=["paper", "confirm", "study"],
+        help="outputs to run: paper, confirm, study (all)",
+    )  # fmt: skip
+    args = p.parse_args(argv)
+    settings = [s.strip() for s in args.settings.split(",") if s.strip()]
+    for s in settings:
+        setting_env(s)  # checks the syntax up front
+    skipped = [s for s in settings if not runnable(s)]
+    settings = [s for s in settings if runnable(s)]
+    if skipped:
+        print(f"skipped (this CPU has no AVX-512): {', '.join(skipped)}")
+    cmds = commands(args)
+    bench = [sys.executable, "-m", "strol_gym.benchmarks"]
+    labels = {}
+    for s in settings:
+        env = {**os.environ, **setting_env(s)}
+        for name, (argv_, _) in cmds.items():
+            folder = Path(args.out) / s.replace(":", "-") / name.replace(" --env ", "-")
+            t0 = time.perf_counter()
+            subprocess.run([*bench, *argv_, "--out", str(folder)], env=env, check=True,
+                           stdout=subprocess.DEVNULL)  # fmt: skip
+            meta = json.loads((folder / "meta.json").read_text())
+            labels[s] = kernel_label(meta["kernels"])
+            print(f"ran {name} under {s} in {time.perf_counter() - t0:.0f} s", flush=True)
+    print()
+    for s in settings:
+        print(f"{s}: {labels.get(s)}")
+    ref = settings[0]
+    print(f"\nagainst {ref}:")
+    print("| output | setting | largest relative difference of a mean (where) | verdicts changed |")
+    print("|---|---|---|---|")
+    for name, (_, reduced) in cmds.items():
+        label = f"{name} (reduced: {reduced})" if reduced else name
+        stem = name.replace(" --env ", "-")
+        for s in settings[1:]:
+            a = Path(args.out) / ref.replace(":", "-") / stem
+            b = Path(args.out) / s.replace(":", "-") / stem
+            worst, where, changed = compare(a, b)
+            at = f" ({'/'.join(where)})" if where else ""
+            print(f"| {label} | {s} | {worst:.2g}{at} | {len(changed) or 'none'} |")
+            for c in changed:
+                print(f"|  |  | changed: {c} | |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

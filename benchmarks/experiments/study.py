@@ -1,0 +1,441 @@
+"""``strol-bench study``: the paper's user study (H3) with simulated users in ``StROL-Study-v0``.
+
+Tasks 1–3 × learners × N simulated users, paired: user seed s (θ̂0, the user's noise and
+timing) is the same for every learner. The runs go through the paper preset's runner and results
+folder (env presets ``study1..3`` in ``conditions.py``: the env drives its own robot, so the
+runner's action is zero, the paper's robot); this module adds the study's metrics (correction
+time and count, which the env reports), the H3 verdicts, the table beside the paper's numbers
+and the Fig. 6-style plots.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from strol_gym.benchmarks.analysis.report import (
+    Analysis,
+    analyse,
+    display,
+    pooled_lines,
+    pooled_tests,
+)
+from strol_gym.benchmarks.args import nonneg_int, positive_int
+from strol_gym.benchmarks.engine import study_authors
+from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
+from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
+from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
+
+TASKS = (1, 2, 3)
+DEFAULT_USERS = 20
+"""Simulated users per Task; the default run (3 Tasks × 5 learners × 20) fits in 10 minutes on
+2 cores (docs/results.md has the measured wall time)."""
+SEED = 20_000
+"""First user seed: the study's seeds are 20000–29999, apart from evaluation and training."""
+BLOCK = 4
+"""Users per unit of work: small, so 2+ processes share the 60 s episodes evenly."""
+SIGMA = 0.25
+"""The users' noise (fraction of a_max), as the study's ĝ were trained."""
+METRICS = (
+    "regret",
+    "regret_authors",
+    "error",
+    "correction_time",
+    "correction_time_authors",
+    "corrections",
+)
+LABELS = {
+    "regret": "Regret (ours, eq. S1)",
+    "regret_authors": "Regret (authors' way)",
+    "error": "Final error ‖θ* − θ̂‖",
+    "correction_time": "Correction time (s; ours, > 15 N)",
+    "correction_time_authors": "Correction time (s; authors' way)",
+    "corrections": "Corrections",
+}
+H3_BASELINES = ("one", "mof")
+H3_METRICS = ("regret", "correction_time")
+POOLED_LEARNERS = ("one", "mof", "strol")
+"""The paper's H3 analysis compares these three (its study had no Gradient or e2e)."""
+POOLED_METRICS = ("regret", "regret_authors", "correction_time", "correction_time_authors")
+PAPER = {
+    "regret_authors": {"one": (4.904, 1.125), "mof": (2.42, 0.48), "strol": (1.03, 0.08)},
+    "correction_time_authors": {
+        "one": (2.50, 1.57),
+        "mof": (2.22, 1.53),
+        "strol": (1.382, 1.40),
+    },
+}
+"""The authors' published study means ± spread (their repository's table, averaged over the
+three Tasks and 12 participants; the spread is unlabelled there, the paper's figure shows SEM).
+They were computed the authors' way (``study_authors``), so they sit beside those rows only;
+our own metrics have no published counterpart."""
+PAPER_POOLED = {
+    "regret_authors": "F(1.332, 14.651) = 9.108, p < 0.05",
+    "correction_time_authors": "F(2, 22) = 5.602, p < 0.05",
+}
+"""The paper's text: repeated-measures ANOVA over One, MOF, StROL, participants' values
+averaged over the Tasks (12 participants)."""
+USERS = Condition("simulated-users", sigma=SIGMA, bias=0.0, prior="bimodal")
+
+
+def parse_tasks(text: str) -> tuple[int, ...]:
+    """``"1,3"`` -> (1, 3); ArgumentTypeError naming --task and its valid values."""
+    parts = [t.strip() for t in str(text).split(",") if t.strip()]
+    try:
+        tasks = tuple(dict.fromkeys(int(t) for t in parts))
+    except ValueError:
+        tasks = ()
+    if not tasks or any(t not in TASKS for t in tasks):
+        raise argparse.ArgumentTypeError(
+            f"--task must be a comma-separated list of Task numbers from 1,2,3, got {text!r}"
+        )
+    return tasks
+
+
+ENV_VERSIONS = ("v0", "v1")
+PARTICIPANTS = ("observer", "oracle")
+
+
+def study_env(task: int, version: str = "v0", participant: str = "observer") -> str:
+    """The env preset of a study Task: v0's, or v1's with its participant (``conditions.py``)."""
+    if version == "v0":
+        return f"study{task}"
+    return f"study{task}-v1" + ("" if participant == "observer" else "-oracle")
+
+
+def study_config(
+    tasks: Sequence[int] = TASKS,
+    users: int = DEFAULT_USERS,
+    seed: int = SEED,
+    learners: Sequence[str] = PAPER_LEARNERS,
+    version: str = "v0",
+    participant: str = "observer",
+) -> BenchConfig:
+    """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
+    exps = tuple(
+        Experiment(study_env(t, version, participant), USERS, runs=users, seed=seed) for t in tasks
+    )
+    return BenchConfig(exps, tuple(learners), REFERENCE_LEARNER, BLOCK)
+
+
+def _task_of(env: str) -> int:
+    return int(env.removeprefix("study")[0])
+
+
+def verdicts(a: Analysis) -> list[dict[str, Any]]:
+    """H3 per Task: StROL against One and MOF on regret and on correction time (Holm-corrected
+    paired t-tests, the Wilcoxon test alongside). "supported" needs all four lower."""
+    out = []
+    for exp in a.config.experiments:
+        env, cond = exp.env, exp.condition.name
+        parts, ok = [], True
+        for metric in H3_METRICS:
+            for base in H3_BASELINES:
+                t = a.test(env, cond, base, metric)
+                if t is None:
+                    ok = False
+                    parts.append(f"{LABELS[metric]} vs {display(base)}: no data")
+                    continue
+                sig = t["significant"]
+                word = "no significant difference"
+                if sig:
+                    word = "StROL lower" if t["mean_diff"] < 0 else "StROL higher"
+                ok = ok and sig and t["mean_diff"] < 0
+                parts.append(
+                    f"{LABELS[metric]} vs {display(base)}: {word} (Δ = {t['mean_diff']:+.3f}, "
+                    f"p_Holm = {t['p_holm']:.3g}, Wilcoxon p_Holm = {t['wilcoxon_p_holm']:.3g})"
+                )
+        out.append(
+            {
+                "task": _task_of(env),
+                "verdict": "H3 supported" if ok else "H3 not supported",
+                "details": parts,
+            }
+        )
+    return out
+
+
+def _cell(a: Analysis, env: str, lr: str, metric: str) -> dict[str, Any] | None:
+    return a.cell(env, USERS.name, lr, metric)
+
+
+def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
+    """One row per learner × metric: mean ± SEM per Task, over all Tasks, and the paper's."""
+    envs = [e.env for e in a.config.experiments]
+    rows = []
+    for metric in METRICS:
+        for lr in a.config.learners:
+            row: dict[str, Any] = {"metric": metric, "learner": lr}
+            for env in envs:
+                c = _cell(a, env, lr, metric)
+                row[f"task{_task_of(env)}_mean"] = c["mean"] if c else math.nan
+                row[f"task{_task_of(env)}_sem"] = c["sem"] if c else math.nan
+            v = np.array(
+                [r[metric] for r in records if r["learner"] == lr and metric in r], dtype=float
+            )
+            v = v[np.isfinite(v)]
+            row["all_mean"] = float(v.mean()) if v.size else math.nan
+            row["all_sem"] = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan
+            row["all_n"] = int(v.size)
+            paper = PAPER.get(metric, {}).get(lr, (math.nan, math.nan))
+            row["paper_mean"], row["paper_spread"] = paper
+            rows.append(row)
+    return rows
+
+
+def _pm(m: float, s: float) -> str:
+    if not math.isfinite(m):
+        return "n/a"
+    return f"{m:.3f}" if not math.isfinite(s) else f"{m:.3f} ± {s:.3f}"
+
+
+def table_markdown(rows: Sequence[dict[str, Any]], tasks: Sequence[int]) -> list[str]:
+    """Markdown: mean ± SEM per Task and over the Tasks, the paper's mean beside (authors'-way
+    rows only: the published numbers were computed that way)."""
+    head = ["metric", "learner", *[f"Task {t}" for t in tasks], "all Tasks", "paper"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        cells = [LABELS[r["metric"]], display(r["learner"])]
+        cells += [_pm(r[f"task{t}_mean"], r[f"task{t}_sem"]) for t in tasks]
+        cells.append(_pm(r["all_mean"], r["all_sem"]))
+        p, sp = r["paper_mean"], r["paper_spread"]
+        if math.isfinite(p):
+            cells.append(f"{p:g} ± {sp:g}")
+        elif r["metric"] in PAPER:
+            cells.append("—")
+        else:
+            cells.append("no like-for-like number")
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
+    """Fig. 6 style: regret and correction time per Task and learner (mean ± SEM, a star where
+    StROL differs from that learner, Holm-corrected t-test), and regret against correction time
+    per run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from strol_gym.benchmarks.analysis.plots import _color, _save
+
+    out.mkdir(parents=True, exist_ok=True)
+    envs = [e.env for e in a.config.experiments]
+    learners = list(a.config.learners)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 3.6))
+    width = 0.8 / len(learners)
+    for ax, metric in zip(axes[:2], H3_METRICS, strict=True):
+        for j, lr in enumerate(learners):
+            for i, env in enumerate(envs):
+                c = _cell(a, env, lr, metric)
+                if c is None:
+                    continue
+                x = i + (j - (len(learners) - 1) / 2) * width
+                ax.bar(x, c["mean"], width, yerr=c["sem"], color=_color(j, lr), capsize=2,
+                       label=display(lr) if i == 0 else None)  # fmt: skip
+                t = a.test(env, USERS.name, lr, metric)
+                if t is not None and t["significant"]:
+                    ax.text(x, c["mean"] + (c["sem"] or 0), "*", ha="center", va="bottom")
+        ax.set_xticks(range(len(envs)), [f"Task {_task_of(e)}" for e in envs])
+        ax.set_ylabel(LABELS[metric])
+    axes[0].legend(fontsize=7)
+    ax = axes[2]
+    for j, lr in enumerate(learners):
+        rs = [r for r in records if r["learner"] == lr]
+        ax.scatter([r["correction_time"] for r in rs], [r["regret"] for r in rs], s=10,
+                   color=_color(j, lr), alpha=0.6, label=display(lr))  # fmt: skip
+    ax.set_xlabel(LABELS["correction_time"])
+    ax.set_ylabel(LABELS["regret"])
+    ax.set_title("per simulated user", fontsize=9)
+    return _save(fig, out, "study")
+
+
+def _anova_text(r: dict[str, Any]) -> str:
+    """'F(df1, df2) = F, p_GG = p', or, when F is undefined, ``AnovaResult.line``'s reason
+    (never "F = inf, p = 0")."""
+    from strol_gym.benchmarks.analysis.stats import AnovaResult
+
+    if not math.isfinite(r["F"]):
+        return AnovaResult.from_row(r).line()
+    return f"F({r['df1_gg']:.2f}, {r['df2_gg']:.2f}) = {r['F']:.2f}, p_GG = {r['p_gg']:.3g}"
+
+
+def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]:
+    """Tables (CSV + markdown), statistics, verdicts (study.json) and plots from ``rd``."""
+    from strol_gym.benchmarks.analysis.report import ANOVA_COLUMNS, STATS_COLUMNS, SUMMARY_COLUMNS
+
+    records = rd.read_records()
+    if not records:
+        raise ValueError(f"{rd.path} holds no finished runs yet")
+    add_authors_regret(records)
+    metrics = [m for m in METRICS if any(m in r for r in records)]
+    a = analyse(rd.config, records, metrics)
+    tasks = [_task_of(e.env) for e in rd.config.experiments]
+    rows = table_rows(a, records)
+    cols = ["metric", "learner"]
+    cols += [f"task{t}_{s}" for t in tasks for s in ("mean", "sem")]
+    cols += ["all_mean", "all_sem", "all_n", "paper_mean", "paper_spread"]
+    write_csv(rd.path / "study_table.csv", rows, cols)
+    write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
+    write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
+    write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
+    verd = verdicts(a)
+    anova = [
+        f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: {_anova_text(r)}"
+        for r in a.anova
+        if r["metric"] in H3_METRICS
+    ]
+    md = [
+        "# User study (H3) with simulated users",
+        "",
+        f"{len(records) // len(rd.config.learners)} paired runs (Tasks {tasks}, "
+        f"{rd.config.experiments[0].runs} users each, seeds from {rd.config.experiments[0].seed})"
+        "; mean ± SEM; the paper's means are averaged over its Tasks.",
+        "",
+        *table_markdown(rows, tasks),
+        "",
+        "Repeated-measures ANOVA (Greenhouse–Geisser):",
+        "",
+        *anova,
+        "",
+        "H3 verdicts (StROL vs One and MOF; Holm-corrected paired t-tests, α = 0.05):",
+        "",
+    ]
+    for v in verd:
+        md.append(f"- **Task {v['task']}: {v['verdict']}**")
+        md += [f"  - {d}" for d in v["details"]]
+    envs = [e.env for e in rd.config.experiments]
+    pooled = [
+        pooled_tests(records, envs, POOLED_LEARNERS, m)
+        for m in POOLED_METRICS
+        if any(m in r for r in records)
+    ]
+    md += ["", *pooled_markdown(pooled, len(envs))]
+    (rd.path / "study_table.md").write_text("\n".join(md) + "\n")
+    paths = make_plots(a, records, rd.path / "plots") if plots else []
+    result = {
+        "tasks": tasks,
+        "verdicts": verd,
+        "pooled": [_pooled_json(r) for r in pooled],
+        "table": rows,
+        "plots": [str(p) for p in paths],
+    }
+    (rd.path / "study.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
+    result["markdown"] = "\n".join(md)
+    return result
+
+
+def add_authors_regret(records: list[dict]) -> None:
+    """Each record's regret the authors' way (``study_authors.regret``), batched per Task."""
+    from strol_gym.tasks.study import STUDY_TASKS
+
+    for env in dict.fromkeys(r["env"] for r in records):
+        rs = [r for r in records if r["env"] == env]
+        cols = [np.array([r[k] for r in rs], dtype=np.float64) for k in _REGRET_INPUTS]
+        for r, v in zip(rs, study_authors.regret(STUDY_TASKS[_task_of(env)](), *cols), strict=True):
+            r["regret_authors"] = float(v)
+
+
+_REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
+
+
+def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int) -> list[str]:
+    """The paper's H3 analysis: each user's values averaged over the Tasks, a repeated-measures
+    ANOVA over One, MOF and StROL, then the pairs (Holm)."""
+    md = [
+        "## H3 pooled the paper's way",
+        "",
+        f"Each simulated user's value averaged over the {n_tasks} Tasks, then a "
+        "repeated-measures ANOVA over One, MOF and StROL (Greenhouse–Geisser) and paired tests "
+        "of every pair (Holm over the three pairs), as the paper analysed its 12 participants. "
+        "The per-Task verdicts above are the stricter test (each Task alone, 20 users, Holm "
+        "over four baselines).",
+        "",
+    ]
+    for r in pooled:
+        means = ", ".join(f"{display(k)} {v:.3f}" for k, v in r["means"].items())
+        paper = PAPER_POOLED.get(r["metric"])
+        md.append(f"**{LABELS[r['metric']]}** (n = {r['n']} users; means {means})")
+        if paper:
+            md.append(f"(paper: {paper})")
+        md += ["", *pooled_lines(r), ""]
+    return md
+
+
+def _pooled_json(r: dict[str, Any]) -> dict[str, Any]:
+    import dataclasses
+
+    return {**r, "anova": dataclasses.asdict(r["anova"])}
+
+
+class Study(BenchExperiment):
+    """The simulated user study as an experiment; it writes its own tables (study_table.*)."""
+
+    name = "study"
+    help = "the user study (H3) with simulated users: Tasks 1-3 of StROL-Study-v0"
+    description = (
+        "StROL-Study-v0's Tasks x Gradient, One, MOF, e2e, StROL x simulated users "
+        "(paired); regret, correction time, H3 verdicts, table beside the paper's, plots."
+    )
+
+    def add_arguments(self, p: argparse.ArgumentParser) -> None:
+        """The ``study`` subcommand's options (checked by argparse: bad ones exit 2 up front)."""
+        p.add_argument("--task", type=parse_tasks, default=TASKS, help="Tasks, e.g. 1,3 (1,2,3)")
+        p.add_argument(
+            "--users",
+            type=positive_int("--users", 10_000),
+            default=DEFAULT_USERS,
+            help=f"simulated users per Task (default {DEFAULT_USERS})",
+        )
+        p.add_argument(
+            "--seed", type=nonneg_int("--seed"), default=SEED, help=f"first user seed ({SEED})"
+        )
+        p.add_argument(
+            "--env-version",
+            choices=ENV_VERSIONS,
+            default="v0",
+            help="StROL-Study-v0 (the published results) or v1 (u_H = the person's push)",
+        )
+        p.add_argument(
+            "--participant",
+            choices=PARTICIPANTS,
+            default="observer",
+            help="v1's simulated person: observer (held out, judges what it sees) or oracle "
+            "(v0's user: the training human, satisfied by the plan's regret)",
+        )
+        p.add_argument("--out", default=None, help="results folder (default results/study)")
+        p.add_argument(
+            "--jobs",
+            type=positive_int("--jobs"),
+            default=None,
+            help="worker processes (default: every available CPU); results do not depend on it",
+        )
+        p.add_argument("--quiet", action="store_true", help="no progress bar")
+        p.add_argument(
+            "--force", action="store_true", help="replace a results folder made with another config"
+        )
+        p.add_argument("--no-plots", action="store_true", help="skip the figures")
+
+    def plan(self, args: argparse.Namespace) -> BenchConfig:
+        version, who = getattr(args, "env_version", "v0"), getattr(args, "participant", "observer")
+        return study_config(args.task, args.users, args.seed, version=version, participant=who)
+
+    def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
+        """Run (or resume) the study; its table, verdicts and plots."""
+        from strol_gym.benchmarks.engine.runner import default_jobs
+
+        jobs = args.jobs or default_jobs()
+        rd, _, wall = self.run(config, out, args, reports=False)
+        result = write_study_reports(rd, plots=not args.no_plots)
+        line = f"\nwall time {wall:.1f} s (jobs={jobs}); results in {rd.path}/"
+        notes = [f"plot: {p}" for p in result["plots"] if p.endswith(".png")]
+        return Outcome(rd.path, [result["markdown"]], wall_line=line, notes=notes)
+
+    def default_out(self, args: argparse.Namespace) -> str:
+        return "results/study"

@@ -1,0 +1,319 @@
+"""``strol-bench export LOG DATASET_ID``: a session log as a Minari dataset, and back.
+
+Minari is the Gymnasium ecosystem's format for recorded episodes (``minari.load_dataset``).
+One Minari step is one correction: the observation is what the learner saw (``state`` = x,
+``correction`` = u_H, ``theta_hat`` = θ̂ before the update), the action is the robot's u_R, and
+the last observation carries the final θ̂. Observations are float32 (Minari's spaces), so the
+exact float64 x, u_H, u_R, θ̂ and θ* travel in the episode's infos, and replaying a dataset gives
+the θ̂ of replaying the log, to the bit. The log's header rides in the dataset's metadata and
+is checked like a log's: reading a dataset never runs code.
+
+Datasets are written under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``). Needs the
+``[data]`` extra (``pip install ".[data]"``).
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from strol_gym.wrappers.session_log import (
+    Episode,
+    Session,
+    SessionLogError,
+    _header,
+    read_session,
+)
+
+HEADER_KEY = "strol_session_header"
+
+
+def _minari() -> Any:
+    try:
+        import minari
+    except ImportError:
+        raise ValueError(
+            'Minari is not installed: pip install "strol-gym[data]" (or ".[data]" in a clone)'
+        ) from None
+    return minari
+
+
+def _spaces(dims: dict[str, int]) -> tuple[spaces.Dict, spaces.Box]:
+    box = lambda n: spaces.Box(-np.inf, np.inf, shape=(n,), dtype=np.float32)  # noqa: E731
+    obs = spaces.Dict(
+        {"state": box(dims["s"]), "correction": box(dims["a"]), "theta_hat": box(dims["d"])}
+    )
+    return obs, box(dims["a"])
+
+
+def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None) -> Any:
+    from minari.data_collector import EpisodeBuffer
+
+    n, nan = len(ep.corrections), np.nan
+    x = np.array([c["x"] for c in ep.corrections] + [np.zeros(dims["s"])]).reshape(n + 1, -1)
+    u_h = np.array([c["u_h"] for c in ep.corrections] + [np.zeros(dims["a"])]).reshape(n + 1, -1)
+    u_r = np.array([c["u_r"] for c in ep.corrections] + [np.zeros(dims["a"])]).reshape(n + 1, -1)
+    thetas = [ep.theta_hat0] + [
+        c["theta_hat_after"] if c["theta_hat_after"] is not None else np.full(dims["d"], nan)
+        for c in ep.corrections
+    ]
+    theta = np.array(thetas).reshape(n + 1, -1)
+    if n:
+        x[n] = x[n - 1]  # the last observation: where the last correction began, final θ̂
+    star = np.full(dims["d"], nan) if ep.theta_star is None else ep.theta_star
+    ctime = [nan if c["correction_time"] is None else c["correction_time"] for c in ep.corrections]
+    return EpisodeBuffer(
+        seed=seed,
+        observations={
+            "state": x.astype(np.float32),
+            "correction": u_h.astype(np.float32),
+            "theta_hat": theta.astype(np.float32),
+        },
+        actions=u_r[:n].astype(np.float32),
+        rewards=[0.0] * n,  # the person's reward is hidden (θ* in the infos is what they taught)
+        terminations=[False] * n,
+        truncations=[False] * (n - 1) + [True] if n else [],
+        infos={
+            "x": x,
+            "u_h": u_h,
+            "u_r": u_r,
+            "theta_hat": theta,
+            "theta_star": np.tile(star, (n + 1, 1)),
+            "is_correction": np.arange(n + 1) < n,
+            "correction_time": np.array([*ctime, nan]),
+        },
+    )
+
+
+def export_session(log: str | Path, dataset_id: str) -> Any:
+    """Write session log ``log`` as Minari dataset ``dataset_id``; the MinariDataset."""
+    minari = _minari()
+    session = read_session(log)
+    _, dims = _header(f"{session.path}:1", session.header)
+    obs_space, act_space = _spaces(dims)
+    buffers = [_episode_buffer(ep, dims, ep.seed) for ep in session.episodes]
+    # Minari nags for provenance a session log does not have (author, code permalink, env spec)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
+        try:
+            dataset = minari.create_dataset_from_buffers(
+                dataset_id,
+                buffers,
+                observation_space=obs_space,
+                action_space=act_space,
+                algorithm_name=str(session.header.get("learner")),
+                description=f"strol-gym session {session.path.name}: corrections on "
+                f"{session.header['env_id']}, task {session.header['task']}",
+            )
+        except ValueError as e:  # an existing id, a malformed id
+            raise ValueError(f"dataset_id {dataset_id!r}: {e}") from None
+    dataset.storage.update_metadata({HEADER_KEY: json.dumps(session.header)})
+    return dataset
+
+
+def _open(source: str) -> tuple[Any, str]:
+    minari = _minari()
+    path = Path(source)
+    try:
+        if (path / "data" / "metadata.json").is_file():
+            return minari.MinariDataset(path / "data"), str(path)
+        if (path / "metadata.json").is_file():
+            return minari.MinariDataset(path), str(path)
+        return minari.load_dataset(source), source
+    except FileNotFoundError:
+        raise ValueError(
+            f"{source}: neither a session log (.jsonl) nor a Minari dataset (an id under "
+            "MINARI_DATASETS_PATH, or its folder)"
+        ) from None
+    except Exception as e:  # minari raises many kinds on a broken folder
+        raise SessionLogError(f"{source}: cannot read the Minari dataset ({e})") from None
+
+
+def read_dataset(source: str) -> Session:
+    """A Minari dataset written by :func:`export_session` as a Session (exact float64 data)."""
+    dataset, where = _open(source)
+    try:
+        header = json.loads(dataset.storage.metadata[HEADER_KEY])
+    except (KeyError, TypeError, ValueError, RecursionError):
+        raise SessionLogError(
+            f"{where}: not a strol-gym session dataset (no valid header)"
+        ) from None
+    if not isinstance(header, dict):
+        raise SessionLogError(f"{where}: not a strol-gym session dataset (no valid header)")
+    header, dims = _header(f"{where}:header", header)
+    episodes = []
+    for k, ep in enumerate(dataset.iterate_episodes()):
+        at = f"{where}:episode {k}"
+        info = ep.infos
+        try:
+            arrays = {key: np.asarray(info[key], dtype=np.float64) for key in ("x", "u_h", "u_r")}
+            arrays["theta_hat"] = np.asarray(info["theta_hat"], dtype=np.float64)
+            arrays["theta_star"] = np.asarray(info["theta_star"], dtype=np.float64)
+            is_corr = np.asarray(info["is_correction"], dtype=bool)
+            ctime = np.asarray(info["correction_time"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError):
+            raise SessionLogError(
+                f"{at}: infos lack x, u_h, u_r, theta_hat or theta_star"
+            ) from None
+        n = int(is_corr.sum())
+        want = {"x": dims["s"], "u_h": dims["a"], "u_r": dims["a"], "theta_hat": dims["d"]}
+        want["theta_star"] = dims["d"]
+        for key, width in want.items():
+            if arrays[key].shape != (n + 1, width):
+                raise SessionLogError(f"{at}: infos {key!r} has shape {arrays[key].shape}")
+        for key in ("x", "u_h", "u_r"):
+            if not np.isfinite(arrays[key]).all():
+                raise SessionLogError(f"{at}: infos {key!r} must be finite")
+        if not np.isfinite(arrays["theta_hat"][0]).all() or not is_corr[:n].all():
+            raise SessionLogError(f"{at}: infos 'theta_hat' or 'is_correction' are malformed")
+        star = arrays["theta_star"][0]
+        corrections = [
+            {
+                "x": arrays["x"][i],
+                "u_h": arrays["u_h"][i],
+                "u_r": arrays["u_r"][i],
+                "theta_hat_after": arrays["theta_hat"][i + 1],
+                "correction_time": None if np.isnan(ctime[i]) else float(ctime[i]),
+            }
+            for i in range(n)
+        ]
+        episodes.append(
+            Episode(
+                None, arrays["theta_hat"][0], None if np.isnan(star).any() else star, corrections
+            )
+        )
+    if not episodes:
+        raise SessionLogError(f"{where}: no episode")
+    return Session(Path(where), header, episodes)
+
+
+def read_any(source: str | Path) -> Session:
+    """A session log (a file) or a Minari dataset (an id or a folder)."""
+    path = Path(source)
+    if path.is_file():
+        return read_session(path)
+    return read_dataset(str(source))
+
+
+def export_runs(
+    dataset_id: str,
+    env: str,
+    learner: str,
+    condition: str = "training",
+    runs: int = 10,
+    seed: int = 0,
+    corrections: int | None = None,
+    task: str | None = None,
+    learner_kwargs: dict[str, Any] | None = None,
+) -> Any:
+    """Benchmark runs as Minari dataset ``dataset_id``: ``learner`` on env preset ``env`` under
+    ``condition``, run seeds ``seed … seed + runs − 1`` as ``strol-bench run`` plays them (same
+    env kwargs, robot policy and step count), each episode logged and then exported."""
+    import tempfile
+
+    import gymnasium as gym
+    from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
+    from strol_gym.benchmarks.engine.config import Experiment
+    from strol_gym.benchmarks.engine.runner import _MemoPolicy, _run_block, _zero_policy
+    from strol_gym.wrappers import OnlineLearningWrapper
+    from strol_gym.wrappers.session_log import SessionLogger
+
+    from strol_gym.learners.registry import make_learner
+
+    _minari()  # before any work
+    exp = Experiment(
+        env,
+        make_condition(env, condition),
+        runs=runs,
+        seed=seed,
+        n_corrections=corrections,
+        task=task,
+    )
+    genv = gym.make(exp.env_id, **exp.env_kwargs())
+    model = make_learner(learner, task=genv.unwrapped.task, **(learner_kwargs or {}))
+    policy = _MemoPolicy(genv.unwrapped.task) if env_preset(env).robot == "task" else _zero_policy
+    extra = {
+        "benchmark": {
+            "env": env,
+            "condition": exp.condition.to_dict(),
+            "seeds": [seed, seed + runs - 1],
+        }
+    }
+    with tempfile.TemporaryDirectory() as folder:
+        logged = SessionLogger(
+            OnlineLearningWrapper(genv, model, regret=False), Path(folder) / "runs.jsonl", extra
+        )
+        try:
+            for run_seed in exp.seeds:
+                _run_block([(learner, run_seed, logged)], exp.corrections, env, condition, policy)
+        finally:
+            logged.close()
+        return export_session(Path(folder) / "runs.jsonl", dataset_id)
+
+
+__all__ = ["export_runs", "export_session", "read_any", "read_dataset"]
+
+
+# ---------------------------------------------------------------------- CLI (strol-bench export)
+def add_parser(sub: Any) -> None:
+    from strol_gym.benchmarks.args import plugin_option, positive_int
+
+    p = sub.add_parser(
+        "export",
+        help="write a session log, or benchmark runs, as a Minari dataset (the [data] extra)",
+        description="Write a session log (--log: strol-bench interact, or any SessionLogger) or "
+        "benchmark runs (--env, --learner, --condition, --runs, --seed: episodes played as "
+        "strol-bench run plays them) as a Minari dataset: one step per correction, float32 "
+        "observations (state, correction, θ̂), u_R as the action, exact float64 x, u_H, u_R, θ̂ "
+        "and θ* in the infos. Datasets go under MINARI_DATASETS_PATH (default "
+        "~/.minari/datasets); strol-bench replay reads them back.",
+    )
+    p.add_argument("dataset_id", help="Minari dataset id, e.g. strol/study-task1-strol-v0")
+    what = p.add_mutually_exclusive_group(required=True)
+    what.add_argument("--log", help="a session log (.jsonl)")
+    what.add_argument("--env", help="benchmark runs on this env preset (strol-bench list)")
+    p.add_argument("--learner", default="strol", help="with --env: the learner (default strol)")
+    p.add_argument("--condition", default="training", help="with --env: a condition (training)")
+    p.add_argument("--runs", type=positive_int("--runs", 10_000), default=10, help="with --env")
+    p.add_argument("--seed", type=positive_int("--seed", low=0), default=0, help="first run seed")
+    p.add_argument("--corrections", type=positive_int("--corrections"), default=None)
+    p.add_argument("--task", default=None, help="with --env: a Task name (default: the env's)")
+    p.add_argument("--learner-kwargs", default=None, help="with --env: JSON, e.g. '{\"lam\": 0.5}'")
+    plugin_option(p)
+
+
+def command(args: Any, parser: Any) -> int:
+    if args.log is not None:
+        dataset = export_session(args.log, args.dataset_id)
+    else:
+        kwargs = {}
+        if args.learner_kwargs:
+            try:
+                kwargs = json.loads(args.learner_kwargs)
+            except (ValueError, RecursionError) as e:
+                parser.error(f"--learner-kwargs must be a JSON object ({e})")
+            if not isinstance(kwargs, dict):
+                parser.error("--learner-kwargs must be a JSON object: the learner's kwargs")
+        from strol_gym.benchmarks.args import check_learner_names
+
+        check_learner_names([args.learner])
+        dataset = export_runs(
+            args.dataset_id,
+            args.env,
+            args.learner,
+            args.condition,
+            args.runs,
+            args.seed,
+            args.corrections,
+            args.task,
+            kwargs,
+        )
+    print(
+        f"wrote Minari dataset {args.dataset_id}: {dataset.total_episodes} episode(s), "
+        f"{dataset.total_steps} correction(s), in {Path(dataset.storage.data_path).parent}"
+    )
+    return 0

@@ -1,0 +1,425 @@
+"""``strol-bench interact``: a person pushes the study arm in MuJoCo's viewer; the robot learns.
+
+The pipeline is the simulated users' own: each control step the viewer's perturbation (Ctrl +
+right-drag on the arm) is read *after* ``viewer.sync()`` (``sync`` zeroes ``xfrc_applied`` and
+then writes the mouse's force), handed to the env with ``hold_wrench``, and the env steps:
+15 N threshold, u_H, the learner's update in ``OnlineLearningWrapper``, replanning. Every
+session is logged (``session_log``) and can be replayed with ``strol-bench replay``.
+
+The viewer sits behind :class:`Viewer` (``sync``, ``is_running``, ``set_texts``, ``close``), so
+tests inject a fake that writes a wrench the way the real one does.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.session_log import SessionLogger
+
+from strol_gym.envs.panda import PassiveViewer, has_display
+
+NO_DISPLAY = (
+    "interact needs a display (DISPLAY is not set): run it on a virtual one with "
+    "`xvfb-run -a strol-bench interact ...`, or use the headless simulated users, "
+    'gymnasium.make("StROL-Study-v1", human="nominal")'
+)
+
+
+class Viewer(Protocol):
+    """What interact needs of ``mujoco.viewer.launch_passive``'s handle."""
+
+    def sync(self) -> None: ...
+
+    def is_running(self) -> bool: ...
+
+    def set_texts(self, texts: Any) -> None: ...
+
+    def draw_plan(self, points: np.ndarray, target: np.ndarray | None = None) -> None: ...
+
+    def close(self) -> None: ...
+
+    show_target: bool
+    """Whether the person asked to see the plan for θ* (a key); the front end reads it."""
+
+
+ViewerFactory = Callable[[mujoco.MjModel, mujoco.MjData], Viewer]
+
+
+LOOKAT = (0.4, 0.0, 0.35)
+"""Where the viewer's camera looks first (m, robot base frame): the pitcher, plate and arm."""
+
+
+class _Passive(PassiveViewer):
+    """The passive viewer (its ``close`` waits for the viewer's thread), UI panels hidden, the
+    camera on the person's side of the table."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        self.show_target = False
+        super().__init__(
+            model, data, show_left_ui=False, show_right_ui=False, key_callback=self._key
+        )
+        with self.handle.lock():  # look at the workspace from the person's side of the table
+            cam = self.handle.cam
+            cam.lookat[:] = LOOKAT
+            cam.distance, cam.azimuth, cam.elevation = 2.2, 150.0, -20.0
+
+    def set_texts(self, texts: Any) -> None:
+        self.texts = texts  # the panel as last shown (the viewer has no getter)
+        self.handle.set_texts(texts)
+
+    def _key(self, keycode: int) -> None:  # the viewer's thread: only flip a flag
+        if keycode == TARGET_KEY:
+            self.show_target = not self.show_target
+
+    def draw_plan(self, points: np.ndarray, target: np.ndarray | None = None) -> None:
+        """The plan's waypoints (cup positions, m) as small spheres in the user scene, and the
+        plan for θ* (``target``) in green."""
+        with self.handle.lock():
+            draw_plan(self.handle.user_scn, points, target)
+
+
+TARGET_KEY = ord("T")
+"""The key that shows or hides the plan for θ* (GLFW key codes of letters are upper case)."""
+PLAN_RGBA = np.array([0.1, 0.55, 1.0, 0.7], dtype=np.float32)
+TARGET_RGBA = np.array([0.1, 0.8, 0.2, 0.7], dtype=np.float32)
+PLAN_RADIUS = 0.012
+
+
+def draw_plan(scene: mujoco.MjvScene, points: np.ndarray, target: np.ndarray | None = None) -> None:
+    """Replace ``scene``'s geoms with one sphere per waypoint of ``points`` (blue), then of
+    ``target`` (green), as many as fit."""
+    layers = [(points, PLAN_RGBA)] + ([] if target is None else [(target, TARGET_RGBA)])
+    n = 0
+    for pts, rgba in layers:
+        for p in np.asarray(pts, dtype=np.float64).reshape(-1, 3)[: scene.maxgeom - n]:
+            mujoco.mjv_initGeom(
+                scene.geoms[n],
+                mujoco.mjtGeom.mjGEOM_SPHERE,
+                np.array([PLAN_RADIUS, 0.0, 0.0]),
+                p,
+                np.eye(3).ravel(),
+                rgba,
+            )
+            n += 1
+    scene.ngeom = n
+
+
+def passive_viewer(model: mujoco.MjModel, data: mujoco.MjData) -> Viewer:
+    """MuJoCo's passive viewer (needs a display)."""
+    if not has_display():
+        raise ValueError(NO_DISPLAY)
+    return _Passive(model, data)
+
+
+def read_perturbation(
+    model: mujoco.MjModel, data: mujoco.MjData, site: int, oriented: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """The person's push as a wrench at the cup, then cleared from ``xfrc_applied``.
+
+    The viewer writes its perturbation into ``xfrc_applied`` of the selected body (force at
+    the body's centre of mass, and torque). Summed over bodies and moved to the cup site:
+    F = Σ F_b, τ = Σ τ_b + (c_b − p_cup) × F_b. Task 1's corrections are positions: its torque
+    is dropped (the env would count ‖τ‖ / 0.1 m towards the threshold). The perturbation is
+    cleared so that the env's own application of it (on the hand) is the only one.
+    """
+    xfrc = data.xfrc_applied
+    force = xfrc[:, :3].sum(axis=0)
+    torque = np.zeros(3)
+    if oriented:
+        lever = data.xipos - data.site_xpos[site]
+        torque = xfrc[:, 3:].sum(axis=0) + np.cross(lever, xfrc[:, :3]).sum(axis=0)
+    xfrc[:] = 0.0
+    return force.copy(), torque
+
+
+FEATURE_WORDS = {
+    "pitcher": ("close to the pitcher", "away from the pitcher"),
+    "plate": ("close to the plate", "away from the plate"),
+    "table": ("low, near the table", "high above the table"),
+    "upright": ("upright", "tilted"),
+}
+"""Per study feature: what a positive and a negative weight ask of the cup (φ are negated
+distances, the cup's height and its tilt)."""
+
+
+def teach_words(feature_names: Any, theta_star: np.ndarray) -> str:
+    """θ* in words, strongest weight first; weights below 0.1 in size are left out."""
+    order = np.argsort(-np.abs(theta_star))
+    words = []
+    for i in order:
+        if abs(theta_star[i]) < 0.1:
+            continue
+        name = feature_names[i]
+        pos, neg = FEATURE_WORDS.get(name, (f"more {name}", f"less {name}"))
+        words.append(pos if theta_star[i] > 0 else neg)
+    return "carry the cup " + ", ".join(words) if words else "anything goes (θ* is about 0)"
+
+
+INSTRUCTIONS = (
+    "HOW: double-click a link of the arm to select it,",
+    "then Ctrl + right-drag to push it.",
+    "A push above {threshold:.0f} N is a correction.",
+    "Blue dots: the robot's plan; T: the plan for what you teach (green).",
+    "Close the window to end.",
+)
+CUE_SECONDS = 2.0
+"""How long (simulated s) the panel shows a recorded correction."""
+
+
+def overlay(
+    task: Any,
+    info: dict[str, Any],
+    felt: float,
+    *,
+    teach: str = "",
+    threshold: float = 15.0,
+    last_correction: tuple[float, np.ndarray] | None = None,
+    rtf: float | None = None,
+) -> list[tuple]:
+    """Viewer text (ASCII: the viewer's font has no θ or φ): state top left, what to do and
+    what to teach bottom left, cues and the real-time factor top right."""
+    theta = np.asarray(info["theta_hat"])
+    phi = np.asarray(info["phi"])
+    labels = ["time", "pushing", "corrections", "correction time"]
+    values = [
+        f"{info['time']:.1f} s",
+        f"{felt:.1f} N" + (" (correcting)" if info["correction_active"] else ""),
+        str(info["corrections"]),
+        f"{info['correction_time']:.2f} s",
+    ]
+    for name, t, p in zip(task.feature_names, theta, phi, strict=True):
+        labels.append(f"{name}: theta_hat / phi")
+        values.append(f"{t:+.3f} / {p:+.3f}")
+    font = mujoco.mjtFontScale.mjFONTSCALE_150
+    grid = mujoco.mjtGridPos
+    how = "\n".join(INSTRUCTIONS).format(threshold=threshold)
+    texts = [
+        (font, grid.mjGRID_TOPLEFT, "\n".join(labels), "\n".join(values)),
+        (font, grid.mjGRID_BOTTOMLEFT, how + "\nTEACH: " + teach, ""),
+    ]
+    cues = []
+    if felt > threshold:
+        cues.append(f"PUSH COUNTS: {felt:.0f} N > {threshold:.0f} N")
+    if last_correction is not None and info["time"] - last_correction[0] <= CUE_SECONDS:
+        u_h = ", ".join(f"{v:+.3f}" for v in last_correction[1])
+        cues.append(f"CORRECTION RECORDED: u_H = ({u_h})")
+    if rtf is not None:
+        cues.append(f"real-time factor {rtf:.2f}")
+        if rtf < 0.9:
+            cues.append("WARNING: below 0.9, the arm runs slower than real time")
+    if cues:
+        texts.append((font, grid.mjGRID_TOPRIGHT, "\n".join(cues), ""))
+    return texts
+
+
+class RealTimeFactor:
+    """Simulated seconds per wall-clock second over the last ``window`` steps."""
+
+    def __init__(self, window: int = 20) -> None:
+        self.window = window
+        self.marks: list[tuple[float, float]] = []
+
+    def update(self, sim_time: float) -> float | None:
+        self.marks.append((sim_time, time.perf_counter()))
+        del self.marks[: -self.window - 1]
+        (s0, w0), (s1, w1) = self.marks[0], self.marks[-1]
+        return None if len(self.marks) < 3 or w1 <= w0 else (s1 - s0) / (w1 - w0)
+
+
+def default_log_path() -> Path:
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    return Path("sessions") / f"session-{stamp}.jsonl"
+
+
+def run_interactive(
+    task: int = 1,
+    learner: str = "strol",
+    learner_kwargs: dict[str, Any] | None = None,
+    seed: int = 20000,
+    log: str | Path | None = None,
+    duration: float = 120.0,
+    max_steps: int | None = None,
+    realtime: bool = True,
+    viewer_factory: ViewerFactory | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> tuple[Path, dict[str, Any]]:
+    """Run one interactive session; returns the log's path and the last step's ``info``.
+
+    Stops when the viewer closes, after ``duration`` s of simulated time, or after
+    ``max_steps`` control steps. ``realtime`` paces steps to wall-clock time.
+    """
+    if isinstance(task, bool) or task not in (1, 2, 3):
+        raise ValueError(f"task must be 1, 2 or 3, got {task!r}")
+    if viewer_factory is None:  # looked up now, so a front end can wrap it
+        viewer_factory = passive_viewer
+    if viewer_factory is passive_viewer and not has_display():
+        raise ValueError(NO_DISPLAY)
+    from strol_gym.tasks.study import CONTROL_DT
+
+    path = Path(log) if log is not None else default_log_path()
+    if path.exists():
+        raise ValueError(f"log {path} exists; sessions are never overwritten")
+    kwargs = {"task": task, "human": None, "duration": duration, **(env_kwargs or {})}
+    base = gym.make("StROL-Study-v1", **kwargs)
+    learning = OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
+    study = base.unwrapped
+    site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
+    viewer = viewer_factory(study.model, study.data)
+    options = {"max_steps": max_steps, "realtime": realtime, "mode": "interactive"}
+    env = SessionLogger(learning, path, extra={"interact": options})
+    teach = teach_words(study.task.feature_names, study.task.theta_star)
+    threshold = float(study.force_threshold)
+    info: dict[str, Any] = {}
+    try:
+        _, info = env.reset(seed=seed)
+        info.update(correction_active=False, corrections=0, correction_time=0.0, time=0.0)
+        action = np.zeros(env.action_space.shape, dtype=np.float32)
+        steps, reason, ended = 0, "viewer closed", False
+        last_correction: tuple[float, np.ndarray] | None = None
+        drawn: tuple[int, int] | None = None
+        target: np.ndarray | None = None
+        rtf = RealTimeFactor()
+        t_next = time.perf_counter()
+        try:
+            while viewer.is_running():
+                if max_steps is not None and steps >= max_steps:
+                    reason = "max_steps"
+                    break
+                study.data.xfrc_applied[:] = 0.0  # what is left there is the env's own push
+                viewer.sync()  # zeroes xfrc_applied, then writes the mouse's perturbation
+                force, torque = read_perturbation(
+                    study.model, study.data, site, study.task.oriented
+                )
+                study.hold_wrench(force, torque)
+                obs, _, terminated, truncated, info = env.step(action)
+                steps += 1
+                if info["is_correction"]:
+                    last_correction = (info["time"], np.asarray(info["correction"]))
+                want = bool(getattr(viewer, "show_target", False))
+                if want and target is None:  # θ*'s plan from where the cup is now
+                    start = np.asarray(obs["state"], dtype=np.float64)[None]
+                    target = study.task.plan(study.task.theta_star[None], start)[0][:, :3]
+                elif not want:
+                    target = None
+                key = (id(study.plan_waypoints), id(target))
+                if key != drawn:  # a new plan (or leg), or θ*'s plan shown or hidden
+                    drawn = key
+                    viewer.draw_plan(study.plan_waypoints[:, :3], target)
+                felt = float(np.linalg.norm(info["wrench"][:3]))
+                factor = rtf.update(info["time"])
+                texts = overlay(
+                    study.task,
+                    info,
+                    felt,
+                    teach=teach,
+                    threshold=threshold,
+                    last_correction=last_correction,
+                    rtf=factor,
+                )
+                viewer.set_texts(texts)
+                if terminated or truncated:  # SessionLogger wrote the end line
+                    ended = True
+                    break
+                if realtime:
+                    t_next += CONTROL_DT
+                    time.sleep(max(0.0, t_next - time.perf_counter()))
+        except KeyboardInterrupt:
+            env.end_session("interrupted", info, interrupted=True)
+            info = {**info, "interrupted": True}
+            ended = True
+        if not ended:
+            env.end_session(reason)
+    finally:
+        viewer.close()
+        env.close()
+    return path, info
+
+
+# ---------------------------------------------------------------------- CLI (strol-bench interact)
+def add_parser(sub: Any) -> None:
+    from strol_gym.benchmarks.args import plugin_option
+
+    p = sub.add_parser(
+        "interact",
+        help="push the study arm yourself in MuJoCo's viewer; the robot learns (needs a display)",
+        description="Open MuJoCo's passive viewer on StROL-Study-v1 (no simulated user). Push "
+        "the arm with Ctrl + right-drag (double-click a link first to select it): a push above "
+        "15 N is a correction; the learner updates and the robot replans. The session is "
+        "logged for strol-bench replay. Without a display: xvfb-run -a strol-bench interact.",
+    )
+    p.add_argument("--task", default="1", help="study Task: 1, 2 or 3 (default 1)")
+    p.add_argument("--learner", default="strol", help="registered name or module:attr (strol)")
+    p.add_argument("--learner-kwargs", default=None, help="JSON, e.g. '{\"lam\": 0.5}'")
+    p.add_argument("--seed", type=int, default=20000, help="θ̂0's seed (default 20000)")
+    p.add_argument("--log", default=None, help="session log (default sessions/session-TIME.jsonl)")
+    p.add_argument("--duration", type=float, default=120.0, help="simulated seconds (120)")
+    p.add_argument("--max-steps", type=int, default=None, help="stop after N control steps")
+    p.add_argument("--fast", action="store_true", help="do not pace the steps to wall-clock time")
+    plugin_option(p)
+
+
+def command(args: Any, parser: Any) -> int:
+    import json
+    import math
+    import sys
+
+    from strol_gym.benchmarks.args import check_learner_names
+
+    if args.task not in ("1", "2", "3"):
+        raise ValueError(f"--task must be 1, 2 or 3, got {args.task!r}")
+    check_learner_names([args.learner])
+    kwargs = None
+    if args.learner_kwargs:
+        try:
+            kwargs = json.loads(args.learner_kwargs)
+        except (ValueError, RecursionError) as e:
+            raise ValueError(f"--learner-kwargs must be a JSON object ({e})") from None
+        if not isinstance(kwargs, dict):
+            raise ValueError("--learner-kwargs must be a JSON object, e.g. '{\"lam\": 0.5}'")
+    if args.max_steps is not None and args.max_steps < 1:
+        raise ValueError(f"--max-steps must be an integer >= 1, got {args.max_steps}")
+    if not math.isfinite(args.duration) or not 0 < args.duration <= 86_400:
+        raise ValueError(f"--duration must be in (0, 86400] simulated seconds, got {args.duration}")
+    if args.log is not None and Path(args.log).exists():
+        raise ValueError(f"--log {args.log} exists; sessions are never overwritten")
+    if not has_display():  # after the arguments, before anything is built
+        raise ValueError(NO_DISPLAY)
+    path, info = run_interactive(
+        task=int(args.task),
+        learner=args.learner,
+        learner_kwargs=kwargs,
+        seed=args.seed,
+        log=args.log,
+        duration=args.duration,
+        max_steps=args.max_steps,
+        realtime=not args.fast,
+    )
+    if "theta_hat" in info:
+        theta = ", ".join(f"{t:+.3f}" for t in info["theta_hat"])
+        print(f"{info['corrections']} correction(s), {info['correction_time']:.2f} s of pushing")
+        print(f"final θ̂ = ({theta}); session log: {path}")
+    print(f"replay it: strol-bench replay {path} --learners strol,gradient")
+    if info.get("interrupted"):
+        print(f"interrupted: the session ended and its log is complete ({path})", file=sys.stderr)
+        return 130
+    return 0
+
+
+__all__ = [
+    "NO_DISPLAY",
+    "Viewer",
+    "draw_plan",
+    "overlay",
+    "passive_viewer",
+    "read_perturbation",
+    "run_interactive",
+    "teach_words",
+]

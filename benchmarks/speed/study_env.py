@@ -1,0 +1,129 @@
+"""Speed of StROL-Study-v0/v1: physics overhead and a full simulated-user episode with StROL.
+
+    .venv/bin/python benchmarks/speed/study_env.py [--task 1] [--repeats 3] [--version v1]
+
+1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
+   feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics
+   steps, before the plan ends so nothing replans) over those of bare ``mujoco.mj_step`` on the
+   same compiled model from the same state (the env's after 1 s of motion, its last torques
+   held), timed alternately in one process; best of ``--repeats`` each. Target ≥ 0.5.
+2. **Real-time factor**: one 60 s episode (1,200 steps) with the simulated user (eq. M6,
+   σ = 0.25; on v1 the default participant, who judges what it sees) and StROL through
+   ``OnlineLearningWrapper``, replanning included: simulated
+   seconds per wall-clock second. Target ≥ 30.
+
+One core (BLAS and torch threads pinned to 1). Seeds from the study range (20000-).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # one core: before numpy loads its BLAS
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+import gymnasium as gym  # noqa: E402
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+import strol_gym  # noqa: E402, F401  (registers the envs)
+from strol_gym.envs.study import StudyEnv  # noqa: E402
+from strol_gym.envs.study_v1 import StudyEnvV1  # noqa: E402
+
+SEED = 20100
+
+
+def physics_ratio(
+    task: int, repeats: int, env_steps: int = 200, version: str = "v0"
+) -> tuple[float, float, float]:
+    """(env physics steps/s, bare mj_step steps/s, ratio)."""
+    env = (StudyEnvV1 if version == "v1" else StudyEnv)(task=task, human=None)
+    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    n_sub = env._n_sub
+    bare_data = mujoco.MjData(env.model)
+    best_env = best_bare = 0.0
+    for r in range(repeats):
+        env.reset(seed=SEED + r)
+        for _ in range(20):  # under way: the bare run starts from a moving arm, as the env's
+            env.step(zero)
+        mujoco.mj_setState(
+            env.model,
+            bare_data,
+            _state(env),
+            mujoco.mjtState.mjSTATE_INTEGRATION,
+        )
+        start = time.perf_counter()
+        for _ in range(env_steps):
+            env.step(zero)
+        best_env = max(best_env, env_steps * n_sub / (time.perf_counter() - start))
+        start = time.perf_counter()
+        for _ in range(env_steps):
+            mujoco.mj_step(env.model, bare_data, nstep=n_sub)
+        best_bare = max(best_bare, env_steps * n_sub / (time.perf_counter() - start))
+    env.close()
+    return best_env, best_bare, best_env / best_bare
+
+
+def _state(env: StudyEnv) -> np.ndarray:
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    out = np.empty(mujoco.mj_stateSize(env.model, spec))
+    mujoco.mj_getState(env.model, env.data, out, spec)
+    return out
+
+
+def realtime_factor(task: int, repeats: int, version: str = "v0") -> tuple[float, dict]:
+    """(best simulated s / wall s over ``repeats`` episodes, the last episode's summary)."""
+    import torch
+    from strol_gym.wrappers import OnlineLearningWrapper
+
+    torch.set_num_threads(1)
+    env = OnlineLearningWrapper(
+        gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
+    )
+    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    best, summary = 0.0, {}
+    for r in range(repeats):
+        env.reset(seed=SEED + r)
+        start = time.perf_counter()
+        truncated = False
+        while not truncated:
+            _, _, _, truncated, info = env.step(zero)
+        wall = time.perf_counter() - start
+        best = max(best, info["time"] / wall)
+        summary = {
+            "sim_s": round(info["time"], 2),
+            "wall_s": round(wall, 2),
+            "corrections": info["corrections"],
+            "correction_time_s": round(info["correction_time"], 2),
+            "error": round(info["error"], 3),
+            "regret": round(info["regret"], 3),
+        }
+    env.close()
+    return best, summary
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--task", type=int, default=1, choices=(1, 2, 3))
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--version", default="v1", choices=("v0", "v1"), help="the env version")
+    args = p.parse_args()
+    load = os.getloadavg()
+    print(f"StROL-Study-{args.version} task {args.task}; load average before: {load[0]:.2f}")
+    env_rate, bare_rate, ratio = physics_ratio(args.task, args.repeats, version=args.version)
+    print(
+        f"physics overhead: env {env_rate:,.0f} physics steps/s, bare mj_step "
+        f"{bare_rate:,.0f}/s, ratio {ratio:.2f} (target >= 0.50)"
+    )
+    factor, summary = realtime_factor(args.task, args.repeats, args.version)
+    print(
+        f"60 s episode, simulated user + StROL: {factor:.1f}x real time (target >= 30); {summary}"
+    )
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
