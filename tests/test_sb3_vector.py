@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -12,8 +9,6 @@ import torch
 
 import strol_gym  # noqa: F401
 from strol_gym.sb3 import SB3VecEnv
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 
 @pytest.fixture
@@ -25,7 +20,7 @@ def one_torch_thread():
 
 
 def test_ppo_return_rises_above_random_on_held_out_seeds(one_torch_thread):
-    from example_sb3_vector import train_and_compare
+    from strol_gym.benchmarks.examples.sb3_vector import train_and_compare
 
     # θ* fixed near (0.8, −0.8): reach the plate, avoid the cup. A policy can learn that from
     # the state alone within a few thousand steps; a random policy cannot.
