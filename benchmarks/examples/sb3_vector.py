@@ -1,6 +1,6 @@
 """PPO (stable-baselines3) on the native vector Robot env, in one process.
 
-    .venv/bin/python benchmarks/examples/sb3_vector.py [--envs 64] [--steps 20000] [--learner L]
+    .venv/bin/python -m strol_gym.benchmarks.examples.sb3_vector [--envs 64] [--steps 20000]
 
 ``gymnasium.make_vec("StROL-Robot-v0", vectorization_mode="vector_entry_point")`` steps N arms
 at once; ``VectorOnlineLearningWrapper`` gives each sub-env its online learner (θ̂ in

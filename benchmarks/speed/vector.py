@@ -1,6 +1,6 @@
 """Speed of the native vector envs beside the single envs, one process pinned to one core.
 
-    .venv/bin/python benchmarks/speed/vector.py [--envs 1024] [--seconds 3] [--repeats 2]
+    .venv/bin/python -m strol_gym.benchmarks.speed.vector [--envs 1024] [--seconds 3] [--repeats 2]
 
 Rows, for StROL-Robot-v0 and StROL-Highway-v0, without a human (``n_corrections=0``: the
 simulator and bookkeeping) and with the default human (eq. M6, 512 candidates, for the first

@@ -1,6 +1,6 @@
 """How often a sub-env of the native vector env departs from the single env (near-ties).
 
-    .venv/bin/python benchmarks/speed/vector_divergence.py [--seeds 1000] [--env robot|highway|both]
+    .venv/bin/python -m strol_gym.benchmarks.speed.vector_divergence [--seeds 1000] [--env both]
 
 For each seed s in 0..seeds−1: one whole episode of the single env (``gymnasium.make``, reset
 with seed s) and sub-env s of one vector env of ``seeds`` sub-envs (``gymnasium.make_vec``,
