@@ -10,8 +10,9 @@ the human's choice, the dynamics, φ and the bookkeeping run on arrays of all su
 Conventions are gymnasium's ``SyncVectorEnv`` ones: ``reset(seed=s)`` seeds sub-env i with
 s + i; autoreset is ``NEXT_STEP`` (the step after an episode ends resets that sub-env and returns
 its first observation with reward 0); info is a dict of arrays, each with its ``_key`` mask, and
-the ``features`` dict nested the same way. A subclass supplies the simulator: the per-sub-env
-draws of a reset, placing sub-envs at their start states, and one batched step.
+the ``features`` dict nested the same way. The draws of a reset are the single env's own hooks
+(``_draw_start``, ``_start_override``), called per sub-env; a subclass supplies the batched
+simulator: placing sub-envs at their start states, and one step.
 """
 
 from __future__ import annotations
@@ -80,12 +81,6 @@ class VectorCorrectionEnv(VectorEnv):
         )
 
     # ------------------------------------------------------------------ subclass hooks
-    def _draw_episode(
-        self, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray, np.random.Generator]:
-        """One sub-env's (θ*, x0, the human's generator), drawn as the single env's reset does."""
-        raise NotImplementedError
-
     def _place_rows(self, rows: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, dict]:
         """Put sub-envs ``rows`` at their starts: (the states reached, the extra reset info)."""
         raise NotImplementedError
@@ -95,10 +90,6 @@ class VectorCorrectionEnv(VectorEnv):
     ) -> tuple[np.ndarray, np.ndarray, dict]:
         """One step of sub-envs ``rows``: (next states, terminated, extra info)."""
         raise NotImplementedError
-
-    def _override_state(self, x: np.ndarray) -> np.ndarray:
-        """A ``reset(options={"state": x})`` start as the single env uses it."""
-        return x
 
     # ------------------------------------------------------------------ θ̂
     def set_theta_hat(self, theta_hat: np.ndarray) -> None:
@@ -160,11 +151,14 @@ class VectorCorrectionEnv(VectorEnv):
         t = self.template
         x0 = np.empty((len(rows), self.task.state_dim))
         for k, i in enumerate(rows):
-            theta, x0[k], human_rng = self._draw_episode(self._rngs[i])
+            # The single env's own draws, in its order: θ*, then its start and human generator.
+            rng = self._rngs[i]
+            theta = self.task.prior.sample(rng, 1)[0]
+            x0[k], human_rng = t._draw_start(rng)
             if theta_override is not None:
                 theta = theta_override
             if x_override is not None:
-                x0[k] = self._override_state(x_override)
+                x0[k] = t._start_override(x_override)
             self.theta_star[i] = theta
             # A human that never acts draws nothing: with n_corrections = 0 it is not built.
             self.humans[i] = self._make_human(theta, human_rng) if self.n_corrections else None

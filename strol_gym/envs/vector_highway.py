@@ -100,12 +100,6 @@ class VectorHighwayEnv(VectorCorrectionEnv):
         self._has_impact = np.zeros(self.num_envs, dtype=bool)
         self._diagonal = float(np.hypot(Vehicle.LENGTH, Vehicle.WIDTH))
 
-    def _draw_episode(self, rng):
-        theta_star = self.task.prior.sample(rng, 1)[0]
-        x0 = self.task.sample_episode_start(rng, 1)[0]
-        human_rng = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
-        return theta_star, x0, human_rng
-
     def _place_rows(self, rows: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, dict]:
         self._impact[rows] = 0.0
         self._has_impact[rows] = False

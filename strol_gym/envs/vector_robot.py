@@ -32,14 +32,6 @@ class VectorRobotEnv(VectorCorrectionEnv):
         self.ik = BatchedPandaIK(self.template._ik, self.num_envs)
         self._x[:] = self.ik.ee
 
-    def _draw_episode(self, rng):
-        theta_star = self.task.prior.sample(rng, 1)[0]
-        x0 = self.task.sample_start(rng, 1)[0]
-        return theta_star, x0, rng
-
-    def _override_state(self, x: np.ndarray) -> np.ndarray:
-        return np.clip(x, self.task.workspace_low, self.task.workspace_high)
-
     def _place_rows(self, rows: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, dict]:
         """``RobotEnv.move_to`` for each row: from the nearest seed, 2 x IK_ITERS iterations."""
         ref = self.ik.reference(x0)
