@@ -6,7 +6,11 @@ import gymnasium as gym
 
 ENV_SPECS: dict[str, dict] = {
     # gymnasium's TimeLimit ends episodes: 10 steps unless make(..., max_episode_steps=N).
-    "StROL-Robot-v0": {"entry_point": "strol_gym.envs.robot:RobotEnv", "max_episode_steps": 10},
+    "StROL-Robot-v0": {
+        "entry_point": "strol_gym.envs.robot:RobotEnv",
+        "vector_entry_point": "strol_gym.envs.vector_robot:VectorRobotEnv",
+        "max_episode_steps": 10,
+    },
     # The study env truncates itself after 60 s of simulated time (1200 steps of 0.05 s).
     # v0 is kept for the published results; gymnasium warns on make that v1 supersedes it.
     "StROL-Study-v0": {"entry_point": "strol_gym.envs.study:StudyEnv", "max_episode_steps": 1200},
@@ -16,6 +20,7 @@ ENV_SPECS: dict[str, dict] = {
     },
     "StROL-Highway-v0": {
         "entry_point": "strol_gym.envs.highway:HighwayEnv",
+        "vector_entry_point": "strol_gym.envs.vector_highway:VectorHighwayEnv",
         "max_episode_steps": 10,
     },
 }
@@ -29,4 +34,5 @@ def register_envs() -> None:
                 id=env_id,
                 entry_point=spec["entry_point"],
                 max_episode_steps=spec["max_episode_steps"],
+                vector_entry_point=spec.get("vector_entry_point"),
             )
