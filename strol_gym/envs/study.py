@@ -358,16 +358,10 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         return step, (dx / dt, dy / dt, dz / dt, rx / dt, ry / dt, rz / dt)
 
     # ------------------------------------------------------------------ physics
-    def _simulate(self, v_sp: Velocity) -> None:
-        """One control step of physics; the impedance torque is recomputed every ``HOLD`` steps.
-
-        τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints; e = setpoint − pose
-        (orientation error as the rotation vector's small-angle form). v_sp, the setpoint's
-        velocity, is a feedforward term so that the arm does not lag its plan.
-        """
-        m, d = self.model, self.data
+    def _push_at_cup(self) -> None:
+        """Hold the person's wrench on the hand: it acts at the cup, so add its lever's torque."""
         fx, fy, fz, tx, ty, tz = self._wrench.tolist()
-        if fx or fy or fz or tx or ty or tz:  # the push acts at the cup: add its lever's torque
+        if fx or fy or fz or tx or ty or tz:
             lx, ly, lz = (self._site_xpos - self._hand_xipos).tolist()
             self._hand_xfrc[:] = (
                 fx,
@@ -379,6 +373,16 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
             )
         else:
             self._hand_xfrc[:] = 0.0
+
+    def _simulate(self, v_sp: Velocity) -> None:
+        """One control step of physics; the impedance torque is recomputed every ``HOLD`` steps.
+
+        τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints; e = setpoint − pose
+        (orientation error as the rotation vector's small-angle form). v_sp, the setpoint's
+        velocity, is a feedforward term so that the arm does not lag its plan.
+        """
+        m, d = self.model, self.data
+        self._push_at_cup()
         jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
         q, qd, qd_all, q_home = self._qpos, self._qvel, self._qvel_all, self._q_home_list
         xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R

@@ -259,19 +259,7 @@ class StudyEnvV1(StudyEnv):
             mujoco.mj_comPos(m, d)
             self._time += CONTROL_DT
             return
-        fx, fy, fz, tx, ty, tz = self._wrench.tolist()
-        if fx or fy or fz or tx or ty or tz:
-            lx, ly, lz = (self._site_xpos - self._hand_xipos).tolist()
-            self._hand_xfrc[:] = (
-                fx,
-                fy,
-                fz,
-                tx + (ly * fz - lz * fy),
-                ty + (lz * fx - lx * fz),
-                tz + (lx * fy - ly * fx),
-            )
-        else:
-            self._hand_xfrc[:] = 0.0
+        self._push_at_cup()
         jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
         q, qd = self._qpos, self._qvel
         xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R
