@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
-from strol_gym.benchmarks import cli
+from cli_checks import cli_error
 from strol_gym.benchmarks.engine.config import MAX_RUNS, paper_config
 from strol_gym.benchmarks.engine.results import LOCK, META, RECORDS, ResultsDir, ResultsError
 
@@ -221,20 +221,6 @@ def test_every_shipped_checkpoint_loads():
 
 
 # ---------------------------------------------------------------------- CLI
-def _cli_error(argv, capsys) -> str:
-    """Run the CLI expecting status 2 and one error line without a traceback; returns it."""
-    try:
-        code = cli.main(argv)
-    except SystemExit as e:
-        code = e.code
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert "Traceback" not in err
-    lines = [ln for ln in err.splitlines() if "error:" in ln]  # argparse adds a usage block
-    assert len(lines) == 1, err
-    return lines[0]
-
-
 TINY = ["--env", "robot", "--runs", "1", "--corrections", "1", "--quiet", "--no-plots"]
 
 
@@ -242,7 +228,7 @@ TINY = ["--env", "robot", "--runs", "1", "--corrections", "1", "--quiet", "--no-
 def test_runs_above_the_maximum_are_refused_before_any_folder(command, tmp_path, capsys):
     out = tmp_path / "out"
     argv = [command, "--env", "robot", "--runs", str(10**12), "--out", str(out)]
-    assert f"--runs must be an integer in [1, {MAX_RUNS}]" in _cli_error(argv, capsys)
+    assert f"--runs must be an integer in [1, {MAX_RUNS}]" in cli_error(argv, capsys)
     assert not out.exists()
 
 
@@ -264,7 +250,7 @@ def test_broken_learner_modules_exit_2_with_one_line(module, tmp_path, monkeypat
     monkeypatch.syspath_prepend(str(tmp_path))
     out = tmp_path / "out"
     argv = ["run", *TINY, "--learners", f"{module}:make", "--jobs", "1", "--out", str(out)]
-    line = _cli_error(argv, capsys)
+    line = cli_error(argv, capsys)
     assert f"{module}:make" in line and message in line
     assert not out.exists()
 
@@ -274,7 +260,7 @@ def test_out_to_an_unwritable_path_exits_2(tmp_path, capsys):
     blocker.write_text("not a folder")
     out = blocker / "results"
     argv = ["run", *TINY, "--learners", "gradient", "--jobs", "1", "--out", str(out)]
-    assert f"--out {out}: cannot write" in _cli_error(argv, capsys)
+    assert f"--out {out}: cannot write" in cli_error(argv, capsys)
 
 
 @pytest.mark.parametrize("name", ["a_file/x.pt", "weights.txt"])
@@ -287,7 +273,7 @@ def test_train_out_is_checked_before_training(name, tmp_path, monkeypatch, capsy
         raise AssertionError("training started before --out was checked")
 
     monkeypatch.setattr(training, "train_correction", no_training)
-    line = _cli_error(["train", "--steps", "1", "--out", str(tmp_path / name)], capsys)
+    line = cli_error(["train", "--steps", "1", "--out", str(tmp_path / name)], capsys)
     assert "--out" in line
 
 
@@ -351,7 +337,7 @@ def test_report_on_a_config_with_a_number_for_a_mapping(where, tmp_path, capsys)
     else:
         meta["config"]["experiments"][0]["condition"] = 5
     (tmp_path / "r" / META).write_text(json.dumps(meta))
-    assert str(tmp_path / "r" / META) in _cli_error(["report", str(tmp_path / "r")], capsys)
+    assert str(tmp_path / "r" / META) in cli_error(["report", str(tmp_path / "r")], capsys)
 
 
 def test_binary_meta_json_is_named_in_the_error(tmp_path, capsys):
@@ -359,7 +345,7 @@ def test_binary_meta_json_is_named_in_the_error(tmp_path, capsys):
     (tmp_path / "r" / META).write_bytes(bytes(range(256)))
     with pytest.raises(ResultsError, match=str(tmp_path / "r" / META)):
         ResultsDir.open(tmp_path / "r", _config())
-    assert str(tmp_path / "r" / META) in _cli_error(["report", str(tmp_path / "r")], capsys)
+    assert str(tmp_path / "r" / META) in cli_error(["report", str(tmp_path / "r")], capsys)
 
 
 def test_a_corrupt_record_never_leaves_meta_complete(tmp_path):

@@ -25,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
+from cli_checks import cli_error
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.engine import results, runner
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
@@ -83,20 +84,6 @@ def _cli(args, cwd=None, env=None, timeout=240, **kw) -> subprocess.CompletedPro
     )
 
 
-def _cli_error(argv, capsys) -> str:
-    """In-process CLI call expecting status 2 and one error line without a traceback."""
-    try:
-        code = cli.main(argv)
-    except SystemExit as e:
-        code = e.code
-    err = capsys.readouterr().err
-    assert code == 2, err
-    assert "Traceback" not in err
-    lines = [ln for ln in err.splitlines() if "error:" in ln]
-    assert len(lines) == 1, err
-    return lines[0]
-
-
 # ---------------------------------------------------------------------- 1. a learner that raises
 @pytest.mark.parametrize("jobs", ["1", "2"])
 def test_a_learner_raising_mid_run_is_named_with_its_run_seed_and_the_folder_resumes(
@@ -147,7 +134,7 @@ def test_replay_names_a_learner_that_raises_with_episode_and_correction(tmp_path
 # ---------------------------------------------------------------------- 2. train's output
 def test_train_refuses_an_unwritable_out_before_any_work(capsys):
     t0 = time.perf_counter()
-    line = _cli_error(["train", "--out", "/proc/x.pt", "--steps", "500"], capsys)
+    line = cli_error(["train", "--out", "/proc/x.pt", "--steps", "500"], capsys)
     assert "--out /proc/x.pt" in line and "cannot write in /proc" in line
     assert time.perf_counter() - t0 < 30  # refused before training (500 steps take longer)
 
@@ -229,7 +216,7 @@ def test_save_writes_weights_and_sidecar_together(tmp_path):
 )
 def test_sizes_above_their_fixed_cap_are_refused_at_once(argv, flag, cap, capsys, tmp_path):
     t0 = time.perf_counter()
-    line = _cli_error([*argv, "--out", str(tmp_path / "x.pt")], capsys)
+    line = cli_error([*argv, "--out", str(tmp_path / "x.pt")], capsys)
     assert f"{flag} must be at most {cap:,}" in line and "--allow-large" in line
     assert time.perf_counter() - t0 < 30
     assert list(tmp_path.iterdir()) == []
@@ -313,7 +300,7 @@ def test_bayes_refuses_a_nan_posterior(name, key):
 # ---------------------------------------------------------------------- 6. basin's θ*
 def test_basin_refuses_a_theta_star_whose_errors_overflow(capsys, tmp_path):
     argv = ["basin", "--theta-star", "1e308,1e308", "--grid", "3", "--steps", "2"]
-    line = _cli_error([*argv, "--out", str(tmp_path / "b"), "--no-plots"], capsys)
+    line = cli_error([*argv, "--out", str(tmp_path / "b"), "--no-plots"], capsys)
     assert "theta_star must be 2 numbers in [-1e+06, 1e+06]" in line
     assert not (tmp_path / "b").exists()
     m = basin_map(ROBOT, "gradient", 3, theta_star=[1e6, -1e6], steps=1)
@@ -335,7 +322,7 @@ def test_a_binary_record_is_named(tmp_path, capsys):
     with pytest.raises(ResultsError, match=str(rd.record_path(unit)) + r" is corrupt"):
         rd.read_records()
     rd.finish_session("t", 1.0, 0, 1)
-    assert str(rd.record_path(unit)) in _cli_error(["report", str(tmp_path / "r")], capsys)
+    assert str(rd.record_path(unit)) in cli_error(["report", str(tmp_path / "r")], capsys)
 
 
 def test_a_full_disk_names_the_file_and_leaves_no_temporary(tmp_path, monkeypatch):
@@ -355,7 +342,7 @@ def test_a_full_disk_names_the_file_and_leaves_no_temporary(tmp_path, monkeypatc
 
 def test_replay_out_that_cannot_be_created_is_named(tmp_path, capsys):
     log = _session_log(tmp_path / "s.jsonl")
-    line = _cli_error(["replay", str(log), "--learners", "gradient", "--out", "/proc/rp"], capsys)
+    line = cli_error(["replay", str(log), "--learners", "gradient", "--out", "/proc/rp"], capsys)
     assert "--out /proc/rp: cannot create this folder" in line
 
 
@@ -470,7 +457,7 @@ def _alive(pid: int) -> bool:
 
 # ---------------------------------------------------------------------- 11. accepted by mistake
 def test_empty_out_is_refused(capsys):
-    assert "--out must name a path" in _cli_error(["paper", "--out", ""], capsys)
+    assert "--out must name a path" in cli_error(["paper", "--out", ""], capsys)
     parser = add_train_arguments(argparse.ArgumentParser())
     with pytest.raises(ValueError, match=r"--out must be a file ending in \.pt"):
         run_train(parser.parse_args(["--out", ""]))
@@ -478,7 +465,7 @@ def test_empty_out_is_refused(capsys):
 
 def test_train_refuses_sigma_in_human_kwargs(capsys, tmp_path):
     argv = ["train", "--human-kwargs", '{"sigma": "x"}', "--out", str(tmp_path / "w.pt")]
-    assert "human_kwargs must not hold ['sigma']" in _cli_error(argv, capsys)
+    assert "human_kwargs must not hold ['sigma']" in cli_error(argv, capsys)
 
 
 @pytest.mark.parametrize("env_id", ["StROL-Robot-v0", "StROL-Highway-v0"])
