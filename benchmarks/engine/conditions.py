@@ -14,6 +14,7 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from strol_gym.envs.human_spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.registry import Registry
 
@@ -46,20 +47,27 @@ class Condition:
     def __post_init__(self) -> None:
         if not self.name or not isinstance(self.name, str):
             raise ValueError(f"condition name must be a non-empty string, got {self.name!r}")
-        if not (math.isfinite(self.sigma) and self.sigma >= 0):
-            raise ValueError(f"sigma (noise) must be a finite number >= 0, got {self.sigma}")
-        if not math.isfinite(self.bias):
-            raise ValueError(f"bias must be a finite number, got {self.bias}")
+        beta = DEFAULT_BETA if self.beta is None else self.beta
+        check_shared(self.sigma, self.bias, beta)  # the human's own checks, named as the env's
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
         if self.human is not None and (not isinstance(self.human, str) or not self.human):
             raise ValueError(
                 f"human must be a registered human's name or 'module:attr', got {self.human!r}"
             )
-        if self.beta is not None and not (math.isfinite(self.beta) and self.beta >= 0):
-            raise ValueError(f"beta must be a finite number >= 0, got {self.beta}")
         if self.human_kwargs is not None and not isinstance(self.human_kwargs, dict):
             raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
+
+    def human_spec(self) -> HumanSpec:
+        """The condition's human as the envs take it (the env's default model when unset);
+        resolves the model, so a user's human must be registered by then."""
+        return HumanSpec(
+            self.human or DEFAULT_HUMAN,
+            self.sigma,
+            self.bias,
+            DEFAULT_BETA if self.beta is None else self.beta,
+            dict(self.human_kwargs or {}),
+        )
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments for ``gymnasium.make`` (the env contract in docs/extending.md)."""
