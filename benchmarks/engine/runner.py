@@ -38,7 +38,7 @@ from strol_gym.benchmarks.engine.results import ResultsDir
 
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import make_learner
-from strol_gym.metrics import cosine_error, episode_regret, error, info_metrics
+from strol_gym.metrics import cos_error, episode_regret, error, info_metrics
 from strol_gym.registry import install_specs
 
 # What a record depends on besides the run's config: every module of the strol_gym package
@@ -323,7 +323,7 @@ def _run_block(
         info = last_info[i]
         star = np.asarray(info["theta_star"], dtype=np.float64)
         errs = [error(star, t) for t in thetas[i]]
-        coss = [cosine_error(star, t) for t in thetas[i]]
+        coss = [cos_error(star, t) for t in thetas[i]]
         records.append(
             {
                 "env": env,
