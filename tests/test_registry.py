@@ -22,7 +22,8 @@ from strol_gym.benchmarks.engine.conditions import (
     register_env_preset,
 )
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
-from strol_gym.benchmarks.engine.runner import _Worker, run_benchmark
+from strol_gym.benchmarks.engine.runner import run_benchmark
+from strol_gym.benchmarks.engine.worker import Worker as _Worker
 from strol_gym.wrappers import OnlineLearningWrapper
 
 import strol_gym

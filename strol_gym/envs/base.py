@@ -138,6 +138,9 @@ class CorrectionEnv:
         self.height = int_arg("height", h if height is None else height, 16, 4096)
         self._x = np.zeros(self.task.state_dim)
         self._setup()
+        # A simulator that resets itself while it is built (highway-env does) has not started
+        # the caller's episode: step() before the caller's reset() raises in every env.
+        self._started = False
 
     # ------------------------------------------------------------------ the env's hooks
     def _setup(self) -> None:
