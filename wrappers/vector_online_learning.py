@@ -6,18 +6,19 @@ from typing import Any
 
 import numpy as np
 from gymnasium.vector import VectorEnv, VectorWrapper
-from strol_gym.wrappers.online_learning import cos_error, episode_regret
+from strol_gym.wrappers.online_learning import episode_regret
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
+from strol_gym.metrics import cos_error, error
 
 FIXED_STATE = frozenset({"name", "task_id", "config", "arch", "model"})
 """``state_dict`` keys that do not change as a learner learns (its configuration, ĝ's weights)."""
 
 
-def _cos_errors(theta_star: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
-    """Row-wise 1 − cos(θ*, θ̂), 1.0 where either is zero (``cos_error`` of each row)."""
-    return np.array([cos_error(s, h) for s, h in zip(theta_star, theta_hat, strict=True)])
+def _rows(metric: Any, theta_star: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+    """A metric of ``strol_gym.metrics`` for each row (the single wrapper's definition)."""
+    return np.array([metric(s, h) for s, h in zip(theta_star, theta_hat, strict=True)])
 
 
 class VectorOnlineLearningWrapper(VectorWrapper):
@@ -155,8 +156,8 @@ class VectorOnlineLearningWrapper(VectorWrapper):
             theta_star = np.asarray(info["theta_star"], dtype=np.float64)[end]
             theta_hat = self.theta[end]
             scores = {
-                "error": np.linalg.norm(theta_star - theta_hat, axis=-1),
-                "cos_error": _cos_errors(theta_star, theta_hat),
+                "error": _rows(error, theta_star, theta_hat),
+                "cos_error": _rows(cos_error, theta_star, theta_hat),
             }
             if self.score_regret:
                 scores["regret"] = np.array(
