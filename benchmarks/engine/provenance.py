@@ -20,6 +20,7 @@ BENCHMARK_CODE = (
     "engine.config",
     "engine.conditions",
     "engine.episodes",
+    "engine.robots",
     "engine.study_authors",
     "engine.worker",
 )

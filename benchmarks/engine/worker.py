@@ -3,20 +3,16 @@ to unit, that runs a unit of work (a block of run seeds × every learner) into r
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.episodes import run_block, score_regret
 from strol_gym.benchmarks.engine.kernels import kernel_label
+from strol_gym.benchmarks.engine.robots import robot_policy
 
 from strol_gym.learners.registry import make_learner
 from strol_gym.registry import install_specs
-
-Policy = Callable[[np.ndarray, np.ndarray], np.ndarray]
-"""The robot's action for a batch of states and θ̂s: (B, s), (B, d) -> (B, a)."""
 
 
 class Worker:
@@ -58,7 +54,7 @@ class Worker:
         n = len(unit.seeds)
         self._prepare(unit.experiment, n)
         task = self._envs[0].unwrapped.task
-        policy = robot_policy(exp.env, task)
+        policy = robot_policy(env_preset(exp.env).robot, task)
         runs = [
             (lr, seed, wrapped)
             for lr in self.config.learners
@@ -70,41 +66,3 @@ class Worker:
         for r in out:
             r["kernels"] = label
         return out
-
-
-class MemoPolicy:
-    """``task.robot_policy`` on a batch, planning each distinct row once per unit.
-
-    The policy is a deterministic function of (x, θ̂). At step 0 every learner of a run has the
-    same start state and θ̂0, so only one of them pays for that plan. Rows are compared by their
-    exact bytes, and a row's plan does not depend on the rest of its batch (``Task.plan``), so
-    a remembered answer is the very number a fresh call would give.
-    """
-
-    def __init__(self, task: Any) -> None:
-        self.task = task
-        self.cache: dict[bytes, np.ndarray] = {}
-
-    def __call__(self, x: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        keys = [a.tobytes() + b.tobytes() for a, b in zip(x, theta, strict=True)]
-        todo: dict[bytes, int] = {}
-        for i, k in enumerate(keys):
-            if k not in self.cache:
-                todo.setdefault(k, i)
-        if todo:
-            rows = list(todo.values())
-            u = np.asarray(self.task.robot_policy(x[rows], theta[rows]), dtype=np.float64)
-            self.cache.update(zip(todo, u.reshape(len(rows), -1), strict=True))
-        return np.stack([self.cache[k] for k in keys])
-
-
-def zero_policy(x: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """Action zero for every row: an env that drives its own robot (the study env's robot
-    follows its plan for θ̂; the action is a residual on it) runs as the paper's robot."""
-    return np.zeros_like(x)
-
-
-def robot_policy(env: str, task: Any) -> Policy:
-    """How the robot of env preset ``env`` acts in a block (its ``robot``): the Task's policy,
-    planned once per distinct row, or zeros for an env that drives its own robot."""
-    return MemoPolicy(task) if env_preset(env).robot == "task" else zero_policy

@@ -216,10 +216,10 @@ def export_runs(
     import tempfile
 
     import gymnasium as gym
-    from strol_gym.benchmarks.engine.conditions import make_condition
+    from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
     from strol_gym.benchmarks.engine.config import Experiment
     from strol_gym.benchmarks.engine.episodes import run_block
-    from strol_gym.benchmarks.engine.worker import robot_policy
+    from strol_gym.benchmarks.engine.robots import robot_policy
     from strol_gym.wrappers import OnlineLearningWrapper
     from strol_gym.wrappers.session_log import SessionLogger
 
@@ -236,7 +236,7 @@ def export_runs(
     )
     genv = gym.make(exp.env_id, **exp.env_kwargs())
     model = make_learner(learner, task=genv.unwrapped.task, **(learner_kwargs or {}))
-    policy = robot_policy(env, genv.unwrapped.task)
+    policy = robot_policy(env_preset(env).robot, genv.unwrapped.task)
     extra = {
         "benchmark": {
             "env": env,

@@ -96,14 +96,15 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strol_gym.benchmarks.analysis.plots import _color
+    from strol_gym.benchmarks.analysis.plots import learner_color
 
     names = session.header["task_describe"]["feature_names"]
     fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 2.8), squeeze=False)
     star = session.episodes[-1].theta_star
     for i, ax in enumerate(axes[0]):
-        for k, (name, curves) in enumerate(results.items()):
-            ax.plot(curves[-1][:, i], marker=".", color=_color(k, name), label=display_name(name))
+        for name, curves in results.items():
+            color, label = learner_color(name), display_name(name)
+            ax.plot(curves[-1][:, i], marker=".", color=color, label=label)
         if star is not None:
             ax.axhline(star[i], color="k", ls="--", lw=1, label="θ*")
         ax.set_title(f"θ̂ {names[i]}")
