@@ -157,22 +157,12 @@ class EnvPreset:
 
 
 ENV_PRESETS: dict[str, EnvPreset] = {
-    "robot": EnvPreset(
-        key="robot",
-        env_id="StROL-Robot-v0",
-        runs=100,
-        n_corrections=5,
-        training_sigma=0.25,
-        primary_metric="regret",
-    ),
-    "highway": EnvPreset(
-        key="highway",
-        env_id="StROL-Highway-v0",
-        runs=250,
-        n_corrections=10,
-        training_sigma=0.10,
-        primary_metric="error",
-    ),
+    key: EnvPreset(key, env_id, runs, n_corrections, training_sigma, metric)
+    for key, env_id, runs, n_corrections, training_sigma, metric in (
+        # The paper's envs: run count, correction steps, training noise, primary metric.
+        ("robot", "StROL-Robot-v0", 100, 5, 0.25, "regret"),
+        ("highway", "StROL-Highway-v0", 250, 10, 0.10, "error"),
+    )
 }
 
 
