@@ -70,14 +70,13 @@ def make_config(
 
 
 class Changing(BenchExperiment):
-    """The changing-preference simulation as an experiment."""
+    """changing preferences: the human teaches θ* for k corrections, then −θ*
+
+    The paper's changing-preference simulation with the five paper learners; scored against
+    the final preference.
+    """
 
     name = "changing"
-    help = "changing preferences: the human teaches θ* for k corrections, then −θ*"
-    description = (
-        "The paper's changing-preference simulation with the five paper learners; "
-        "scored against the final preference."
-    )
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:

@@ -232,14 +232,13 @@ def analyse(
 
 # ---------------------------------------------------------------------- the command
 class Confirm(BenchExperiment):
-    """The confirmatory protocol as an experiment."""
+    """the pre-registered confirmatory Robot test (docs/confirmatory.md)
+
+    Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other than the
+    protocol's make an exploratory run (for tests), labelled as such.
+    """
 
     name = "confirm"
-    help = "the pre-registered confirmatory Robot test (docs/confirmatory.md)"
-    description = (
-        "Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other "
-        "than the protocol's make an exploratory run (for tests), labelled as such."
-    )
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
