@@ -9,6 +9,7 @@ module given to ``--plugin`` is a subcommand like the built-in ones.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import sys
@@ -156,8 +157,30 @@ def _interrupted_at_start(signum: int, frame: Any) -> None:
     os._exit(130)
 
 
+def _quiet_stdout() -> None:
+    """After the reader of our output went away (``| head``): point stdout at the null device,
+    so the interpreter's last flush at exit has nowhere to fail and prints nothing."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``strol-bench`` console script."""
+    """Entry point of the ``strol-bench`` console script. Output piped into a reader that
+    stops early (``strol-bench list | head``) ends quietly, with status 0: the output is flushed
+    here, where a closed pipe can be caught, not at exit."""
+    try:
+        try:
+            status = _main(argv)
+        finally:  # also for argparse's --help, which exits
+            sys.stdout.flush()
+    except BrokenPipeError:
+        _quiet_stdout()
+        return 0
+    return status
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     # Only where Ctrl-C would raise KeyboardInterrupt (not in another thread, nor where it is
     # ignored, as for a background job)
@@ -186,9 +209,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ResultsError, LearnerFailed) as e:
         print(f"strol-bench: error: {e}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # output piped into `head` and the like: not an error
-        sys.stderr.close()
-        return 0
+    except BrokenPipeError:  # the reader of our output left (| head): main ends quietly
+        raise
     except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
         parser.exit(2, f"strol-bench: error: {e}\n")
     except KeyboardInterrupt:

@@ -3,7 +3,8 @@
 The wrapper reports them at the end of an episode, the benchmark runner records them per run
 (scoring regret for a whole block at once), and the reports, the study, the confirmatory test
 and the comparisons read their labels and directions from :data:`METRICS`. A user's env may
-report more episode totals in its last ``info``; ``register_metric`` makes them known.
+report more episode totals in its last ``info``; ``register_metric`` makes them known. A metric
+has one name everywhere: the wrapper's ``info`` key, the record's field and the CSV column.
 """
 
 from __future__ import annotations
@@ -86,7 +87,7 @@ def error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
     return float(np.linalg.norm(np.asarray(theta_star) - np.asarray(theta_hat)))
 
 
-def cosine_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
+def cos_error(theta_star: np.ndarray, theta_hat: np.ndarray) -> float:
     """1 − cos(θ*, θ̂); 1.0 (no directional information) when either vector is zero."""
     ns, nh = np.linalg.norm(theta_star), np.linalg.norm(theta_hat)
     if ns == 0 or nh == 0:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from strol_gym.registry import Registry
 
 
 @runtime_checkable
@@ -105,17 +107,54 @@ class FixedPrior:
         return self.thetas[rng.integers(0, len(self.thetas), size=n)]
 
 
+PriorFactory = Callable[[np.ndarray], Prior]
+"""A named prior: built from the Task's designer modes (k, d)."""
+
+
+def _bimodal(task_modes: np.ndarray) -> Prior:
+    """The designer's modes, equally likely (the paper's bimodal prior)."""
+    return MixturePrior(task_modes)
+
+
+def _uniform(task_modes: np.ndarray) -> Prior:
+    """θ* uniform over [−1, 1]^d (the benchmark's uniform-prior condition)."""
+    return UniformPrior(task_modes.shape[1])
+
+
+def _check_factory(name: str, factory: object) -> None:
+    if not callable(factory):
+        raise ValueError(
+            f"prior {name!r} must be a callable (task_modes) -> Prior or a 'module:attr' string, "
+            f"got {factory!r}"
+        )
+
+
+PRIOR_FACTORIES: dict[str, PriorFactory | str] = {"bimodal": _bimodal, "uniform": _uniform}
+"""The named priors; ``register_prior`` adds to it (through ``PRIORS``)."""
+PRIORS = Registry(
+    "prior", PRIOR_FACTORIES, check=_check_factory, hint=" naming a factory (task_modes) -> Prior"
+)
+
+
+def register_prior(name: str, factory: PriorFactory | str) -> None:
+    """Make ``factory(task_modes) -> Prior`` available as ``prior=name`` in the envs and as a
+    condition's prior in the benchmark (it may be a lazy ``"module:attr"`` string)."""
+    PRIORS.register(name, factory)
+
+
 def make_prior(spec: str | Prior | Sequence[Sequence[float]], task_modes: np.ndarray) -> Prior:
-    """Resolve a user's prior argument: "bimodal", "uniform", a Prior object, or explicit modes."""
+    """Resolve a user's prior argument: a registered name ("bimodal", "uniform", ...) or
+    "module:attr" of a factory, a Prior object, or explicit modes."""
     task_modes = np.atleast_2d(task_modes)
     if isinstance(spec, str):
-        if spec == "bimodal":
-            return MixturePrior(task_modes)
-        if spec == "uniform":
-            return UniformPrior(task_modes.shape[1])
-        raise ValueError(
-            f"prior must be 'bimodal', 'uniform', a Prior or an array of modes; got {spec!r}"
-        )
+        prior = PRIORS.get(spec)(task_modes)
+        if not isinstance(prior, Prior):
+            raise ValueError(f"prior {spec!r} gave {type(prior).__name__}, not a Prior")
+        if prior.dim != task_modes.shape[1]:
+            raise ValueError(
+                f"prior {spec!r} has dim {prior.dim}, the task needs {task_modes.shape[1]}"
+            )
+        return prior
     if isinstance(spec, Prior):
         if spec.dim != task_modes.shape[1]:
             raise ValueError(f"prior has dim {spec.dim}, the task needs {task_modes.shape[1]}")

@@ -151,3 +151,21 @@ def test_an_experiment_of_ones_own_is_one_plugin_file(tmp_path, capsys):
         if "squares-test" in EXPERIMENTS:
             EXPERIMENTS.unregister("squares-test")
         sys.modules.pop("squares_plugin", None)
+
+
+@pytest.mark.parametrize("argv", [["list"], ["--help"], ["paper", "--help"]])
+def test_output_into_a_closed_pipe_ends_quietly(argv):
+    """``strol-bench list | head``: the reader leaves early; no broken-pipe message, status 0."""
+    import os
+    import subprocess
+    import sys
+
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        cmd = [sys.executable, "-m", "strol_gym.benchmarks", *argv]
+        done = subprocess.run(cmd, stdout=write, stderr=subprocess.PIPE, timeout=120)
+    finally:
+        os.close(write)
+    assert done.returncode == 0
+    assert done.stderr.decode() == ""

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from strol_gym.benchmarks.engine.config import BenchConfig, paper_config
 from strol_gym.benchmarks.engine.results import ResultsDir
-from strol_gym.benchmarks.engine.runner import _Worker, run_benchmark
+from strol_gym.benchmarks.engine.runner import run_benchmark
+from strol_gym.benchmarks.engine.worker import Worker as _Worker
 
 GRADIENT_COPY = "strol_gym.learners.rules:GradientLearner"
 """Gradient again, by module:attr: its records must equal Gradient's if the draws are paired."""

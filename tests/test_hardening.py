@@ -27,7 +27,8 @@ import pytest
 import torch
 from cli_checks import cli_error
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.engine import results, runner
+from strol_gym.benchmarks.engine import pool as engine_pool
+from strol_gym.benchmarks.engine import results
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.results import LOCK, META, ResultsDir, ResultsError
 from strol_gym.benchmarks.train import add_train_arguments, run_train
@@ -406,7 +407,7 @@ def test_pool_workers_start_with_sigint_ignored():
     import multiprocessing as mp
 
     ctx = mp.get_context("spawn")
-    with runner._sigint_ignored():
+    with engine_pool._sigint_ignored():
         pool = ctx.Pool(1)
     with pool:
         assert pool.apply(signal.getsignal, (signal.SIGINT,)) == signal.SIG_IGN
@@ -418,11 +419,11 @@ import multiprocessing as mp
 import os
 import time
 
-from strol_gym.benchmarks.engine import runner
+from strol_gym.benchmarks.engine import pool as runner_pool
 
 if __name__ == "__main__":
     pool = mp.get_context("spawn").Pool(
-        1, initializer=runner._die_with_parent, initargs=(os.getpid(),)
+        1, initializer=runner_pool._die_with_parent, initargs=(os.getpid(),)
     )
     print(pool.apply(os.getpid), flush=True)
     time.sleep(120)

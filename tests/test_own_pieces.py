@@ -1,4 +1,4 @@
-"""Issue 12's "done when": a researcher's learner, human and Task, each in its own file outside
+"""A researcher's learner, human and Task, each in its own file outside
 the package, run by name through gymnasium.make, the wrapper and `strol-bench run --jobs 2`."""
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
-from strol_gym.benchmarks.engine.runner import DATA_FILES, code_fingerprint
+from strol_gym.benchmarks.engine.provenance import DATA_FILES, code_fingerprint
 
 ROOT = Path(__file__).resolve().parents[1]
 # what a clean clone does not have: build products, caches, venvs and results

@@ -22,7 +22,8 @@ from strol_gym.benchmarks.engine.conditions import (
     register_env_preset,
 )
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
-from strol_gym.benchmarks.engine.runner import _Worker, run_benchmark
+from strol_gym.benchmarks.engine.runner import run_benchmark
+from strol_gym.benchmarks.engine.worker import Worker as _Worker
 from strol_gym.wrappers import OnlineLearningWrapper
 
 import strol_gym
@@ -52,9 +53,11 @@ def registered():
 
 def test_every_registry_lists_its_built_ins_and_rejects_unknown_names():
     regs = registries()
-    assert set(regs) == {"env", "learner", "human", "task", "condition"}
+    assert set(regs) == {"env", "learner", "human", "task", "condition", "prior", "robot"}
     assert regs["learner"].names()[:5] == ["gradient", "one", "mof", "e2e", "strol"]
     assert "nominal" in regs["human"] and "robot" in regs["task"]
+    assert regs["prior"].names()[:2] == ["bimodal", "uniform"]
+    assert regs["robot"].names()[:2] == ["task", "zeros"]
     for kind, reg in regs.items():
         if kind == "env":
             continue  # presets are data, looked up by key (env_preset)

@@ -117,7 +117,7 @@ def test_wrapper_matches_a_direct_learner_loop():
         x = obs["state"].astype(np.float64)
     assert trunc and not term
     assert info["error"] == pytest.approx(np.linalg.norm(info["theta_star"] - ref.theta))
-    assert 0.0 <= info["cosine_error"] <= 2.0
+    assert 0.0 <= info["cos_error"] <= 2.0
     assert np.isnan(info["regret"])  # LinearTask has no planner
     assert env.observation_space == env.env.observation_space
 
@@ -230,7 +230,7 @@ def test_robot_env_through_make_vec_and_pickle():
 def test_highway_env_through_make():
     env = OnlineLearningWrapper(gym.make("StROL-Highway-v0"), "mof")
     _, _, info = _episode(env, 0)
-    assert np.isfinite(info["error"]) and np.isfinite(info["cosine_error"])
+    assert np.isfinite(info["error"]) and np.isfinite(info["cos_error"])
     assert "regret" in info
     np.testing.assert_allclose(info["theta_hat"], env.learner.theta)
     env.close()

@@ -9,9 +9,9 @@ import numpy as np
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
-from strol_gym.metrics import cosine_error, episode_regret, error
+from strol_gym.metrics import cos_error, episode_regret, error
 
-__all__ = ["OnlineLearningWrapper", "cosine_error", "episode_regret"]
+__all__ = ["OnlineLearningWrapper", "cos_error", "episode_regret"]
 
 
 class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -41,7 +41,7 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     when the env's reset provides one.
 
     At the end of an episode (terminated or truncated) ``info`` also holds ``"error"`` =
-    ‖θ* − θ̂‖, ``"cosine_error"`` = 1 − cos(θ*, θ̂) (1.0 when θ̂ = 0) and ``"regret"`` =
+    ‖θ* − θ̂‖, ``"cos_error"`` = 1 − cos(θ*, θ̂) (1.0 when θ̂ = 0) and ``"regret"`` =
     ``task.regret(θ̂, θ*, x0)`` from the episode's start state x0 (NaN when the task has no
     planner; absent with ``regret=False``).
     """
@@ -121,7 +121,7 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         if terminated or truncated:
             theta_star = np.asarray(info["theta_star"], dtype=np.float64)
             info["error"] = error(theta_star, theta_hat)
-            info["cosine_error"] = cosine_error(theta_star, theta_hat)
+            info["cos_error"] = cos_error(theta_star, theta_hat)
             if self.score_regret:
                 info["regret"] = episode_regret(self.task, theta_hat, theta_star, self._x0)[0]
         self._x = np.asarray(obs["state"], dtype=np.float64).copy()

@@ -15,7 +15,7 @@ Format (JSON Lines, UTF-8, one object per line, ``"type"`` says which):
   ``correction_time`` (s; null for envs whose corrections are single steps), ``step``, and
   ``trace`` = {``t``, ``force``, ``torque``} (the external wrench per control step; null when
   the env reports none).
-- ``end`` (optional): ``steps``, ``corrections``, ``theta_hat``, ``error``, ``cosine_error``,
+- ``end`` (optional): ``steps``, ``corrections``, ``theta_hat``, ``error``, ``cos_error``,
   ``regret``, ``reason``, ``interrupted`` (true when the person stopped it with Ctrl-C).
 
 Each line is flushed and fsynced when written, so a crash loses at most the correction under
@@ -190,7 +190,7 @@ class SessionLogger(gym.Wrapper):
             corrections=self._index,
             theta_hat=np.asarray(self._learning.learner.theta, dtype=np.float64),
             error=info.get("error"),
-            cosine_error=info.get("cosine_error"),
+            cos_error=info.get("cos_error"),
             regret=info.get("regret"),
         )
 

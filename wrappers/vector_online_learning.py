@@ -6,18 +6,19 @@ from typing import Any
 
 import numpy as np
 from gymnasium.vector import VectorEnv, VectorWrapper
-from strol_gym.wrappers.online_learning import cosine_error, episode_regret
+from strol_gym.wrappers.online_learning import episode_regret
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
+from strol_gym.metrics import cos_error, error
 
 FIXED_STATE = frozenset({"name", "task_id", "config", "arch", "model"})
 """``state_dict`` keys that do not change as a learner learns (its configuration, ĝ's weights)."""
 
 
-def _cosine_errors(theta_star: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
-    """Row-wise 1 − cos(θ*, θ̂), 1.0 where either is zero (``cosine_error`` of each row)."""
-    return np.array([cosine_error(s, h) for s, h in zip(theta_star, theta_hat, strict=True)])
+def _rows(metric: Any, theta_star: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+    """A metric of ``strol_gym.metrics`` for each row (the single wrapper's definition)."""
+    return np.array([metric(s, h) for s, h in zip(theta_star, theta_hat, strict=True)])
 
 
 class VectorOnlineLearningWrapper(VectorWrapper):
@@ -31,7 +32,7 @@ class VectorOnlineLearningWrapper(VectorWrapper):
     needs the sub-envs in step (all correcting and resetting together, as the Robot env's
     fixed-length episodes do) and raises otherwise. Everything else is the single wrapper's:
     θ̂ goes to the env (``set_theta_hat``), into ``obs["theta_hat"]`` and ``info["theta_hat"]``;
-    at an episode's end, info holds ``error``, ``cosine_error`` and (unless ``regret=False``)
+    at an episode's end, info holds ``error``, ``cos_error`` and (unless ``regret=False``)
     ``regret`` for the sub-envs that ended, with their ``_key`` masks. Autoreset must be
     ``NEXT_STEP`` (strol-gym's vector envs and gymnasium's ``SyncVectorEnv``).
     """
@@ -155,8 +156,8 @@ class VectorOnlineLearningWrapper(VectorWrapper):
             theta_star = np.asarray(info["theta_star"], dtype=np.float64)[end]
             theta_hat = self.theta[end]
             scores = {
-                "error": np.linalg.norm(theta_star - theta_hat, axis=-1),
-                "cosine_error": _cosine_errors(theta_star, theta_hat),
+                "error": _rows(error, theta_star, theta_hat),
+                "cos_error": _rows(cos_error, theta_star, theta_hat),
             }
             if self.score_regret:
                 scores["regret"] = np.array(

@@ -7,6 +7,7 @@ above a baseline's bar marks a significant paired difference between StROL and t
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import matplotlib
@@ -20,17 +21,30 @@ from strol_gym.benchmarks.engine.conditions import env_preset
 
 from strol_gym.metrics import short
 
-COLORS = {
+PAPER_COLORS = {
     "gradient": "#7f7f7f",
     "one": "#1f77b4",
     "mof": "#2ca02c",
     "e2e": "#ff7f0e",
     "strol": "#d62728",
 }
+"""The paper's five learners keep the colours of its figures."""
+PALETTE = ("#9467bd", "#8c564b", "#e377c2", "#bcbd22", "#17becf", "#393b79", "#637939", "#843c39")
+"""Colours for every other learner (tab10's remaining hues, then darker ones)."""
+
+
+def learner_color(name: str) -> str:
+    """A learner's colour in every plot: the paper's for its five, else one from ``PALETTE``
+    chosen by the name itself, so a learner keeps its colour whatever else is plotted."""
+    if name in PAPER_COLORS:
+        return PAPER_COLORS[name]
+    return PALETTE[int(hashlib.sha256(name.encode()).hexdigest(), 16) % len(PALETTE)]
 
 
 def _color(i: int, name: str) -> str:
-    return COLORS.get(name, f"C{(i + 4) % 10}")
+    """``learner_color(name)``; the position ``i`` no longer matters (the study's plots call
+    this form)."""
+    return learner_color(name)
 
 
 def _save(fig, out: Path, stem: str) -> list[Path]:
@@ -70,7 +84,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
                 xs,
                 mean,
                 yerr=np.nan_to_num(sem),
-                color=[_color(i, lr) for i, lr in enumerate(learners)],
+                color=[learner_color(lr) for lr in learners],
                 capsize=3,
                 edgecolor="black",
                 linewidth=0.5,
@@ -116,12 +130,12 @@ def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]
                 ax.axis("off")
                 continue
             cond = conds[env][c]
-            for i, lr in enumerate(a.config.learners):
+            for lr in a.config.learners:
                 cur = a.curves.get((env, cond, lr))
                 if cur is None:
                     continue
                 steps = np.arange(len(cur["mean"]))
-                col = _color(i, lr)
+                col = learner_color(lr)
                 ax.plot(steps, cur["mean"], color=col, label=display(lr), lw=1.5)
                 lo, hi = cur["mean"] - cur["sem"], cur["mean"] + cur["sem"]
                 ax.fill_between(steps, lo, hi, color=col, alpha=0.2, lw=0)

@@ -1,7 +1,7 @@
 """Where a benchmark's units of work run: ``local`` processes (the default) or a Ray cluster.
 
 Both backends run the same units (blocks of run seeds × every learner) through the same worker
-(``strol_gym.benchmarks.engine.runner.new_worker``, one intra-op thread per process), so the
+(``strol_gym.benchmarks.engine.pool.new_worker``, one intra-op thread per process), so the
 records are identical whichever computed them, and a folder started on one backend resumes on
 the other.
 Ray is optional (``pip install "strol-gym[ray]"``); a local cluster listens on 127.0.0.1 only.

@@ -14,7 +14,11 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+from strol_gym.benchmarks.engine.robots import ROBOTS
+
+from strol_gym.envs.human_spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
 from strol_gym.metrics import RUN_METRICS
+from strol_gym.priors import PRIORS
 from strol_gym.registry import Registry
 
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
@@ -22,8 +26,6 @@ PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
 
 REFERENCE_LEARNER = "strol"
 """The learner every post-hoc test compares against the others."""
-
-PRIORS = ("bimodal", "uniform")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,20 +48,30 @@ class Condition:
     def __post_init__(self) -> None:
         if not self.name or not isinstance(self.name, str):
             raise ValueError(f"condition name must be a non-empty string, got {self.name!r}")
-        if not (math.isfinite(self.sigma) and self.sigma >= 0):
-            raise ValueError(f"sigma (noise) must be a finite number >= 0, got {self.sigma}")
-        if not math.isfinite(self.bias):
-            raise ValueError(f"bias must be a finite number, got {self.bias}")
-        if self.prior not in PRIORS:
-            raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
+        beta = DEFAULT_BETA if self.beta is None else self.beta
+        check_shared(self.sigma, self.bias, beta)  # the human's own checks, named as the env's
+        if not isinstance(self.prior, str) or (self.prior not in PRIORS and ":" not in self.prior):
+            raise ValueError(
+                f"prior must be one of {PRIORS.names()} (registered priors) or 'module:attr', "
+                f"got {self.prior!r}"
+            )
         if self.human is not None and (not isinstance(self.human, str) or not self.human):
             raise ValueError(
                 f"human must be a registered human's name or 'module:attr', got {self.human!r}"
             )
-        if self.beta is not None and not (math.isfinite(self.beta) and self.beta >= 0):
-            raise ValueError(f"beta must be a finite number >= 0, got {self.beta}")
         if self.human_kwargs is not None and not isinstance(self.human_kwargs, dict):
             raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
+
+    def human_spec(self) -> HumanSpec:
+        """The condition's human as the envs take it (the env's default model when unset);
+        resolves the model, so a user's human must be registered by then."""
+        return HumanSpec(
+            self.human or DEFAULT_HUMAN,
+            self.sigma,
+            self.bias,
+            DEFAULT_BETA if self.beta is None else self.beta,
+            dict(self.human_kwargs or {}),
+        )
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments for ``gymnasium.make`` (the env contract in docs/extending.md)."""
@@ -90,7 +102,6 @@ class Condition:
 
 PRIMARY_METRICS = RUN_METRICS
 """What an env preset may rank by: the metrics every run has (``strol_gym.metrics``)."""
-ROBOTS = ("task", "zeros")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,8 +119,9 @@ class EnvPreset:
     make_kwargs: dict[str, Any] | None = None
     """Extra ``gymnasium.make`` kwargs (the study presets' ``task``)."""
     robot: str = "task"
-    """How the runner's robot acts: "task" (``task.robot_policy``, scaled to the action space)
-    or "zeros" (the env drives its own robot and the action is a residual on it)."""
+    """How the runner's robot acts, a name in ``robots.ROBOTS``: "task" (``task.robot_policy``,
+    scaled to the action space), "zeros" (the env drives its own robot and the action is a
+    residual on it) or one added with ``register_robot``."""
     corrections_kwarg: bool = True
     """Whether the env takes ``n_corrections``; if not (the study env, whose user corrects when
     it chooses), ``n_corrections`` only sets the episode's length in steps."""
@@ -131,8 +143,11 @@ class EnvPreset:
             raise ValueError(
                 f"primary_metric must be one of {PRIMARY_METRICS}, got {self.primary_metric!r}"
             )
-        if self.robot not in ROBOTS:
-            raise ValueError(f"robot must be one of {ROBOTS}, got {self.robot!r}")
+        if not isinstance(self.robot, str) or (self.robot not in ROBOTS and ":" not in self.robot):
+            raise ValueError(
+                f"robot must be one of {ROBOTS.names()} (registered robots) or 'module:attr', "
+                f"got {self.robot!r}"
+            )
         if self.make_kwargs is not None and not isinstance(self.make_kwargs, dict):
             raise ValueError(f"make_kwargs must be a dict or None, got {self.make_kwargs!r}")
 
@@ -142,22 +157,12 @@ class EnvPreset:
 
 
 ENV_PRESETS: dict[str, EnvPreset] = {
-    "robot": EnvPreset(
-        key="robot",
-        env_id="StROL-Robot-v0",
-        runs=100,
-        n_corrections=5,
-        training_sigma=0.25,
-        primary_metric="regret",
-    ),
-    "highway": EnvPreset(
-        key="highway",
-        env_id="StROL-Highway-v0",
-        runs=250,
-        n_corrections=10,
-        training_sigma=0.10,
-        primary_metric="error",
-    ),
+    key: EnvPreset(key, env_id, runs, n_corrections, training_sigma, metric)
+    for key, env_id, runs, n_corrections, training_sigma, metric in (
+        # The paper's envs: run count, correction steps, training noise, primary metric.
+        ("robot", "StROL-Robot-v0", 100, 5, 0.25, "regret"),
+        ("highway", "StROL-Highway-v0", 250, 10, 0.10, "error"),
+    )
 }
 
 

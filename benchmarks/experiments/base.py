@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import inspect
 import math
 import os
 import time
@@ -64,11 +65,22 @@ class BenchExperiment:
     name: ClassVar[str] = ""
     """The subcommand, and the stem of the table and meta files."""
     help: ClassVar[str] = ""
+    """The subcommand's one-line help; by default the class docstring's first paragraph."""
     description: ClassVar[str] = ""
+    """``--help``'s description; by default the rest of the class docstring."""
     columns: ClassVar[tuple[str, ...]] = ()
     """The table's columns; empty when the experiment writes its own tables."""
     out_stem: ClassVar[str] = ""
     """The default results folder is ``results/<out_stem or name>-<env>``."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Help and description from the class docstring, unless the class sets them."""
+        super().__init_subclass__(**kwargs)
+        first, _, rest = inspect.cleandoc(cls.__doc__ or "").partition("\n\n")
+        if first and "help" not in vars(cls):
+            cls.help = " ".join(first.split())
+        if rest and "description" not in vars(cls):
+            cls.description = " ".join(rest.split())
 
     # ------------------------------------------------------------------ hooks
     def add_arguments(self, p: argparse.ArgumentParser) -> None:

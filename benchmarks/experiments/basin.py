@@ -27,14 +27,13 @@ DEFAULT_SEED = 1000
 
 
 class Basin(BenchExperiment):
-    """Basin-of-attraction maps as an experiment (no runner: ``strol_gym.analysis.basin_map``)."""
+    """basin-of-attraction maps for g and g + ĝ (Fig. 2 style)
+
+    Final error from every θ̂0 of a grid (a 2-D slice), for Gradient's g and StROL's g + ĝ,
+    with one fixed seeded human; prints the fraction that converges.
+    """
 
     name = "basin"
-    help = "basin-of-attraction maps for g and g + ĝ (Fig. 2 style)"
-    description = (
-        "Final error from every θ̂0 of a grid (a 2-D slice), for Gradient's g and "
-        "StROL's g + ĝ, with one fixed seeded human; prints the fraction that converges."
-    )
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:

@@ -70,14 +70,13 @@ def make_config(
 
 
 class Changing(BenchExperiment):
-    """The changing-preference simulation as an experiment."""
+    """changing preferences: the human teaches θ* for k corrections, then −θ*
+
+    The paper's changing-preference simulation with the five paper learners; scored against
+    the final preference.
+    """
 
     name = "changing"
-    help = "changing preferences: the human teaches θ* for k corrections, then −θ*"
-    description = (
-        "The paper's changing-preference simulation with the five paper learners; "
-        "scored against the final preference."
-    )
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
@@ -172,7 +171,7 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Bars: mean ± SEM per learner; the paper's values as black diamonds."""
-    from strol_gym.benchmarks.analysis.plots import COLORS, _save
+    from strol_gym.benchmarks.analysis.plots import _save, learner_color
     from strol_gym.benchmarks.analysis.report import display
 
     fig, ax = small_figure(stem)
@@ -181,7 +180,7 @@ def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
         xs,
         [r["mean"] for r in rows],
         yerr=[r["sem"] for r in rows],
-        color=[COLORS.get(r["learner"], "C5") for r in rows],
+        color=[learner_color(r["learner"]) for r in rows],
         capsize=3,
         label="ours (mean ± SEM)",
     )

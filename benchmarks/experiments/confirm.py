@@ -232,14 +232,13 @@ def analyse(
 
 # ---------------------------------------------------------------------- the command
 class Confirm(BenchExperiment):
-    """The confirmatory protocol as an experiment."""
+    """the pre-registered confirmatory Robot test (docs/confirmatory.md)
+
+    Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other than the
+    protocol's make an exploratory run (for tests), labelled as such.
+    """
 
     name = "confirm"
-    help = "the pre-registered confirmatory Robot test (docs/confirmatory.md)"
-    description = (
-        "Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other "
-        "than the protocol's make an exploratory run (for tests), labelled as such."
-    )
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
@@ -372,7 +371,7 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
 def plot(result: dict, out: Path) -> list[Path]:
     """Probability that StROL's regret is lower than each baseline's, with bootstrap CIs, per
     condition (0.5 = no difference)."""
-    from strol_gym.benchmarks.analysis.plots import COLORS, _save, plt
+    from strol_gym.benchmarks.analysis.plots import _save, learner_color, plt
     from strol_gym.benchmarks.analysis.report import display
 
     out.mkdir(parents=True, exist_ok=True)
@@ -392,7 +391,13 @@ def plot(result: dict, out: Path) -> list[Path]:
             lo.append(x["prob_improvement"] - x["prob_improvement_ci95_low"])
             hi.append(x["prob_improvement_ci95_high"] - x["prob_improvement"])
         ax.errorbar(
-            xs, ys, yerr=[lo, hi], fmt="o", capsize=3, color=COLORS[b], label=f"vs {display(b)}"
+            xs,
+            ys,
+            yerr=[lo, hi],
+            fmt="o",
+            capsize=3,
+            color=learner_color(b),
+            label=f"vs {display(b)}",
         )
     ax.axhline(0.5, color="k", lw=0.8, ls="--")
     ax.set_xticks(range(len(conds)), [f"{c}\n{result['verdicts'][c]}" for c in conds], fontsize=8)

@@ -49,14 +49,13 @@ def make_config(
 
 
 class LambdaSweep(BenchExperiment):
-    """StROL's λ sweep as an experiment: one results folder per λ, the sweep's table above."""
+    """StROL at several λ under the bimodal and the uniform prior
+
+    StROL's λ sweep (G = g + λ·ĝ) under the designer's bimodal prior and the uniform prior;
+    regret (Robot) against λ with SEM bars and the paper's values.
+    """
 
     name = "lambda"
-    help = "StROL at several λ under the bimodal and the uniform prior"
-    description = (
-        "StROL's λ sweep (G = g + λ·ĝ) under the designer's bimodal prior and the "
-        "uniform prior; regret (Robot) against λ with SEM bars and the paper's values."
-    )
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:

@@ -84,7 +84,7 @@ class Run(RunsAndReports):
         )
         p.add_argument("--sigma", type=fraction("--sigma"), help="noise σ, fraction of a_max")
         p.add_argument("--bias", type=fraction("--bias", allow_negative=True), help="bias ε")
-        p.add_argument("--prior", choices=PRIORS, help="where θ* comes from")
+        p.add_argument("--prior", choices=PRIORS.names(), help="where θ* comes from")
         p.add_argument("--human", help="simulated human: a registered name or module:attr")
         p.add_argument("--beta", type=beta, help="rationality β (if the human takes it)")
         p.add_argument(

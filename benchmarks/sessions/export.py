@@ -218,7 +218,8 @@ def export_runs(
     import gymnasium as gym
     from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
     from strol_gym.benchmarks.engine.config import Experiment
-    from strol_gym.benchmarks.engine.runner import _MemoPolicy, _run_block, _zero_policy
+    from strol_gym.benchmarks.engine.episodes import run_block
+    from strol_gym.benchmarks.engine.robots import robot_policy
     from strol_gym.wrappers import OnlineLearningWrapper
     from strol_gym.wrappers.session_log import SessionLogger
 
@@ -235,7 +236,7 @@ def export_runs(
     )
     genv = gym.make(exp.env_id, **exp.env_kwargs())
     model = make_learner(learner, task=genv.unwrapped.task, **(learner_kwargs or {}))
-    policy = _MemoPolicy(genv.unwrapped.task) if env_preset(env).robot == "task" else _zero_policy
+    policy = robot_policy(env_preset(env).robot, genv.unwrapped.task)
     extra = {
         "benchmark": {
             "env": env,
@@ -249,7 +250,7 @@ def export_runs(
         )
         try:
             for run_seed in exp.seeds:
-                _run_block([(learner, run_seed, logged)], exp.corrections, env, condition, policy)
+                run_block([(learner, run_seed, logged)], exp.corrections, env, condition, policy)
         finally:
             logged.close()
         return export_session(Path(folder) / "runs.jsonl", dataset_id)

@@ -15,11 +15,11 @@ from typing import Any
 
 import numpy as np
 from strol_gym.benchmarks.sessions.export import read_any
-from strol_gym.wrappers.online_learning import cosine_error
 from strol_gym.wrappers.session_log import Session, session_task
 
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import display_name, make_learner
+from strol_gym.metrics import cos_error, error
 
 
 def replay_session(
@@ -64,8 +64,8 @@ def summary_rows(session: Session, results: dict[str, list[np.ndarray]]) -> list
                     "episode": k,
                     "corrections": len(ep.corrections),
                     "theta_hat": final,
-                    "error": np.nan if star is None else float(np.linalg.norm(star - final)),
-                    "cosine_error": np.nan if star is None else cosine_error(star, final),
+                    "error": np.nan if star is None else error(star, final),
+                    "cos_error": np.nan if star is None else cos_error(star, final),
                 }
             )
     return rows
@@ -79,14 +79,14 @@ def write_csv(path: Path, session: Session, results: dict[str, list[np.ndarray]]
         w.writerow(
             ["learner", "episode", "correction"]
             + [f"theta_{i}" for i in range(d)]
-            + ["error", "cosine_error"]
+            + ["error", "cos_error"]
         )
         for name, curves in results.items():
             for k, (ep, curve) in enumerate(zip(session.episodes, curves, strict=True)):
                 for j, theta in enumerate(curve):
                     star = ep.theta_star
-                    err = "" if star is None else f"{np.linalg.norm(star - theta):.6g}"
-                    cos = "" if star is None else f"{cosine_error(star, theta):.6g}"
+                    err = "" if star is None else f"{error(star, theta):.6g}"
+                    cos = "" if star is None else f"{cos_error(star, theta):.6g}"
                     w.writerow([name, k, j, *(f"{t:.6g}" for t in theta), err, cos])
 
 
@@ -96,14 +96,15 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strol_gym.benchmarks.analysis.plots import _color
+    from strol_gym.benchmarks.analysis.plots import learner_color
 
     names = session.header["task_describe"]["feature_names"]
     fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 2.8), squeeze=False)
     star = session.episodes[-1].theta_star
     for i, ax in enumerate(axes[0]):
-        for k, (name, curves) in enumerate(results.items()):
-            ax.plot(curves[-1][:, i], marker=".", color=_color(k, name), label=display_name(name))
+        for name, curves in results.items():
+            color, label = learner_color(name), display_name(name)
+            ax.plot(curves[-1][:, i], marker=".", color=color, label=label)
         if star is not None:
             ax.axhline(star[i], color="k", ls="--", lw=1, label="θ*")
         ax.set_title(f"θ̂ {names[i]}")
@@ -149,7 +150,7 @@ def run_replay(
     for r in rows:
         print(
             f"{display_name(r['learner']):16s} {r['episode']:2d} {r['corrections']:3d}  "
-            f"{_fmt(r['theta_hat']):34s} {r['error']:7.3f} {r['cosine_error']:7.3f}"
+            f"{_fmt(r['theta_hat']):34s} {r['error']:7.3f} {r['cos_error']:7.3f}"
         )
     for p in written:
         print(f"wrote {p}")

@@ -108,7 +108,7 @@ def learning(episodes: int, sigma: float, bias: float, prior: str) -> None:
                 action = np.clip(u / task.robot_action_bound, -1, 1).astype(np.float32)
                 obs, _, term, trunc, info = wrapped.step(action)
             err.append(info["error"])
-            cos.append(info["cosine_error"])
+            cos.append(info["cos_error"])
             crashes += bool(term)
         env.close()
         errors[name] = np.array(err)

@@ -9,7 +9,10 @@ the learners, the wrapper and the benchmark rely on:
   *current* preference), ``theta_hat``, ``is_correction``; an env whose corrections span
   several steps adds ``correction_state`` (the state where the correction began);
 - reward R(x', θ*) = θ*·φ(x');
-- humans built by ``strol_gym.humans.make_human`` (σ, ε, β and ``human_kwargs``);
+- the human described by one :class:`~strol_gym.envs.human_spec.HumanSpec` (model, σ, ε, β and
+  its own arguments), given as ``human=HumanSpec(...)`` or as the flat keyword arguments
+  ``human``, ``sigma``, ``bias``, ``beta``, ``human_kwargs``; ``human=None``: no simulated
+  human (the corrections come from elsewhere, or none come);
 - episodes end through gymnasium's ``TimeLimit`` (``gymnasium.make``); an env built directly
   truncates itself only when given ``max_episode_steps``. One rule, one place: ``_truncated``.
 
@@ -18,14 +21,19 @@ It is a mixin, placed before the simulator's base class (``gym.Env`` or highway-
 supplies hooks around its simulator:
 
 - ``_setup()``: build the simulator and the spaces (the shared arguments are checked by then);
+- ``_make_task(task)``: the ``task`` argument as a Task (default: a name or Task of ``task_cls``);
+- ``_draw_theta_star(rng)``: θ* (default: from the prior);
 - ``_draw_start(rng)``: the start state x0 and the human's generator, drawn after θ*;
 - ``_place_start(x0)``: put the simulator at x0 and return its state;
 - ``_advance(u_h, u_r)``: one step; returns the new state and the env's own info keys;
 - ``_start_info()`` and ``_terminated()``: the env's own info at reset, and whether the episode
-  ended (default never).
+  ended (default never);
+- ``_transition(u_r)``: the whole step between the robot's action and the reward, for an env
+  whose corrections come out of its physics (the study env, where a person pushes) rather than
+  from the human's ``act`` (default: ``_human_correction`` then ``_advance``).
 
-An env with its own ``__init__`` (more arguments than the shared ones) calls ``_configure``
-from it; one with its own ``reset``/``step`` uses ``_start_episode`` and the step helpers.
+An env with more arguments than the shared ones takes them in its own ``__init__``, stores
+them and passes the rest on to ``CorrectionEnv.__init__``.
 ``docs/extending.md`` shows a complete small env.
 """
 
@@ -39,16 +47,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.humans import (
-    Human,
-    HumanFactory,
-    check_beta,
-    check_fraction,
-    check_human_kwargs,
-    human_factory,
-    make_human,
-    needs_theta_hat,
-)
+from strol_gym.envs.human_spec import HumanSpec
+from strol_gym.humans import Human, HumanFactory, needs_theta_hat
 from strol_gym.priors import Prior, make_prior
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
@@ -107,8 +107,8 @@ class CorrectionEnv:
         self,
         sigma: float = 0.0,
         bias: float = 0.0,
-        prior: str | Prior | Any = "bimodal",
-        human: str | HumanFactory = "nominal",
+        prior: str | Prior | Any | None = "bimodal",
+        human: str | HumanFactory | HumanSpec | None = "nominal",
         beta: float = 50.0,
         n_corrections: int | None = None,
         max_episode_steps: int | None = None,
@@ -120,21 +120,17 @@ class CorrectionEnv:
         **unknown: Any,
     ) -> None:
         """The shared arguments (the env's docstring lists them); ``None`` for
-        ``n_corrections``, ``width`` or ``height`` means the env's default."""
+        ``n_corrections``, ``width`` or ``height`` means the env's default, for ``prior`` the
+        Task's own prior. σ, ε, β and ``human_kwargs`` become one :class:`HumanSpec`
+        (``human`` may be one already)."""
         self._configure(
-            self.env_id,
             task,
-            self.task_cls,
             unknown,
-            sigma=sigma,
-            bias=bias,
             prior=prior,
-            human=human,
-            beta=beta,
+            human=HumanSpec.from_args(human, sigma, bias, beta, human_kwargs),
             n_corrections=self.default_corrections if n_corrections is None else n_corrections,
             render_mode=render_mode,
             max_episode_steps=max_episode_steps,
-            human_kwargs=human_kwargs,
         )
         self.render_mode = render_mode
         w, h = self.default_size
@@ -142,11 +138,18 @@ class CorrectionEnv:
         self.height = int_arg("height", h if height is None else height, 16, 4096)
         self._x = np.zeros(self.task.state_dim)
         self._setup()
+        # A simulator that resets itself while it is built (highway-env does) has not started
+        # the caller's episode: step() before the caller's reset() raises in every env.
+        self._started = False
 
     # ------------------------------------------------------------------ the env's hooks
     def _setup(self) -> None:
         """Build the simulator and set ``observation_space`` and ``action_space``."""
         raise NotImplementedError
+
+    def _draw_theta_star(self, rng: np.random.Generator) -> np.ndarray:
+        """The episode's θ*, the first draw from its ``rng`` (default: from the prior)."""
+        return self.task.prior.sample(rng, 1)[0]
 
     def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
         """x0 and the human's generator, drawn from the episode's ``rng`` after θ* (default:
@@ -178,7 +181,7 @@ class CorrectionEnv:
         gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]
         theta_override, x_override = self._reset_overrides(options)
         rng = self.np_random  # type: ignore[attr-defined]
-        theta_star = self.task.prior.sample(rng, 1)[0]
+        theta_star = self._draw_theta_star(rng)
         x0, human_rng = self._draw_start(rng)
         if theta_override is not None:
             theta_star = theta_override
@@ -197,10 +200,9 @@ class CorrectionEnv:
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         u_r = self._robot_action(action)
-        u_h, is_correction = self._human_correction(self._x, u_r)
-        x, extra = self._advance(u_h, u_r)
-        self.steps += 1
-        self._x = x
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        u_h, u_r, is_correction, extra = self._transition(u_r)
         phi = self.task.features(self._x)
         reward = float(phi @ self.theta_star)
         terminated = self._terminated()
@@ -212,41 +214,43 @@ class CorrectionEnv:
             self.render()  # type: ignore[attr-defined]
         return obs, reward, terminated, truncated, info
 
+    def _transition(self, u_r: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, dict[str, Any]]:
+        """One step from the robot's action u_R: the human corrects (the first
+        ``n_corrections`` steps), the simulator advances, ``steps`` and the state move on.
+        Returns (u_H, the robot action applied, is_correction, the env's info keys). An env
+        whose corrections come from its physics (a person pushing) replaces this."""
+        u_h, is_correction = self._human_correction(self._x, u_r)
+        x, extra = self._advance(u_h, u_r)
+        self.steps += 1
+        self._x = x
+        return u_h, u_r, is_correction, extra
+
     def _configure(
         self,
-        env_id: str,
         task: Task | str | None,
-        task_cls: type[Task],
         unknown: dict[str, Any],
         *,
-        sigma: float,
-        bias: float,
-        prior: str | Prior | Any,
-        human: str | HumanFactory,
-        beta: float,
+        prior: str | Prior | Any | None,
+        human: HumanSpec,
         n_corrections: int,
         render_mode: str | None,
         max_episode_steps: int | None = None,
-        human_kwargs: dict[str, Any] | None = None,
     ) -> None:
         """Validate the shared keyword arguments; each error names the argument and its range."""
         if unknown:
-            takes = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
-            takes = [p for p in takes if p not in ("unknown", "kwargs")]
-            raise ValueError(f"unknown argument(s) {sorted(unknown)}; {env_id} takes {takes}")
-        task = task_cls() if task is None else make_task(task, of=task_cls)
-        self.task = task.with_prior(make_prior(prior, task.prior_modes))
-        self.sigma = check_fraction("sigma", sigma)
-        self.bias = check_fraction("bias", bias, allow_negative=True)
-        if not isinstance(human, str) and not callable(human):
-            raise ValueError(
-                f"human must be a registered name, 'module:attr' or a callable "
-                f"(task, theta_star, rng, **params) -> Human; got {human!r}"
+            takes = sorted(
+                p
+                for cls in type(self).__mro__
+                if "__init__" in vars(cls) and issubclass(cls, CorrectionEnv)
+                for p in inspect.signature(vars(cls)["__init__"]).parameters
+                if p not in ("self", "unknown", "kwargs")
             )
-        human_factory(human)  # unknown names fail here, not at the first reset
-        self.human_model = human
-        self.human_kwargs = check_human_kwargs(human, human_kwargs)
-        self.beta = check_beta(beta)
+            raise ValueError(f"unknown argument(s) {sorted(unknown)}; {self.env_id} takes {takes}")
+        task = self._make_task(task)
+        self.task = task.with_prior(
+            task.prior if prior is None else make_prior(prior, task.prior_modes)
+        )
+        self.human_spec = human
         self.n_corrections = int_arg("n_corrections", n_corrections, 0)
         if max_episode_steps is not None:
             max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
@@ -258,7 +262,33 @@ class CorrectionEnv:
         self.theta_hat = self._default_theta_hat()
         self.theta_star = self.task.prior.mean.copy()
         self.human = None
+        self._started = False
         self.steps = 0
+
+    def _make_task(self, task: Task | str | None) -> Task:
+        """The ``task`` argument as a Task of ``task_cls`` (None: the env's default Task)."""
+        return self.task_cls() if task is None else make_task(task, of=self.task_cls)
+
+    # The human's arguments, read from the spec (what the humans and the vector envs use).
+    @property
+    def human_model(self) -> str | HumanFactory | None:
+        return self.human_spec.name
+
+    @property
+    def sigma(self) -> float:
+        return self.human_spec.sigma
+
+    @property
+    def bias(self) -> float:
+        return self.human_spec.bias
+
+    @property
+    def beta(self) -> float:
+        return self.human_spec.beta
+
+    @property
+    def human_kwargs(self) -> dict[str, Any]:
+        return self.human_spec.kwargs
 
     def _observation_space(self, state: spaces.Box, phi: spaces.Box | None = None) -> spaces.Dict:
         """The shared observation space: ``state`` as given; φ unbounded unless given."""
@@ -297,17 +327,8 @@ class CorrectionEnv:
             raise ValueError(f"theta_hat must be {self.task.dim} finite numbers, got {theta_hat}")
         self.theta_hat = th.copy()
 
-    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
-        return make_human(
-            self.human_model,
-            self.task,
-            theta_star,
-            rng,
-            sigma=self.sigma,
-            bias=self.bias,
-            beta=self.beta,
-            **self.human_kwargs,
-        )
+    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
+        return self.human_spec.make(self.task, theta_star, rng)
 
     def _start_episode(self, theta_star: np.ndarray, human_rng: np.random.Generator) -> None:
         """A new episode's θ*, θ̂0 and human (``reset`` calls it after drawing θ*)."""
@@ -315,6 +336,7 @@ class CorrectionEnv:
         self.theta_star = theta_star
         self.theta_hat = self._default_theta_hat()
         self.human = self._make_human(theta_star, human_rng)
+        self._started = True
         self.steps = 0
 
     def _reset_overrides(self, options: dict | None) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -355,9 +377,7 @@ class CorrectionEnv:
         """(u_H, is_correction): the human's correction during the first ``n_corrections``
         steps, checked to be ``action_dim`` finite numbers; zeros afterwards. θ̂ goes only to a
         human who declares it needs it."""
-        if self.human is None:
-            raise RuntimeError("call reset() before step()")
-        if self.steps >= self.n_corrections:
+        if self.human is None or self.steps >= self.n_corrections:
             return np.zeros(self.task.action_dim), False
         theta_hat = self.theta_hat if needs_theta_hat(self.human) else None
         u_h = np.asarray(self.human.act(x, u_r, theta_hat), dtype=np.float64)

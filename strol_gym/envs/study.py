@@ -14,7 +14,7 @@ from strol_gym.envs.base import CorrectionEnv, RenderModes, int_arg, vector_arg
 from strol_gym.envs.panda import FINGER_OPEN, N_ARM, MujocoRendering
 from strol_gym.envs.study_scene import build_model, model_q
 from strol_gym.envs.study_user import SimulatedUser, angle_delta, rotation_error
-from strol_gym.humans import Human, HumanFactory
+from strol_gym.humans import Human
 from strol_gym.priors import Prior
 from strol_gym.tasks import make_task
 from strol_gym.tasks.study import (
@@ -137,59 +137,51 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     }
     env_id: ClassVar[str] = "StROL-Study-v0"
 
+    task_cls: ClassVar[type[StudyTask]] = StudyTask
+    default_corrections: ClassVar[int] = 0
+    """The simulated user corrects when it chooses, not on the first steps."""
+
     def __init__(
         self,
         task: int | StudyTask | str = 1,
-        sigma: float = 0.0,
-        bias: float = 0.0,
+        *,
         prior: str | Prior | Any | None = None,
-        human: str | HumanFactory | None = "nominal",
-        beta: float = 50.0,
         force_threshold: float = 15.0,
         duration: float = 60.0,
         stiffness: float = 400.0,
         rot_stiffness: float = 30.0,
-        max_episode_steps: int | None = None,
-        render_mode: str | None = None,
-        width: int = 480,
-        height: int = 360,
-        human_kwargs: dict[str, Any] | None = None,
         user_kwargs: dict[str, Any] | None = None,
-        **unknown: Any,
+        **kwargs: Any,
     ) -> None:
-        if isinstance(task, int | np.integer) and not isinstance(task, bool):
-            task = STUDY_TASKS[int_arg("task", task, 1, 3)]()
-        elif not isinstance(task, StudyTask | str):
-            raise ValueError(f"task must be 1, 2 or 3 (or a StudyTask), got {task!r}")
-        task_obj = make_task(task, of=StudyTask)
-        self._configure(
-            self.env_id,
-            task_obj,
-            StudyTask,
-            unknown,
-            sigma=sigma,
-            bias=bias,
-            prior=task_obj.prior if prior is None else prior,
-            human="nominal" if human is None else human,
-            beta=beta,
-            n_corrections=0,
-            render_mode=render_mode,
-            max_episode_steps=max_episode_steps,
-            human_kwargs=human_kwargs,
-        )
-        self.task: StudyTask
-        self.user_enabled = human is not None
+        if "n_corrections" in kwargs:
+            raise ValueError(
+                f"unknown argument(s) ['n_corrections']; {self.env_id}'s simulated user corrects "
+                "when it chooses"
+            )
         self.user_kwargs = dict(user_kwargs or {})
-        if self.user_enabled:  # fail at construction, not at the first reset
-            self._new_user(self.task.theta_star, np.random.default_rng(0))
         self.force_threshold = _positive("force_threshold", force_threshold)
         self.duration = _positive("duration", duration)
         self.stiffness = _positive("stiffness", stiffness)
         self.rot_stiffness = _positive("rot_stiffness", rot_stiffness)
-        self.render_mode = render_mode
-        self.width = int_arg("width", width, 16, 4096)
-        self.height = int_arg("height", height, 16, 4096)
+        super().__init__(task=task, prior=prior, **kwargs)
 
+    def _make_task(self, task: Any) -> StudyTask:
+        """1, 2 or 3 (the paper's Tasks), a ``StudyTask`` or its registered name."""
+        if isinstance(task, int | np.integer) and not isinstance(task, bool):
+            return STUDY_TASKS[int_arg("task", task, 1, 3)]()
+        if not isinstance(task, StudyTask | str):
+            raise ValueError(f"task must be 1, 2 or 3 (or a StudyTask), got {task!r}")
+        return make_task(task, of=StudyTask)
+
+    @property
+    def user_enabled(self) -> bool:
+        """Whether a simulated user pushes (``human`` not None)."""
+        return self.human_model is not None
+
+    def _setup(self) -> None:
+        self.task: StudyTask
+        if self.user_enabled:  # fail at construction, not at the first reset
+            self._new_user(self.task.theta_star, np.random.default_rng(0))
         t = self.task
         f32 = np.float32
         lim = np.array([2.0] * 3 + [4.0] * (t.state_dim - 3), dtype=f32)
@@ -334,7 +326,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         step = (j - k0) * seg[i]
         return step + (k1 - j) * seg[j] if j < n else step
 
-    def _advance(self, u_r: np.ndarray) -> tuple[np.ndarray, Velocity]:
+    def _move_setpoint(self, u_r: np.ndarray) -> tuple[np.ndarray, Velocity]:
         """Move the setpoint one step along the plan plus the residual: (its displacement, its
         velocity in the world frame)."""
         end = len(self._segments) * SEGMENT_TIME
@@ -435,30 +427,30 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         """The simulated person who pushes (v0: ``SimulatedUser``, the regret-judging user)."""
         return SimulatedUser(self.task, theta_star, rng, **self._user_params())
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        gym.Env.reset(self, seed=seed)  # its own sequence, not the CorrectionEnv template
-        theta_override, state_override = self._reset_overrides(options)
-        if state_override is not None:
-            raise ValueError("reset option 'state' is not supported: the study starts at home")
-        rng = self.np_random
-        theta_star = self.task.theta_star if theta_override is None else theta_override
-        theta_hat0 = rng.uniform(-1.0, 1.0, size=self.task.dim)
-        user_rng = np.random.default_rng(int(rng.integers(2**63)))
-        self._start_episode(theta_star, user_rng)
-        self.theta_hat = theta_hat0
+    def _draw_theta_star(self, rng: np.random.Generator) -> np.ndarray:
+        """The Task's θ* (the study's participant wants one thing); no draw."""
+        return self.task.theta_star
+
+    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
+        """The arm starts at home; θ̂0 ~ U[−1, 1]^d, then the user's generator."""
+        self._theta_hat0 = rng.uniform(-1.0, 1.0, size=self.task.dim)
+        return self.task.start, np.random.default_rng(int(rng.integers(2**63)))
+
+    def _start_override(self, x0: np.ndarray) -> np.ndarray:
+        raise ValueError("reset option 'state' is not supported: the study starts at home")
+
+    def _place_start(self, x0: np.ndarray) -> np.ndarray:
+        self.theta_hat = self._theta_hat0
         self._reset_sim()
         self._replan()
-        phi = self.task.features(self._x)
-        info = self._make_info(phi, self._zeros, self._zeros, False, None)
-        info["theta_hat0"] = theta_hat0.copy()
-        if self.render_mode == "human":
-            self.render()
-        return self._observation(self._zeros, phi), info
+        return self._x
 
-    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
-        if self.human is None and self.user_enabled:
-            raise RuntimeError("call reset() before step()")
-        u_res = self._robot_action(action)
+    def _start_info(self) -> dict[str, Any]:
+        return {**self._study_info(self._zeros, None), "theta_hat0": self._theta_hat0.copy()}
+
+    def _transition(self, u_res: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, dict]:
+        """The person's push decides the step: while the felt wrench exceeds the threshold a
+        correction lasts and the setpoint is held; when it ends, u_H is the pose change."""
         if self._unstable:
             raise RuntimeError("the episode ended unstable; call reset()")
         if not self._active and self.theta_hat.tolist() != self._plan_theta:
@@ -481,7 +473,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         if self._active or is_correction:
             u_r, v_sp = self._zeros, _STILL
         else:
-            u_r, v_sp = self._advance(u_res)
+            u_r, v_sp = self._move_setpoint(u_res)
         x_before = self._x
         self._simulate(v_sp)
         self.steps += 1
@@ -494,13 +486,11 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         else:
             self._unstable = True
             self._x = x_before
-        phi = self.task.features(self._x)
-        reward = float(phi @ self.theta_star)
-        truncated = self._unstable or self._truncated() or self._time >= self.duration - 1e-9
-        info = self._make_info(phi, u_h, u_r, is_correction, record)
-        if self.render_mode == "human":
-            self.render()
-        return self._observation(u_h, phi), reward, False, bool(truncated), info
+        return u_h, u_r, is_correction, self._study_info(u_h, record)
+
+    def _truncated(self) -> bool:
+        """After ``duration`` seconds, at an instability, or at ``max_episode_steps``."""
+        return self._unstable or super()._truncated() or self._time >= self.duration - 1e-9
 
     def _pushing(self, felt: float) -> bool:
         """Whether the felt wrench (N, torques at ``TORQUE_LEVER``) is a correction's."""
@@ -524,8 +514,8 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
             "theta_hat": self.theta_hat.copy(),
         }
 
-    def _observation(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
-        obs = self._obs(u_h, phi)
+    def _obs(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
+        obs = super()._obs(u_h, phi)
         # Clipped to float32's finite range: an absurd wrench (say 1e39 N) must not observe inf.
         # Checked in plain floats first: np.clip costs more than the rest of the observation.
         w = self._wrench
@@ -534,18 +524,18 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         obs["wrench"] = w.astype(np.float32)
         return obs
 
-    def _make_info(self, phi, u_h, u_r, is_correction, record) -> dict[str, Any]:
-        info = self._info(phi, u_h, u_r, is_correction)
-        info.update(
-            u_h=np.array(u_h, dtype=np.float64),
-            correction_active=self._active,
-            correction_time=self._corr_time,
-            corrections=self._n_corr,
-            time=self._time,
-            wrench=self._wrench.copy(),
-            setpoint=self._sp.copy(),
-            unstable=self._unstable,
-        )
+    def _study_info(self, u_h: np.ndarray, record: dict[str, Any] | None) -> dict[str, Any]:
+        """The study's own info keys (the shared ones come from the template)."""
+        info = {
+            "u_h": np.array(u_h, dtype=np.float64),
+            "correction_active": self._active,
+            "correction_time": self._corr_time,
+            "corrections": self._n_corr,
+            "time": self._time,
+            "wrench": self._wrench.copy(),
+            "setpoint": self._sp.copy(),
+            "unstable": self._unstable,
+        }
         if record is not None:
             info["correction_state"] = record["state"].copy()
             info["correction_record"] = record

@@ -143,14 +143,14 @@ class StudyEnvV1(StudyEnv):
         self._pause_until = self._time + _positive("seconds", seconds) - 1e-9
 
     # ------------------------------------------------------------------ step
-    def _advance(self, u_r: np.ndarray) -> tuple[np.ndarray, Velocity]:
+    def _move_setpoint(self, u_r: np.ndarray) -> tuple[np.ndarray, Velocity]:
         if self._braked or self._time < self._pause_until:
             return self._zeros, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        return super()._advance(u_r)
+        return super()._move_setpoint(u_r)
 
-    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+    def _transition(self, u_res: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, dict]:
         self._reflex = False
-        obs, reward, term, trunc, info = super().step(action)
+        u_h, u_r, is_correction, info = super()._transition(u_res)
         info.update(
             reflex=self._reflex,
             braked=self._braked,
@@ -158,7 +158,7 @@ class StudyEnvV1(StudyEnv):
             lag=math.dist(self._sp[:3].tolist(), self._x[:3].tolist()),
             gave_up=float(getattr(self.human, "gave_up", False)),
         )
-        return obs, reward, term, trunc, info
+        return u_h, u_r, is_correction, info
 
     def _external_wrench(self) -> np.ndarray:
         """The summed wrench, and the reflex's decision on it (before the physics runs)."""

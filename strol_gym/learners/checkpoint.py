@@ -23,9 +23,28 @@ from strol_gym.learners.network import CorrectionNet
 from strol_gym.tasks.base import Task
 
 FORMAT_VERSION = 1
-KINDS = ("strol", "e2e", "strol-unrolled")
-THETA_KINDS = ("strol-unrolled",)
+KINDS: dict[str, bool] = {}
+"""The ĝ kinds, each with whether its ĝ also sees θ̂: a ``CorrectionLearner`` subclass
+registers its ``kind`` when it is defined (``register_kind``); the built-in ones are here from
+the start, so training and the sidecar checks know them before any learner is imported."""
+THETA_KINDS: set[str] = set()
 """Kinds whose ĝ also sees the robot's current estimate θ̂ (appended to the task's input)."""
+
+
+def register_kind(name: str, *, sees_theta_hat: bool = False) -> None:
+    """Make ``name`` a ĝ kind (``--kind`` of training, a checkpoint's ``kind``). Registering a
+    known kind again is a no-op if it agrees, else an error."""
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"kind must be a non-empty string, got {name!r}")
+    if KINDS.get(name, sees_theta_hat) != sees_theta_hat:
+        raise ValueError(f"kind {name!r} is registered with sees_theta_hat={KINDS[name]}")
+    KINDS[name] = bool(sees_theta_hat)
+    if sees_theta_hat:
+        THETA_KINDS.add(name)
+
+
+for _kind, _sees in (("strol", False), ("e2e", False), ("strol-unrolled", True)):
+    register_kind(_kind, sees_theta_hat=_sees)
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 
 
@@ -173,7 +192,7 @@ def save_checkpoint(
 ) -> Path:
     """Write ``path`` (weights) and its JSON sidecar. Returns the weights path."""
     if kind not in KINDS:
-        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+        raise ValueError(f"kind must be one of {tuple(KINDS)}, got {kind!r}")
     path = Path(path)
     check_weights_path(path)
     if model.in_dim != input_dim(task, kind) or model.out_dim != task.dim:

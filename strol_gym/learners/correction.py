@@ -25,6 +25,7 @@ from strol_gym.learners.checkpoint import (
     input_dim,
     load_checkpoint,
     model_input,
+    register_kind,
     train_hint,
 )
 from strol_gym.learners.network import CorrectionNet
@@ -51,6 +52,14 @@ class CorrectionLearner(LinearRuleLearner):
     """Shared machinery: holds ĝ and evaluates it on numpy batches (float64 bound)."""
 
     kind: str = ""
+    """The ĝ kind: which checkpoints fit (a subclass's kind registers itself)."""
+    sees_theta_hat: bool = False
+    """Whether ĝ also sees the current estimate θ̂ (appended to the task's input)."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.kind:
+            register_kind(cls.kind, sees_theta_hat=cls.sees_theta_hat)
 
     def __init__(
         self,
@@ -185,3 +194,4 @@ class UnrolledStROLLearner(StROLLearner):
 
     name = "strol-unrolled"
     kind = "strol-unrolled"
+    sees_theta_hat = True
