@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -115,6 +116,13 @@ class Task(ABC):
     @abstractmethod
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Draw ``n`` start states, shape (n, state_dim)."""
+
+    def sample_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """``sample_start(rng, 1)`` for each generator, stacked: (len(rngs), state_dim).
+
+        A vector env's resets, one sub-env per generator. Settings may override it to draw
+        per generator and do the arithmetic once on the batch (the same numbers)."""
+        return np.concatenate([self.sample_start(rng, 1) for rng in rngs])
 
     # ----------------------------------------------------------------- shared by every setting
     @property

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -178,6 +179,55 @@ class RobotTask(Task):
     def _high_l(self) -> list[float]:
         return self.workspace_high.tolist()
 
+    def g(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """φ(x_H) − φ(x_R) (eq. P3). For eq. M6's layout, x and u_R (B, 1, 3) with K candidate
+        u_H (B, K, 3), it works on (B, K) planes per axis and per object: broadcasting over
+        a last axis of 3 makes numpy's inner loops 3 elements long, several times slower.
+        The same IEEE operations as ``dynamics`` and ``features``, so the same numbers."""
+        x, u_h, u_r = (np.asarray(a, dtype=np.float64) for a in (x, u_h, u_r))
+        if not (
+            x.ndim == u_h.ndim == u_r.ndim == 3
+            and x.shape[1] == u_r.shape[1] == 1
+            and x.shape[0] == u_h.shape[0] == u_r.shape[0]
+            and x.shape[2] == u_h.shape[2] == u_r.shape[2] == 3
+        ):
+            return super().g(x, u_h, u_r)
+        base = x + u_r  # (B, 1, 3): x + u_R, then + u_H as ``dynamics`` adds them
+        x_h = []
+        for i in range(3):
+            v = base[:, :, i] + u_h[:, :, i]  # (B, K)
+            np.maximum(v, self._low_l[i], out=v)
+            np.minimum(v, self._high_l[i], out=v)
+            x_h.append(v)
+        out = np.empty((*u_h.shape[:2], 2))
+        zero = [0.0, 0.0, 0.0]
+        phi_r = np.array(  # (B, 1, 2): one state per row, in plain floats
+            [
+                [self._features_one(*self.dynamics_one(xb, zero, ub))]
+                for xb, ub in zip(x[:, 0].tolist(), u_r[:, 0].tolist(), strict=True)
+            ]
+        )
+        (p0, p1, _), (c0, c1, c2) = self._objects_l
+        # Squares summed as ``features``' reduction does: (d0² + d2²) + d1²; the plate's
+        # masked d2² is +0 and adds nothing.
+        d0, d1 = p0 - x_h[0], p1 - x_h[1]
+        d0 *= d0
+        d1 *= d1
+        d0 += d1
+        plate = np.sqrt(d0, out=d0)
+        np.negative(plate, out=plate)
+        np.subtract(plate, phi_r[:, :, 0], out=out[:, :, 0])
+        e0, e1, e2 = c0 - x_h[0], c1 - x_h[1], c2 - x_h[2]
+        e0 *= e0
+        e1 *= e1
+        e2 *= e2
+        e0 += e2
+        e0 += e1
+        cup = np.sqrt(e0, out=e0)
+        np.negative(cup, out=cup)
+        np.subtract(cup, phi_r[:, :, 1], out=out[:, :, 1])
+        return out
+
     def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """Plans maximising Σ_{t=1..T} θ·φ(x_t): (B, 2), (B, 3) -> (B, T+1, 3), T = plan_steps.
 
@@ -214,4 +264,16 @@ class RobotTask(Task):
         return np.vstack([self.plate, plate_top, self.cup, corners])
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        return rng.uniform(self.workspace_low, self.workspace_high, size=(n, 3))
+        return self._in_box(rng.random((n, 3)))
+
+    def sample_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        if type(self).sample_start is not RobotTask.sample_start:
+            return super().sample_starts(rngs)
+        return self._in_box(np.concatenate([rng.random((1, 3)) for rng in rngs]))
+
+    def _in_box(self, unit: np.ndarray) -> np.ndarray:
+        """Uniform draws in [0, 1) mapped into the workspace box: what ``rng.uniform(low, high)``
+        computes, low + (high − low)·U, from the same draws (the same numbers), without its
+        cost of broadcasting array bounds."""
+        lo = self.workspace_low
+        return lo + (self.workspace_high - lo) * unit
