@@ -181,7 +181,7 @@ class VectorCorrectionEnv(VectorEnv):
         idx = np.empty(len(rngs), dtype=np.int64)
         z = np.empty((len(rngs), d))
         for j, rng in enumerate(rngs):
-            idx[j] = rng.integers(0, k, size=1)[0]
+            idx[j] = rng.integers(0, k)  # the draw of size=1, without its per-call cost
             z[j] = rng.standard_normal((1, d))[0]
         return prior.modes[idx] + prior.jitter * z
 
