@@ -183,14 +183,20 @@ class PandaIK:
             mujoco.mju_mulMatTVec(w9, self._jp, y)  # Jᵀ y, 3 terms in order as numpy's
             dq = w9[:N_ARM].tolist()
             q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
-            if any(qn < lj or qn > hj for qn, lj, hj in zip(q_new, lo, hi, strict=True)):
-                # Joints at a limit drop out; the others take over their share (rare: numpy).
-                ep = np.array((e0, e1, e2))
-                qa = np.array(ql)
-                blocked = (np.array(q_new) < self.lo) | (np.array(q_new) > self.hi)
-                free = ~blocked
-                s *= free
-                q_new = (qa + self._step(jp * free, s, ep)).tolist()
+            free = [float(lj <= qn <= hj) for qn, lj, hj in zip(q_new, lo, hi, strict=True)]
+            if 0.0 in free:
+                # Joints at a limit drop out (their columns of J and entries of s times 0); the
+                # others take over their share. The same operations as above.
+                sl = [si * f for si, f in zip(sl, free, strict=True)]
+                jf = jp * np.array(free)
+                np.matmul(jf, jf.T, out=a)
+                a += self._damp
+                mujoco.mju_cholFactor(a, 0.0)
+                v0, v1, v2 = (jf @ np.array(sl)).tolist()
+                mujoco.mju_cholSolve(y, a, np.array((e0 - v0, e1 - v1, e2 - v2)))
+                mujoco.mju_mulMatTVec(w9[:N_ARM], jf, y)
+                dq = w9[:N_ARM].tolist()
+                q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
             q[:] = [
                 hj if qn > hj else (lj if qn < lj else qn)
                 for qn, lj, hj in zip(q_new, lo, hi, strict=True)
@@ -199,14 +205,6 @@ class PandaIK:
         x0, x1, x2 = x.tolist()
         e0, e1, e2 = tx - x0, ty - x1, tz - x2
         return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-
-    def _step(self, jp: np.ndarray, s: np.ndarray, ep: np.ndarray) -> np.ndarray:
-        """dq = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s), via MuJoCo's Cholesky (no numpy.linalg cost)."""
-        a = jp @ jp.T
-        a += self._damp
-        mujoco.mju_cholFactor(a, 0.0)
-        mujoco.mju_cholSolve(self._y, a, ep - jp @ s)
-        return s + jp.T @ self._y
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
