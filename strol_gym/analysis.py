@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans import DEFAULT_CANDIDATES, check_fraction, optimal_correction
+from strol_gym.humans import DEFAULT_CANDIDATES, check_fraction, human_model, teach
 from strol_gym.tasks.base import Task
 
 CONVERGED_TOL = 0.25
@@ -124,19 +124,9 @@ def basin_map(
     lr.reset(theta0)
     rng = np.random.default_rng(seed)
     x = np.repeat(task.sample_start(rng, 1), b, axis=0)
-    u_r = np.zeros((b, task.action_dim))
-    a_max = np.asarray(task.action_bound, dtype=np.float64)
+    teacher = human_model("nominal", task, sigma=sigma, bias=bias, n_candidates=int(n_candidates))
     stars = np.broadcast_to(star, (b, d))
-    for _ in range(int(steps)):
-        cand = task.candidate_actions(rng, 1, int(n_candidates))  # one draw, every cell
-        noise = bias * a_max + sigma * a_max * rng.standard_normal((1, task.action_dim))
-        theta = np.atleast_2d(np.asarray(lr.theta, dtype=np.float64))
-        u_h = optimal_correction(
-            task, x, u_r, theta, stars, np.broadcast_to(cand, (b, *cand.shape[1:]))
-        )
-        u_h = u_h + noise
-        lr.update(x, u_h, u_r)
-        x = task.dynamics(x, u_h, u_r)
+    teach(task, teacher, stars, theta0, x, lr.update, rng, int(steps), shared_draws=True)
     final = np.atleast_2d(np.asarray(lr.theta, dtype=np.float64))
     err = np.linalg.norm(final - star, axis=1).reshape(g0.shape)
     if not np.isfinite(err).all():  # θ̂ itself is checked by every update; its error too

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans import Human, HumanFactory, make_human
+from strol_gym.humans import Human, HumanFactory, human_model, make_human
 from strol_gym.tasks.base import Task
 
 __all__ = ["check_human", "check_learner", "check_task"]
@@ -221,7 +221,8 @@ def check_human(
     """Check a human (a registered name, a ``"module:attr"`` or a factory) on ``task``: it is
     built as the envs build it (σ, ε, β and ``human_kwargs``, only those it declares), exposes
     ``theta_star`` (d,), answers ``act`` with ``action_dim`` finite numbers and draws its
-    randomness from the generator it is given (same seed, same corrections)."""
+    randomness from the generator it is given (same seed, same corrections); its batched model
+    (``humans.human_model``) answers a batch of ``steps`` people with finite corrections."""
     theta_star = np.asarray(task.prior_modes, dtype=np.float64)[0]
     x, _, u_r = _samples(task, steps)
     theta_hat = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
@@ -249,3 +250,8 @@ def check_human(
             ]
         )
     _close(f"{human}: the same generator seed must give the same corrections", runs[0], runs[1])
+    model = human_model(human, task, sigma=sigma, bias=bias, beta=beta, **human_kwargs)
+    stars = np.broadcast_to(theta_star, (steps, task.dim))
+    hats = np.broadcast_to(theta_hat, (steps, task.dim))
+    batch = model.correct(x, u_r, stars, np.random.default_rng(_SEED), hats)
+    _shape(f"{human}: its model's corrections of a batch", batch, (steps, task.action_dim))

@@ -15,7 +15,7 @@ from strol_gym.benchmarks.experiments import confirm
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.analysis import basin_map
-from strol_gym.humans import HUMANS, ChangingHuman
+from strol_gym.humans import ChangingHuman, human_factory
 from strol_gym.learners.registry import make_learner
 from strol_gym.tasks.robot import RobotTask
 
@@ -34,7 +34,7 @@ def test_changing_human_switches_after_k_corrections():
         seen.append(h.theta_star.copy())
     np.testing.assert_array_equal(seen[:2], [star, star])
     np.testing.assert_array_equal(seen[2:], [-star] * 3)
-    assert HUMANS.get("changing") is ChangingHuman
+    assert human_factory("changing") is ChangingHuman
 
 
 def test_changing_human_env_reports_final_preference():

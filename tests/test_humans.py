@@ -11,6 +11,7 @@ from strol_gym.humans import (
     Human,
     NominalHuman,
     boltzmann_correction,
+    human_factory,
     optimal_correction,
     perturb,
 )
@@ -105,10 +106,8 @@ def test_humans_act_shape_seeding_and_protocol(cls):
     np.testing.assert_array_equal(u1, u2)
     assert not np.array_equal(u1, h1.act(x, u_r, th))  # fresh draws each call
     assert isinstance(h1, Human)
-    assert (
-        HUMAN_MODELS[{"NominalHuman": "nominal", "BoltzmannHuman": "boltzmann"}[cls.__name__]]
-        is cls
-    )
+    name = {"NominalHuman": "nominal", "BoltzmannHuman": "boltzmann"}[cls.__name__]
+    assert HUMAN_MODELS[name] is cls.model_class and human_factory(name) is cls
 
 
 @pytest.mark.parametrize(

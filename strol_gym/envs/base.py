@@ -47,6 +47,7 @@ from strol_gym.humans import (
     check_human_kwargs,
     human_factory,
     make_human,
+    needs_theta_hat,
 )
 from strol_gym.priors import Prior, make_prior
 from strol_gym.tasks import make_task
@@ -352,12 +353,14 @@ class CorrectionEnv:
 
     def _human_correction(self, x: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, bool]:
         """(u_H, is_correction): the human's correction during the first ``n_corrections``
-        steps, checked to be ``action_dim`` finite numbers; zeros afterwards."""
+        steps, checked to be ``action_dim`` finite numbers; zeros afterwards. θ̂ goes only to a
+        human who declares it needs it."""
         if self.human is None:
             raise RuntimeError("call reset() before step()")
         if self.steps >= self.n_corrections:
             return np.zeros(self.task.action_dim), False
-        u_h = np.asarray(self.human.act(x, u_r, self.theta_hat), dtype=np.float64)
+        theta_hat = self.theta_hat if needs_theta_hat(self.human) else None
+        u_h = np.asarray(self.human.act(x, u_r, theta_hat), dtype=np.float64)
         if u_h.shape != (self.task.action_dim,) or not np.isfinite(u_h).all():
             raise ValueError(
                 f"the human's correction must be {self.task.action_dim} finite numbers, got {u_h}"

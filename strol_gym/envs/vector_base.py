@@ -25,7 +25,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from strol_gym.envs.base import CorrectionEnv, int_arg
-from strol_gym.envs.vector_humans import HumanMaker, batched_corrections
+from strol_gym.humans.population import HumanMaker, batched_corrections
 from strol_gym.priors import MixturePrior
 
 

@@ -14,9 +14,9 @@ Each step draws a fresh batch, fully vectorised in numpy, and takes one Adam ste
 4. The nominal human: u* from eq. M6 over ``n_candidates`` admissible candidates
    (``task.candidate_actions``, which always includes u = 0), or a Boltzmann-rational choice
    (``human="boltzmann"``); then u_H = u* + δ, δ ~ N(ε a_max, (σ a_max)²) (``humans.perturb``).
-   Any other human (a registered name or "module:attr", see ``strol_gym.humans``) is built once
-   per sample with ``make_human`` (σ, ε, β, ``human_kwargs``) and asked for its correction;
-   a human class with a batched ``batch_choice`` is asked once per batch instead.
+   Any other human (a registered name or "module:attr", see ``strol_gym.humans``) answers
+   through the same batched interface (``humans.human_model`` with σ, ε, β, ``n_candidates``
+   and ``human_kwargs``); a factory of single humans without a model is built per sample.
 5. Loss (eq. M7, averaged): mean(α²‖g̃‖² − 2α e·g̃), e = θ* − θ, g̃ = g + ĝ (StROL) or ĝ (e2e).
 
 With ``unroll`` = K > 1 the loss is the error after K updates instead of one (Algorithm 1
@@ -47,9 +47,7 @@ from strol_gym.humans import (
     HUMANS,
     check_fraction,
     check_human_kwargs,
-    human_factory,
-    make_human,
-    perturb,
+    human_model,
 )
 from strol_gym.learners.checkpoint import (
     KINDS,
@@ -184,28 +182,18 @@ def human_correction(
     theta: np.ndarray,
     theta_star: np.ndarray,
 ) -> np.ndarray:
-    """The training human's u_H for a batch: a human class with ``batch_choice`` (eq. M6,
-    Boltzmann) over fresh candidates, + δ; any other human built per sample (``make_human``)."""
-    factory = human_factory(config.human)
-    batched = getattr(factory, "batch_choice", None)
-    if batched is not None:
-        cand = task.candidate_actions(rng, len(x), config.n_candidates)
-        u_star = batched(task, x, u_r, theta, theta_star, cand, rng, beta=config.beta)
-        return perturb(task, u_star, config.sigma, config.bias, rng)
-    u_h = np.empty((len(x), task.action_dim))
-    for i in range(len(x)):
-        human = make_human(
-            factory,
-            task,
-            theta_star[i],
-            rng,
-            sigma=config.sigma,
-            bias=config.bias,
-            beta=config.beta,
-            **(config.human_kwargs or {}),
-        )
-        u_h[i] = human.act(x[i], u_r[i], theta[i])
-    return u_h
+    """The training human's u_H for a batch: its model (``humans.human_model``) asked once for
+    the whole batch, with θ̂ = ``theta`` where the model teaches relative to it."""
+    model = human_model(
+        config.human,
+        task,
+        sigma=config.sigma,
+        bias=config.bias,
+        beta=config.beta,
+        n_candidates=config.n_candidates,
+        **(config.human_kwargs or {}),
+    )
+    return model.correct(x, u_r, theta_star, rng, theta_hat=theta)
 
 
 def lyapunov_term(alpha: float, e: np.ndarray, g_tilde: np.ndarray) -> np.ndarray:

@@ -1,0 +1,68 @@
+"""The corrections of many single humans at once: one per sub-env of a vector env.
+
+Each sub-env keeps its own human, built exactly as the single env builds it with the sub-env's
+generator, so every human draws from its own stream in the single env's order. What is batched
+is the choice: humans of one model with equal parameters (``HumanModel.same_as``) are asked in
+one ``HumanModel.corrections`` call over draws taken from each human's generator
+(``HumanModel.draw_each``); any other human answers through its own ``act``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from strol_gym.humans.model import Human, ModelHuman, needs_theta_hat
+from strol_gym.humans.registry import _params, human_factory, make_human
+from strol_gym.tasks.base import Task
+
+
+def _one_model(humans: Sequence[Human]) -> bool:
+    first = humans[0]
+    if not isinstance(first, ModelHuman):
+        return False
+    return all(isinstance(h, ModelHuman) and h.model.same_as(first.model) for h in humans)
+
+
+def batched_corrections(
+    humans: Sequence[Human], x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray
+) -> np.ndarray:
+    """u_H (B, a) of ``humans[b].act(x[b], u_r[b], θ̂[b])`` for every b (θ̂ only to humans who
+    need it), batched when all humans share one model."""
+    if not len(humans):
+        return np.zeros((0, u_r.shape[-1]))
+    if _one_model(humans):
+        model = humans[0].model  # type: ignore[attr-defined]
+        k = np.array([h.begin() for h in humans])  # type: ignore[attr-defined]
+        theta_star = np.stack([h.theta_initial for h in humans])  # type: ignore[attr-defined]
+        draws = model.draw_each([h.rng for h in humans])  # type: ignore[attr-defined]
+        return model.corrections(x, u_r, theta_star, draws, theta_hat, k)
+    return np.stack(
+        [
+            np.asarray(
+                h.act(x[b], u_r[b], theta_hat[b] if needs_theta_hat(h) else None),
+                dtype=np.float64,
+            )
+            for b, h in enumerate(humans)
+        ]
+    )
+
+
+class HumanMaker:
+    """``make_human`` for many humans of one model: the factory and the keyword arguments its
+    signature accepts are resolved once (``make_human`` does it per call); the first human is
+    built and checked by ``make_human`` itself."""
+
+    def __init__(self, human: Any, task: Task, **params: Any) -> None:
+        self.human, self.task, self.params = human, task, params
+        self._factory: Any = None
+
+    def __call__(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
+        if self._factory is None:
+            obj = make_human(self.human, self.task, theta_star, rng, **self.params)
+            self._factory = human_factory(self.human)
+            self.params = _params(self._factory, self.params)
+            return obj
+        return self._factory(self.task, theta_star, rng, **self.params)
