@@ -5,6 +5,8 @@ shifted by ``lift``.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -54,11 +56,18 @@ class PandaIK:
         self._jr = np.zeros((3, model.nv))
         self._y = np.zeros(3)
         self._damp = IK_DAMPING**2 * np.eye(3)
+        self._a = np.zeros((3, 3))
+        self._w9 = np.zeros(model.nv)
+        self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
+        self._lift_l = self.lift.tolist()
         self.seeds = seeds
         if seeds is not None:
             self._seed_low = np.asarray(low, dtype=np.float64)
             self._seed_step = (np.asarray(high) - self._seed_low) / (np.array(seeds.shape[:3]) - 1)
             self._seed_max = np.array(seeds.shape[:3]) - 1
+            self._seed_low_l = self._seed_low.tolist()
+            self._seed_step_l = self._seed_step.tolist()
+            self._seed_top = self._seed_max.tolist()
         self.data.qpos[N_ARM:] = FINGER_OPEN
         self.set_q(Q_HOME)
         # The rotation error to "gripper as in Q_HOME" is linear in the site's xmat (9,):
@@ -86,17 +95,27 @@ class PandaIK:
         """The seed table's configuration nearest ``target`` (task frame), if there is a table."""
         if self.seeds is None:
             return None
-        idx = np.rint((target - self._seed_low) / self._seed_step).astype(int)
-        np.minimum(np.maximum(idx, 0), self._seed_max, out=idx)
+        # Plain floats: the same IEEE operations as numpy's elementwise ones (round() rounds
+        # half to even, as np.rint), without numpy's per-call cost on three numbers.
+        idx = [
+            min(max(round((t - lo) / st), 0), top)
+            for t, lo, st, top in zip(
+                np.asarray(target).tolist(),
+                self._seed_low_l,
+                self._seed_step_l,
+                self._seed_top,
+                strict=True,
+            )
+        ]
         q = self.seeds[idx[0], idx[1], idx[2]]
-        return None if np.isnan(q[0]) else q
+        return None if math.isnan(q[0]) else q
 
     def solve(self, target: np.ndarray, iters: int = IK_ITERS, tol: float = IK_TOL) -> float:
         """Move the arm so that the end effector reaches ``target`` (task frame).
 
         Returns the remaining position error (m).
         """
-        world = target + self.lift
+        world = [t + h for t, h in zip(np.asarray(target).tolist(), self._lift_l, strict=True)]
         ref = self.reference(target)
         err = self._solve(world, iters, tol, ref)
         if err > IK_RECOVER * tol and ref is not None:
@@ -111,46 +130,81 @@ class PandaIK:
 
     def _solve(
         self,
-        target: np.ndarray,
+        target: np.ndarray | list[float],
         iters: int,
         tol: float,
         ref: np.ndarray | None,
         orient_gain: float = IK_ORIENT_GAIN,
     ) -> float:
-        """``iters`` IK iterations towards ``target`` (world frame); returns the error."""
+        """``iters`` IK iterations towards ``target`` (world frame); returns the error.
+
+        The products of Jacobians stay numpy's (BLAS) calls; the elementwise work on 3 and 7
+        numbers is done in plain floats with the same IEEE operations in the same order (numpy's
+        per-call cost dominates on so few numbers), so the arm reaches the same bits."""
         m, d, q = self.model, self.data, self.q
         x = d.site_xpos[self.site]
         xmat = d.site_xmat[self.site]
-        jp, jr = self._jp[:, :N_ARM], self._jr[:, :N_ARM]
+        jp = self._jp[:, :N_ARM]
+        tx, ty, tz = target if isinstance(target, list) else np.asarray(target).tolist()
+        tol2 = tol * tol
+        ref_l = None if ref is None else ref.tolist()
+        lo, hi = self._lo_l, self._hi_l
+        a, y, w9 = self._a, self._y, self._w9
+        posture = IK_POSTURE_GAIN
         for _ in range(iters):
-            ep = target - x
-            if ep @ ep < tol * tol:
+            x0, x1, x2 = x.tolist()
+            e0, e1, e2 = tx - x0, ty - x1, tz - x2
+            if e0 * e0 + e1 * e1 + e2 * e2 < tol2:
                 break
             mujoco.mj_comPos(m, d)
             mujoco.mj_jacSite(m, d, self._jp, self._jr, self.site)
             # Secondary motion s, projected into the position task's null space:
             # dq = J⁺ e + (I − J⁺J) s = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s).
-            s = orient_gain * (jr.T @ (self._orient @ xmat))
-            if ref is not None:
-                s += IK_POSTURE_GAIN * (ref - q)
-            q_new = q + self._step(jp, s, ep)
-            blocked = (q_new < self.lo) | (q_new > self.hi)
-            if blocked.any():  # joints at a limit drop out; the others take over their share
-                free = ~blocked
-                s *= free
-                q_new = q + self._step(jp * free, s, ep)
-            np.minimum(np.maximum(q_new, self.lo), self.hi, out=q)
+            # Jᵣᵀ v: MuJoCo's product sums the 3 terms in order, as numpy's (BLAS) does: the
+            # same bits (checked on random matrices); numpy's J Jᵀ and J s fuse multiply-adds
+            # and stay numpy's.
+            mujoco.mju_mulMatTVec(w9, self._jr, self._orient @ xmat)
+            w = w9[:N_ARM].tolist()
+            ql = q.tolist()
+            if ref_l is None:
+                sl = [orient_gain * wi for wi in w]
+            else:
+                sl = [
+                    orient_gain * wi + posture * (ri - qi)
+                    for wi, ri, qi in zip(w, ref_l, ql, strict=True)
+                ]
+            s = np.array(sl)
+            # dq = s + Jᵀ y with (J Jᵀ + λ²I) y = e − J s (MuJoCo's Cholesky: no numpy.linalg).
+            np.matmul(jp, jp.T, out=a)
+            a += self._damp
+            mujoco.mju_cholFactor(a, 0.0)
+            v0, v1, v2 = (jp @ s).tolist()
+            mujoco.mju_cholSolve(y, a, np.array((e0 - v0, e1 - v1, e2 - v2)))
+            mujoco.mju_mulMatTVec(w9, self._jp, y)  # Jᵀ y, 3 terms in order as numpy's
+            dq = w9[:N_ARM].tolist()
+            q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
+            free = [float(lj <= qn <= hj) for qn, lj, hj in zip(q_new, lo, hi, strict=True)]
+            if 0.0 in free:
+                # Joints at a limit drop out (their columns of J and entries of s times 0); the
+                # others take over their share. The same operations as above.
+                sl = [si * f for si, f in zip(sl, free, strict=True)]
+                jf = jp * np.array(free)
+                np.matmul(jf, jf.T, out=a)
+                a += self._damp
+                mujoco.mju_cholFactor(a, 0.0)
+                v0, v1, v2 = (jf @ np.array(sl)).tolist()
+                mujoco.mju_cholSolve(y, a, np.array((e0 - v0, e1 - v1, e2 - v2)))
+                mujoco.mju_mulMatTVec(w9[:N_ARM], jf, y)
+                dq = w9[:N_ARM].tolist()
+                q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
+            q[:] = [
+                hj if qn > hj else (lj if qn < lj else qn)
+                for qn, lj, hj in zip(q_new, lo, hi, strict=True)
+            ]
             mujoco.mj_kinematics(m, d)
-        ep = target - x
-        return float(np.sqrt(ep @ ep))
-
-    def _step(self, jp: np.ndarray, s: np.ndarray, ep: np.ndarray) -> np.ndarray:
-        """dq = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s), via MuJoCo's Cholesky (no numpy.linalg cost)."""
-        a = jp @ jp.T
-        a += self._damp
-        mujoco.mju_cholFactor(a, 0.0)
-        mujoco.mju_cholSolve(self._y, a, ep - jp @ s)
-        return s + jp.T @ self._y
+        x0, x1, x2 = x.tolist()
+        e0, e1, e2 = tx - x0, ty - x1, tz - x2
+        return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
 
 
 def _skew(v: np.ndarray) -> np.ndarray:

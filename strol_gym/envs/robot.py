@@ -172,6 +172,13 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         return self._ik.ee
 
     # ------------------------------------------------------------------ the template's hooks
+    def _draw_starts(
+        self, rngs: list[np.random.Generator], human_rngs: bool = True
+    ) -> tuple[np.ndarray, list[np.random.Generator]]:
+        """The template's ``_draw_start`` (``task.sample_start``, the human drawing from the
+        episode's generator) for many generators at once: a vector env's resets."""
+        return self.task.sample_starts(rngs), list(rngs)
+
     def _start_override(self, x0: np.ndarray) -> np.ndarray:
         return np.clip(x0, self.task.workspace_low, self.task.workspace_high)
 

@@ -26,6 +26,7 @@ from gymnasium.vector.utils import batch_space
 
 from strol_gym.envs.base import CorrectionEnv, int_arg
 from strol_gym.humans.population import HumanMaker, batched_corrections
+from strol_gym.priors import MixturePrior
 
 
 class VectorCorrectionEnv(VectorEnv):
@@ -149,23 +150,53 @@ class VectorCorrectionEnv(VectorEnv):
     def _reset_rows(self, rows: np.ndarray, overrides: tuple = (None, None)) -> None:
         theta_override, x_override = overrides
         t = self.template
-        x0 = np.empty((len(rows), self.task.state_dim))
+        # The single env's own draws, in its order per sub-env: θ*, then its start and human
+        # generator (each sub-env has its own generator, so all θ* first is the same order).
+        rngs = [self._rngs[i] for i in rows]
+        theta = self._draw_thetas(rngs)
+        x0, human_rngs = self._draw_starts(rngs)
+        if theta_override is not None:
+            theta[:] = theta_override
+        if x_override is not None:
+            x0[:] = t._start_override(x_override)
+        self.theta_star[rows] = theta
+        # A human that never acts draws nothing: with n_corrections = 0 it is not built.
         for k, i in enumerate(rows):
-            # The single env's own draws, in its order: θ*, then its start and human generator.
-            rng = self._rngs[i]
-            theta = self.task.prior.sample(rng, 1)[0]
-            x0[k], human_rng = t._draw_start(rng)
-            if theta_override is not None:
-                theta = theta_override
-            if x_override is not None:
-                x0[k] = t._start_override(x_override)
-            self.theta_star[i] = theta
-            # A human that never acts draws nothing: with n_corrections = 0 it is not built.
-            self.humans[i] = self._make_human(theta, human_rng) if self.n_corrections else None
+            self.humans[i] = (
+                self._make_human(theta[k], human_rngs[k]) if self.n_corrections else None
+            )
         self.theta_hat[rows] = t._default_theta_hat()
         self.steps[rows] = 0
         self._started[rows] = True
         self._x[rows], self._reset_extra = self._place_rows(rows, x0)
+
+    def _draw_thetas(self, rngs: list[np.random.Generator]) -> np.ndarray:
+        """θ* of each sub-env, ``prior.sample(rng, 1)`` per generator, (n, d). For the paper's
+        mixture prior the draws stay per generator and the arithmetic runs once on the batch
+        (the same numbers); any other prior samples per generator."""
+        prior = self.task.prior
+        if type(prior) is not MixturePrior:
+            return np.concatenate([prior.sample(rng, 1) for rng in rngs])
+        k, d = prior.modes.shape
+        idx = np.empty(len(rngs), dtype=np.int64)
+        z = np.empty((len(rngs), d))
+        for j, rng in enumerate(rngs):
+            idx[j] = rng.integers(0, k)  # the draw of size=1, without its per-call cost
+            z[j] = rng.standard_normal((1, d))[0]
+        return prior.modes[idx] + prior.jitter * z
+
+    def _draw_starts(self, rngs: list[np.random.Generator]) -> tuple[np.ndarray, list[Any]]:
+        """Start states (n, state_dim) and the humans' generators: the single env's batched
+        ``_draw_starts`` if it has one, else its ``_draw_start`` per generator."""
+        t = self.template
+        batched = getattr(t, "_draw_starts", None)
+        if batched is not None:
+            return batched(rngs, human_rngs=bool(self.n_corrections))
+        draws = [t._draw_start(rng) for rng in rngs]
+        x0 = np.empty((len(rngs), self.task.state_dim))
+        for k, (x, _) in enumerate(draws):
+            x0[k] = x
+        return x0, [h for _, h in draws]
 
     def step(self, actions: Any) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, dict]:
         n, t = self.num_envs, self.task

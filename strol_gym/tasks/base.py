@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -116,6 +117,13 @@ class Task(ABC):
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Draw ``n`` start states, shape (n, state_dim)."""
 
+    def sample_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """``sample_start(rng, 1)`` for each generator, stacked: (len(rngs), state_dim).
+
+        A vector env's resets, one sub-env per generator. Settings may override it to draw
+        per generator and do the arithmetic once on the batch (the same numbers)."""
+        return np.concatenate([self.sample_start(rng, 1) for rng in rngs])
+
     # ----------------------------------------------------------------- shared by every setting
     @property
     def dim(self) -> int:
@@ -148,9 +156,14 @@ class Task(ABC):
         """
         if k < 0:
             raise ValueError(f"k must be >= 0, got {k}")
-        a = self.action_bound
-        draws = rng.uniform(-1.0, 1.0, size=(n, k, self.action_dim)) * a
-        return np.concatenate([np.zeros((n, 1, self.action_dim)), draws], axis=1)
+        out = np.zeros((n, k + 1, self.action_dim))
+        # rng.uniform(-1, 1) computes −1 + 2·U from U in [0, 1): the same draws and numbers,
+        # with numpy's cheaper fill of U.
+        u = rng.random((n, k, self.action_dim))
+        u *= 2.0
+        u += -1.0
+        np.multiply(u, self.action_bound, out=out[:, 1:])
+        return out
 
     def with_prior(self, prior: Prior) -> Task:
         """The same setting with another prior over θ*."""

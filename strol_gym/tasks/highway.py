@@ -42,6 +42,7 @@ of the passer is flipped because our speed feature is the human's own speed: wit
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -232,9 +233,16 @@ class HighwayTask(Task):
         Gap ``start_gap`` (15–40 m), speeds ``start_speed`` (20–30 m/s), small lateral offsets
         (robot ±0.5 m, human ±1 m, inside the 4 m lane) and headings (±0.02 / ±0.05 rad).
         """
-        return self._draw(
-            rng,
-            n,
+        return self._episode_start(rng.uniform(size=(n, 8)))
+
+    def sample_episode_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """``sample_episode_start(rng, 1)`` for each generator, stacked (a vector env's resets):
+        the draws per generator, the arithmetic once on the batch (the same numbers)."""
+        return self._episode_start(np.concatenate([rng.uniform(size=(1, 8)) for rng in rngs]))
+
+    def _episode_start(self, u: np.ndarray) -> np.ndarray:
+        return self._lerp(
+            u,
             self.start_gap,
             (-0.5, 0.5),
             (-1.0, 1.0),
@@ -255,9 +263,8 @@ class HighwayTask(Task):
         −10 to 60 m behind (ahead after passing), robot y ∈ [−1, 5] m, human y ∈ [−6, 10] m,
         speeds 15–35 m/s, headings ±0.1 (robot) / ±0.2 rad (human).
         """
-        return self._draw(
-            rng,
-            n,
+        return self._lerp(
+            rng.uniform(size=(n, 8)),
             (-10.0, 60.0),
             (-1.0, 5.0),
             (-6.0, 10.0),
@@ -267,10 +274,9 @@ class HighwayTask(Task):
             (15.0, 35.0),
         )
 
-    def _draw(
+    def _lerp(
         self,
-        rng: np.random.Generator,
-        n: int,
+        u: np.ndarray,
         behind: tuple[float, float],
         y_r: tuple[float, float],
         y_h: tuple[float, float],
@@ -279,7 +285,8 @@ class HighwayTask(Task):
         v_r: tuple[float, float],
         v_h: tuple[float, float],
     ) -> np.ndarray:
-        u = rng.uniform(size=(n, 8))
+        """States from uniform draws ``u`` (n, 8), each column mapped into its range."""
+        n = len(u)
 
         def lerp(col: int, lo: float, hi: float) -> np.ndarray:
             return lo + (hi - lo) * u[:, col]

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
+from collections.abc import Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -100,10 +102,26 @@ class RobotTask(Task):
         return np.stack([self.plate, self.cup])
 
     def features(self, x: np.ndarray) -> np.ndarray:
+        if type(x) is np.ndarray and x.shape == (3,) and x.dtype == np.float64:
+            return np.array(self._features_one(*x.tolist()))
         diff = self._offsets(np.asarray(x, dtype=np.float64))  # (..., 2, 3)
         # C order whatever the layout of diff: sums over φ (returns, plan values) reduce in
         # memory order, and the same layout gives the same rounding.
         return -np.sqrt(np.einsum("...ij,...ij->...i", diff, diff, order="C"))
+
+    def _features_one(self, x0: float, x1: float, x2: float) -> tuple[float, float]:
+        """φ of one state in plain floats (the env's every step: numpy's per-call cost dominates
+        on 3 numbers). The same IEEE operations in the order of ``features``' sum over the 3
+        axes, (d0² + d2²) + d1², so the same bits; the plate's masked d2² is +0, which adds
+        nothing."""
+        (p0, p1, _), (c0, c1, c2) = self._objects_l
+        d0, d1 = p0 - x0, p1 - x1
+        e0, e1, e2 = c0 - x0, c1 - x1, c2 - x2
+        return (-math.sqrt(d0 * d0 + d1 * d1), -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1))
+
+    @functools.cached_property
+    def _objects_l(self) -> list[list[float]]:
+        return self._objects.tolist()
 
     def feature_jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂φ/∂x, (..., 3) -> (..., 2, 3), for gradient-based planning (0 at the kinks).
@@ -139,7 +157,76 @@ class RobotTask(Task):
         return diff
 
     def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        one = all(type(a) is np.ndarray and a.shape == (3,) for a in (x, u_h, u_r))
+        if one:
+            return np.array(self.dynamics_one(x.tolist(), u_h.tolist(), u_r.tolist()))
         return np.minimum(np.maximum(x + u_r + u_h, self.workspace_low), self.workspace_high)
+
+    def dynamics_one(self, x: list[float], u_h: list[float], u_r: list[float]) -> list[float]:
+        """f of one state in plain floats: the same IEEE operations as ``dynamics``."""
+        out = []
+        for xi, hi_, ri, lo, hi in zip(x, u_h, u_r, self._low_l, self._high_l, strict=True):
+            v = xi + ri + hi_
+            v = lo if v < lo else v
+            out.append(hi if v > hi else v)
+        return out
+
+    @functools.cached_property
+    def _low_l(self) -> list[float]:
+        return self.workspace_low.tolist()
+
+    @functools.cached_property
+    def _high_l(self) -> list[float]:
+        return self.workspace_high.tolist()
+
+    def g(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """φ(x_H) − φ(x_R) (eq. P3). For eq. M6's layout, x and u_R (B, 1, 3) with K candidate
+        u_H (B, K, 3), it works on (B, K) planes per axis and per object: broadcasting over
+        a last axis of 3 makes numpy's inner loops 3 elements long, several times slower.
+        The same IEEE operations as ``dynamics`` and ``features``, so the same numbers."""
+        x, u_h, u_r = (np.asarray(a, dtype=np.float64) for a in (x, u_h, u_r))
+        if not (
+            x.ndim == u_h.ndim == u_r.ndim == 3
+            and x.shape[1] == u_r.shape[1] == 1
+            and x.shape[0] == u_h.shape[0] == u_r.shape[0]
+            and x.shape[2] == u_h.shape[2] == u_r.shape[2] == 3
+        ):
+            return super().g(x, u_h, u_r)
+        base = x + u_r  # (B, 1, 3): x + u_R, then + u_H as ``dynamics`` adds them
+        x_h = []
+        for i in range(3):
+            v = base[:, :, i] + u_h[:, :, i]  # (B, K)
+            np.maximum(v, self._low_l[i], out=v)
+            np.minimum(v, self._high_l[i], out=v)
+            x_h.append(v)
+        out = np.empty((*u_h.shape[:2], 2))
+        zero = [0.0, 0.0, 0.0]
+        phi_r = np.array(  # (B, 1, 2): one state per row, in plain floats
+            [
+                [self._features_one(*self.dynamics_one(xb, zero, ub))]
+                for xb, ub in zip(x[:, 0].tolist(), u_r[:, 0].tolist(), strict=True)
+            ]
+        )
+        (p0, p1, _), (c0, c1, c2) = self._objects_l
+        # Squares summed as ``features``' reduction does: (d0² + d2²) + d1²; the plate's
+        # masked d2² is +0 and adds nothing.
+        d0, d1 = p0 - x_h[0], p1 - x_h[1]
+        d0 *= d0
+        d1 *= d1
+        d0 += d1
+        plate = np.sqrt(d0, out=d0)
+        np.negative(plate, out=plate)
+        np.subtract(plate, phi_r[:, :, 0], out=out[:, :, 0])
+        e0, e1, e2 = c0 - x_h[0], c1 - x_h[1], c2 - x_h[2]
+        e0 *= e0
+        e1 *= e1
+        e2 *= e2
+        e0 += e2
+        e0 += e1
+        cup = np.sqrt(e0, out=e0)
+        np.negative(cup, out=cup)
+        np.subtract(cup, phi_r[:, :, 1], out=out[:, :, 1])
+        return out
 
     def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """Plans maximising Σ_{t=1..T} θ·φ(x_t): (B, 2), (B, 3) -> (B, T+1, 3), T = plan_steps.
@@ -177,4 +264,16 @@ class RobotTask(Task):
         return np.vstack([self.plate, plate_top, self.cup, corners])
 
     def sample_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        return rng.uniform(self.workspace_low, self.workspace_high, size=(n, 3))
+        return self._in_box(rng.random((n, 3)))
+
+    def sample_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        if type(self).sample_start is not RobotTask.sample_start:
+            return super().sample_starts(rngs)
+        return self._in_box(np.concatenate([rng.random((1, 3)) for rng in rngs]))
+
+    def _in_box(self, unit: np.ndarray) -> np.ndarray:
+        """Uniform draws in [0, 1) mapped into the workspace box: what ``rng.uniform(low, high)``
+        computes, low + (high − low)·U, from the same draws (the same numbers), without its
+        cost of broadcasting array bounds."""
+        lo = self.workspace_low
+        return lo + (self.workspace_high - lo) * unit
