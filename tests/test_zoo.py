@@ -254,3 +254,22 @@ def test_run_by_name(name, tmp_path, capsys):
     assert cli.main([*argv, "--seed", str(SEED), "--out", str(out)]) == 0
     assert (out / "runs.csv").is_file()
     assert f"{name} human" in (out / "summary.md").read_text()
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"human": "mistaken", "sigma": 0.2, "human_kwargs": {"rate": 0.5}},
+        {"human": "early", "sigma": 0.2, "human_kwargs": {"until": 2}},
+        {"human": "feature-noise", "sigma": 0.1},
+    ],
+    ids=["mistaken", "early", "feature-noise"],
+)
+def test_vector_env_batches_the_zoo_as_single_envs_answer(kwargs):
+    """The native vector env asks the model for every sub-env in one call (draw_each): the
+    same corrections as gymnasium's SyncVectorEnv of single envs."""
+    from test_vector_envs import TOL, rollout, worst_difference
+
+    sync, _ = rollout("StROL-Robot-v0", "sync", 3, SEED, 12, **kwargs)
+    vec, _ = rollout("StROL-Robot-v0", "vector_entry_point", 3, SEED, 12, **kwargs)
+    assert max(worst_difference(s, v) for s, v in zip(sync, vec, strict=True)) < TOL
