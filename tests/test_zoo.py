@@ -273,3 +273,30 @@ def test_vector_env_batches_the_zoo_as_single_envs_answer(kwargs):
     sync, _ = rollout("StROL-Robot-v0", "sync", 3, SEED, 12, **kwargs)
     vec, _ = rollout("StROL-Robot-v0", "vector_entry_point", 3, SEED, 12, **kwargs)
     assert max(worst_difference(s, v) for s, v in zip(sync, vec, strict=True)) < TOL
+
+
+@pytest.mark.parametrize("p", [0.0, 1.0])
+def test_skipping_in_the_study_env_means_no_push(p):
+    """The study's simulated user asks its human model where to push: a skipped correction
+    is no push at that decision (docs/humans.md)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # v0 is deprecated, still served
+        env = gym.make(
+            "StROL-Study-v0",
+            task=1,
+            human="skipping",
+            human_kwargs={"p": p},
+            sigma=0.25,
+            max_episode_steps=60,
+        )
+    try:
+        env.reset(seed=SEED)
+        pushes = sum(
+            env.step(np.zeros(env.action_space.shape, dtype=np.float32))[4]["is_correction"]
+            for _ in range(60)
+        )
+    finally:
+        env.close()
+    assert (pushes == 0) == (p == 1.0)
