@@ -50,6 +50,23 @@ def test_rm_anova_hand_case():
     assert res.p_gg == pytest.approx(sps.f.sf(11.4, 2 * 900 / 1152, 6 * 900 / 1152))
     assert res.p < res.p_gg < 0.05
     assert "F(1.6, 4.7) = 11.40" in res.line()
+    # Huynh–Feldt (Lecoutre): (5 * 2 * 900/1152 - 2) / (2 * (3 - 2 * 900/1152)) = 2.02 > 1
+    assert res.eps_hf == 1.0 and res.p_hf == pytest.approx(res.p)
+
+
+def test_huynh_feldt_lies_between_greenhouse_geisser_and_one():
+    rng = np.random.default_rng(0)
+    for n, k in [(6, 3), (12, 5), (40, 4)]:
+        y = rng.normal(size=(n, k)) * np.linspace(0.2, 3.0, k) + np.arange(k)  # ε < 1, F > 1
+        res = stats.rm_anova(y)
+        assert res.eps_gg <= res.eps_hf <= 1.0
+        assert res.p_gg >= res.p_hf >= res.p
+        e, m = res.eps_gg, k - 1
+        want = min(max(((n + 1) * m * e - 2) / (m * (n - 1 - m * e)), e), 1.0)
+        assert res.eps_hf == pytest.approx(want)
+    old = ("n", "k", "F", "df1", "df2", "p", "eps_gg", "df1_gg", "df2_gg", "p_gg")
+    read = stats.AnovaResult.from_row(dict.fromkeys(old, 1.0))  # a row written before HF
+    assert math.isnan(read.eps_hf) and "Huynh" not in read.line()
 
 
 def test_rm_anova_two_levels_is_paired_t_squared():

@@ -77,6 +77,8 @@ ANOVA_COLUMNS = (
     "df1_gg",
     "df2_gg",
     "p_gg",
+    "eps_hf",
+    "p_hf",
 )
 
 

@@ -47,7 +47,8 @@ def describe(values: np.ndarray) -> dict[str, float]:
 
 @dataclasses.dataclass(frozen=True)
 class AnovaResult:
-    """One-way repeated-measures ANOVA. ``*_gg`` are Greenhouse–Geisser corrected."""
+    """One-way repeated-measures ANOVA. ``*_gg`` are Greenhouse–Geisser corrected, ``*_hf``
+    Huynh–Feldt (less conservative when ε is near 1; results written before it read as NaN)."""
 
     n: int
     k: int
@@ -59,11 +60,14 @@ class AnovaResult:
     df1_gg: float
     df2_gg: float
     p_gg: float
+    eps_hf: float = math.nan
+    p_hf: float = math.nan
 
     @classmethod
     def from_row(cls, row: dict[str, Any]) -> AnovaResult:
-        """The result from a row of ``anova.csv`` (its fields; other keys are ignored)."""
-        return cls(**{f.name: row[f.name] for f in dataclasses.fields(cls)})
+        """The result from a row of ``anova.csv`` (its fields; other keys are ignored, fields
+        added later read as their default)."""
+        return cls(**{f.name: row.get(f.name, f.default) for f in dataclasses.fields(cls)})
 
     @property
     def no_variance(self) -> bool:
@@ -83,6 +87,11 @@ class AnovaResult:
         return (
             f"F({self.df1_gg:.1f}, {self.df2_gg:.1f}) = {self.F:.2f}, "
             f"{format_p(self.p_gg)} (Greenhouse–Geisser ε = {self.eps_gg:.3f}; n = {self.n})"
+            + (
+                f"; Huynh–Feldt ε = {self.eps_hf:.3f}, {format_p(self.p_hf)}"
+                if math.isfinite(self.eps_hf)
+                else ""
+            )
         )
 
 
@@ -100,6 +109,17 @@ def greenhouse_geisser_epsilon(y: np.ndarray) -> float:
     if denom <= 0:
         return math.nan
     return float(np.trace(sc) ** 2 / denom)
+
+
+def huynh_feldt_epsilon(eps_gg: float, n: int, k: int) -> float:
+    """Huynh–Feldt ε from GG ε̂ for one group of n subjects and k levels, with Lecoutre's
+    (1991) correction: ((n+1)(k−1)ε̂ − 2) / ((k−1)(n−1−(k−1)ε̂)), kept in [ε̂, 1]."""
+    if not math.isfinite(eps_gg) or n < 2 or k < 2:
+        return math.nan
+    denom = (k - 1) * (n - 1 - (k - 1) * eps_gg)
+    if denom <= 0:
+        return 1.0
+    return min(max(((n + 1) * (k - 1) * eps_gg - 2) / denom, eps_gg), 1.0)
 
 
 def rm_anova(y: np.ndarray) -> AnovaResult:
@@ -130,7 +150,9 @@ def rm_anova(y: np.ndarray) -> AnovaResult:
         eps = 1.0 / df1  # the lower bound: the most conservative correction
     eps = min(max(eps, 1.0 / df1), 1.0)
     p_gg = float(sps.f.sf(f, eps * df1, eps * df2)) if math.isfinite(f) else nan
-    return AnovaResult(n, k, float(f), df1, df2, p, eps, eps * df1, eps * df2, p_gg)
+    hf = huynh_feldt_epsilon(eps, n, k)
+    p_hf = float(sps.f.sf(f, hf * df1, hf * df2)) if math.isfinite(f) else nan
+    return AnovaResult(n, k, float(f), df1, df2, p, eps, eps * df1, eps * df2, p_gg, hf, p_hf)
 
 
 def holm(pvalues: Sequence[float]) -> np.ndarray:

@@ -184,7 +184,7 @@ class HumanModel:
             raise ValueError(f"{type(self).__name__} teaches relative to θ̂: pass theta_hat")
         pref = self.preference(theta_star, k)
         u = self.choose(x, u_r, pref, draws, theta_hat if self.needs_theta_hat else None, k)
-        return perturb(self.task, u, self.sigma, self.bias, _Drawn(draws.noise))
+        return perturb(self.task, u, self.sigma, self.bias, Replayed(draws.noise))
 
     def correct(
         self,
@@ -210,16 +210,20 @@ def _stack(parts: Sequence[Draws], a: int, k: int) -> Draws:
     )
 
 
-class _Drawn:
-    """A stand-in generator whose ``standard_normal`` returns draws already made."""
+class Replayed:
+    """A stand-in generator that hands back draws already made (``standard_normal`` or
+    ``random``), so the batched choices can take their randomness from ``Draws``."""
 
-    def __init__(self, z: np.ndarray) -> None:
-        self._z = z
+    def __init__(self, drawn: np.ndarray) -> None:
+        self._drawn = drawn
 
-    def standard_normal(self, shape: tuple[int, ...]) -> np.ndarray:
-        if tuple(shape) != self._z.shape:
-            raise ValueError(f"expected draws of shape {self._z.shape}, asked for {shape}")
-        return self._z
+    def _give(self, shape: tuple[int, ...]) -> np.ndarray:
+        if tuple(shape) != self._drawn.shape:
+            raise ValueError(f"expected draws of shape {self._drawn.shape}, asked for {shape}")
+        return self._drawn
+
+    standard_normal = _give
+    random = _give
 
 
 class ModelHuman:

@@ -12,7 +12,7 @@ import numpy as np
 
 from strol_gym.humans.checks import check_beta
 from strol_gym.humans.choices import boltzmann_correction, driver_correction, optimal_correction
-from strol_gym.humans.model import DEFAULT_CANDIDATES, Draws, HumanModel, ModelHuman
+from strol_gym.humans.model import DEFAULT_CANDIDATES, Draws, HumanModel, ModelHuman, Replayed
 from strol_gym.tasks.base import Task
 
 
@@ -48,7 +48,7 @@ class BoltzmannModel(HumanModel):
         return {"pick": rng.random((n, 1))}
 
     def choose(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
-        pick = _Fixed(draws.extra["pick"])
+        pick = Replayed(draws.extra["pick"])
         return boltzmann_correction(
             self.task,
             x,
@@ -118,18 +118,6 @@ class ChangingModel(TeacherModel):
         after = -theta_star if self.theta_after is None else self.theta_after
         switched = np.asarray(k) >= self.switch_after
         return np.where(switched[..., None], np.broadcast_to(after, theta_star.shape), theta_star)
-
-
-class _Fixed:
-    """A stand-in generator whose ``random`` returns uniform draws already made."""
-
-    def __init__(self, u: np.ndarray) -> None:
-        self._u = u
-
-    def random(self, shape: tuple[int, ...]) -> np.ndarray:
-        if tuple(shape) != self._u.shape:
-            raise ValueError(f"expected draws of shape {self._u.shape}, asked for {shape}")
-        return self._u
 
 
 NominalHuman = ModelHuman.of(TeacherModel, "NominalHuman")
