@@ -28,7 +28,7 @@ import numpy as np
 
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.choices import perturb
-from strol_gym.humans.model import DEFAULT_CANDIDATES, ModelHuman, _Drawn
+from strol_gym.humans.model import DEFAULT_CANDIDATES, ModelHuman, Replayed
 from strol_gym.humans.models import DriverModel, TeacherModel
 from strol_gym.tasks.base import Task
 
@@ -120,7 +120,7 @@ class FeatureNoiseModel(TeacherModel):
         pref = self.preference(theta_star, k)
         u = self.choose(x, u_r, pref, draws, theta_hat, k)
         sigma = self.noise_scale(x, u_r, u, draws.candidates)[:, None]
-        return perturb(self.task, u, sigma, self.bias, _Drawn(draws.noise))  # type: ignore[arg-type]
+        return perturb(self.task, u, sigma, self.bias, Replayed(draws.noise))  # type: ignore[arg-type]
 
 
 class MyopicModel(DriverModel):
