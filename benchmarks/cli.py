@@ -74,12 +74,31 @@ def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
             f"  {key:8s} {p.env_id}: {p.runs} runs, {p.n_corrections} corrections, "
             f"primary metric {p.primary_metric}"
         )
+    print("humans in detail:")
+    for name in regs["human"].names():
+        print(f"  {name:14s} {human_summary(name)}")
     print("conditions in detail:")
     for key in ENV_PRESETS:
         for name in registries()["condition"].names():
             c = make_condition(key, name)
             print(f"  {key:8s} {c.name:14s} {c.describe()}")
     return 0
+
+
+def human_summary(name: str, width: int = 110) -> str:
+    """The first sentence of a registered human's docstring (its model's), on one line."""
+    import inspect
+    import re
+
+    from strol_gym.humans import HUMANS
+
+    try:
+        piece = HUMANS.get(name)
+    except ValueError as e:  # a user's lazy entry that does not import
+        return f"(cannot import: {e})"
+    doc = " ".join((inspect.getdoc(getattr(piece, "model_class", piece)) or "").split())
+    first = re.split(r"(?<!\beq\.)(?<=[.!?])\s", doc, maxsplit=1)[0].replace("``", "")
+    return first if len(first) <= width else first[: width - 1] + "…"
 
 
 def cmd_report(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:

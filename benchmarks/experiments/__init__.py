@@ -20,6 +20,7 @@ _EXPERIMENTS: dict[str, Any] = {
     "lambda": "strol_gym.benchmarks.experiments.lambda_sweep:LambdaSweep",
     "basin": "strol_gym.benchmarks.experiments.basin:Basin",
     "confirm": "strol_gym.benchmarks.experiments.confirm:Confirm",
+    "robustness": "strol_gym.benchmarks.experiments.robustness:Robustness",
 }
 
 

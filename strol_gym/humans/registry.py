@@ -11,6 +11,7 @@ import numpy as np
 
 from strol_gym.humans.model import Draws, Human, HumanModel, ModelHuman, needs_theta_hat
 from strol_gym.humans.models import BoltzmannModel, ChangingModel, DriverModel, TeacherModel
+from strol_gym.humans.zoo import ZOO
 from strol_gym.registry import Registry
 from strol_gym.tasks.base import Task
 
@@ -19,9 +20,11 @@ HUMAN_MODELS: dict[str, Any] = {
     "boltzmann": BoltzmannModel,
     "driver": DriverModel,
     "changing": ChangingModel,
+    **ZOO,
 }
-"""The built-in human models; ``register_human`` adds to it (through ``HUMANS``). An entry is
-a :class:`HumanModel` subclass (batched) or any factory of single-sample humans."""
+"""The built-in human models (the zoo of ``strol_gym.humans.zoo`` among them);
+``register_human`` adds to it (through ``HUMANS``). An entry is a :class:`HumanModel` subclass
+(batched) or any factory of single-sample humans."""
 
 HumanFactory = Callable[..., Human]
 SHARED_PARAMS = ("sigma", "bias", "beta")
