@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.human_spec import HumanSpec
+from strol_gym.humans.spec import HumanSpec
 
 
 @pytest.mark.parametrize(

@@ -9,7 +9,7 @@ the learners, the wrapper and the benchmark rely on:
   *current* preference), ``theta_hat``, ``is_correction``; an env whose corrections span
   several steps adds ``correction_state`` (the state where the correction began);
 - reward R(x', θ*) = θ*·φ(x');
-- the human described by one :class:`~strol_gym.envs.human_spec.HumanSpec` (model, σ, ε, β and
+- the human described by one :class:`~strol_gym.humans.spec.HumanSpec` (model, σ, ε, β and
   its own arguments), given as ``human=HumanSpec(...)`` or as the flat keyword arguments
   ``human``, ``sigma``, ``bias``, ``beta``, ``human_kwargs``; ``human=None``: no simulated
   human (the corrections come from elsewhere, or none come);
@@ -47,8 +47,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.human_spec import HumanSpec
 from strol_gym.humans import Human, HumanFactory, needs_theta_hat
+from strol_gym.humans.spec import HumanSpec
 from strol_gym.priors import Prior, make_prior
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task

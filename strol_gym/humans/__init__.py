@@ -9,7 +9,8 @@ Noise and bias are fractions of the action bound a_max (docs/benchmark.md, "Cond
 
 - ``choices``: the batched choices (eq. M6, Boltzmann, driver) and the noise;
 - ``model``: the interface (``HumanModel``, ``Draws``, ``ModelHuman``, ``Human``);
-- ``models``: the built-in models; ``registry``: names and builders; ``teaching``: the loop.
+- ``models``: the built-in models; ``zoo``: the robustness zoo; ``registry``: names and
+  builders; ``spec``: one value for a human and its arguments; ``teaching``: the loop.
 """
 
 from strol_gym.humans.checks import MAX_BETA, MAX_FRACTION, check_beta, check_fraction
@@ -50,6 +51,7 @@ from strol_gym.humans.registry import (
     make_human,
     register_human,
 )
+from strol_gym.humans.spec import HumanSpec
 from strol_gym.humans.teaching import teach
 
 SimulatedHuman = ModelHuman
@@ -72,6 +74,7 @@ __all__ = [
     "Human",
     "HumanFactory",
     "HumanModel",
+    "HumanSpec",
     "ModelHuman",
     "NominalHuman",
     "PerSampleModel",

@@ -14,15 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans import (
-    Human,
-    HumanFactory,
-    check_beta,
-    check_fraction,
-    check_human_kwargs,
-    human_factory,
-    make_human,
-)
+from strol_gym.humans.checks import check_beta, check_fraction
+from strol_gym.humans.model import Human
+from strol_gym.humans.registry import HumanFactory, check_human_kwargs, human_factory, make_human
 from strol_gym.tasks.base import Task
 
 DEFAULT_HUMAN = "nominal"
