@@ -36,8 +36,8 @@ from strol_gym.envs.panda import N_ARM
 from strol_gym.envs.study import HOLD, TORQUE_LEVER, StudyEnv, Velocity, _positive
 from strol_gym.envs.study_participant import Participant
 from strol_gym.envs.study_scene import JOINT_DAMPING
-from strol_gym.envs.study_user import SimulatedUser
-from strol_gym.tasks.study import CONTROL_DT
+from strol_gym.envs.study_user import SimulatedUser, angle_delta
+from strol_gym.tasks.study import CONTROL_DT, StudyTask
 
 VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 """The Panda's joint speed limits (rad/s, datasheet)."""
@@ -56,6 +56,17 @@ MODEL_EVERY = 4
 _ZERO6 = [0.0] * 6
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
+REACH_LOW = np.array([0.25, -0.45, 0.20])
+REACH_HIGH = np.array([0.70, 0.55, 0.60])
+"""The planning box the robot executes within (m): the cup stays where the arm reaches it with
+the wrist free, above the pitcher's and the plate's tops (docs/study.md measures it)."""
+REACH_ANGLE = 1.0
+"""|roll|, |pitch| the executed plan may reach (rad): beyond it the wrist binds far from home."""
+SHOULDER = np.array([0.0, 0.0, 0.333])
+REACH_RADIUS = 0.70
+"""m from the shoulder (joint 2's axis) the cup may go: the stretched elbow (joint 4 at its
+limit) leaves the cup short of setpoints beyond about 0.75 m."""
+"""|roll|, |pitch| the executed plan may reach (rad): beyond it the wrist binds far from home."""
 PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
 ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
@@ -82,6 +93,8 @@ class StudyEnvV1(StudyEnv):
     """
 
     env_id: ClassVar[str] = "StROL-Study-v1"
+    reach: tuple[np.ndarray, np.ndarray, float] | None = (REACH_LOW, REACH_HIGH, REACH_ANGLE)
+    """The box the executed plans stay in (``within_reach``; None: the Task's plans as they are)."""
 
     def __init__(
         self,
@@ -137,6 +150,13 @@ class StudyEnvV1(StudyEnv):
         self._n_reflex = 0
         self._pause_until = -1.0
         self._rest_x = self._x.copy()
+
+    def _set_plan(self, waypoints: np.ndarray, leg: str) -> None:
+        """Plans for θ̂ are clipped to the reachable box (``within_reach``); the way home is
+        reachable as it is."""
+        if leg == "plan" and self.reach is not None:
+            waypoints = within_reach(self.task, waypoints, *self.reach)
+        super()._set_plan(waypoints, leg)
 
     def pause(self, seconds: float) -> None:
         """Hold the setpoint where it is for ``seconds`` (the robot waits, then goes on)."""
@@ -317,4 +337,36 @@ class StudyEnvV1(StudyEnv):
         self._time += CONTROL_DT
 
 
-__all__ = ["TORQUE_LIMIT", "VELOCITY_LIMIT", "StudyEnvV1"]
+def within_reach(
+    task: StudyTask, plan: np.ndarray, low: np.ndarray, high: np.ndarray, angle: float
+) -> np.ndarray:
+    """``plan`` (T+1, s) with every waypoint after the first moved into the box (positions in
+    [low, high] and within ``REACH_RADIUS`` of the shoulder, |roll|, |pitch| ≤ ``angle``; yaw as
+    planned), each step still within the
+    planner's bounds (``plan_pos_bound``, ``plan_ang_bound`` per axis): a start outside the box
+    (where a person left the cup) is left at the planner's pace, not in one jump.
+
+    The Task's planning box lets θ̂ ask for poses the arm cannot reach, or that put the cup into
+    the table, the plate or the pitcher: there the cup stops centimetres short of its setpoint
+    and drifts while the arm settles at its boundary. The regret is still the Task's (its
+    planner, its box): this box is what the robot executes."""
+    plan = np.asarray(plan, dtype=np.float64)
+    lo, hi = low.tolist(), high.tolist()
+    step = [task.plan_pos_bound] * 3
+    if task.oriented:
+        lo, hi = [*lo, -angle, -angle, -math.inf], [*hi, angle, angle, math.inf]
+        step += [task.plan_ang_bound] * 3
+    lo_a, hi_a, step_a = np.array(lo), np.array(hi), np.array(step)
+    out = plan.copy()
+    for i in range(1, len(plan)):
+        goal = np.clip(plan[i], lo_a, hi_a)
+        arm = goal[:3] - SHOULDER
+        far = float(np.linalg.norm(arm))
+        if far > REACH_RADIUS:
+            goal[:3] = SHOULDER + arm * (REACH_RADIUS / far)
+        move = angle_delta(goal, out[i - 1])
+        out[i] = out[i - 1] + np.clip(move, -step_a, step_a)
+    return out
+
+
+__all__ = ["TORQUE_LIMIT", "VELOCITY_LIMIT", "StudyEnvV1", "within_reach"]
