@@ -73,8 +73,7 @@ def analyse_prefix(
 ) -> list[dict[str, Any]]:
     """Verdicts and margins of one set's users ``first`` .. ``first + n − 1``."""
     config = study_config(TASKS, n, first, version=version)
-    records = [dict(r) for r in records if first <= r["seed"] < first + n]
-    add_authors_regret(records)
+    records = [r for r in records if first <= r["seed"] < first + n]
     a = analyse(config, records, [m for m in METRICS if all(m in r for r in records)])
     out = []
     for v, exp in zip(verdicts(a), config.experiments, strict=True):
@@ -105,6 +104,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--lane", type=int, default=0, help="this process's lane, 0..lanes-1 (0)")
     p.add_argument("--analyse-only", action="store_true", help="read the folders, run nothing")
     p.add_argument(
+        "--run-sets",
+        default="",
+        help="run only these sets, e.g. 1,2,3,4 (set 0 = the study's own seeds, which a "
+        "`strol-bench study` folder linked as OUT/set0/users-all can stand for); all analysed",
+    )
+    p.add_argument(
         "--env-version",
         choices=("v0", "v1"),
         default="v1",
@@ -120,7 +125,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--prefixes must lie in 2..--users ({args.users}), got {args.prefixes!r}")
     out = Path(args.out)
     firsts = [SEED + k * args.users for k in range(args.sets)]
-    rounds = [(j, k) for j in range(0, args.users, BLOCK) for k in range(args.sets)]
+    run_sets = [int(x) for x in args.run_sets.split(",") if x.strip()] or range(args.sets)
+    if any(not 0 <= k < args.sets for k in run_sets):
+        p.error(f"--run-sets must lie in 0..--sets-1 ({args.sets - 1}), got {args.run_sets!r}")
+    rounds = [(j, k) for j in range(0, args.users, BLOCK) for k in run_sets]
     if not args.analyse_only:
         for i, (j, k) in enumerate(rounds):
             if i % args.lanes != args.lane:
@@ -136,6 +144,8 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
     records = [set_records(out / f"set{k}") for k in range(args.sets)]
+    for r in records:
+        add_authors_regret(r)  # once per set (it plans every run's θ̂ and θ*)
     have = min(complete_users(r, f) for r, f in zip(records, firsts, strict=True))
     print(f"complete users in every set: {have}")
     for n in sorted({n for n in prefixes if n <= have} | ({have} if have >= 2 else set())):

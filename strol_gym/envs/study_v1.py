@@ -12,6 +12,10 @@ What changes from v0 (``strol_gym.envs.study``), and why (measurements in ``docs
   own (catching up, stopping) is not read as the person's push. Where the setpoint is out of
   reach (the cup more than 1 cm from it when the push begins: a stretched elbow, a joint
   limit, a contact) the arm would rest where it is, and u_H is measured from the cup's pose.
+- **A reachable planning box.** The robot executes θ̂'s plan clipped to where the arm reaches
+  the cup with its wrist free and above the pitcher and the plate (``within_reach``): the
+  Task's own box let many θ̂ ask for poses beyond the elbow's reach, where the cup stopped
+  centimetres short of its setpoint. The regret is still the Task's (its planner and box).
 - **The Panda's datasheet limits.** Joint torques are clipped to 87 N m (joints 1-4) and
   12 N m (5-7) by the actuators' control range; joint speeds are held at 2.175 rad/s (1-4) and
   2.61 rad/s (5-7) after every physics step once any joint passes half its limit.
