@@ -41,7 +41,7 @@ from strol_gym.envs.study import HOLD, TORQUE_LEVER, StudyEnv, Velocity, _positi
 from strol_gym.envs.study_participant import Participant
 from strol_gym.envs.study_scene import JOINT_DAMPING
 from strol_gym.envs.study_user import SimulatedUser, angle_delta
-from strol_gym.tasks.study import CONTROL_DT, StudyTask
+from strol_gym.tasks.study import CONTROL_DT, PITCHER, StudyTask
 
 VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 """The Panda's joint speed limits (rad/s, datasheet)."""
@@ -71,6 +71,10 @@ REACH_RADIUS = 0.70
 """m from the shoulder (joint 2's axis) the cup may go: the stretched elbow (joint 4 at its
 limit) leaves the cup short of setpoints beyond about 0.75 m."""
 """|roll|, |pitch| the executed plan may reach (rad): beyond it the wrist binds far from home."""
+PITCHER_CLEAR = (0.14, 0.37)
+"""The pitcher's keep-out zone for the cup (m): within 0.14 m of its axis (its 7 cm radius, the
+cup's 4 cm and 3 cm to spare) the cup's rim stays above 0.37 m (the pitcher's 24 cm, the cup's
+10 cm below its rim and 3 cm to spare)."""
 PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
 ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
@@ -345,10 +349,11 @@ def within_reach(
     task: StudyTask, plan: np.ndarray, low: np.ndarray, high: np.ndarray, angle: float
 ) -> np.ndarray:
     """``plan`` (T+1, s) with every waypoint after the first moved into the box (positions in
-    [low, high] and within ``REACH_RADIUS`` of the shoulder, |roll|, |pitch| ≤ ``angle``; yaw as
-    planned), each step still within the
-    planner's bounds (``plan_pos_bound``, ``plan_ang_bound`` per axis): a start outside the box
-    (where a person left the cup) is left at the planner's pace, not in one jump.
+    [low, high], within ``REACH_RADIUS`` of the shoulder and out of the pitcher's keep-out zone
+    (``PITCHER_CLEAR``: lifted over it), |roll|, |pitch| ≤ ``angle``; yaw as planned), each
+    step still within the planner's bounds (``plan_pos_bound``, ``plan_ang_bound`` per axis):
+    a start outside the box (where a person left the cup) is left at the planner's pace, not in
+    one jump.
 
     The Task's planning box lets θ̂ ask for poses the arm cannot reach, or that put the cup into
     the table, the plate or the pitcher: there the cup stops centimetres short of its setpoint
@@ -368,9 +373,19 @@ def within_reach(
         far = float(np.linalg.norm(arm))
         if far > REACH_RADIUS:
             goal[:3] = SHOULDER + arm * (REACH_RADIUS / far)
+        if _over_pitcher(goal):
+            goal[2] = PITCHER_CLEAR[1]  # above it, where the xy distance is the same
         move = angle_delta(goal, out[i - 1])
         out[i] = out[i - 1] + np.clip(move, -step_a, step_a)
+        if _over_pitcher(out[i]):  # rise first, then move in over it
+            out[i, :2] = out[i - 1, :2]
     return out
+
+
+def _over_pitcher(x: np.ndarray) -> bool:
+    """Whether the cup at ``x`` would be in the pitcher's keep-out zone (``PITCHER_CLEAR``)."""
+    near = math.hypot(x[0] - PITCHER[0], x[1] - PITCHER[1]) < PITCHER_CLEAR[0]
+    return near and x[2] < PITCHER_CLEAR[1]
 
 
 __all__ = ["TORQUE_LIMIT", "VELOCITY_LIMIT", "StudyEnvV1", "within_reach"]
