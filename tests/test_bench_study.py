@@ -55,6 +55,7 @@ def test_study_defaults_to_v1_with_the_held_out_participant():
         for kind in ("strol", "e2e"):
             v1 = make_learner(kind, task=make_task(task)).checkpoint
             v0 = make_learner(kind, task=make_task(f"study-task{k}")).checkpoint
+            assert make_task(task).task_id == f"StROL-Study-v1-task{k}"
             assert v1.endswith(f"study{k}-v1_{kind}.pt") and v0.endswith(f"study{k}_{kind}.pt")
 
 

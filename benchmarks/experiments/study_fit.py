@@ -26,14 +26,14 @@ from strol_gym.humans import make_human
 from strol_gym.learners.registry import make_learner
 
 MODELS = ("nominal", "boltzmann")
+V1_TASK = "strol_gym.tasks.study:StudyTask{}V1"
+"""v1's study Tasks (their ids find v1's ĝ; docs/study.md)."""
 SEED = 930
 
 
 def corrections(task: int, seed: int, participant: str, learner: str) -> list[dict]:
     """Every correction of one episode: pose, θ̂ before it, u_H."""
-    env = gym.make(
-        "StROL-Study-v1", task=f"study-v1-task{task}", participant=participant, sigma=0.0
-    )
+    env = gym.make("StROL-Study-v1", task=V1_TASK.format(task), participant=participant, sigma=0.0)
     lr = make_learner(learner, task=env.unwrapped.task)
     env = OnlineLearningWrapper(env, lr)
     env.reset(seed=seed)
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = []
         for s in range(SEED, SEED + args.seeds):
             rows += corrections(task, s, args.participant, args.learner)
-        env = gym.make("StROL-Study-v1", task=f"study-v1-task{task}", human=None)
+        env = gym.make("StROL-Study-v1", task=V1_TASK.format(task), human=None)
         t = env.unwrapped.task
         env.close()
         rng = np.random.default_rng(0)

@@ -17,9 +17,6 @@ _TASKS: dict[str, Any] = {
     "study-task1": "strol_gym.tasks.study:StudyTask1",
     "study-task2": "strol_gym.tasks.study:StudyTask2",
     "study-task3": "strol_gym.tasks.study:StudyTask3",
-    "study-v1-task1": "strol_gym.tasks.study:StudyTask1V1",
-    "study-v1-task2": "strol_gym.tasks.study:StudyTask2V1",
-    "study-v1-task3": "strol_gym.tasks.study:StudyTask3V1",
 }
 
 
