@@ -63,7 +63,8 @@ LAMBDA_REG = 1e-2 * np.eye(6)
 REACH_LOW = np.array([0.25, -0.45, 0.20])
 REACH_HIGH = np.array([0.70, 0.55, 0.60])
 """The planning box the robot executes within (m): the cup stays where the arm reaches it with
-the wrist free, above the pitcher's and the plate's tops (docs/study.md measures it)."""
+the wrist free, its bottom (10 cm below the rim) clear of the plate's riser (docs/study.md
+measures it; the pitcher has its own keep-out zone, ``PITCHER_CLEAR``)."""
 REACH_ANGLE = 1.0
 """|roll|, |pitch| the executed plan may reach (rad): beyond it the wrist binds far from home."""
 SHOULDER = np.array([0.0, 0.0, 0.333])
