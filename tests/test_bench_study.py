@@ -12,6 +12,8 @@ from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.engine.kernels import float_kernels
 from strol_gym.benchmarks.experiments.study import METRICS
 
+from strol_gym.tasks import make_task
+
 
 @pytest.mark.parametrize(
     ("argv", "message"),
@@ -34,12 +36,39 @@ def test_study_bad_input_exits_2_before_any_folder(argv, message, tmp_path, caps
     assert not out.exists()
 
 
+def test_study_defaults_to_v1_with_the_held_out_participant():
+    import argparse
+
+    from strol_gym.benchmarks.experiments.study import Study
+
+    from strol_gym.learners.registry import make_learner
+
+    p = argparse.ArgumentParser()
+    Study().add_arguments(p)
+    config = Study().plan(p.parse_args([]))
+    assert [e.env for e in config.experiments] == ["study1-v1", "study2-v1", "study3-v1"]
+    assert {e.env_id for e in config.experiments} == {"StROL-Study-v1"}
+    assert all(e.env_kwargs()["participant"] == "observer" for e in config.experiments)
+    # v1's study Tasks find the ĝ trained for v1; v0's keep the published ones
+    for k in (1, 2, 3):
+        task = config.experiments[k - 1].env_kwargs()["task"]
+        for kind in ("strol", "e2e"):
+            v1 = make_learner(kind, task=make_task(task)).checkpoint
+            v0 = make_learner(kind, task=make_task(f"study-task{k}")).checkpoint
+            assert make_task(task).task_id == f"StROL-Study-v1-task{k}"
+            assert v1.endswith(f"study{k}-v1_{kind}.pt") and v0.endswith(f"study{k}_{kind}.pt")
+
+
 def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):
+    # v0 (the published results): deprecated, warned on the command line
     out = tmp_path / "study"
     argv = ["study", "--task", "1", "--users", "2", "--jobs", "1", "--out", str(out), "--quiet"]
+    argv += ["--env-version", "v0"]
     assert cli.main(argv) == 0
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.out
     assert "Task 1: H3" in printed and "wall time" in printed
+    assert "StROL-Study-v0 is deprecated" in captured.err
 
     meta = json.loads((out / "meta.json").read_text())
     assert meta["status"] == "complete" and meta["kernels"] == float_kernels()

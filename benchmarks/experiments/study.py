@@ -1,4 +1,6 @@
-"""``strol-bench study``: the paper's user study (H3) with simulated users in ``StROL-Study-v0``.
+"""``strol-bench study``: the paper's user study (H3) with simulated users in ``StROL-Study-v1``
+(the held-out participant who judges what it sees; ``--env-version v0``: the published results,
+deprecated).
 
 Tasks 1–3 × learners × N simulated users, paired: user seed s (θ̂0, the user's noise and
 timing) is the same for every learner. The runs go through the paper preset's runner and results
@@ -102,7 +104,14 @@ ENV_VERSIONS = ("v0", "v1")
 PARTICIPANTS = ("observer", "oracle")
 
 
-def study_env(task: int, version: str = "v0", participant: str = "observer") -> str:
+DEFAULT_VERSION = "v1"
+V0_WARNING = (
+    "warning: StROL-Study-v0 is deprecated (u_H carries the arm's own motion, the user is an "
+    "oracle); it stays for the published results. The study's default is v1."
+)
+
+
+def study_env(task: int, version: str = DEFAULT_VERSION, participant: str = "observer") -> str:
     """The env preset of a study Task: v0's, or v1's with its participant (``conditions.py``)."""
     if version == "v0":
         return f"study{task}"
@@ -114,7 +123,7 @@ def study_config(
     users: int = DEFAULT_USERS,
     seed: int = SEED,
     learners: Sequence[str] = PAPER_LEARNERS,
-    version: str = "v0",
+    version: str = DEFAULT_VERSION,
     participant: str = "observer",
 ) -> BenchConfig:
     """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
@@ -292,7 +301,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
         if r["metric"] in H3_METRICS
     ]
     md = [
-        "# User study (H3) with simulated users",
+        f"# User study (H3) with simulated users ({_who(rd.config)})",
         "",
         f"{len(records) // len(rd.config.learners)} paired runs (Tasks {tasks}, "
         f"{rd.config.experiments[0].runs} users each, seeds from {rd.config.experiments[0].seed})"
@@ -316,7 +325,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
         for m in POOLED_METRICS
         if any(m in r for r in records)
     ]
-    md += ["", *pooled_markdown(pooled, len(envs))]
+    md += ["", *pooled_markdown(pooled, len(envs), rd.config.experiments[0].runs)]
     (rd.path / "study_table.md").write_text("\n".join(md) + "\n")
     paths = make_plots(a, records, rd.path / "plots") if plots else []
     result = {
@@ -329,6 +338,15 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     (rd.path / "study.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
     result["markdown"] = "\n".join(md)
     return result
+
+
+def _who(config: BenchConfig) -> str:
+    """The env and the simulated person of a study config, in words."""
+    exp = config.experiments[0]
+    if exp.env_id.endswith("-v0"):
+        return f"{exp.env_id}, v0's user and the training human"
+    kind = "oracle" if exp.env.endswith("-oracle") else "held-out participant"
+    return f"{exp.env_id}, {kind}"
 
 
 def add_authors_regret(records: list[dict]) -> None:
@@ -345,7 +363,7 @@ def add_authors_regret(records: list[dict]) -> None:
 _REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
 
 
-def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int) -> list[str]:
+def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int, users: int) -> list[str]:
     """The paper's H3 analysis: each user's values averaged over the Tasks, a repeated-measures
     ANOVA over One, MOF and StROL, then the pairs (Holm)."""
     md = [
@@ -354,8 +372,8 @@ def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int) -> list[str]
         f"Each simulated user's value averaged over the {n_tasks} Tasks, then a "
         "repeated-measures ANOVA over One, MOF and StROL (Greenhouse–Geisser) and paired tests "
         "of every pair (Holm over the three pairs), as the paper analysed its 12 participants. "
-        "The per-Task verdicts above are the stricter test (each Task alone, 20 users, Holm "
-        "over four baselines).",
+        f"The per-Task verdicts above are the stricter test (each Task alone, {users} users, "
+        "Holm over four baselines).",
         "",
     ]
     for r in pooled:
@@ -378,10 +396,11 @@ class Study(BenchExperiment):
     """The simulated user study as an experiment; it writes its own tables (study_table.*)."""
 
     name = "study"
-    help = "the user study (H3) with simulated users: Tasks 1-3 of StROL-Study-v0"
+    help = "the user study (H3) with simulated users: Tasks 1-3 of StROL-Study-v1"
     description = (
-        "StROL-Study-v0's Tasks x Gradient, One, MOF, e2e, StROL x simulated users "
-        "(paired); regret, correction time, H3 verdicts, table beside the paper's, plots."
+        "StROL-Study-v1's Tasks x Gradient, One, MOF, e2e, StROL x simulated users "
+        "(paired; the held-out participant by default); regret, correction time, H3 verdicts, "
+        "table beside the paper's, plots. --env-version v0: the published results (deprecated)."
     )
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
@@ -399,15 +418,16 @@ class Study(BenchExperiment):
         p.add_argument(
             "--env-version",
             choices=ENV_VERSIONS,
-            default="v0",
-            help="StROL-Study-v0 (the published results) or v1 (u_H = the person's push)",
+            default=DEFAULT_VERSION,
+            help="StROL-Study-v1 (default: u_H = the person's push) or v0 (the published "
+            "results; deprecated)",
         )
         p.add_argument(
             "--participant",
             choices=PARTICIPANTS,
             default="observer",
-            help="v1's simulated person: observer (held out, judges what it sees) or oracle "
-            "(v0's user: the training human, satisfied by the plan's regret)",
+            help="v1's simulated person: observer (default; held out, judges what it sees) or "
+            "oracle (v0's user: the training human, satisfied by the plan's regret)",
         )
         p.add_argument("--out", default=None, help="results folder (default results/study)")
         p.add_argument(
@@ -423,7 +443,12 @@ class Study(BenchExperiment):
         p.add_argument("--no-plots", action="store_true", help="skip the figures")
 
     def plan(self, args: argparse.Namespace) -> BenchConfig:
-        version, who = getattr(args, "env_version", "v0"), getattr(args, "participant", "observer")
+        version = getattr(args, "env_version", DEFAULT_VERSION)
+        who = getattr(args, "participant", "observer")
+        if version == "v0":
+            import sys
+
+            print(V0_WARNING, file=sys.stderr)
         return study_config(args.task, args.users, args.seed, version=version, participant=who)
 
     def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:

@@ -35,6 +35,7 @@ from strol_gym.benchmarks.experiments.study import (
     METRICS,
     SEED,
     TASKS,
+    add_authors_regret,
     study_config,
     verdicts,
 )
@@ -67,11 +68,13 @@ def set_records(set_folder: Path) -> list[dict[str, Any]]:
     return out
 
 
-def analyse_prefix(records: list[dict[str, Any]], first: int, n: int) -> list[dict[str, Any]]:
+def analyse_prefix(
+    records: list[dict[str, Any]], first: int, n: int, version: str = "v0"
+) -> list[dict[str, Any]]:
     """Verdicts and margins of one set's users ``first`` .. ``first + n − 1``."""
-    config = study_config(TASKS, n, first)
+    config = study_config(TASKS, n, first, version=version)
     records = [r for r in records if first <= r["seed"] < first + n]
-    a = analyse(config, records, METRICS)
+    a = analyse(config, records, [m for m in METRICS if all(m in r for r in records)])
     out = []
     for v, exp in zip(verdicts(a), config.experiments, strict=True):
         margin, nearest = decisive_margin(a, exp.env, exp.condition.name)
@@ -100,6 +103,18 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--lanes", type=int, default=1, help="processes sharing the rounds (1)")
     p.add_argument("--lane", type=int, default=0, help="this process's lane, 0..lanes-1 (0)")
     p.add_argument("--analyse-only", action="store_true", help="read the folders, run nothing")
+    p.add_argument(
+        "--run-sets",
+        default="",
+        help="run only these sets, e.g. 1,2,3,4 (set 0 = the study's own seeds, which a "
+        "`strol-bench study` folder linked as OUT/set0/users-all can stand for); all analysed",
+    )
+    p.add_argument(
+        "--env-version",
+        choices=("v0", "v1"),
+        default="v1",
+        help="v1 (the study's default: the held-out participant) or v0 (the published results)",
+    )
     args = p.parse_args(argv)
     if args.users < 1 or args.sets < 1:
         p.error(f"--users and --sets must be >= 1, got {args.users} and {args.sets}")
@@ -110,7 +125,10 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--prefixes must lie in 2..--users ({args.users}), got {args.prefixes!r}")
     out = Path(args.out)
     firsts = [SEED + k * args.users for k in range(args.sets)]
-    rounds = [(j, k) for j in range(0, args.users, BLOCK) for k in range(args.sets)]
+    run_sets = [int(x) for x in args.run_sets.split(",") if x.strip()] or range(args.sets)
+    if any(not 0 <= k < args.sets for k in run_sets):
+        p.error(f"--run-sets must lie in 0..--sets-1 ({args.sets - 1}), got {args.run_sets!r}")
+    rounds = [(j, k) for j in range(0, args.users, BLOCK) for k in run_sets]
     if not args.analyse_only:
         for i, (j, k) in enumerate(rounds):
             if i % args.lanes != args.lane:
@@ -118,18 +136,23 @@ def main(argv: list[str] | None = None) -> int:
             n = min(BLOCK, args.users - j)
             folder = out / f"set{k}" / f"users-{j:03d}"
             t0, c0 = time.perf_counter(), time.process_time()
-            run_benchmark(study_config(TASKS, n, firsts[k] + j), folder, jobs=1, quiet=True)
+            config = study_config(TASKS, n, firsts[k] + j, version=args.env_version)
+            run_benchmark(config, folder, jobs=1, quiet=True)
             print(
                 f"set {k} users {j}..{j + n - 1}: wall {time.perf_counter() - t0:.1f} s, "
                 f"CPU {time.process_time() - c0:.1f} s, load {os.getloadavg()[0]:.1f}",
                 flush=True,
             )
     records = [set_records(out / f"set{k}") for k in range(args.sets)]
+    for r in records:
+        add_authors_regret(r)  # once per set (it plans every run's θ̂ and θ*)
     have = min(complete_users(r, f) for r, f in zip(records, firsts, strict=True))
     print(f"complete users in every set: {have}")
     for n in sorted({n for n in prefixes if n <= have} | ({have} if have >= 2 else set())):
         print(f"\n{n} users per set:")
-        rows = [analyse_prefix(r, f, n) for r, f in zip(records, firsts, strict=True)]
+        rows = [
+            analyse_prefix(r, f, n, args.env_version) for r, f in zip(records, firsts, strict=True)
+        ]
         for t_index, task in enumerate(TASKS):
             cells = [r[t_index] for r in rows]
             words = ["S" if c["verdict"] == "H3 supported" else "-" for c in cells]

@@ -22,6 +22,10 @@ taper, release, rest), but decides differently:
   is within reach),
   it takes the one with the best θ*·φ(x + d), then adds its hand's noise: N(0, σ²) and the bias
   ε per axis, as fractions of a_max (the env's ``sigma`` and ``bias``, the training human's).
+- **Feeling the arm.** It pushes nearly full force until the cup is within 1 cm and 0.03 rad
+  of its target (``taper``, ``ang_taper``), and lets go early when the cup stops giving: over
+  the last ``stall`` s (0.5) the push brought it < 0.02 a_max closer (the arm's reach, a joint
+  limit, the table).
 - **Patience.** After each push it compares the next motion it judges with the one it
   pushed against; if ``patience`` pushes in a row bring no better score (by ``improvement``),
   it gives up and pushes no more this episode (``gave_up``), as some of the paper's
@@ -53,6 +57,11 @@ class Participant(SimulatedUser):
 
     needs_theta_hat = False
     """The env hands it no θ̂ (``wrench`` is called with ``theta_hat=None``)."""
+    taper = 0.01
+    ang_taper = 0.03
+    """It keeps pushing nearly full until the cup is close (1 cm, 0.03 rad): v0's user's taper
+    (3 cm, 0.1 rad) against v1's 400 N/m and 30 N m/rad held the cup short of its tolerance
+    (1.5 cm, 0.05 rad), so most 6-D pushes ran to the 2 s limit (docs/study.md)."""
 
     def __init__(
         self,
@@ -74,6 +83,7 @@ class Participant(SimulatedUser):
         human_kwargs: dict[str, Any] | None = None,
         satisfied_regret: float | None = None,
         step: float = 0.5,
+        stall: float = 0.5,
         push_force: float = 60.0,
         push_torque: float = 8.0,
         **push: Any,
@@ -94,6 +104,7 @@ class Participant(SimulatedUser):
             ("reaction", reaction, 0.0),
             ("improvement", improvement, 0.0),
             ("step", step, 1e-9),
+            ("stall", stall, 1e-9),
         ):
             v = float(value)
             if not (math.isfinite(v) and v >= low):
@@ -120,6 +131,7 @@ class Participant(SimulatedUser):
         self._rejected = -math.inf
         self._since_better = 0
         self._pending_score: float | None = None
+        self._gaps: collections.deque[tuple[float, float]] = collections.deque()
         self.gave_up = False
         self.judgments = 0
         self.rejections = 0
@@ -170,7 +182,25 @@ class Participant(SimulatedUser):
         self._seen.append((t, np.array(x, dtype=np.float64)))
         while len(self._seen) > 1 and self._seen[1][0] <= t - self.window + 1e-9:
             self._seen.popleft()
+        if self.phase == "push" and self._stalled(t, x):
+            self.phase, self._t0 = "release", t  # the cup no longer gives: let go
         return super().wrench(t, x, None)
+
+    def _stalled(self, t: float, x: np.ndarray) -> bool:
+        """Whether the push has stopped bringing the cup closer: over the last ``stall`` s its
+        distance to the target (position and angles in a_max units) fell by < 0.02 (2 mm or
+        0.006 rad). A person feels the arm stop giving (its reach, a joint limit, the table)
+        and lets go, rather than pushing on until tired."""
+        if self._gaps and self._gaps[0][0] < self._t0 - 1e-9:
+            self._gaps.clear()  # a new push
+        dp, dr = self._error(x)
+        a = self._a_max
+        gap = math.hypot(float(np.linalg.norm(dp)) / a[0], float(np.linalg.norm(dr)) / a[-1])
+        self._gaps.append((t, gap))
+        while len(self._gaps) > 1 and self._gaps[1][0] <= t - self.stall + 1e-9:
+            self._gaps.popleft()
+        t0, g0 = self._gaps[0]
+        return t - t0 >= self.stall - 1e-9 and g0 - gap < 0.02
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
         del theta_hat

@@ -52,6 +52,11 @@ def rotation_error(r_target: np.ndarray, r_now: np.ndarray) -> np.ndarray:
 class SimulatedUser:
     """A seeded study participant (see the module docstring). ``theta_star`` is its preference."""
 
+    taper: float = 0.03
+    """m from its target where the push's force starts to fall (linearly, to 0 at the target)."""
+    ang_taper: float = 0.1
+    """rad from its target orientation where the torque starts to fall."""
+
     def __init__(
         self,
         task: StudyTask,
@@ -180,8 +185,8 @@ class SimulatedUser:
                 self._released(t, x)
                 return zero, zero
         n_p, n_r = np.linalg.norm(dp), np.linalg.norm(dr)
-        force = dp / max(n_p, 1e-9) * self.push_force * min(1.0, n_p / 0.03)
-        torque = dr / max(n_r, 1e-9) * self.push_torque * min(1.0, n_r / 0.1)
+        force = dp / max(n_p, 1e-9) * self.push_force * min(1.0, n_p / self.taper)
+        torque = dr / max(n_r, 1e-9) * self.push_torque * min(1.0, n_r / self.ang_taper)
         if not self.task.oriented:
             torque = zero
         return level * force, level * torque

@@ -12,6 +12,10 @@ What changes from v0 (``strol_gym.envs.study``), and why (measurements in ``docs
   own (catching up, stopping) is not read as the person's push. Where the setpoint is out of
   reach (the cup more than 1 cm from it when the push begins: a stretched elbow, a joint
   limit, a contact) the arm would rest where it is, and u_H is measured from the cup's pose.
+- **A reachable planning box.** The robot executes θ̂'s plan clipped to where the arm reaches
+  the cup with its wrist free and above the pitcher and the plate (``within_reach``): the
+  Task's own box let many θ̂ ask for poses beyond the elbow's reach, where the cup stopped
+  centimetres short of its setpoint. The regret is still the Task's (its planner and box).
 - **The Panda's datasheet limits.** Joint torques are clipped to 87 N m (joints 1-4) and
   12 N m (5-7) by the actuators' control range; joint speeds are held at 2.175 rad/s (1-4) and
   2.61 rad/s (5-7) after every physics step once any joint passes half its limit.
@@ -36,8 +40,8 @@ from strol_gym.envs.panda import N_ARM
 from strol_gym.envs.study import HOLD, TORQUE_LEVER, StudyEnv, Velocity, _positive
 from strol_gym.envs.study_participant import Participant
 from strol_gym.envs.study_scene import JOINT_DAMPING
-from strol_gym.envs.study_user import SimulatedUser
-from strol_gym.tasks.study import CONTROL_DT
+from strol_gym.envs.study_user import SimulatedUser, angle_delta
+from strol_gym.tasks.study import CONTROL_DT, PITCHER, StudyTask
 
 VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 """The Panda's joint speed limits (rad/s, datasheet)."""
@@ -56,6 +60,22 @@ MODEL_EVERY = 4
 _ZERO6 = [0.0] * 6
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
+REACH_LOW = np.array([0.25, -0.45, 0.20])
+REACH_HIGH = np.array([0.70, 0.55, 0.60])
+"""The planning box the robot executes within (m): the cup stays where the arm reaches it with
+the wrist free, its bottom (10 cm below the rim) clear of the plate's riser (docs/study.md
+measures it; the pitcher has its own keep-out zone, ``PITCHER_CLEAR``)."""
+REACH_ANGLE = 1.0
+"""|roll|, |pitch| the executed plan may reach (rad): beyond it the wrist binds far from home."""
+SHOULDER = np.array([0.0, 0.0, 0.333])
+REACH_RADIUS = 0.70
+"""m from the shoulder (joint 2's axis) the cup may go: the stretched elbow (joint 4 at its
+limit) leaves the cup short of setpoints beyond about 0.75 m."""
+"""|roll|, |pitch| the executed plan may reach (rad): beyond it the wrist binds far from home."""
+PITCHER_CLEAR = (0.14, 0.37)
+"""The pitcher's keep-out zone for the cup (m): within 0.14 m of its axis (its 7 cm radius, the
+cup's 4 cm and 3 cm to spare) the cup's rim stays above 0.37 m (the pitcher's 24 cm, the cup's
+10 cm below its rim and 3 cm to spare)."""
 PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
 ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
@@ -82,6 +102,8 @@ class StudyEnvV1(StudyEnv):
     """
 
     env_id: ClassVar[str] = "StROL-Study-v1"
+    reach: tuple[np.ndarray, np.ndarray, float] | None = (REACH_LOW, REACH_HIGH, REACH_ANGLE)
+    """The box the executed plans stay in (``within_reach``; None: the Task's plans as they are)."""
 
     def __init__(
         self,
@@ -137,6 +159,13 @@ class StudyEnvV1(StudyEnv):
         self._n_reflex = 0
         self._pause_until = -1.0
         self._rest_x = self._x.copy()
+
+    def _set_plan(self, waypoints: np.ndarray, leg: str) -> None:
+        """Plans for θ̂ are clipped to the reachable box (``within_reach``); the way home is
+        reachable as it is."""
+        if leg == "plan" and self.reach is not None:
+            waypoints = within_reach(self.task, waypoints, *self.reach)
+        super()._set_plan(waypoints, leg)
 
     def pause(self, seconds: float) -> None:
         """Hold the setpoint where it is for ``seconds`` (the robot waits, then goes on)."""
@@ -317,4 +346,47 @@ class StudyEnvV1(StudyEnv):
         self._time += CONTROL_DT
 
 
-__all__ = ["TORQUE_LIMIT", "VELOCITY_LIMIT", "StudyEnvV1"]
+def within_reach(
+    task: StudyTask, plan: np.ndarray, low: np.ndarray, high: np.ndarray, angle: float
+) -> np.ndarray:
+    """``plan`` (T+1, s) with every waypoint after the first moved into the box (positions in
+    [low, high], within ``REACH_RADIUS`` of the shoulder and out of the pitcher's keep-out zone
+    (``PITCHER_CLEAR``: lifted over it), |roll|, |pitch| ≤ ``angle``; yaw as planned), each
+    step still within the planner's bounds (``plan_pos_bound``, ``plan_ang_bound`` per axis):
+    a start outside the box (where a person left the cup) is left at the planner's pace, not in
+    one jump.
+
+    The Task's planning box lets θ̂ ask for poses the arm cannot reach, or that put the cup into
+    the table, the plate or the pitcher: there the cup stops centimetres short of its setpoint
+    and drifts while the arm settles at its boundary. The regret is still the Task's (its
+    planner, its box): this box is what the robot executes."""
+    plan = np.asarray(plan, dtype=np.float64)
+    lo, hi = low.tolist(), high.tolist()
+    step = [task.plan_pos_bound] * 3
+    if task.oriented:
+        lo, hi = [*lo, -angle, -angle, -math.inf], [*hi, angle, angle, math.inf]
+        step += [task.plan_ang_bound] * 3
+    lo_a, hi_a, step_a = np.array(lo), np.array(hi), np.array(step)
+    out = plan.copy()
+    for i in range(1, len(plan)):
+        goal = np.clip(plan[i], lo_a, hi_a)
+        arm = goal[:3] - SHOULDER
+        far = float(np.linalg.norm(arm))
+        if far > REACH_RADIUS:
+            goal[:3] = SHOULDER + arm * (REACH_RADIUS / far)
+        if _over_pitcher(goal):
+            goal[2] = PITCHER_CLEAR[1]  # above it, where the xy distance is the same
+        move = angle_delta(goal, out[i - 1])
+        out[i] = out[i - 1] + np.clip(move, -step_a, step_a)
+        if _over_pitcher(out[i]):  # rise first, then move in over it
+            out[i, :2] = out[i - 1, :2]
+    return out
+
+
+def _over_pitcher(x: np.ndarray) -> bool:
+    """Whether the cup at ``x`` would be in the pitcher's keep-out zone (``PITCHER_CLEAR``)."""
+    near = math.hypot(x[0] - PITCHER[0], x[1] - PITCHER[1]) < PITCHER_CLEAR[0]
+    return near and x[2] < PITCHER_CLEAR[1]
+
+
+__all__ = ["TORQUE_LIMIT", "VELOCITY_LIMIT", "StudyEnvV1", "within_reach"]

@@ -389,3 +389,32 @@ class StudyTask3(StudyTask2):
 
 
 STUDY_TASKS: dict[int, type[StudyTask]] = {1: StudyTask1, 2: StudyTask2, 3: StudyTask3}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask1V1(StudyTask1):
+    """Task 1 as StROL-Study-v1's study runs it: the same Task; its own id, so that the ĝ
+    trained for v1's corrections (``pretrained/study1-v1_*``) are found for it and v0's
+    published ĝ for v0."""
+
+    task_id: ClassVar[str] = "StROL-Study-v1-task1"
+    version: ClassVar[int] = 1
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask2V1(StudyTask2):
+    """Task 2 for StROL-Study-v1's ĝ (see ``StudyTask1V1``)."""
+
+    task_id: ClassVar[str] = "StROL-Study-v1-task2"
+    version: ClassVar[int] = 1
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask3V1(StudyTask3):
+    """Task 3 for StROL-Study-v1's ĝ (see ``StudyTask1V1``)."""
+
+    task_id: ClassVar[str] = "StROL-Study-v1-task3"
+    version: ClassVar[int] = 1
+
+
+STUDY_TASKS_V1: dict[int, type[StudyTask]] = {1: StudyTask1V1, 2: StudyTask2V1, 3: StudyTask3V1}
