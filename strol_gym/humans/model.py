@@ -245,8 +245,21 @@ class ModelHuman:
         *args: Any,
         **params: Any,
     ) -> None:
-        self.model = self.model_class(task, *args, **params)
-        self.task = task
+        self._start(self.model_class(task, *args, **params), theta_star, rng)
+
+    @classmethod
+    def of_model(
+        cls, model: HumanModel, theta_star: np.ndarray, rng: np.random.Generator
+    ) -> ModelHuman:
+        """A person of an already built ``model``: a vector env's sub-envs share one, so that
+        asking them together needs no comparison of their parameters."""
+        human = cls.__new__(cls)
+        human._start(model, theta_star, rng)
+        return human
+
+    def _start(self, model: HumanModel, theta_star: np.ndarray, rng: np.random.Generator) -> None:
+        self.model = model
+        self.task = model.task
         self.rng = rng
         self.theta_initial = np.asarray(theta_star, dtype=np.float64)
         self.theta_star = self.theta_initial

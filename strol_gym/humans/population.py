@@ -23,7 +23,10 @@ def _one_model(humans: Sequence[Human]) -> bool:
     first = humans[0]
     if not isinstance(first, ModelHuman):
         return False
-    return all(isinstance(h, ModelHuman) and h.model.same_as(first.model) for h in humans)
+    model = first.model
+    return all(
+        isinstance(h, ModelHuman) and (h.model is model or h.model.same_as(model)) for h in humans
+    )
 
 
 def batched_corrections(
@@ -58,11 +61,18 @@ class HumanMaker:
     def __init__(self, human: Any, task: Task, **params: Any) -> None:
         self.human, self.task, self.params = human, task, params
         self._factory: Any = None
+        self._person: type[ModelHuman] = ModelHuman
+        self._model: Any = None
 
     def __call__(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
         if self._factory is None:
             obj = make_human(self.human, self.task, theta_star, rng, **self.params)
             self._factory = human_factory(self.human)
             self.params = _params(self._factory, self.params)
+            # People of one model share it (built and checked once, by make_human).
+            if isinstance(obj, ModelHuman):
+                self._person, self._model = type(obj), obj.model
             return obj
+        if self._model is not None:
+            return self._person.of_model(self._model, theta_star, rng)
         return self._factory(self.task, theta_star, rng, **self.params)
