@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 from strol_gym.benchmarks.args import plugin_option
+from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.benchmarks.engine.kernels import float_kernels
 from strol_gym.benchmarks.engine.results import (
@@ -183,6 +184,12 @@ def write_table(
     md_path = out / f"{stem}.md"
     md_path.write_text("\n".join(markdown) + "\n")
     return [csv_path, md_path]
+
+
+def primary_metric(a: Any, env: str) -> str:
+    """The env's primary metric where the analysis ``a`` has it, else the error ‖θ* − θ̂‖."""
+    metric = env_preset(env).primary_metric
+    return metric if metric in a.metrics_for(env) else "error"
 
 
 def write_meta(out: Path, stem: str, meta: dict[str, Any]) -> Path:

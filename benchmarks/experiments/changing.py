@@ -22,6 +22,7 @@ from strol_gym.benchmarks.experiments.base import (
     Outcome,
     fmt,
     fmt_paper,
+    primary_metric,
     small_figure,
 )
 
@@ -109,8 +110,7 @@ class Changing(BenchExperiment):
     def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
         rd, a, wall = self.run(config, out, args)
         env = args.env
-        metric = env_preset(env).primary_metric
-        metric = metric if metric in a.metrics_for(env) else "error"
+        metric = primary_metric(a, env)
         paper = PAPER_CHANGING.get(env, {})
         rows = []
         for lr in config.learners:

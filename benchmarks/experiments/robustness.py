@@ -36,7 +36,7 @@ from strol_gym.benchmarks.engine.conditions import (
     env_preset,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, MAX_RUNS, BenchConfig, Experiment
-from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt, primary_metric
 from strol_gym.benchmarks.experiments.changing import DEFAULT_SWITCH
 
 from strol_gym.metrics import short
@@ -191,8 +191,7 @@ class Robustness(BenchExperiment):
     def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
         rd, a, wall = self.run(config, out, args)
         env = args.env
-        metric = env_preset(env).primary_metric
-        metric = metric if metric in a.metrics_for(env) else "error"
+        metric = primary_metric(a, env)
         rows = collect_rows(a, config, env, metric)
         md = table_markdown(rows, config, metric)
         exp = config.experiments[0]
