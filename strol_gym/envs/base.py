@@ -54,6 +54,7 @@ from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
 
 RESET_OPTIONS = ("theta_star", "state")
+_REAL = (np.dtype(np.float32), np.dtype(np.float64))
 
 
 def int_arg(name: str, value: Any, low: int, high: int | None = None) -> int:
@@ -259,6 +260,8 @@ class CorrectionEnv:
         if render_mode is not None and render_mode not in modes:
             raise ValueError(f"render_mode must be None or one of {modes}, got {render_mode!r}")
         self._u_scale = np.asarray(self.task.robot_action_bound, dtype=np.float64)
+        self._u_scale_l = self._u_scale.tolist()
+        self._a_shape = (self.task.action_dim,)
         self.theta_hat = self._default_theta_hat()
         self.theta_star = self.task.prior.mean.copy()
         self.human = None
@@ -328,7 +331,12 @@ class CorrectionEnv:
         self.theta_hat = th.copy()
 
     def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
-        return self.human_spec.make(self.task, theta_star, rng)
+        # One maker per (spec, Task): a reset then costs a person, not a signature lookup.
+        spec, task = self.human_spec, self.task
+        made_for = self.__dict__.get("_maker_for")
+        if made_for is None or made_for[0] is not spec or made_for[1] is not task:
+            self._maker, self._maker_for = spec.maker(task), (spec, task)
+        return None if self._maker is None else self._maker(theta_star, rng)
 
     def _start_episode(self, theta_star: np.ndarray, human_rng: np.random.Generator) -> None:
         """A new episode's θ*, θ̂0 and human (``reset`` calls it after drawing θ*)."""
@@ -355,6 +363,18 @@ class CorrectionEnv:
     # ------------------------------------------------------------------ step helpers
     def _robot_action(self, action: Any) -> np.ndarray:
         """The action in [−1, 1] as u_R in task units. Out of range clips; NaN/inf raises."""
+        if type(action) is np.ndarray and action.dtype in _REAL and action.shape == self._a_shape:
+            # The common case (an agent's float array) in plain floats: numpy's per-call cost
+            # dominates on a few numbers, every step. The same IEEE operations as below.
+            values = action.tolist()
+            if not all(map(math.isfinite, values)):
+                raise ValueError(f"action must be finite, got {action}")
+            return np.array(
+                [
+                    (1.0 if v > 1.0 else (-1.0 if v < -1.0 else v)) * k
+                    for v, k in zip(values, self._u_scale_l, strict=True)
+                ]
+            )
         if np.shape(action) != (self.task.action_dim,):
             raise ValueError(
                 f"action must have shape ({self.task.action_dim},), got {np.shape(action)}"

@@ -183,8 +183,12 @@ class PandaIK:
             mujoco.mju_mulMatTVec(w9, self._jp, y)  # Jᵀ y, 3 terms in order as numpy's
             dq = w9[:N_ARM].tolist()
             q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
-            free = [float(lj <= qn <= hj) for qn, lj, hj in zip(q_new, lo, hi, strict=True)]
-            if 0.0 in free:
+            q_clip = [
+                hj if qn > hj else (lj if qn < lj else qn)
+                for qn, lj, hj in zip(q_new, lo, hi, strict=True)
+            ]
+            if q_clip != q_new:  # a joint left its range (or a NaN): the limit step below
+                free = [float(lj <= qn <= hj) for qn, lj, hj in zip(q_new, lo, hi, strict=True)]
                 # Joints at a limit drop out (their columns of J and entries of s times 0); the
                 # others take over their share. The same operations as above.
                 sl = [si * f for si, f in zip(sl, free, strict=True)]
@@ -197,10 +201,11 @@ class PandaIK:
                 mujoco.mju_mulMatTVec(w9[:N_ARM], jf, y)
                 dq = w9[:N_ARM].tolist()
                 q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
-            q[:] = [
-                hj if qn > hj else (lj if qn < lj else qn)
-                for qn, lj, hj in zip(q_new, lo, hi, strict=True)
-            ]
+                q_clip = [
+                    hj if qn > hj else (lj if qn < lj else qn)
+                    for qn, lj, hj in zip(q_new, lo, hi, strict=True)
+                ]
+            q[:] = q_clip
             mujoco.mj_kinematics(m, d)
         x0, x1, x2 = x.tolist()
         e0, e1, e2 = tx - x0, ty - x1, tz - x2

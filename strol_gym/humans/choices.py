@@ -24,15 +24,21 @@ def optimal_correction(
 
     Shapes: x (B, s), u_r (B, a), theta_hat / theta_star (B, d), candidates (B, K, a) -> (B, a).
     """
-    g = task.g(x[:, None, :], candidates, u_r[:, None, :])  # (B, K, d)
-    # θ* − (θ̂ + α g) one feature at a time, on (B, K) planes: the numbers of broadcasting
-    # (B, 1, d) against (B, K, d), whose inner loops are only d long (several times slower).
-    resid = np.empty_like(g)
-    for j in range(g.shape[-1]):
-        col = np.multiply(g[..., j], task.alpha, out=resid[..., j])
-        col += theta_hat[:, j, None]
-        np.subtract(theta_star[:, j, None], col, out=col)
-    best = np.argmin(np.einsum("bkd,bkd->bk", resid, resid), axis=1)
+    g = task.g_planes(x[:, None, :], candidates, u_r[:, None, :])  # (d, B, K)
+    # θ* − (θ̂ + α g) and its squared norm one feature at a time, on (B, K) planes: the
+    # numbers of broadcasting (B, 1, d) against (B, K, d), whose inner loops are only d long.
+    # One person: θ̂ and θ* as scalars (numpy's broadcasting of (1, 1) arrays costs more).
+    one = len(g[0]) == 1
+    th_hat = theta_hat[0].tolist() if one else theta_hat[:, :, None].transpose(1, 0, 2)
+    th_star = theta_star[0].tolist() if one else theta_star[:, :, None].transpose(1, 0, 2)
+    norm = None
+    for j in range(len(g)):
+        col = np.multiply(g[j], task.alpha)
+        col += th_hat[j]
+        np.subtract(th_star[j], col, out=col)
+        col *= col
+        norm = col if norm is None else np.add(norm, col, out=norm)
+    best = np.argmin(norm, axis=1)
     return candidates[np.arange(len(candidates)), best]
 
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from strol_gym.humans.checks import check_beta, check_fraction
 from strol_gym.humans.model import Human
+from strol_gym.humans.population import HumanMaker
 from strol_gym.humans.registry import HumanFactory, check_human_kwargs, human_factory, make_human
 from strol_gym.tasks.base import Task
 
@@ -105,6 +106,15 @@ class HumanSpec:
             bias=self.bias,
             beta=self.beta,
             **self.kwargs,
+        )
+
+    def maker(self, task: Task) -> HumanMaker | None:
+        """What builds this spec's human episode after episode: ``make`` without resolving
+        the factory and its accepted arguments each time (people of one model share it)."""
+        if self.name is None:
+            return None
+        return HumanMaker(
+            self.name, task, sigma=self.sigma, bias=self.bias, beta=self.beta, **self.kwargs
         )
 
     def replace(self, **changes: Any) -> HumanSpec:

@@ -9,6 +9,7 @@ batched: leading dimensions broadcast, the last axis is the state / action / fea
 from __future__ import annotations
 
 import dataclasses
+import functools
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import ClassVar
@@ -148,6 +149,13 @@ class Task(ABC):
         )
         return self.features(x_h) - self.features(x_r)
 
+    def g_planes(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """``g`` with the feature axis first, (..., d) -> (d, ...): what eq. M6's search reads
+        one feature at a time. A Task may compute it as contiguous planes (``RobotTask``);
+        by default a view of ``g``."""
+        g = self.g(x, u_h, u_r)
+        return g.transpose(g.ndim - 1, *range(g.ndim - 1))
+
     def candidate_actions(self, rng: np.random.Generator, n: int, k: int) -> np.ndarray:
         """Candidate human actions for eq. M6, shape (n, k + 1, action_dim).
 
@@ -156,14 +164,26 @@ class Task(ABC):
         """
         if k < 0:
             raise ValueError(f"k must be >= 0, got {k}")
-        out = np.zeros((n, k + 1, self.action_dim))
+        out = np.empty((n, k + 1, self.action_dim))
+        out[:, 0] = 0.0
         # rng.uniform(-1, 1) computes −1 + 2·U from U in [0, 1): the same draws and numbers,
-        # with numpy's cheaper fill of U.
-        u = rng.random((n, k, self.action_dim))
+        # with numpy's cheaper fill of U, in place (one person's block is contiguous).
+        u = out[:, 1:]
+        if n == 1:
+            rng.random(out=u[0])
+        else:
+            u[...] = rng.random((n, k, self.action_dim))
         u *= 2.0
         u += -1.0
-        np.multiply(u, self.action_bound, out=out[:, 1:])
+        # One bound for every axis (the Robot's): a scalar product, the same numbers.
+        u *= self._candidate_scale
         return out
+
+    @functools.cached_property
+    def _candidate_scale(self) -> float | np.ndarray:
+        """a_max as one number when every axis shares it, else per axis."""
+        bound = np.asarray(self.action_bound, dtype=np.float64)
+        return float(bound[0]) if (bound == bound[0]).all() else bound
 
     def with_prior(self, prior: Prior) -> Task:
         """The same setting with another prior over θ*."""

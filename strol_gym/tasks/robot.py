@@ -36,6 +36,14 @@ _LONG = 3000
 """Array size from which φ and ∂φ/∂x work per object and axis (``RobotTask._offsets``)."""
 
 
+def _m6_layout(x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> bool:
+    """x and u_R (B, 1, 3) with K candidate u_H (B, K, 3): eq. M6's layout."""
+    if not x.ndim == u_h.ndim == u_r.ndim == 3:
+        return False
+    (b, one, a), (bh, _, ah), (br, one_r, ar) = x.shape, u_h.shape, u_r.shape
+    return one == one_r == 1 and b == bh == br and a == ah == ar == 3
+
+
 def _default_prior() -> Prior:
     return MixturePrior(ROBOT_MODES, jitter=0.1)
 
@@ -181,52 +189,61 @@ class RobotTask(Task):
 
     def g(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
         """φ(x_H) − φ(x_R) (eq. P3). For eq. M6's layout, x and u_R (B, 1, 3) with K candidate
-        u_H (B, K, 3), it works on (B, K) planes per axis and per object: broadcasting over
-        a last axis of 3 makes numpy's inner loops 3 elements long, several times slower.
-        The same IEEE operations as ``dynamics`` and ``features``, so the same numbers."""
+        u_H (B, K, 3), through ``g_planes`` (the same numbers, laid out (B, K, 2))."""
         x, u_h, u_r = (np.asarray(a, dtype=np.float64) for a in (x, u_h, u_r))
-        if not (
-            x.ndim == u_h.ndim == u_r.ndim == 3
-            and x.shape[1] == u_r.shape[1] == 1
-            and x.shape[0] == u_h.shape[0] == u_r.shape[0]
-            and x.shape[2] == u_h.shape[2] == u_r.shape[2] == 3
-        ):
+        if not _m6_layout(x, u_h, u_r):
             return super().g(x, u_h, u_r)
+        return np.ascontiguousarray(self.g_planes(x, u_h, u_r).transpose(1, 2, 0))
+
+    def g_planes(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        """g of eq. M6's layout as (d, B, K) planes, one contiguous (B, K) plane per feature and
+        state axis: broadcasting over a last axis of 3 makes numpy's inner loops 3 elements
+        long, several times slower. The same IEEE operations as ``dynamics`` and ``features``,
+        so the same numbers as ``g`` on any layout."""
+        x, u_h, u_r = (np.asarray(a, dtype=np.float64) for a in (x, u_h, u_r))
+        if not _m6_layout(x, u_h, u_r):
+            return super().g_planes(x, u_h, u_r)
         base = x + u_r  # (B, 1, 3): x + u_R, then + u_H as ``dynamics`` adds them
-        x_h = []
-        for i in range(3):
-            v = base[:, :, i] + u_h[:, :, i]  # (B, K)
-            np.maximum(v, self._low_l[i], out=v)
-            np.minimum(v, self._high_l[i], out=v)
-            x_h.append(v)
-        out = np.empty((*u_h.shape[:2], 2))
-        zero = [0.0, 0.0, 0.0]
-        phi_r = np.array(  # (B, 1, 2): one state per row, in plain floats
-            [
-                [self._features_one(*self.dynamics_one(xb, zero, ub))]
-                for xb, ub in zip(x[:, 0].tolist(), u_r[:, 0].tolist(), strict=True)
+        x_h = np.empty((3, *u_h.shape[:2]))
+        np.add(base.transpose(2, 0, 1), u_h.transpose(2, 0, 1), out=x_h)
+        np.maximum(x_h, self._box_planes[0], out=x_h)
+        np.minimum(x_h, self._box_planes[1], out=x_h)
+        if len(x) == 1:  # one state: φ(x_R) in plain floats, subtracted as scalars
+            zero = [0.0, 0.0, 0.0]
+            phi_r = self._features_one(
+                *self.dynamics_one(x[0, 0].tolist(), zero, u_r[0, 0].tolist())
+            )
+        else:
+            phi_r = self.features(self.dynamics(x[:, 0], np.zeros_like(x[:, 0]), u_r[:, 0])).T[
+                :, :, None
             ]
-        )
-        (p0, p1, _), (c0, c1, c2) = self._objects_l
+        out = np.empty((2, *u_h.shape[:2]))
         # Squares summed as ``features``' reduction does: (d0² + d2²) + d1²; the plate's
         # masked d2² is +0 and adds nothing.
-        d0, d1 = p0 - x_h[0], p1 - x_h[1]
-        d0 *= d0
-        d1 *= d1
-        d0 += d1
-        plate = np.sqrt(d0, out=d0)
+        d = np.subtract(self._object_planes[0][:2], x_h[:2])
+        d *= d
+        plate = np.add(d[0], d[1], out=out[0])
+        np.sqrt(plate, out=plate)
         np.negative(plate, out=plate)
-        np.subtract(plate, phi_r[:, :, 0], out=out[:, :, 0])
-        e0, e1, e2 = c0 - x_h[0], c1 - x_h[1], c2 - x_h[2]
-        e0 *= e0
-        e1 *= e1
-        e2 *= e2
-        e0 += e2
-        e0 += e1
-        cup = np.sqrt(e0, out=e0)
+        plate -= phi_r[0]
+        e = np.subtract(self._object_planes[1], x_h)
+        e *= e
+        cup = np.add(e[0], e[2], out=out[1])
+        cup += e[1]
+        np.sqrt(cup, out=cup)
         np.negative(cup, out=cup)
-        np.subtract(cup, phi_r[:, :, 1], out=out[:, :, 1])
+        cup -= phi_r[1]
         return out
+
+    @functools.cached_property
+    def _box_planes(self) -> np.ndarray:
+        """(2, 3, 1, 1): the workspace box's low and high corners, one number per axis plane."""
+        return np.stack([self.workspace_low, self.workspace_high])[:, :, None, None]
+
+    @functools.cached_property
+    def _object_planes(self) -> np.ndarray:
+        """(2, 3, 1, 1): the plate and the cup, one number per axis plane."""
+        return self._objects[:, :, None, None]
 
     def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """Plans maximising Σ_{t=1..T} θ·φ(x_t): (B, 2), (B, 3) -> (B, T+1, 3), T = plan_steps.
