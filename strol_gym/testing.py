@@ -117,6 +117,13 @@ def check_task(task: Task, *, n: int = 8, plan: bool = True) -> None:
         (n, 6, d),
     )
     _close(f"{name}.g over candidates vs per candidate", gk[:, 3], task.g(x, cand[:, 3], u_r))
+    # The same numbers feature-first, as eq. M6's search reads them (a Task may override it).
+    planes = _shape(
+        f"{name}.g_planes over candidates (d, n, k)",
+        task.g_planes(x[:, None, :], cand, u_r[:, None, :]),
+        (d, n, 6),
+    )
+    _close(f"{name}.g_planes vs g", np.moveaxis(planes, 0, -1), gk)
     theta = th
     _close(
         f"{name}.reward(x, θ) must be θ·φ(x)",

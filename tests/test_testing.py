@@ -50,11 +50,20 @@ class DriftingGTask(LinearTask):
         return super().g(x, u_h, u_r) + 0.1
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class SwappedPlanesTask(LinearTask):
+    """A g_planes (what eq. M6's search reads) whose features come in the wrong order."""
+
+    def g_planes(self, x, u_h, u_r):
+        return super().g_planes(x, u_h, u_r)[::-1]
+
+
 @pytest.mark.parametrize(
     ("task", "match"),
     [
         (BatchMixingTask(), "features: batched row 0 vs a single state"),
         (DriftingGTask(), r"g\(x, 0, u_R\) \(no correction, nothing to learn\) must be 0"),
+        (SwappedPlanesTask(), "g_planes vs g"),
     ],
 )
 def test_a_broken_task_fails_with_a_message(task, match):
