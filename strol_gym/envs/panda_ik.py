@@ -58,6 +58,8 @@ class PandaIK:
         self._damp = IK_DAMPING**2 * np.eye(3)
         self._a = np.zeros((3, 3))
         self._w9 = np.zeros(model.nv)
+        self._s = np.zeros(N_ARM)
+        self._r = np.zeros(3)
         self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
         self._lift_l = self.lift.tolist()
         self.seeds = seeds
@@ -154,23 +156,36 @@ class PandaIK:
         tol2 = tol * tol
         ref_l = None if ref is None else ref.tolist()
         lo, hi = self._lo_l, self._hi_l
-        a, y, w9 = self._a, self._y, self._w9
+        a, y, w9, s, r = self._a, self._y, self._w9, self._s, self._r
         posture = IK_POSTURE_GAIN
+        com_pos, jac_site, mul_t = mujoco.mj_comPos, mujoco.mj_jacSite, mujoco.mju_mulMatTVec
+        chol, chol_solve, kinematics = (
+            mujoco.mju_cholFactor,
+            mujoco.mju_cholSolve,
+            mujoco.mj_kinematics,
+        )
+        jp_full, jr_full, site, orient, damp = (
+            self._jp,
+            self._jr,
+            self.site,
+            self._orient,
+            self._damp,
+        )
+        ql = q.tolist()
         for _ in range(iters):
             x0, x1, x2 = x.tolist()
             e0, e1, e2 = tx - x0, ty - x1, tz - x2
             if e0 * e0 + e1 * e1 + e2 * e2 < tol2:
                 break
-            mujoco.mj_comPos(m, d)
-            mujoco.mj_jacSite(m, d, self._jp, self._jr, self.site)
+            com_pos(m, d)
+            jac_site(m, d, jp_full, jr_full, site)
             # Secondary motion s, projected into the position task's null space:
             # dq = J⁺ e + (I − J⁺J) s = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s).
             # Jᵣᵀ v: MuJoCo's product sums the 3 terms in order, as numpy's (BLAS) does: the
             # same bits (checked on random matrices); numpy's J Jᵀ and J s fuse multiply-adds
             # and stay numpy's.
-            mujoco.mju_mulMatTVec(w9, self._jr, self._orient @ xmat)
+            mul_t(w9, jr_full, orient @ xmat)
             w = w9[:N_ARM].tolist()
-            ql = q.tolist()
             if ref_l is None:
                 sl = [orient_gain * wi for wi in w]
             else:
@@ -178,14 +193,15 @@ class PandaIK:
                     orient_gain * wi + posture * (ri - qi)
                     for wi, ri, qi in zip(w, ref_l, ql, strict=True)
                 ]
-            s = np.array(sl)
+            s[:] = sl
             # dq = s + Jᵀ y with (J Jᵀ + λ²I) y = e − J s (MuJoCo's Cholesky: no numpy.linalg).
             np.matmul(jp, jp.T, out=a)
-            a += self._damp
-            mujoco.mju_cholFactor(a, 0.0)
+            a += damp
+            chol(a, 0.0)
             v0, v1, v2 = (jp @ s).tolist()
-            mujoco.mju_cholSolve(y, a, np.array((e0 - v0, e1 - v1, e2 - v2)))
-            mujoco.mju_mulMatTVec(w9, self._jp, y)  # Jᵀ y, 3 terms in order as numpy's
+            r[:] = (e0 - v0, e1 - v1, e2 - v2)
+            chol_solve(y, a, r)
+            mul_t(w9, jp_full, y)  # Jᵀ y, 3 terms in order as numpy's
             dq = w9[:N_ARM].tolist()
             q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
             q_clip = [
@@ -199,11 +215,13 @@ class PandaIK:
                 sl = [si * f for si, f in zip(sl, free, strict=True)]
                 jf = jp * np.array(free)
                 np.matmul(jf, jf.T, out=a)
-                a += self._damp
-                mujoco.mju_cholFactor(a, 0.0)
-                v0, v1, v2 = (jf @ np.array(sl)).tolist()
-                mujoco.mju_cholSolve(y, a, np.array((e0 - v0, e1 - v1, e2 - v2)))
-                mujoco.mju_mulMatTVec(w9[:N_ARM], jf, y)
+                a += damp
+                chol(a, 0.0)
+                s[:] = sl
+                v0, v1, v2 = (jf @ s).tolist()
+                r[:] = (e0 - v0, e1 - v1, e2 - v2)
+                chol_solve(y, a, r)
+                mul_t(w9[:N_ARM], jf, y)
                 dq = w9[:N_ARM].tolist()
                 q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
                 q_clip = [
@@ -211,7 +229,8 @@ class PandaIK:
                     for qn, lj, hj in zip(q_new, lo, hi, strict=True)
                 ]
             q[:] = q_clip
-            mujoco.mj_kinematics(m, d)
+            ql = q_clip
+            kinematics(m, d)
         x0, x1, x2 = x.tolist()
         e0, e1, e2 = tx - x0, ty - x1, tz - x2
         return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
