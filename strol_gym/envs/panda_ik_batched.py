@@ -15,6 +15,8 @@ numbers of all the arms at once and an iteration is a fixed, small number of num
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -124,6 +126,10 @@ class BatchedPandaIK:
             self._seed_low, self._seed_step = ik._seed_low, ik._seed_step
             self._seed_max = ik._seed_max
         self._orient = ik._orient.copy()
+        self._orient_l = self._orient[:, [0, 2, 3, 5, 6, 8]].tolist()
+        if np.any(self._orient[:, [1, 4, 7]]):
+            raise ValueError("the gripper-down term must not read xmat's entries 1, 4, 7")
+        self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
         self._single = ik
         self._damp2 = IK_DAMPING**2
         # The gripper-down term acts on the site's rotation by columns (9, B).
@@ -209,12 +215,12 @@ class BatchedPandaIK:
         retry = np.flatnonzero((err > IK_RECOVER * tol) & has_ref)
         if 0 < len(retry) <= SINGLE_RETRY:
             # A restart runs 8x the iterations, usually for an arm or two that cannot reach
-            # their target: numpy's per-call cost on so few rows exceeds MuJoCo's own kinematics,
-            # so the single IK itself does them.
+            # their target: numpy's per-call cost on so few arms exceeds MuJoCo's own
+            # kinematics, so each restarts alone on the single IK's model (_restart).
             ik = self._single
             for k in retry:
                 ik.set_q(ref[k])
-                err_ref = ik._solve(world[k], 8 * iters, tol, ref[k])
+                err_ref = self._restart(world[k].tolist(), 8 * iters, tol, ref[k].tolist())
                 if err_ref < err[k]:
                     err[k] = err_ref
                     self._q[:, rows[k]] = ik.q
@@ -230,6 +236,75 @@ class BatchedPandaIK:
             if not better.all():
                 self._arms.put(sub[~better], prev.take(~better))
         return err
+
+    def _restart(self, target: list[float], iters: int, tol: float, ref: list[float]) -> float:
+        """``PandaIK._solve`` for one arm, from the single IK's posture, towards world-frame
+        ``target``: MuJoCo's kinematics and site Jacobian, the 3x7 algebra in plain floats in
+        one pass over the joints (the same operations as ``_iterate``, one arm; numpy's and
+        list-building's per-call costs dominate on so few numbers). Returns the remaining
+        error; the arm is left in the single IK's ``q``."""
+        ik = self._single
+        m, d, site = ik.model, ik.data, ik.site
+        x, xmat, jac_p, jac_r = d.site_xpos[site], d.site_xmat[site], ik._jp, ik._jr
+        jp, jr = jac_p[:, :N_ARM], jac_r[:, :N_ARM]
+        tx, ty, tz = target
+        tol2, damp = tol * tol, self._damp2
+        og, pg = IK_ORIENT_GAIN, IK_POSTURE_GAIN
+        lo, hi = self._lo_l, self._hi_l
+        (
+            (o00, o02, o03, o05, o06, o08),
+            (o10, o12, o13, o15, o16, o18),
+            (
+                o20,
+                o22,
+                o23,
+                o25,
+                o26,
+                o28,
+            ),
+        ) = self._orient_l
+        q = ik.q.tolist()
+        for _ in range(iters):
+            x0, x1, x2 = x.tolist()
+            e0, e1, e2 = tx - x0, ty - x1, tz - x2
+            if e0 * e0 + e1 * e1 + e2 * e2 < tol2:
+                break
+            mujoco.mj_comPos(m, d)
+            mujoco.mj_jacSite(m, d, jac_p, jac_r, site)
+            j0, j1, j2 = jp.tolist()
+            m0, _, m2, m3, _, m5, m6, _, m8 = xmat.tolist()
+            # The gripper-down term's rotation error (its matrix is 0 on xmat's entries 1, 4, 7).
+            v0 = o00 * m0 + o02 * m2 + o03 * m3 + o05 * m5 + o06 * m6 + o08 * m8
+            v1 = o10 * m0 + o12 * m2 + o13 * m3 + o15 * m5 + o16 * m6 + o18 * m8
+            v2 = o20 * m0 + o22 * m2 + o23 * m3 + o25 * m5 + o26 * m6 + o28 * m8
+            s = [
+                og * (a * v0 + b * v1 + c * v2) + pg * (rj - qj)
+                for a, b, c, rj, qj in zip(*jr.tolist(), ref, q, strict=True)
+            ]
+            q_new = _dls_step(q, j0, j1, j2, s, e0, e1, e2, damp)
+            if not all([lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]):
+                # Joints at a limit drop out (their columns of J and entries of s times 0).
+                f = [float(lj <= qj <= hj) for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
+                q_new = _dls_step(
+                    q,
+                    [a * fj for a, fj in zip(j0, f, strict=True)],
+                    [a * fj for a, fj in zip(j1, f, strict=True)],
+                    [a * fj for a, fj in zip(j2, f, strict=True)],
+                    [sj * fj for sj, fj in zip(s, f, strict=True)],
+                    e0,
+                    e1,
+                    e2,
+                    damp,
+                )
+            q = [
+                hj if qj > hj else (lj if qj < lj else qj)
+                for qj, lj, hj in zip(q_new, lo, hi, strict=True)
+            ]
+            ik.q[:] = q
+            mujoco.mj_kinematics(m, d)
+        x0, x1, x2 = x.tolist()
+        e0, e1, e2 = tx - x0, ty - x1, tz - x2
+        return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
 
     def _solve(
         self,
@@ -349,3 +424,43 @@ class BatchedPandaIK:
         dq = (jp * y).sum(axis=1)
         dq += s
         return dq
+
+
+def _dls_step(
+    q: list[float],
+    j0: list[float],
+    j1: list[float],
+    j2: list[float],
+    s: list[float],
+    e0: float,
+    e1: float,
+    e2: float,
+    damp: float,
+) -> list[float]:
+    """q + s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) for one arm, in plain floats (J by rows j0-j2);
+    the same operations, summed in the same order, as ``BatchedPandaIK._step``."""
+    a00 = a11 = a22 = a10 = a20 = a21 = v0 = v1 = v2 = 0.0
+    for a, b, c, sj in zip(j0, j1, j2, s, strict=True):
+        a00 += a * a
+        a11 += b * b
+        a22 += c * c
+        a10 += b * a
+        a20 += c * a
+        a21 += c * b
+        v0 += a * sj
+        v1 += b * sj
+        v2 += c * sj
+    l00 = math.sqrt(a00 + damp)
+    l10, l20 = a10 / l00, a20 / l00
+    l11 = math.sqrt(a11 + damp - l10 * l10)
+    l21 = (a21 - l20 * l10) / l11
+    l22 = math.sqrt(a22 + damp - l20 * l20 - l21 * l21)
+    z0 = (e0 - v0) / l00
+    z1 = (e1 - v1 - l10 * z0) / l11
+    y2 = (e2 - v2 - l20 * z0 - l21 * z1) / l22 / l22
+    y1 = (z1 - l21 * y2) / l11
+    y0 = (z0 - l10 * y1 - l20 * y2) / l00
+    return [
+        qj + (sj + (a * y0 + b * y1 + c * y2))
+        for qj, sj, a, b, c in zip(q, s, j0, j1, j2, strict=True)
+    ]
