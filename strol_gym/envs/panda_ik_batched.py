@@ -37,9 +37,6 @@ COMPACT = 0.5
 """Iterate on all arms (slices, moving only the unconverged) while at least this fraction still
 iterates; below, on a compact copy of just those (gathered once, shrunk as arms converge)."""
 
-_A_PAIRS = ((0, 0), (1, 1), (2, 2), (1, 0), (2, 0), (2, 1))
-"""The entries of the 3x3 system J Jᵀ that the Cholesky factorisation reads."""
-
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
     m = np.zeros(9)
@@ -282,20 +279,10 @@ class BatchedPandaIK:
                 for a, b, c, rj, qj in zip(*jr.tolist(), ref, q, strict=True)
             ]
             q_new = _dls_step(q, j0, j1, j2, s, e0, e1, e2, damp)
-            if not all([lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]):
+            blocked = [not lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
+            if any(blocked):
                 # Joints at a limit drop out (their columns of J and entries of s times 0).
-                f = [float(lj <= qj <= hj) for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
-                q_new = _dls_step(
-                    q,
-                    [a * fj for a, fj in zip(j0, f, strict=True)],
-                    [a * fj for a, fj in zip(j1, f, strict=True)],
-                    [a * fj for a, fj in zip(j2, f, strict=True)],
-                    [sj * fj for sj, fj in zip(s, f, strict=True)],
-                    e0,
-                    e1,
-                    e2,
-                    damp,
-                )
+                q_new = _dls_step(q, *_drop_blocked((j0, j1, j2), s, blocked), e0, e1, e2, damp)
             q = [
                 hj if qj > hj else (lj if qj < lj else qj)
                 for qj, lj, hj in zip(q_new, lo, hi, strict=True)
@@ -377,7 +364,7 @@ class BatchedPandaIK:
         # Secondary motion: gripper down (Jᵣᵀ of the rotation error; Jᵣ's columns are the axes)
         # and the pull towards the reference posture.
         v = self._orient_cols @ arms.cols.reshape(9, -1)  # (3, B)
-        s = (axes * v).sum(axis=1)
+        s = np.einsum("jib,ib->jb", axes, v)
         s *= IK_ORIENT_GAIN
         if has_ref.all():
             s += IK_POSTURE_GAIN * (ref - q)
@@ -401,13 +388,11 @@ class BatchedPandaIK:
 
     def _step(self, jp: np.ndarray, s: np.ndarray, ep: np.ndarray) -> np.ndarray:
         """dq = s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) per arm; ``jp`` is J by columns (7, 3, B)."""
-        prod = np.empty((N_ARM, 6, jp.shape[2]))
-        for k, (i, j) in enumerate(_A_PAIRS):
-            np.multiply(jp[:, i], jp[:, j], out=prod[:, k])
-        a = prod.sum(axis=0)  # (6, B)
-        a[:3] += self._damp2
-        a00, a11, a22, a10, a20, a21 = a
-        rhs = ep - (jp * s[:, None]).sum(axis=0)
+        # einsum sums over the joints in order, as numpy's sums and the single IK's products.
+        a = np.einsum("jib,jkb->ikb", jp, jp)  # J Jᵀ, (3, 3, B)
+        a00, a11, a22 = a[0, 0] + self._damp2, a[1, 1] + self._damp2, a[2, 2] + self._damp2
+        a10, a20, a21 = a[1, 0], a[2, 0], a[2, 1]
+        rhs = ep - np.einsum("jib,jb->ib", jp, s)
         # Cholesky of the symmetric positive definite 3x3 system, elementwise over the batch.
         l00 = np.sqrt(a00)
         l10, l20 = a10 / l00, a20 / l00
@@ -421,9 +406,20 @@ class BatchedPandaIK:
         np.divide(z1 - l21 * y[2], l11, out=y[1])
         np.divide(z0 - l10 * y[1] - l20 * y[2], l00, out=y[0])
         # Jᵀ y sums its 3 terms in order, as the single IK's product does; then s + Jᵀ y.
-        dq = (jp * y).sum(axis=1)
+        dq = np.einsum("jib,ib->jb", jp, y)
         dq += s
         return dq
+
+
+def _drop_blocked(
+    j: list[list[float]], s: list[float], blocked: list[bool]
+) -> tuple[list[float], ...]:
+    """J's rows and s with the blocked joints' entries times 0 (one arm, plain floats)."""
+    f = [0.0 if b else 1.0 for b in blocked]
+    return (
+        *([a * fj for a, fj in zip(row, f, strict=True)] for row in j),
+        [sj * fj for sj, fj in zip(s, f, strict=True)],
+    )
 
 
 def _dls_step(
