@@ -34,8 +34,8 @@ from strol_gym.envs.panda_ik import (
 SINGLE_RETRY = 16
 """Up to this many arms restart (``IK_RECOVER``) one by one through ``PandaIK``; more, batched."""
 COMPACT = 0.5
-"""Iterate on all arms (slices, moving only the unconverged) while at least this fraction still
-iterates; below, on a compact copy of just those (gathered once, shrunk as arms converge)."""
+"""A set of arms iterates together (the converged ones held still) while at least this fraction
+of it still iterates; below, a compact copy of just those goes on."""
 
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
@@ -282,7 +282,7 @@ class BatchedPandaIK:
             blocked = [not lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
             if any(blocked):
                 # Joints at a limit drop out (their columns of J and entries of s times 0).
-                q_new = _dls_step(q, *_drop_blocked((j0, j1, j2), s, blocked), e0, e1, e2, damp)
+                q_new = _dls_step(q, j0, j1, j2, s, e0, e1, e2, damp, blocked)
             q = [
                 hj if qj > hj else (lj if qj < lj else qj)
                 for qj, lj, hj in zip(q_new, lo, hi, strict=True)
@@ -302,41 +302,37 @@ class BatchedPandaIK:
         ref: np.ndarray,
         has_ref: np.ndarray,
     ) -> np.ndarray:
-        """``iters`` iterations for arms ``rows`` towards world-frame ``target`` (3, B)."""
+        """``iters`` iterations for arms ``rows`` towards world-frame ``target`` (3, B).
+
+        The arms iterate as a set (all of them in place, or a compact copy of ``rows``), the
+        converged ones held still, while enough of the set still iterates; below
+        ``COMPACT`` of it, a smaller copy of just those goes on (a gather, and the others'
+        state written back), so that few arms don't pay for many."""
         tol2 = tol * tol
-        full = len(rows) == self.n and bool((rows == np.arange(self.n)).all())
-        if full:
-            arms, idx, moving = self._arms, None, np.ones(self.n, dtype=bool)
+        if len(rows) == self.n and bool((rows == np.arange(self.n)).all()):
+            arms, idx = self._arms, None  # in place
         else:
-            arms, idx, moving = self._arms.take(rows), rows, None
+            arms, idx = self._arms.take(rows), rows
+        moving = np.ones(len(rows), dtype=bool)
         tgt = target
         for _ in range(iters):
             ep = tgt - arms.site
-            near = (ep * ep).sum(axis=0) < tol2
-            if moving is not None:
-                # All arms, the converged ones held still, while enough still iterate.
-                moving &= ~near
-                live = int(moving.sum())
-                if not live:
-                    break
-                if live >= COMPACT * self.n:
-                    self._iterate(arms, ep, ref, has_ref, moving)
-                    continue
-                # From here on a compact copy of the arms still iterating.
+            moving &= (ep * ep).sum(axis=0) >= tol2
+            live = int(moving.sum())
+            if not live:
+                break
+            if live < COMPACT * len(moving):
                 keep = moving
-                arms, idx, moving = arms.take(keep), rows[keep], None
-            elif near.any():
-                keep = ~near
-                self._arms.put(idx[near], arms.take(near))
-                arms, idx = arms.take(keep), idx[keep]
-            else:
-                keep = None
-            if keep is not None:
-                if not len(idx):
-                    break
+                if idx is None:
+                    idx = rows[keep]
+                else:
+                    self._arms.put(idx[~keep], arms.take(~keep))
+                    idx = idx[keep]
+                arms = arms.take(keep)
                 tgt, ep, ref, has_ref = tgt[:, keep], ep[:, keep], ref[:, keep], has_ref[keep]
-            self._iterate(arms, ep, ref, has_ref, None)
-        if idx is not None and len(idx):
+                moving = np.ones(live, dtype=bool)
+            self._iterate(arms, ep, ref, has_ref, moving)
+        if idx is not None:
             self._arms.put(idx, arms)
         ep = target - self._arms.site[:, rows]
         return np.sqrt((ep * ep).sum(axis=0))
@@ -411,17 +407,6 @@ class BatchedPandaIK:
         return dq
 
 
-def _drop_blocked(
-    j: list[list[float]], s: list[float], blocked: list[bool]
-) -> tuple[list[float], ...]:
-    """J's rows and s with the blocked joints' entries times 0 (one arm, plain floats)."""
-    f = [0.0 if b else 1.0 for b in blocked]
-    return (
-        *([a * fj for a, fj in zip(row, f, strict=True)] for row in j),
-        [sj * fj for sj, fj in zip(s, f, strict=True)],
-    )
-
-
 def _dls_step(
     q: list[float],
     j0: list[float],
@@ -432,11 +417,18 @@ def _dls_step(
     e1: float,
     e2: float,
     damp: float,
+    blocked: list[bool] | None = None,
 ) -> list[float]:
     """q + s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) for one arm, in plain floats (J by rows j0-j2);
-    the same operations, summed in the same order, as ``BatchedPandaIK._step``."""
+    the same operations, summed in the same order, as ``BatchedPandaIK._step``. ``blocked``
+    joints drop out: their columns of J and entries of s are left out of the sums (the batched
+    step's products by 0, which add nothing) and they stay where they are."""
+    if blocked is None:
+        blocked = _NONE_BLOCKED
     a00 = a11 = a22 = a10 = a20 = a21 = v0 = v1 = v2 = 0.0
-    for a, b, c, sj in zip(j0, j1, j2, s, strict=True):
+    for a, b, c, sj, off in zip(j0, j1, j2, s, blocked, strict=True):
+        if off:
+            continue
         a00 += a * a
         a11 += b * b
         a22 += c * c
@@ -457,6 +449,9 @@ def _dls_step(
     y1 = (z1 - l21 * y2) / l11
     y0 = (z0 - l10 * y1 - l20 * y2) / l00
     return [
-        qj + (sj + (a * y0 + b * y1 + c * y2))
-        for qj, sj, a, b, c in zip(q, s, j0, j1, j2, strict=True)
+        qj if off else qj + (sj + (a * y0 + b * y1 + c * y2))
+        for qj, sj, a, b, c, off in zip(q, s, j0, j1, j2, blocked, strict=True)
     ]
+
+
+_NONE_BLOCKED = [False] * N_ARM
