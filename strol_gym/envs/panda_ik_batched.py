@@ -374,9 +374,14 @@ class BatchedPandaIK:
         hit = blocked.any(axis=0)
         if hit.any():
             # Joints at a limit drop out (their columns of J and entries of s times 0).
-            free = ~blocked[:, hit]
-            q_h = self._step(jp[..., hit] * free[:, None], s[:, hit] * free, ep[:, hit])
-            q_h += q[:, hit]
+            hit = np.flatnonzero(hit)
+            free = ~np.take(blocked, hit, axis=1)
+            jp_h = np.take(jp, hit, axis=2)
+            jp_h *= free[:, None]
+            s_h = np.take(s, hit, axis=1)
+            s_h *= free
+            q_h = self._step(jp_h, s_h, np.take(ep, hit, axis=1))
+            q_h += np.take(q, hit, axis=1)
             q_new[:, hit] = q_h
         np.maximum(q_new, self._lo, out=q_new)
         np.minimum(q_new, self._hi, out=q)
