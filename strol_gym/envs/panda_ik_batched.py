@@ -315,9 +315,11 @@ class BatchedPandaIK:
             arms, idx = self._arms.take(rows), rows
         moving = np.ones(len(rows), dtype=bool)
         tgt = target
+        if has_ref.all():
+            has_ref = None  # every arm has a reference posture
         for _ in range(iters):
             ep = tgt - arms.site
-            moving &= (ep * ep).sum(axis=0) >= tol2
+            moving &= np.einsum("ib,ib->b", ep, ep) >= tol2  # |e|², summed in order
             live = int(moving.sum())
             if not live:
                 break
@@ -329,9 +331,11 @@ class BatchedPandaIK:
                     self._arms.put(idx[~keep], arms.take(~keep))
                     idx = idx[keep]
                 arms = arms.take(keep)
-                tgt, ep, ref, has_ref = tgt[:, keep], ep[:, keep], ref[:, keep], has_ref[keep]
+                tgt, ep, ref = tgt[:, keep], ep[:, keep], ref[:, keep]
+                if has_ref is not None:
+                    has_ref = has_ref[keep]
                 moving = np.ones(live, dtype=bool)
-            self._iterate(arms, ep, ref, has_ref, moving)
+            self._iterate(arms, ep, ref, has_ref, None if live == len(moving) else moving)
         if idx is not None:
             self._arms.put(idx, arms)
         ep = target - self._arms.site[:, rows]
@@ -342,11 +346,11 @@ class BatchedPandaIK:
         arms: _Arms,
         ep: np.ndarray,
         ref: np.ndarray,
-        has_ref: np.ndarray,
+        has_ref: np.ndarray | None,
         moving: np.ndarray | None,
     ) -> None:
         """One IK iteration of ``arms`` (errors ``ep``), in place; with ``moving``, only those
-        move."""
+        move; ``has_ref`` None: every arm has a reference posture."""
         q, axes = arms.q, arms.axes
         b = q.shape[1]
         # The position Jacobian's column j: axis_j × (site − anchor_j), (7, 3, B).
@@ -362,12 +366,12 @@ class BatchedPandaIK:
         v = self._orient_cols @ arms.cols.reshape(9, -1)  # (3, B)
         s = np.einsum("jib,ib->jb", axes, v)
         s *= IK_ORIENT_GAIN
-        if has_ref.all():
+        if has_ref is None:
             s += IK_POSTURE_GAIN * (ref - q)
         elif has_ref.any():
             s[:, has_ref] += IK_POSTURE_GAIN * (ref[:, has_ref] - q[:, has_ref])
         q_new = self._step(jp, s, ep)
-        if moving is not None and not moving.all():
+        if moving is not None:
             q_new *= moving  # the others stay where they are (q + 0, within their limits)
         q_new += q
         blocked = (q_new < self._lo) | (q_new > self._hi)
