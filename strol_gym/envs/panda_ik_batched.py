@@ -173,13 +173,21 @@ class BatchedPandaIK:
 
     def forward(self, rows: np.ndarray | slice = slice(None)) -> None:
         """Recompute the kinematics of arms ``rows`` from ``q``."""
-        if isinstance(rows, slice) and rows == slice(None):
+        if (isinstance(rows, slice) and rows == slice(None)) or self._all_rows(rows):
             self._fk(self._arms)
             return
         arms = _Arms.empty(len(np.arange(self.n)[rows]))
         arms.q[:] = self._q[:, rows]
         self._fk(arms)
         self._arms.put(rows, arms)
+
+    def _all_rows(self, rows: np.ndarray | slice) -> bool:
+        """Whether index array ``rows`` is every arm in order (then slices do, in place)."""
+        return (
+            not isinstance(rows, slice)
+            and len(rows) == self.n
+            and bool((rows == np.arange(self.n)).all())
+        )
 
     @property
     def ee(self) -> np.ndarray:
@@ -309,7 +317,7 @@ class BatchedPandaIK:
         ``COMPACT`` of it, a smaller copy of just those goes on (a gather, and the others'
         state written back), so that few arms don't pay for many."""
         tol2 = tol * tol
-        if len(rows) == self.n and bool((rows == np.arange(self.n)).all()):
+        if self._all_rows(rows):
             arms, idx = self._arms, None  # in place
         else:
             arms, idx = self._arms.take(rows), rows
