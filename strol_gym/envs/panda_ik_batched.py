@@ -31,8 +31,10 @@ from strol_gym.envs.panda_ik import (
     PandaIK,
 )
 
-SINGLE_RETRY = 16
-"""Up to this many arms restart (``IK_RECOVER``) one by one through ``PandaIK``; more, batched."""
+SINGLE_RETRY = 64
+"""Up to this many arms restart (``IK_RECOVER``) one by one (``BatchedPandaIK._restart``, ~30 µs
+an iteration); more, batched (~0.5 ms an iteration however few arms are left, and a restart
+runs until its slowest arm converges or 8x the iterations)."""
 COMPACT = 0.5
 """A set of arms iterates together (the converged ones held still) while at least this fraction
 of it still iterates; below, a compact copy of just those goes on."""
@@ -50,7 +52,14 @@ class _Arms:
 
     __slots__ = ("anchors", "axes", "cols", "q", "site")
 
-    def __init__(self, q, site, cols, axes, anchors) -> None:
+    def __init__(
+        self,
+        q: np.ndarray,
+        site: np.ndarray,
+        cols: np.ndarray,
+        axes: np.ndarray,
+        anchors: np.ndarray,
+    ) -> None:
         self.q, self.site, self.cols, self.axes, self.anchors = q, site, cols, axes, anchors
 
     @classmethod
@@ -63,13 +72,13 @@ class _Arms:
             np.empty((N_ARM, 3, b)),
         )
 
-    def take(self, sel) -> _Arms:
+    def take(self, sel: np.ndarray) -> _Arms:
         """Arms ``sel`` (indices or a mask), a copy."""
         if getattr(sel, "dtype", None) == np.bool_:
             return _Arms(*(np.compress(sel, a, axis=-1) for a in self._all()))
         return _Arms(*(np.take(a, sel, axis=-1) for a in self._all()))
 
-    def put(self, sel, other: _Arms) -> None:
+    def put(self, sel: np.ndarray | slice, other: _Arms) -> None:
         """Write ``other``'s arms into arms ``sel``."""
         for a, b in zip(self._all(), other._all(), strict=True):
             a[..., sel] = b
@@ -244,10 +253,10 @@ class BatchedPandaIK:
 
     def _restart(self, target: list[float], iters: int, tol: float, ref: list[float]) -> float:
         """``PandaIK._solve`` for one arm, from the single IK's posture, towards world-frame
-        ``target``: MuJoCo's kinematics and site Jacobian, the 3x7 algebra in plain floats in
-        one pass over the joints (the same operations as ``_iterate``, one arm; numpy's and
-        list-building's per-call costs dominate on so few numbers). Returns the remaining
-        error; the arm is left in the single IK's ``q``."""
+        ``target``: MuJoCo's kinematics and site Jacobian (as the single IK), the 3x7 algebra of
+        ``_iterate`` in plain floats, one pass over the joints (numpy's per-call cost dominates
+        on so few numbers). Returns the remaining error; the arm is left in the single IK's
+        ``q``."""
         ik = self._single
         m, d, site = ik.model, ik.data, ik.site
         x, xmat, jac_p, jac_r = d.site_xpos[site], d.site_xmat[site], ik._jp, ik._jr
@@ -256,18 +265,9 @@ class BatchedPandaIK:
         tol2, damp = tol * tol, self._damp2
         og, pg = IK_ORIENT_GAIN, IK_POSTURE_GAIN
         lo, hi = self._lo_l, self._hi_l
-        (
-            (o00, o02, o03, o05, o06, o08),
-            (o10, o12, o13, o15, o16, o18),
-            (
-                o20,
-                o22,
-                o23,
-                o25,
-                o26,
-                o28,
-            ),
-        ) = self._orient_l
+        o00, o02, o03, o05, o06, o08 = self._orient_l[0]
+        o10, o12, o13, o15, o16, o18 = self._orient_l[1]
+        o20, o22, o23, o25, o26, o28 = self._orient_l[2]
         q = ik.q.tolist()
         for _ in range(iters):
             x0, x1, x2 = x.tolist()
