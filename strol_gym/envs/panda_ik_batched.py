@@ -237,8 +237,7 @@ class BatchedPandaIK:
                 err_ref = self._restart(world[k].tolist(), 8 * iters, tol, ref[k].tolist())
                 if err_ref < err[k]:
                     err[k] = err_ref
-                    self._q[:, rows[k]] = ik.q
-            self.forward(rows[retry])
+                    self._from_single(rows[k])
         elif len(retry):
             sub = rows[retry]
             prev = self._arms.take(sub)
@@ -250,6 +249,16 @@ class BatchedPandaIK:
             if not better.all():
                 self._arms.put(sub[~better], prev.take(~better))
         return err
+
+    def _from_single(self, r: int) -> None:
+        """Arm ``r`` takes the single IK's posture and MuJoCo's kinematics of it."""
+        ik, arms = self._single, self._arms
+        d = ik.data
+        arms.q[:, r] = ik.q
+        arms.site[:, r] = d.site_xpos[ik.site]
+        arms.cols[..., r] = d.site_xmat[ik.site].reshape(3, 3).T
+        arms.axes[..., r] = d.xaxis[:N_ARM]
+        arms.anchors[..., r] = d.xanchor[:N_ARM]
 
     def _restart(self, target: list[float], iters: int, tol: float, ref: list[float]) -> float:
         """``PandaIK._solve`` for one arm, from the single IK's posture, towards world-frame
