@@ -161,10 +161,9 @@ class VectorCorrectionEnv(VectorEnv):
             x0[:] = t._start_override(x_override)
         self.theta_star[rows] = theta
         # A human that never acts draws nothing: with n_corrections = 0 it is not built.
-        for k, i in enumerate(rows):
-            self.humans[i] = (
-                self._make_human(theta[k], human_rngs[k]) if self.n_corrections else None
-            )
+        if self.n_corrections:
+            for k, i in enumerate(rows):
+                self.humans[i] = self._make_human(theta[k], human_rngs[k])
         self.theta_hat[rows] = t._default_theta_hat()
         self.steps[rows] = 0
         self._started[rows] = True
@@ -178,11 +177,10 @@ class VectorCorrectionEnv(VectorEnv):
         if type(prior) is not MixturePrior:
             return np.concatenate([prior.sample(rng, 1) for rng in rngs])
         k, d = prior.modes.shape
-        idx = np.empty(len(rngs), dtype=np.int64)
-        z = np.empty((len(rngs), d))
-        for j, rng in enumerate(rngs):
-            idx[j] = rng.integers(0, k)  # the draw of size=1, without its per-call cost
-            z[j] = rng.standard_normal((1, d))[0]
+        # Each generator draws its index, then its jitter (the generators are independent, so
+        # all indices first is the same order); size=1's draws without its per-call cost.
+        idx = np.array([rng.integers(0, k) for rng in rngs], dtype=np.int64)
+        z = np.array([rng.standard_normal(d) for rng in rngs]).reshape(len(rngs), d)
         return prior.modes[idx] + prior.jitter * z
 
     def _draw_starts(self, rngs: list[np.random.Generator]) -> tuple[np.ndarray, list[Any]]:
