@@ -50,8 +50,28 @@ class MixturePrior:
         return self.modes.mean(axis=0)
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        if n == 1:  # one env's reset: ``sample_each``'s draws, without size=1's per-call cost
+            return self.sample_each([rng])
         idx = rng.integers(0, len(self.modes), size=n)
         return self.modes[idx] + self.jitter * rng.standard_normal((n, self.dim))
+
+    def sample_each(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """``sample(rng, 1)`` from each generator, stacked (len(rngs), d): the draws stay per
+        generator (its index, then its jitter; a scalar draw is size=1's), the arithmetic
+        runs once on the batch, so the same numbers."""
+        k = len(self.modes)
+        idx = np.array([rng.integers(0, k) for rng in rngs], dtype=np.int64)
+        z = np.array([rng.standard_normal(self.dim) for rng in rngs]).reshape(len(rngs), self.dim)
+        return self.modes[idx] + self.jitter * z
+
+
+def sample_each(prior: Prior, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+    """One θ from each generator, (len(rngs), d): ``prior.sample(rng, 1)`` per generator, or
+    the prior's own ``sample_each`` when it has one (the same numbers, batched)."""
+    own = getattr(prior, "sample_each", None)
+    if own is not None:
+        return own(rngs)
+    return np.concatenate([prior.sample(rng, 1) for rng in rngs]).reshape(len(rngs), prior.dim)
 
 
 @dataclass(frozen=True)

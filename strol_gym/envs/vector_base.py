@@ -26,7 +26,7 @@ from gymnasium.vector.utils import batch_space
 
 from strol_gym.envs.base import CorrectionEnv, int_arg
 from strol_gym.humans.population import HumanMaker, batched_corrections
-from strol_gym.priors import MixturePrior
+from strol_gym.priors import sample_each
 
 
 class VectorCorrectionEnv(VectorEnv):
@@ -170,18 +170,8 @@ class VectorCorrectionEnv(VectorEnv):
         self._x[rows], self._reset_extra = self._place_rows(rows, x0)
 
     def _draw_thetas(self, rngs: list[np.random.Generator]) -> np.ndarray:
-        """θ* of each sub-env, ``prior.sample(rng, 1)`` per generator, (n, d). For the paper's
-        mixture prior the draws stay per generator and the arithmetic runs once on the batch
-        (the same numbers); any other prior samples per generator."""
-        prior = self.task.prior
-        if type(prior) is not MixturePrior:
-            return np.concatenate([prior.sample(rng, 1) for rng in rngs])
-        k, d = prior.modes.shape
-        # Each generator draws its index, then its jitter (the generators are independent, so
-        # all indices first is the same order); size=1's draws without its per-call cost.
-        idx = np.array([rng.integers(0, k) for rng in rngs], dtype=np.int64)
-        z = np.array([rng.standard_normal(d) for rng in rngs]).reshape(len(rngs), d)
-        return prior.modes[idx] + prior.jitter * z
+        """θ* of each sub-env, ``prior.sample(rng, 1)`` per generator, (n, d)."""
+        return sample_each(self.task.prior, rngs)
 
     def _draw_starts(self, rngs: list[np.random.Generator]) -> tuple[np.ndarray, list[Any]]:
         """Start states (n, state_dim) and the humans' generators: the single env's batched
