@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from strol_gym.priors import FixedPrior, MixturePrior, Prior, UniformPrior, make_prior
+from strol_gym.priors import (
+    FixedPrior,
+    MixturePrior,
+    Prior,
+    UniformPrior,
+    make_prior,
+    sample_each,
+)
 from strol_gym.tasks.robot import ROBOT_MODES
 
 
@@ -73,3 +80,22 @@ def test_make_prior_parses_every_form():
         make_prior(UniformPrior(3), ROBOT_MODES)
     with pytest.raises(ValueError, match="columns"):
         make_prior([[1.0, 2.0, 3.0]], ROBOT_MODES)
+
+
+@pytest.mark.parametrize("prior", [MixturePrior(ROBOT_MODES, jitter=0.1), UniformPrior(2)])
+def test_sample_each_is_one_sample_per_generator(prior):
+    """A vector env's resets: one θ from each sub-env's generator, as each single env draws it
+    (an index with size=1, then its jitter), and each generator left where that leaves it."""
+    seeds = [3, 7, 11]
+    batched = [np.random.default_rng(s) for s in seeds]
+    got = sample_each(prior, batched)
+    for s, rng, row in zip(seeds, batched, got, strict=True):
+        ref = np.random.default_rng(s)
+        if isinstance(prior, MixturePrior):
+            idx = ref.integers(0, len(prior.modes), size=1)
+            want = prior.modes[idx] + prior.jitter * ref.standard_normal((1, prior.dim))
+        else:
+            want = ref.uniform(prior.low, prior.high, size=(1, prior.dim))
+        np.testing.assert_array_equal(row, want[0])
+        assert rng.random() == ref.random()  # the streams continue alike
+    assert got.shape == (3, 2)
