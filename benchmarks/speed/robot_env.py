@@ -7,8 +7,10 @@ included: the default env (eq. M6 human with 512 candidates during the first 5 o
 the human correcting on every step, the human never correcting (arm + IK + bookkeeping only),
 and the Boltzmann human. Planner rows: ``RobotTask.plan`` for one state (B=1, what a robot
 policy calls each step) and for a batch of 100 (what regret evaluation calls). Each figure is
-the best of ``--repeats`` timed runs, in one process on one core (threads pinned to 1).
-Targets: ≥ 5,000 env steps/s; planner a few ms per B=1 call.
+the best of ``--repeats`` timed runs, in one process on one core (threads pinned to 1; pin
+the process too, ``taskset -c 0``). Target: the default env at ≥ 10,000 env steps/s on the
+machine class where the code before the vector envs ran 4,352 (not met: docs/vector.md, "Speed",
+compares it on this machine and counts instructions per step); planner a few ms per B=1 call.
 """
 
 from __future__ import annotations
