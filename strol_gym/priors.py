@@ -141,18 +141,13 @@ def _uniform(task_modes: np.ndarray) -> Prior:
     return UniformPrior(task_modes.shape[1])
 
 
-def _check_factory(name: str, factory: object) -> None:
-    if not callable(factory):
-        raise ValueError(
-            f"prior {name!r} must be a callable (task_modes) -> Prior or a 'module:attr' string, "
-            f"got {factory!r}"
-        )
-
-
 PRIOR_FACTORIES: dict[str, PriorFactory | str] = {"bimodal": _bimodal, "uniform": _uniform}
 """The named priors; ``register_prior`` adds to it (through ``PRIORS``)."""
 PRIORS = Registry(
-    "prior", PRIOR_FACTORIES, check=_check_factory, hint=" naming a factory (task_modes) -> Prior"
+    "prior",
+    PRIOR_FACTORIES,
+    callable_as="(task_modes) -> Prior",
+    hint=" naming a factory (task_modes) -> Prior",
 )
 
 

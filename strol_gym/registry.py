@@ -82,6 +82,17 @@ def _names(entry: Any, piece: Any) -> bool:
     )
 
 
+def _callable_check(kind: str, signature: str) -> Callable[[str, Any], None]:
+    def check(name: str, piece: Any) -> None:
+        if not callable(piece):
+            raise ValueError(
+                f"{kind} {name!r} must be a callable {signature} or a 'module:attr' string, "
+                f"got {piece!r}"
+            )
+
+    return check
+
+
 class Registry:
     """Names -> pieces of one kind, over a built-in table (shared, not copied).
 
@@ -95,15 +106,20 @@ class Registry:
         table: dict[str, Any],
         *,
         check: Callable[[str, Any], None] | None = None,
+        callable_as: str | None = None,
         hint: str = "",
         encode: Callable[[Any], Any] | None = None,
         decode: Callable[[Any], Any] | None = None,
         shared: bool = True,
     ) -> None:
-        """``shared``: the kind's user entries travel to worker processes (``user_specs``)."""
+        """``check(name, piece)`` raises on a bad piece; ``callable_as`` (a signature such as
+        ``"(task) -> policy"``) is the common check that the piece is callable.
+        ``shared``: the kind's user entries travel to worker processes (``user_specs``)."""
         self.kind = kind
         self.table = table
         self.builtin = tuple(table)
+        if check is None and callable_as is not None:
+            check = _callable_check(kind, callable_as)
         self._check = check
         self.hint = hint
         self.encode = encode
@@ -112,6 +128,11 @@ class Registry:
         rebuilt with ``decode``; every other piece travels as its ``"module:attr"``."""
         if shared:
             _KINDS[kind] = self
+
+    def check(self, name: str, piece: Any) -> None:
+        """Raise ValueError, naming ``name``, if ``piece`` is not a valid piece of this kind."""
+        if self._check is not None:
+            self._check(name, piece)
 
     def names(self) -> list[str]:
         """Registered names, built-ins first, in registration order."""
@@ -142,8 +163,8 @@ class Registry:
                 raise ValueError(
                     f"a lazy {self.kind} entry must look like 'module:attr', got {piece!r}"
                 )
-        elif self._check is not None:
-            self._check(name, piece)
+        else:
+            self.check(name, piece)
         self.table[name] = piece
 
     def unregister(self, name: str) -> None:

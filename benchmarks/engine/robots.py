@@ -56,18 +56,10 @@ def _zeros(task: Any) -> Policy:
     return zero_policy
 
 
-def _check(name: str, factory: object) -> None:
-    if not callable(factory):
-        raise ValueError(
-            f"robot {name!r} must be a callable (task) -> policy or a 'module:attr' string, "
-            f"got {factory!r}"
-        )
-
-
 ROBOTS = Registry(
     "robot",
     {"task": MemoPolicy, "zeros": _zeros},
-    check=_check,
+    callable_as="(task) -> policy",
     hint=" naming a factory (task) -> policy",
 )
 

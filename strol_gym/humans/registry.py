@@ -36,18 +36,10 @@ def _is_model(obj: Any) -> bool:
     return isinstance(obj, type) and issubclass(obj, HumanModel)
 
 
-def _check_factory(name: str, factory: Any) -> None:
-    if not callable(factory):
-        raise ValueError(
-            f"human {name!r} must be a callable (task, theta_star, rng, **params) -> Human "
-            f"or a 'module:attr' string, got {factory!r}"
-        )
-
-
 HUMANS = Registry(
     "human",
     HUMAN_MODELS,
-    check=_check_factory,
+    callable_as="(task, theta_star, rng, **params) -> Human",
     hint=" naming a HumanModel subclass or a factory (task, theta_star, rng, sigma=, ...) -> Human",
 )
 
@@ -69,7 +61,7 @@ def human_factory(human: str | HumanFactory | type[HumanModel]) -> HumanFactory:
     :class:`HumanModel` subclass (its :class:`ModelHuman` adapter) or a callable; else
     ValueError."""
     factory = HUMANS.get(human) if isinstance(human, str) else human
-    _check_factory(str(human), factory)
+    HUMANS.check(str(human), factory)
     if _is_model(factory):
         return ModelHuman.of(factory)
     return factory
