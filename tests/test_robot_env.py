@@ -118,6 +118,32 @@ def test_action_clipped_and_nan_raises():
         env.step(np.zeros(2))
 
 
+def test_an_action_means_the_same_whatever_its_type():
+    """float32 and float64 arrays take the env's plain-float path, lists, ints and float16 the
+    general one: the same u_R and the same step, in range, clipped or at the bounds."""
+    actions = [[0.3, -0.2, 0.9], [5.0, -7.0, 0.5], [1.0, -1.0, -0.0], [0.5, 0.25, -2.0]]
+    for a in actions:
+        a32 = np.asarray(a, dtype=np.float32)  # one action's numbers, in each form below
+        forms = [a32, a32.astype(np.float64), a32.tolist(), [int(v) for v in a32 if v == int(v)]]
+        if np.array_equal(a32.astype(np.float16), a32):
+            forms.append(a32.astype(np.float16))
+        steps = []
+        for act in (f for f in forms if len(f) == 3):
+            env = make()
+            env.reset(seed=3)
+            obs, reward, *_, info = env.step(act)
+            steps.append((info["robot_action"], obs["state"], reward))
+        first = steps[0]
+        for other in steps[1:]:
+            np.testing.assert_array_equal(other[0], first[0])
+            np.testing.assert_array_equal(other[1], first[1])
+            assert other[2] == first[2]
+    env = make()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([0.1, np.nan, 0.2], dtype=np.float32))
+
+
 # ------------------------------------------------------------------------------ arguments
 @pytest.mark.parametrize(
     ("kw", "name"),
