@@ -8,6 +8,7 @@ import json
 import math
 
 import pytest
+from cli_checks import cli_error
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.engine.kernels import float_kernels
 from strol_gym.benchmarks.experiments.study import METRICS
@@ -29,10 +30,7 @@ from strol_gym.tasks import make_task
 )
 def test_study_bad_input_exits_2_before_any_folder(argv, message, tmp_path, capsys):
     out = tmp_path / "out"
-    with pytest.raises(SystemExit) as exc:
-        cli.main(["study", *argv, "--out", str(out), "--quiet"])
-    assert exc.value.code == 2
-    assert message in capsys.readouterr().err
+    assert message in cli_error(["study", *argv, "--out", str(out), "--quiet"], capsys)
     assert not out.exists()
 
 

@@ -7,6 +7,7 @@ import csv
 import json
 
 import pytest
+from cli_checks import cli_error
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.experiments import robustness
 
@@ -78,8 +79,5 @@ def test_mark_reads_the_holm_corrected_paired_test():
 )
 def test_bad_input_exits_2_before_any_folder(argv, message, tmp_path, capsys):
     out = tmp_path / "out"
-    with pytest.raises(SystemExit) as exc:
-        cli.main(["robustness", *argv, "--out", str(out)])
-    assert exc.value.code == 2
-    assert message in capsys.readouterr().err
+    assert message in cli_error(["robustness", *argv, "--out", str(out)], capsys)
     assert not out.exists()
