@@ -51,6 +51,9 @@ CASES = [
     ("StROL-Robot-v0", {"human": "changing", "max_episode_steps": 7}),
     ("StROL-Highway-v0", {}),
     ("StROL-Highway-v0", {"sigma": 0.5, "bias": 0.5, "human": "driver"}),
+    # No simulated human: no step corrects, as in the single env.
+    ("StROL-Robot-v0", {"human": None}),
+    ("StROL-Highway-v0", {"human": None}),
 ]
 
 

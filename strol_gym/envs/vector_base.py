@@ -25,7 +25,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from strol_gym.envs.base import CorrectionEnv, int_arg
-from strol_gym.humans.population import HumanMaker, batched_corrections
+from strol_gym.humans.population import batched_corrections
 from strol_gym.priors import sample_each
 
 
@@ -61,7 +61,10 @@ class VectorCorrectionEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.render_mode = None
         n, t = self.num_envs, self.task
-        self.n_corrections = self.template.n_corrections
+        # The single env's human maker; with no simulated human (human=None) no step corrects,
+        # as in the single env.
+        self._make_human = self.template.human_spec.maker(t)
+        self.n_corrections = self.template.n_corrections if self._make_human is not None else 0
         self._u_scale = self.template._u_scale
         self._rngs: list[np.random.Generator | None] = [None] * n
         self.humans: list[Any] = [None] * n
@@ -72,14 +75,6 @@ class VectorCorrectionEnv(VectorEnv):
         self._started = np.zeros(n, dtype=bool)
         self._autoreset = np.zeros(n, dtype=bool)
         self._last_obs: dict[str, np.ndarray] | None = None
-        self._make_human = HumanMaker(
-            self.template.human_model,
-            t,
-            sigma=self.template.sigma,
-            bias=self.template.bias,
-            beta=self.template.beta,
-            **self.template.human_kwargs,
-        )
 
     # ------------------------------------------------------------------ subclass hooks
     def _place_rows(self, rows: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, dict]:
@@ -153,7 +148,7 @@ class VectorCorrectionEnv(VectorEnv):
         # The single env's own draws, in its order per sub-env: θ*, then its start and human
         # generator (each sub-env has its own generator, so all θ* first is the same order).
         rngs = [self._rngs[i] for i in rows]
-        theta = self._draw_thetas(rngs)
+        theta = sample_each(self.task.prior, rngs)
         x0, human_rngs = self._draw_starts(rngs)
         if theta_override is not None:
             theta[:] = theta_override
@@ -168,10 +163,6 @@ class VectorCorrectionEnv(VectorEnv):
         self.steps[rows] = 0
         self._started[rows] = True
         self._x[rows], self._reset_extra = self._place_rows(rows, x0)
-
-    def _draw_thetas(self, rngs: list[np.random.Generator]) -> np.ndarray:
-        """θ* of each sub-env, ``prior.sample(rng, 1)`` per generator, (n, d)."""
-        return sample_each(self.task.prior, rngs)
 
     def _draw_starts(self, rngs: list[np.random.Generator]) -> tuple[np.ndarray, list[Any]]:
         """Start states (n, state_dim) and the humans' generators: the single env's batched

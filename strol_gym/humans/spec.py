@@ -17,7 +17,7 @@ import numpy as np
 from strol_gym.humans.checks import check_beta, check_fraction
 from strol_gym.humans.model import Human
 from strol_gym.humans.population import HumanMaker
-from strol_gym.humans.registry import HumanFactory, check_human_kwargs, human_factory, make_human
+from strol_gym.humans.registry import HumanFactory, check_human_kwargs, human_factory
 from strol_gym.tasks.base import Task
 
 DEFAULT_HUMAN = "nominal"
@@ -94,19 +94,10 @@ class HumanSpec:
         return cls(human, sigma, bias, beta, {} if human_kwargs is None else human_kwargs)
 
     def make(self, task: Task, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
-        """The human for one episode (None when the spec has no model)."""
-        if self.name is None:
-            return None
-        return make_human(
-            self.name,
-            task,
-            theta_star,
-            rng,
-            sigma=self.sigma,
-            bias=self.bias,
-            beta=self.beta,
-            **self.kwargs,
-        )
+        """The human for one episode (None when the spec has no model); an env keeps
+        ``maker(task)`` instead, to build one every episode."""
+        maker = self.maker(task)
+        return None if maker is None else maker(theta_star, rng)
 
     def maker(self, task: Task) -> HumanMaker | None:
         """What builds this spec's human episode after episode: ``make`` without resolving
