@@ -155,27 +155,15 @@ class PandaIK:
         tx, ty, tz = target if isinstance(target, list) else np.asarray(target).tolist()
         tol2 = tol * tol
         ref_l = None if ref is None else ref.tolist()
-        lo, hi = self._lo_l, self._hi_l
-        a, y, w9, s, r = self._a, self._y, self._w9, self._s, self._r
+        lo, hi, w9 = self._lo_l, self._hi_l, self._w9
         posture = IK_POSTURE_GAIN
         com_pos, jac_site, mul_t = mujoco.mj_comPos, mujoco.mj_jacSite, mujoco.mju_mulMatTVec
-        chol, chol_solve, kinematics = (
-            mujoco.mju_cholFactor,
-            mujoco.mju_cholSolve,
-            mujoco.mj_kinematics,
-        )
-        jp_full, jr_full, site, orient, damp = (
-            self._jp,
-            self._jr,
-            self.site,
-            self._orient,
-            self._damp,
-        )
+        jp_full, jr_full, site, orient = self._jp, self._jr, self.site, self._orient
         ql = q.tolist()
         for _ in range(iters):
             x0, x1, x2 = x.tolist()
-            e0, e1, e2 = tx - x0, ty - x1, tz - x2
-            if e0 * e0 + e1 * e1 + e2 * e2 < tol2:
+            e = (tx - x0, ty - x1, tz - x2)
+            if e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < tol2:
                 break
             com_pos(m, d)
             jac_site(m, d, jp_full, jr_full, site)
@@ -193,47 +181,52 @@ class PandaIK:
                     orient_gain * wi + posture * (ri - qi)
                     for wi, ri, qi in zip(w, ref_l, ql, strict=True)
                 ]
-            s[:] = sl
-            # dq = s + Jᵀ y with (J Jᵀ + λ²I) y = e − J s (MuJoCo's Cholesky: no numpy.linalg).
-            np.matmul(jp, jp.T, out=a)
-            a += damp
-            chol(a, 0.0)
-            v0, v1, v2 = (jp @ s).tolist()
-            r[:] = (e0 - v0, e1 - v1, e2 - v2)
-            chol_solve(y, a, r)
-            mul_t(w9, jp_full, y)  # Jᵀ y, 3 terms in order as numpy's
-            dq = w9[:N_ARM].tolist()
-            q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
-            q_clip = [
-                hj if qn > hj else (lj if qn < lj else qn)
-                for qn, lj, hj in zip(q_new, lo, hi, strict=True)
-            ]
+            q_new, q_clip = self._update(jp, jp_full, w9, ql, sl, e)
             if q_clip != q_new:  # a joint left its range (or a NaN): the limit step below
-                free = [float(lj <= qn <= hj) for qn, lj, hj in zip(q_new, lo, hi, strict=True)]
                 # Joints at a limit drop out (their columns of J and entries of s times 0); the
-                # others take over their share. The same operations as above.
+                # others take over their share.
+                free = [float(lj <= qn <= hj) for qn, lj, hj in zip(q_new, lo, hi, strict=True)]
                 sl = [si * f for si, f in zip(sl, free, strict=True)]
                 jf = jp * np.array(free)
-                np.matmul(jf, jf.T, out=a)
-                a += damp
-                chol(a, 0.0)
-                s[:] = sl
-                v0, v1, v2 = (jf @ s).tolist()
-                r[:] = (e0 - v0, e1 - v1, e2 - v2)
-                chol_solve(y, a, r)
-                mul_t(w9[:N_ARM], jf, y)
-                dq = w9[:N_ARM].tolist()
-                q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
-                q_clip = [
-                    hj if qn > hj else (lj if qn < lj else qn)
-                    for qn, lj, hj in zip(q_new, lo, hi, strict=True)
-                ]
+                q_new, q_clip = self._update(jf, jf, w9[:N_ARM], ql, sl, e)
             q[:] = q_clip
             ql = q_clip
-            kinematics(m, d)
+            mujoco.mj_kinematics(m, d)
         x0, x1, x2 = x.tolist()
         e0, e1, e2 = tx - x0, ty - x1, tz - x2
         return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+    def _update(
+        self,
+        jp: np.ndarray,
+        jt: np.ndarray,
+        out: np.ndarray,
+        ql: list[float],
+        sl: list[float],
+        e: tuple[float, float, float],
+    ) -> tuple[list[float], list[float]]:
+        """One damped-least-squares update of joints ``ql``: q + s + Jᵀ y with
+        (J Jᵀ + λ²I) y = e − J s (MuJoCo's Cholesky: no numpy.linalg). ``jp`` is J (3, 7) for
+        numpy's products, ``jt`` a contiguous J whose first 7 columns are ``jp`` (MuJoCo's own, or
+        ``jp`` itself) for MuJoCo's Jᵀ y into ``out``.
+        Returns (the new joints, the new joints clipped to their limits)."""
+        a, y, s, r = self._a, self._y, self._s, self._r
+        np.matmul(jp, jp.T, out=a)
+        a += self._damp
+        mujoco.mju_cholFactor(a, 0.0)
+        s[:] = sl
+        v0, v1, v2 = (jp @ s).tolist()
+        r[:] = (e[0] - v0, e[1] - v1, e[2] - v2)
+        mujoco.mju_cholSolve(y, a, r)
+        mujoco.mju_mulMatTVec(out, jt, y)  # Jᵀ y, 3 terms in order as numpy's
+        dq = out[:N_ARM].tolist()
+        q_new = [qi + (si + di) for qi, si, di in zip(ql, sl, dq, strict=True)]
+        lo, hi = self._lo_l, self._hi_l
+        q_clip = [
+            hj if qn > hj else (lj if qn < lj else qn)
+            for qn, lj, hj in zip(q_new, lo, hi, strict=True)
+        ]
+        return q_new, q_clip
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
