@@ -189,15 +189,10 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         return {"target": self._x, "ik_error": 0.0}
 
     def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
-        task = self.task
-        if type(task).dynamics is RobotTask.dynamics:
-            # f of one state in plain floats (``RobotTask.dynamics_one``: the same numbers).
-            target = task.dynamics_one(self._x.tolist(), u_h.tolist(), u_r.tolist())
-        else:  # a Task variant with its own transition
-            target = np.asarray(task.dynamics(self._x, u_h, u_r), dtype=np.float64).tolist()
+        target = self.task.dynamics(self._x, u_h, u_r)
         ik_error = self._ik.solve(target)
         self.data.ctrl[:N_ARM] = self._ik.q
-        return self._ik.ee, {"target": np.array(target), "ik_error": ik_error}
+        return self._ik.ee, {"target": target, "ik_error": ik_error}
 
     # ------------------------------------------------------------------ render, close, pickle
     def __getstate__(self) -> dict:
