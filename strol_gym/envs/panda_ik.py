@@ -93,18 +93,16 @@ class PandaIK:
         z = self.data.site_xmat[self.site][8]
         return float(np.degrees(np.arccos(np.clip(-z, -1.0, 1.0))))
 
-    def reference(self, target: np.ndarray | list[float]) -> np.ndarray | None:
+    def reference(self, target: np.ndarray) -> np.ndarray | None:
         """The seed table's configuration nearest ``target`` (task frame), if there is a table."""
         if self.seeds is None:
             return None
-        if not isinstance(target, list):
-            target = np.asarray(target).tolist()
         # Plain floats: the same IEEE operations as numpy's elementwise ones (round() rounds
         # half to even, as np.rint), without numpy's per-call cost on three numbers.
         idx = [
             min(max(round((t - lo) / st), 0), top)
             for t, lo, st, top in zip(
-                target,
+                np.asarray(target).tolist(),
                 self._seed_low_l,
                 self._seed_step_l,
                 self._seed_top,
@@ -114,15 +112,12 @@ class PandaIK:
         q = self.seeds[idx[0], idx[1], idx[2]]
         return None if math.isnan(q[0]) else q
 
-    def solve(
-        self, target: np.ndarray | list[float], iters: int = IK_ITERS, tol: float = IK_TOL
-    ) -> float:
-        """Move the arm so that the end effector reaches ``target`` (task frame; an array or
-        a list of 3 floats). Returns the remaining position error (m).
+    def solve(self, target: np.ndarray, iters: int = IK_ITERS, tol: float = IK_TOL) -> float:
+        """Move the arm so that the end effector reaches ``target`` (task frame).
+
+        Returns the remaining position error (m).
         """
-        if not isinstance(target, list):
-            target = np.asarray(target).tolist()
-        world = [t + h for t, h in zip(target, self._lift_l, strict=True)]
+        world = [t + h for t, h in zip(np.asarray(target).tolist(), self._lift_l, strict=True)]
         ref = self.reference(target)
         err = self._solve(world, iters, tol, ref)
         if err > IK_RECOVER * tol and ref is not None:
