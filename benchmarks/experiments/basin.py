@@ -14,11 +14,17 @@ import time
 from pathlib import Path
 
 import numpy as np
-from strol_gym.benchmarks.args import finite, float_list, nonneg_int, positive_int
+from strol_gym.benchmarks.args import (
+    BASIN_CAPS,
+    add_allow_large,
+    check_size_caps,
+    finite,
+    float_list,
+    nonneg_int,
+    positive_int,
+)
 from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
-
-from strol_gym.limits import BASIN_CAPS, add_allow_large, check_size_caps
 
 LEARNERS = {"gradient": "g (Gradient)", "strol": "g + ĝ (StROL)"}
 COLUMNS = ("learner", "theta0_a", "theta0_b", "error", "converged")

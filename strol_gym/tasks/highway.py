@@ -49,6 +49,7 @@ import numpy as np
 
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task, positive_field, vector_field
+from strol_gym.tasks.driver import driver_correction
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
 """Prior modes over (gap, speed, lane_change): "tailgate" and "pass on the right"."""
@@ -334,15 +335,13 @@ class HighwayTask(Task):
         manoeuvres, (stay in the current lane | go to the right lane) x (hold speed | slow by
         5 m/s), each flown by a lane- and speed-tracking controller for ``POLICY_HORIZON`` steps
         while the human is predicted with θ̂ by the ``driver`` model (receding horizon: each
-        predicted step is ``humans.driver_correction`` over a 5 x 5 action grid, reacting to
+        predicted step is ``driver_correction`` over a 5 x 5 action grid, reacting to
         the robot's manoeuvre). Cost per step: distance from the right lane's centre (lanes)
         + 0.5 x speed change (m/s) + 1000 if the predicted cars are closer than two car lengths
         longitudinally and 3 m laterally. The first action of the cheapest manoeuvre is returned.
         So θ̂ matters: a predicted tailgater follows it into the right lane, a predicted
         right-hand passer makes it keep the left lane.
         """
-        from strol_gym.humans import driver_correction
-
         x = np.atleast_2d(np.asarray(x, dtype=np.float64))
         theta_hat = np.atleast_2d(np.asarray(theta_hat, dtype=np.float64))
         b = len(x)
