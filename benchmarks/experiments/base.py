@@ -160,13 +160,6 @@ class BenchExperiment:
         return f"\nwall time {seconds:.1f} s ({load()}); results in {folder}/"
 
 
-def run_config(
-    config: BenchConfig, out: Path, args: argparse.Namespace
-) -> tuple[ResultsDir, Any, float]:
-    """:meth:`BenchExperiment.run` with the standard tables."""
-    return BenchExperiment.run(config, out, args)
-
-
 def load() -> str:
     """The 1/5/15-minute load averages, for quoting beside a wall time."""
     try:
