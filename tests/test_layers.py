@@ -35,7 +35,13 @@ ROOTS = {"strol_gym", BENCHMARK}
 # matching prefix; it may import its own unit and any unit of a lower layer, nothing else.
 # Prefixes, not files: a unit's inner layout (envs/ by simulator or flat) is its own business.
 LAYERS: list[tuple[str, ...]] = [
-    ("strol_gym.registry", "strol_gym.provenance", "strol_gym.planning", "strol_gym.metrics"),
+    (
+        "strol_gym.registry",
+        "strol_gym.provenance",
+        "strol_gym.files",
+        "strol_gym.planning",
+        "strol_gym.metrics",
+    ),
     ("strol_gym.priors",),
     ("strol_gym.tasks",),
     ("strol_gym.humans",),
