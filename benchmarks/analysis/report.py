@@ -155,7 +155,7 @@ def pooled_lines(result: dict[str, Any]) -> list[str]:
     ]
     for r in result["pairs"]:
         out.append(
-            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {_num(r['mean_diff'])}, paired t "
+            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {fmt(r['mean_diff'])}, paired t "
             f"{stats.format_p(r['p_holm'])} (Holm; raw {stats.format_p(r['p_t'])}), Wilcoxon "
             f"{stats.format_p(r['wilcoxon_p_holm'])} (Holm)"
         )
@@ -272,7 +272,8 @@ def verdicts(a: Analysis) -> list[dict[str, Any]]:
 
 
 # ---------------------------------------------------------------------- rendering
-def _num(x: float, digits: int = 3) -> str:
+def fmt(x: float | None, digits: int = 3) -> str:
+    """A table number: fixed digits, scientific for tiny non-zero values, 'n/a' for NaN/None."""
     if x is None or not math.isfinite(x):
         return "n/a"
     return f"{x:.{digits}f}" if abs(x) >= 10**-digits or x == 0 else f"{x:.1e}"
@@ -289,7 +290,7 @@ def median_table(a: Analysis, env: str, metric: str) -> list[str]:
         for lr in learners:
             c = a.cell(env, cond, lr, metric)
             cells.append(
-                "n/a" if c is None else f"{_num(c['median'])} [{_num(c['q1'])}, {_num(c['q3'])}]"
+                "n/a" if c is None else f"{fmt(c['median'])} [{fmt(c['q1'])}, {fmt(c['q3'])}]"
             )
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     return lines
@@ -310,7 +311,7 @@ def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
                 continue
             t = a.test(env, cond, lr, metric)
             star = stats.stars(t["p_holm"]) if t else ""
-            cells.append(f"{_num(c['mean'])} ± {_num(c['std'])}{star}")
+            cells.append(f"{fmt(c['mean'])} ± {fmt(c['std'])}{star}")
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     return lines
 
@@ -325,7 +326,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
         f"{display(cfg.reference)}",
         f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
         f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
-        f"{_num(meta.get('wall_time_s', math.nan), 1)} s",
+        f"{fmt(meta.get('wall_time_s', math.nan), 1)} s",
         f"- cells: mean ± std over runs; stars: {display(cfg.reference)} vs that learner, "
         "paired t-test, "
         "Holm-corrected across baselines (* p<0.05, ** p<0.01, *** p<0.001). Lower is better.",
@@ -394,8 +395,8 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                 if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):
                     wil = stats.format_p(t["wilcoxon_p_holm"])
                     out.append(
-                        f"  - {t['plain_language']}; Δ = {_num(t['mean_diff'])} "
-                        f"[{_num(t['ci95_low'])}, {_num(t['ci95_high'])}], "
+                        f"  - {t['plain_language']}; Δ = {fmt(t['mean_diff'])} "
+                        f"[{fmt(t['ci95_low'])}, {fmt(t['ci95_high'])}], "
                         f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}"
                     )
         for pooled in a.pooled:

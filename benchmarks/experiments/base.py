@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import inspect
-import math
 import os
 import time
 from collections.abc import Sequence
@@ -213,12 +212,3 @@ def small_figure(stem: Path) -> tuple[Any, Any]:
 
     stem.parent.mkdir(parents=True, exist_ok=True)
     return plt.subplots(figsize=(4.8, 3.2))
-
-
-def fmt(v: float, digits: int = 3) -> str:
-    """A table number: fixed digits, scientific for tiny non-zero values, 'n/a' for NaN."""
-    if v is None or not math.isfinite(v):
-        return "n/a"
-    if v != 0 and abs(v) < 10 ** (-digits):
-        return f"{v:.1e}"
-    return f"{v:.{digits}f}"

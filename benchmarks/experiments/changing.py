@@ -14,13 +14,13 @@ import argparse
 from pathlib import Path
 
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import finite, nonneg_int, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
-    fmt,
     fmt_paper,
     primary_metric,
     small_figure,

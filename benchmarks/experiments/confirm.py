@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from scipy import stats as sps
 from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import nonneg_int, positive_int
 from strol_gym.benchmarks.engine.conditions import (
     CONDITION_NAMES,
@@ -28,7 +29,7 @@ from strol_gym.benchmarks.engine.conditions import (
     make_condition,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
-from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt, load
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, load
 
 PROTOCOL_RUNS = 1000
 PROTOCOL_SEED = 3_000_000

@@ -13,13 +13,13 @@ import argparse
 from pathlib import Path
 
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_LAMBDA
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import float_list, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
-    fmt,
     fmt_paper,
     small_figure,
 )

@@ -21,6 +21,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import (
     check_learner_names,
     float_list,
@@ -36,7 +37,7 @@ from strol_gym.benchmarks.engine.conditions import (
     env_preset,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, MAX_RUNS, BenchConfig, Experiment
-from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt, primary_metric
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, primary_metric
 from strol_gym.benchmarks.experiments.changing import DEFAULT_SWITCH
 
 from strol_gym.metrics import short
@@ -278,7 +279,7 @@ def table_markdown(rows: list[dict], config: BenchConfig, metric: str) -> list[s
             cells = []
             for h in humans:
                 r = cell[(lr, h)]
-                v = fmt(_num(r["mean"]))
+                v = fmt(_float(r["mean"]))
                 v = f"**{v}**" if lr == best[h] else v
                 cells.append(f"{v} {r['mark']}".strip())
             lines.append(f"| {display(lr)} | " + " | ".join(cells) + " |")
@@ -300,12 +301,12 @@ def table_markdown(rows: list[dict], config: BenchConfig, metric: str) -> list[s
     return lines
 
 
-def _num(v: Any) -> float:
+def _float(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
 def _best(cell: dict, learners: list[str], human: str) -> str | None:
-    means = [(_num(cell[(lr, human)]["mean"]), lr) for lr in learners]
+    means = [(_float(cell[(lr, human)]["mean"]), lr) for lr in learners]
     means = [(m, lr) for m, lr in means if math.isfinite(m)]
     return min(means)[1] if means else None
 
@@ -325,7 +326,7 @@ def heat_map(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     fig, axes = plt.subplots(len(sigmas), 1, figsize=(width, height), squeeze=False)
     for ax, sigma in zip(axes[:, 0], sigmas, strict=True):
         learners, humans, cell = _grid(rows, sigma)
-        m = np.array([[_num(cell[(lr, h)]["mean"]) for h in humans] for lr in learners])
+        m = np.array([[_float(cell[(lr, h)]["mean"]) for h in humans] for lr in learners])
         lo, hi = np.nanmin(m, axis=0), np.nanmax(m, axis=0)
         span = np.where(hi > lo, hi - lo, 1.0)
         ax.imshow((m - lo) / span, cmap="RdYlGn_r", vmin=0, vmax=1, aspect="auto")

@@ -48,7 +48,7 @@ from typing import ClassVar
 import numpy as np
 
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task, positive_field, vector_field
+from strol_gym.tasks.base import Task, positive_field, vector_arg
 from strol_gym.tasks.driver import driver_correction
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
@@ -149,7 +149,7 @@ class HighwayTask(Task):
             if not (isinstance(v, int | float | np.number) and np.isfinite(v)):
                 raise ValueError(f"{name} must be a finite number, got {v!r}")
         for name in ("start_gap", "start_speed", "start_x"):
-            lo, hi = vector_field(name, getattr(self, name), 2)
+            lo, hi = vector_arg(name, getattr(self, name), 2)
             if not lo <= hi:
                 raise ValueError(f"{name} must be (low, high) with low <= high, got {(lo, hi)}")
         if self.start_gap[0] <= CAR_LENGTH:
