@@ -217,11 +217,11 @@ def analyse(
         primary = env_preset(env).primary_metric
         if n_cond > 1 and len(learners) > 1 and primary in metrics:
             analysis.pooled.append(pooled_tests(records, [env], learners, primary))
-    analysis.verdicts = verdicts(analysis)
+    analysis.verdicts = paper_verdicts(analysis)
     return analysis
 
 
-def verdicts(a: Analysis) -> list[dict[str, Any]]:
+def paper_verdicts(a: Analysis) -> list[dict[str, Any]]:
     """H1 and H2 per env, on the env's primary metric (Robot: regret; Highway: error).
 
     H1: in the training condition the reference learner is significantly lower than every

@@ -31,6 +31,7 @@ from strol_gym.benchmarks.args import nonneg_int, positive_int
 from strol_gym.benchmarks.engine import study_authors
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
+from strol_gym.benchmarks.engine.episodes import regret_inputs
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 
@@ -137,7 +138,7 @@ def _task_of(env: str) -> int:
     return int(env.removeprefix("study")[0])
 
 
-def verdicts(a: Analysis) -> list[dict[str, Any]]:
+def h3_verdicts(a: Analysis) -> list[dict[str, Any]]:
     """H3 per Task: StROL against One and MOF on regret and on correction time (Holm-corrected
     paired t-tests, the Wilcoxon test alongside). "supported" needs all four lower."""
     out = []
@@ -294,7 +295,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
     write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
-    verd = verdicts(a)
+    verd = h3_verdicts(a)
     anova = [
         f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: {_anova_text(r)}"
         for r in a.anova
@@ -355,12 +356,9 @@ def add_authors_regret(records: list[dict]) -> None:
 
     for env in dict.fromkeys(r["env"] for r in records):
         rs = [r for r in records if r["env"] == env]
-        cols = [np.array([r[k] for r in rs], dtype=np.float64) for k in _REGRET_INPUTS]
+        cols = regret_inputs(rs)
         for r, v in zip(rs, study_authors.regret(STUDY_TASKS[_task_of(env)](), *cols), strict=True):
             r["regret_authors"] = float(v)
-
-
-_REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
 
 
 def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int, users: int) -> list[str]:
