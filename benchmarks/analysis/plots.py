@@ -41,13 +41,8 @@ def learner_color(name: str) -> str:
     return PALETTE[int(hashlib.sha256(name.encode()).hexdigest(), 16) % len(PALETTE)]
 
 
-def _color(i: int, name: str) -> str:
-    """``learner_color(name)``; the position ``i`` no longer matters (the study's plots call
-    this form)."""
-    return learner_color(name)
-
-
-def _save(fig, out: Path, stem: str) -> list[Path]:
+def save_figure(fig, out: Path, stem: str) -> list[Path]:
+    """``out/stem.png`` (130 dpi) and ``out/stem.svg``, then close ``fig``: every plot's files."""
     paths = []
     for ext in ("png", "svg"):
         p = out / f"{stem}.{ext}"
@@ -112,7 +107,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
         fontsize=9,
     )
     fig.tight_layout()
-    return _save(fig, out, stem)
+    return save_figure(fig, out, stem)
 
 
 def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]:
@@ -148,7 +143,7 @@ def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]
     if handles:
         fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
-    return _save(fig, out, stem)
+    return save_figure(fig, out, stem)
 
 
 def make_plots(a: Analysis, out: Path) -> list[Path]:

@@ -133,7 +133,7 @@ class Basin(BenchExperiment):
 def plot(maps: dict, task, out: Path) -> list[Path]:
     """Side-by-side maps of the final error; the converged region outlined, θ* and the prior
     modes marked."""
-    from strol_gym.benchmarks.analysis.plots import _save, plt
+    from strol_gym.benchmarks.analysis.plots import plt, save_figure
 
     out.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(1, len(maps), figsize=(4.2 * len(maps), 3.6), squeeze=False)
@@ -154,4 +154,4 @@ def plot(maps: dict, task, out: Path) -> list[Path]:
             ax.set_ylabel(f"θ̂0[{names[j]}]")
         ax.legend(fontsize=7, loc="lower left")
     fig.colorbar(im, ax=list(axes[0]), label="final error ‖θ̂ − θ*‖")
-    return _save(fig, out, "basin")
+    return save_figure(fig, out, "basin")

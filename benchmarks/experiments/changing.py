@@ -171,7 +171,7 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Bars: mean ± SEM per learner; the paper's values as black diamonds."""
-    from strol_gym.benchmarks.analysis.plots import _save, learner_color
+    from strol_gym.benchmarks.analysis.plots import learner_color, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     fig, ax = small_figure(stem)
@@ -191,4 +191,4 @@ def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     ax.set_ylabel(short(metric))
     ax.set_title("Changing preferences")
     ax.legend(fontsize=8)
-    return _save(fig, stem.parent, stem.name)
+    return save_figure(fig, stem.parent, stem.name)

@@ -372,7 +372,7 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
 def plot(result: dict, out: Path) -> list[Path]:
     """Probability that StROL's regret is lower than each baseline's, with bootstrap CIs, per
     condition (0.5 = no difference)."""
-    from strol_gym.benchmarks.analysis.plots import _save, learner_color, plt
+    from strol_gym.benchmarks.analysis.plots import learner_color, plt, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     out.mkdir(parents=True, exist_ok=True)
@@ -405,4 +405,4 @@ def plot(result: dict, out: Path) -> list[Path]:
     ax.set_ylabel("P(StROL regret lower)")
     ax.set_title("Confirmatory test: probability of improvement (95 % bootstrap CI)")
     ax.legend(fontsize=7)
-    return _save(fig, out, "confirm")
+    return save_figure(fig, out, "confirm")

@@ -315,7 +315,7 @@ def heat_map(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Learners × humans per σ: colour = the mean scaled within its column (0 = the column's
     lowest, 1 = its highest), text = the mean and StROL's mark."""
     import numpy as np
-    from strol_gym.benchmarks.analysis.plots import _save, plt
+    from strol_gym.benchmarks.analysis.plots import plt, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     sigmas = list(dict.fromkeys(r["sigma"] for r in rows))
@@ -343,4 +343,4 @@ def heat_map(rows: list[dict], metric: str, stem: Path) -> list[Path]:
             fontsize=8,
         )
     fig.tight_layout()
-    return _save(fig, stem.parent, stem.name)
+    return save_figure(fig, stem.parent, stem.name)

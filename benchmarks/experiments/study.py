@@ -233,7 +233,7 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strol_gym.benchmarks.analysis.plots import _color, _save
+    from strol_gym.benchmarks.analysis.plots import learner_color, save_figure
 
     out.mkdir(parents=True, exist_ok=True)
     envs = [e.env for e in a.config.experiments]
@@ -247,7 +247,7 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
                 if c is None:
                     continue
                 x = i + (j - (len(learners) - 1) / 2) * width
-                ax.bar(x, c["mean"], width, yerr=c["sem"], color=_color(j, lr), capsize=2,
+                ax.bar(x, c["mean"], width, yerr=c["sem"], color=learner_color(lr), capsize=2,
                        label=display(lr) if i == 0 else None)  # fmt: skip
                 t = a.test(env, USERS.name, lr, metric)
                 if t is not None and t["significant"]:
@@ -256,14 +256,14 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
         ax.set_ylabel(LABELS[metric])
     axes[0].legend(fontsize=7)
     ax = axes[2]
-    for j, lr in enumerate(learners):
+    for lr in learners:
         rs = [r for r in records if r["learner"] == lr]
         ax.scatter([r["correction_time"] for r in rs], [r["regret"] for r in rs], s=10,
-                   color=_color(j, lr), alpha=0.6, label=display(lr))  # fmt: skip
+                   color=learner_color(lr), alpha=0.6, label=display(lr))  # fmt: skip
     ax.set_xlabel(LABELS["correction_time"])
     ax.set_ylabel(LABELS["regret"])
     ax.set_title("per simulated user", fontsize=9)
-    return _save(fig, out, "study")
+    return save_figure(fig, out, "study")
 
 
 def _anova_text(r: dict[str, Any]) -> str:
