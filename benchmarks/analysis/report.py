@@ -98,7 +98,7 @@ def pooled_matrix(
     per_seed: dict[int, list[list[float]]] = {}
     bad: set[int] = set()
     for (seed, _, _), vals in cells.items():
-        row = [vals.get(lr, math.nan) for lr in learners]
+        row = [vals.get(learner, math.nan) for learner in learners]
         if not np.isfinite(row).all():
             bad.add(seed)
         per_seed.setdefault(seed, []).append(row)
@@ -176,9 +176,9 @@ def analyse(
             if y.size == 0 or not np.isfinite(y).any():
                 continue
             y = y[np.isfinite(y).all(axis=1)]  # listwise: paired tests need every learner's value
-            for j, lr in enumerate(learners):
+            for j, learner in enumerate(learners):
                 summary.append(
-                    {"env": env, "condition": cond, "learner": lr, "metric": metric}
+                    {"env": env, "condition": cond, "learner": learner, "metric": metric}
                     | stats.describe(y[:, j])
                 )
             a = stats.rm_anova(y)
@@ -193,11 +193,11 @@ def analyse(
                         row["p_holm"],
                     )
                     posthoc.append(row)
-        for lr in learners:
+        for learner in learners:
             errs = [
                 r["errors"]
                 for r in records
-                if (r["env"], r["condition"], r["learner"]) == (env, cond, lr)
+                if (r["env"], r["condition"], r["learner"]) == (env, cond, learner)
             ]
             if not errs:
                 continue
@@ -210,7 +210,11 @@ def analyse(
             sd = np.array(
                 [np.nanstd(c, ddof=1) if k > 1 else np.nan for c, k in zip(arr.T, n, strict=True)]
             )
-            curves[(env, cond, lr)] = {"mean": mean, "sem": sd / np.sqrt(np.maximum(n, 1)), "n": n}
+            curves[(env, cond, learner)] = {
+                "mean": mean,
+                "sem": sd / np.sqrt(np.maximum(n, 1)),
+                "n": n,
+            }
     analysis = Analysis(config, summary, posthoc, anova, curves, [])
     for env in dict.fromkeys(e.env for e in config.experiments):
         n_cond = sum(e.env == env for e in config.experiments)
@@ -283,12 +287,12 @@ def median_table(a: Analysis, env: str, metric: str) -> list[str]:
     """Markdown table of medians [Q1, Q3] (heavy-tailed metrics such as regret)."""
     learners = list(a.config.learners)
     conds = [e.condition.name for e in a.config.experiments if e.env == env]
-    lines = ["| condition | " + " | ".join(display(lr) for lr in learners) + " |"]
+    lines = ["| condition | " + " | ".join(display(learner) for learner in learners) + " |"]
     lines.append("|---|" + "---|" * len(learners))
     for cond in conds:
         cells = []
-        for lr in learners:
-            c = a.cell(env, cond, lr, metric)
+        for learner in learners:
+            c = a.cell(env, cond, learner, metric)
             cells.append(
                 "n/a" if c is None else f"{fmt(c['median'])} [{fmt(c['q1'])}, {fmt(c['q3'])}]"
             )
@@ -300,16 +304,16 @@ def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
     """Markdown table: rows conditions, columns learners, 'mean ± std' with stars vs StROL."""
     learners = list(a.config.learners)
     conds = [e.condition.name for e in a.config.experiments if e.env == env]
-    head = "| condition | " + " | ".join(display(lr) for lr in learners) + " |"
+    head = "| condition | " + " | ".join(display(learner) for learner in learners) + " |"
     lines = [head, "|---|" + "---|" * len(learners)]
     for cond in conds:
         cells = []
-        for lr in learners:
-            c = a.cell(env, cond, lr, metric)
+        for learner in learners:
+            c = a.cell(env, cond, learner, metric)
             if c is None:
                 cells.append("n/a")
                 continue
-            t = a.test(env, cond, lr, metric)
+            t = a.test(env, cond, learner, metric)
             star = stats.stars(t["p_holm"]) if t else ""
             cells.append(f"{fmt(c['mean'])} ± {fmt(c['std'])}{star}")
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
@@ -322,8 +326,8 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
     out = ["# strol-bench summary", ""]
     git = meta.get("git") or {}
     out += [
-        f"- learners: {', '.join(display(lr) for lr in cfg.learners)}; post-hoc reference: "
-        f"{display(cfg.reference)}",
+        f"- learners: {', '.join(display(learner) for learner in cfg.learners)}; "
+        f"post-hoc reference: {display(cfg.reference)}",
         f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
         f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
         f"{fmt(meta.get('wall_time_s', math.nan), 1)} s",

@@ -279,12 +279,12 @@ class ResultsDir:
                 raise ResultsError(f"{p} is corrupt ({e}); delete it to rerun that unit") from e
             if not ok:
                 raise ResultsError(f"{p} was written by another config (hash differs)")
-            expected = {(s, lr) for s in unit.seeds for lr in self.config.learners}
+            expected = {(s, learner) for s in unit.seeds for learner in self.config.learners}
             got = [(r.get("seed"), r.get("learner")) for r in recs]
             if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
                 raise ResultsError(f"{p} does not hold exactly its unit's runs; delete it to rerun")
             out.extend(recs)
-        order = {lr: i for i, lr in enumerate(self.config.learners)}
+        order = {learner: i for i, learner in enumerate(self.config.learners)}
         exp_index = {(e.env, e.condition.name): i for i, e in enumerate(self.config.experiments)}
         out.sort(
             key=lambda r: (exp_index[(r["env"], r["condition"])], r["seed"], order[r["learner"]])

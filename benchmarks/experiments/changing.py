@@ -113,22 +113,22 @@ class Changing(BenchExperiment):
         metric = primary_metric(a, env)
         paper = PAPER_CHANGING.get(env, {})
         rows = []
-        for lr in config.learners:
-            c = a.cell(env, "changing", lr, metric) or {}
-            t = a.test(env, "changing", lr, metric) or {}
-            err = a.cell(env, "changing", lr, "error") or {}
-            cos = a.cell(env, "changing", lr, "cos_error") or {}
+        for learner in config.learners:
+            c = a.cell(env, "changing", learner, metric) or {}
+            t = a.test(env, "changing", learner, metric) or {}
+            err = a.cell(env, "changing", learner, "error") or {}
+            cos = a.cell(env, "changing", learner, "cos_error") or {}
             rows.append(
                 {
                     "env": env,
-                    "learner": lr,
+                    "learner": learner,
                     "metric": metric,
                     **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
                     "error_mean": err.get("mean"),
                     "cos_error_mean": cos.get("mean"),
                     "p_t_holm": t.get("p_holm"),
                     "p_wilcoxon_holm": t.get("wilcoxon_p_holm"),
-                    "paper_mean": paper.get(lr),
+                    "paper_mean": paper.get(learner),
                 }
             )
         exp = config.experiments[0]

@@ -151,8 +151,8 @@ def analyse(
         for metric in (PRIMARY, *SECONDARY):
             _, y = _matrix(records, env, cond, learners, metric)
             ys[metric] = y[np.isfinite(y).all(axis=1)]
-            for j, lr in enumerate(learners):
-                row = {"condition": cond, "learner": lr, "metric": metric}
+            for j, learner in enumerate(learners):
+                row = {"condition": cond, "learner": learner, "metric": metric}
                 row |= stats.describe(ys[metric][:, j])
                 if metric == PRIMARY:
                     row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
@@ -333,14 +333,14 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
         "",
         "## Regret per learner (mean ± std; median; runs with regret ≥ 0.3)",
         "",
-        "| condition | " + " | ".join(display(lr) for lr in LEARNERS) + " |",
+        "| condition | " + " | ".join(display(learner) for learner in LEARNERS) + " |",
         "|---|" + "---|" * len(LEARNERS),
     ]
     desc = {(x["condition"], x["learner"], x["metric"]): x for x in result["descriptives"]}
     for cond in result["verdicts"]:
         cells = []
-        for lr in LEARNERS:
-            x = desc[(cond, lr, PRIMARY)]
+        for learner in LEARNERS:
+            x = desc[(cond, learner, PRIMARY)]
             cells.append(f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])}; {x['n_switch']}")
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     lines += [

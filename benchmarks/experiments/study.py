@@ -171,8 +171,8 @@ def h3_verdicts(a: Analysis) -> list[dict[str, Any]]:
     return out
 
 
-def _cell(a: Analysis, env: str, lr: str, metric: str) -> dict[str, Any] | None:
-    return a.cell(env, USERS.name, lr, metric)
+def _cell(a: Analysis, env: str, learner: str, metric: str) -> dict[str, Any] | None:
+    return a.cell(env, USERS.name, learner, metric)
 
 
 def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
@@ -180,20 +180,20 @@ def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
     envs = [e.env for e in a.config.experiments]
     rows = []
     for metric in METRICS:
-        for lr in a.config.learners:
-            row: dict[str, Any] = {"metric": metric, "learner": lr}
+        for learner in a.config.learners:
+            row: dict[str, Any] = {"metric": metric, "learner": learner}
             for env in envs:
-                c = _cell(a, env, lr, metric)
+                c = _cell(a, env, learner, metric)
                 row[f"task{_task_of(env)}_mean"] = c["mean"] if c else math.nan
                 row[f"task{_task_of(env)}_sem"] = c["sem"] if c else math.nan
             v = np.array(
-                [r[metric] for r in records if r["learner"] == lr and metric in r], dtype=float
+                [r[metric] for r in records if r["learner"] == learner and metric in r], dtype=float
             )
             v = v[np.isfinite(v)]
             row["all_mean"] = float(v.mean()) if v.size else math.nan
             row["all_sem"] = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan
             row["all_n"] = int(v.size)
-            paper = PAPER.get(metric, {}).get(lr, (math.nan, math.nan))
+            paper = PAPER.get(metric, {}).get(learner, (math.nan, math.nan))
             row["paper_mean"], row["paper_spread"] = paper
             rows.append(row)
     return rows
@@ -241,25 +241,25 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
     fig, axes = plt.subplots(1, 3, figsize=(14, 3.6))
     width = 0.8 / len(learners)
     for ax, metric in zip(axes[:2], H3_METRICS, strict=True):
-        for j, lr in enumerate(learners):
+        for j, learner in enumerate(learners):
             for i, env in enumerate(envs):
-                c = _cell(a, env, lr, metric)
+                c = _cell(a, env, learner, metric)
                 if c is None:
                     continue
                 x = i + (j - (len(learners) - 1) / 2) * width
-                ax.bar(x, c["mean"], width, yerr=c["sem"], color=learner_color(lr), capsize=2,
-                       label=display(lr) if i == 0 else None)  # fmt: skip
-                t = a.test(env, USERS.name, lr, metric)
+                ax.bar(x, c["mean"], width, yerr=c["sem"], color=learner_color(learner), capsize=2,
+                       label=display(learner) if i == 0 else None)  # fmt: skip
+                t = a.test(env, USERS.name, learner, metric)
                 if t is not None and t["significant"]:
                     ax.text(x, c["mean"] + (c["sem"] or 0), "*", ha="center", va="bottom")
         ax.set_xticks(range(len(envs)), [f"Task {_task_of(e)}" for e in envs])
         ax.set_ylabel(LABELS[metric])
     axes[0].legend(fontsize=7)
     ax = axes[2]
-    for lr in learners:
-        rs = [r for r in records if r["learner"] == lr]
+    for learner in learners:
+        rs = [r for r in records if r["learner"] == learner]
         ax.scatter([r["correction_time"] for r in rs], [r["regret"] for r in rs], s=10,
-                   color=learner_color(lr), alpha=0.6, label=display(lr))  # fmt: skip
+                   color=learner_color(learner), alpha=0.6, label=display(learner))  # fmt: skip
     ax.set_xlabel(LABELS["correction_time"])
     ax.set_ylabel(LABELS["regret"])
     ax.set_title("per simulated user", fontsize=9)
