@@ -11,7 +11,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from strol_gym.benchmarks.args import TRAIN_CAPS, add_allow_large, check_size_caps, json_object
-
 from strol_gym.learners.checkpoint import KINDS, check_weights_path, save_checkpoint
 from strol_gym.learners.network import BOUNDS
 from strol_gym.learners.training import (

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+
 from strol_gym.benchmarks.analysis.report import analyse, write_reports
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS
 from strol_gym.benchmarks.engine.config import paper_config

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+
 from strol_gym.benchmarks.analysis.report import pooled_matrix, pooled_tests
 from strol_gym.benchmarks.engine import study_authors as sa
 

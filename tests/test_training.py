@@ -10,9 +10,9 @@ import sys
 import numpy as np
 import pytest
 import torch
-from strol_gym.benchmarks.train import add_train_arguments, main
 
 from strol_gym import RobotTask
+from strol_gym.benchmarks.train import add_train_arguments, main
 from strol_gym.learners.checkpoint import (
     find_pretrained,
     load_checkpoint,

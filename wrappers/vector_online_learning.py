@@ -6,11 +6,11 @@ from typing import Any
 
 import numpy as np
 from gymnasium.vector import VectorEnv, VectorWrapper
-from strol_gym.wrappers.online_learning import episode_regret
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cos_error, error
+from strol_gym.wrappers.online_learning import episode_regret
 
 FIXED_STATE = frozenset({"name", "task_id", "config", "arch", "model"})
 """``state_dict`` keys that do not change as a learner learns (its configuration, ĝ's weights)."""

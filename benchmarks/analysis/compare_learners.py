@@ -21,9 +21,9 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+
 from strol_gym.benchmarks.analysis.stats import holm, paired_test, stars
 from strol_gym.benchmarks.engine.conditions import REFERENCE_LEARNER as REFERENCE
-
 from strol_gym.metrics import RUN_METRICS
 
 BASELINES = ("gradient", "one", "mof", "e2e")

@@ -15,10 +15,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+
 from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.base import METRIC_LABELS, Analysis, display
 from strol_gym.benchmarks.engine.conditions import env_preset
-
 from strol_gym.metrics import short
 
 PAPER_COLORS = {

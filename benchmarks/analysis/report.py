@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.base import (
     METRIC_LABELS,

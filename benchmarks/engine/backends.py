@@ -19,7 +19,6 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
-
 from strol_gym.learners.protocol import LearnerFailed
 
 BACKENDS = ("local", "ray")

@@ -15,7 +15,6 @@ from collections.abc import Callable
 from typing import Any
 
 from strol_gym.benchmarks.engine.robots import ROBOTS
-
 from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.priors import PRIORS

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig
-
 from strol_gym.learners.registry import make_learner
 
 # What a record depends on besides the run's config: every module of the strol_gym package

@@ -10,7 +10,6 @@ from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.episodes import run_block, score_regret
 from strol_gym.benchmarks.engine.kernels import kernel_label
 from strol_gym.benchmarks.engine.robots import robot_policy
-
 from strol_gym.learners.registry import make_learner
 from strol_gym.registry import install_specs
 
@@ -27,9 +26,9 @@ class Worker:
 
     def _prepare(self, exp_index: int, n: int) -> None:
         import gymnasium as gym
-        from strol_gym.wrappers import OnlineLearningWrapper
 
         import strol_gym  # noqa: F401
+        from strol_gym.wrappers import OnlineLearningWrapper
 
         if self._exp != exp_index:
             self.close()

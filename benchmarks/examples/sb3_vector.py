@@ -17,10 +17,10 @@ import time
 import gymnasium as gym
 import numpy as np
 from stable_baselines3 import PPO
-from strol_gym.wrappers import VectorOnlineLearningWrapper
-from strol_gym.wrappers.sb3 import SB3VecEnv
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.wrappers import VectorOnlineLearningWrapper
+from strol_gym.wrappers.sb3 import SB3VecEnv
 
 
 def make_vec_env(n: int, learner: str | None, **kwargs) -> SB3VecEnv:

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from strol_gym.benchmarks.args import (
     BASIN_CAPS,
     add_allow_large,

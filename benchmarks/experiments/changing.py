@@ -25,7 +25,6 @@ from strol_gym.benchmarks.experiments.base import (
     primary_metric,
     small_figure,
 )
-
 from strol_gym.metrics import short
 
 DEFAULT_SIGMA = 0.25

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 from scipy import stats as sps
+
 from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import nonneg_int, positive_int

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from strol_gym.benchmarks.analysis.report import (
     Analysis,
     analyse,
@@ -233,6 +234,7 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from strol_gym.benchmarks.analysis.plots import learner_color, save_figure
 
     out.mkdir(parents=True, exist_ok=True)

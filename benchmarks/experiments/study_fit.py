@@ -19,11 +19,11 @@ import warnings
 
 import gymnasium as gym
 import numpy as np
-from strol_gym.wrappers.online_learning import OnlineLearningWrapper
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.humans import make_human
 from strol_gym.learners.registry import make_learner
+from strol_gym.wrappers.online_learning import OnlineLearningWrapper
 
 MODELS = ("nominal", "boltzmann")
 V1_TASK = "strol_gym.tasks.study:StudyTask{}V1"

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import mujoco
 from PIL import Image, ImageGrab
+
 from strol_gym.benchmarks.sessions import interact
 
 PUSH_START, PUSH_STEPS = 20, 20

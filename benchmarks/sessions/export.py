@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+
 from strol_gym.wrappers.session_log import (
     Episode,
     Session,
@@ -216,14 +217,14 @@ def export_runs(
     import tempfile
 
     import gymnasium as gym
+
     from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
     from strol_gym.benchmarks.engine.config import Experiment
     from strol_gym.benchmarks.engine.episodes import run_block
     from strol_gym.benchmarks.engine.robots import robot_policy
+    from strol_gym.learners.registry import make_learner
     from strol_gym.wrappers import OnlineLearningWrapper
     from strol_gym.wrappers.session_log import SessionLogger
-
-    from strol_gym.learners.registry import make_learner
 
     _minari()  # before any work
     exp = Experiment(

@@ -21,10 +21,10 @@ from typing import Any, Protocol
 import gymnasium as gym
 import mujoco
 import numpy as np
-from strol_gym.wrappers import OnlineLearningWrapper
-from strol_gym.wrappers.session_log import SessionLogger
 
 from strol_gym.envs.panda import PassiveViewer, has_display
+from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.session_log import SessionLogger
 
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "

@@ -24,9 +24,9 @@ from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
-from strol_gym.benchmarks.speed.timing import env_steps_per_second
 
 import strol_gym
+from strol_gym.benchmarks.speed.timing import env_steps_per_second
 from strol_gym.envs.highway import HighwayEnv
 
 

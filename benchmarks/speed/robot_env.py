@@ -25,9 +25,9 @@ import time  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
-from strol_gym.benchmarks.speed.timing import env_steps_per_second  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
+from strol_gym.benchmarks.speed.timing import env_steps_per_second  # noqa: E402
 from strol_gym.tasks.robot import RobotTask  # noqa: E402
 
 

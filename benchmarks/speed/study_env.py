@@ -77,6 +77,7 @@ def _state(env: StudyEnv) -> np.ndarray:
 def realtime_factor(task: int, repeats: int, version: str = "v0") -> tuple[float, dict]:
     """(best simulated s / wall s over ``repeats`` episodes, the last episode's summary)."""
     import torch
+
     from strol_gym.wrappers import OnlineLearningWrapper
 
     torch.set_num_threads(1)
