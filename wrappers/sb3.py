@@ -31,8 +31,13 @@ class SB3VecEnv(VecEnv):
 
     def reset(self):
         seeds = [s for s in self._seeds if s is not None]
-        seed = [int(s) for s in self._seeds] if len(seeds) == self.num_envs else None
-        obs, info = self.env.reset(seed=seed, options=self._options[0] or None)
+        seed = [int(s) for s in seeds] if len(seeds) == self.num_envs else None
+        # VectorEnv.reset is typed seed: int | None, yet vector envs (ours, Sync/Async) take
+        # one seed per sub-env as a list.
+        obs, info = self.env.reset(
+            seed=seed,  # type: ignore[arg-type]  # a list: see above
+            options=self._options[0] or None,
+        )
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = self._per_env(info, np.ones(self.num_envs, dtype=bool))
@@ -46,7 +51,7 @@ class SB3VecEnv(VecEnv):
         done = np.asarray(terminated) | np.asarray(truncated)
         infos = self._per_env(info, np.ones(self.num_envs, dtype=bool))
         if done.any():
-            for i in np.flatnonzero(done):
+            for i in np.flatnonzero(done).tolist():
                 infos[i]["terminal_observation"] = {k: v[i].copy() for k, v in obs.items()}
                 infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
             obs, reset_info = self.env.reset(options={"reset_mask": done})

@@ -202,7 +202,7 @@ def _check_preset(key: str, preset: object) -> None:
         raise ValueError(f"env {key!r} must be an EnvPreset with key {key!r}, got {preset!r}")
 
 
-ENVS = Registry(
+ENVS = Registry[EnvPreset](
     "env",
     ENV_PRESETS,
     check=_check_preset,
@@ -264,7 +264,7 @@ def _check_condition(name: str, cond: object) -> None:
         )
 
 
-CONDITIONS = Registry(
+CONDITIONS = Registry[Condition | ConditionFactory](
     "condition",
     _CONDITIONS,
     check=_check_condition,

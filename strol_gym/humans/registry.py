@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -14,6 +14,9 @@ from strol_gym.humans.interface import Draws, Human, HumanModel, SimulatedHuman,
 from strol_gym.humans.zoo import ZOO
 from strol_gym.registry import Registry
 from strol_gym.tasks.base import Task
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeIs
 
 HUMAN_MODELS: dict[str, Any] = {
     "nominal": NominalModel,
@@ -32,11 +35,11 @@ SHARED_PARAMS = ("sigma", "bias", "beta")
 those its signature declares)."""
 
 
-def _is_model(obj: Any) -> bool:
+def _is_model(obj: object) -> TypeIs[type[HumanModel]]:
     return isinstance(obj, type) and issubclass(obj, HumanModel)
 
 
-HUMANS = Registry(
+HUMANS = Registry[HumanFactory | type[HumanModel]](
     "human",
     HUMAN_MODELS,
     callable_as="(task, theta_star, rng, **params) -> Human",
@@ -125,7 +128,7 @@ def check_human_kwargs(human: str | HumanFactory, human_kwargs: dict[str, Any] |
         )
     accepted = _accepted(human_factory(human))
     unknown = [] if accepted is None else sorted(set(human_kwargs) - accepted)
-    if unknown:
+    if accepted is not None and unknown:
         raise ValueError(
             f"human_kwargs {unknown} are not parameters of human {human!r}; "
             f"it takes {sorted(accepted - {'task', 'theta_star', 'rng'})}"
@@ -176,7 +179,7 @@ class PerSampleModel(HumanModel):
         rng = draws.extra["rng"]
         out = np.empty((len(x), self.task.action_dim))
         for b in range(len(x)):
-            human = make_human(self.factory, self.task, theta_star[b], rng, **self.params)  # type: ignore[arg-type]
+            human = make_human(self.factory, self.task, theta_star[b], rng, **self.params)
             th = None if theta_hat is None else theta_hat[b]
             out[b] = human.act(x[b], u_r[b], th if needs_theta_hat(human) else None)
         return out

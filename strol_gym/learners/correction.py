@@ -68,6 +68,9 @@ class CorrectionLearner(LinearRuleLearner):
         model: CorrectionNet | None = None,
     ) -> None:
         super().__init__(task)
+        self.checkpoint: str | None = None
+        self.checkpoint_meta: dict[str, Any] | None = None
+        """Where ĝ came from (None: a model passed in) and its sidecar."""
         if model is not None and checkpoint is not None:
             raise ValueError("pass either checkpoint or model, not both")
         if model is None:
@@ -104,8 +107,9 @@ class CorrectionLearner(LinearRuleLearner):
     def _correction_and_g(self, x, u_h, u_r, theta=None) -> tuple[np.ndarray, np.ndarray]:
         g = self.task.g(x, u_h, u_r)
         theta = self.theta if theta is None else theta
-        z = model_input(self.task, self.kind, x, u_h, u_r, theta)
-        z = torch.as_tensor(z, dtype=torch.float32)
+        z = torch.as_tensor(
+            model_input(self.task, self.kind, x, u_h, u_r, theta), dtype=torch.float32
+        )
         with torch.no_grad(), _one_thread():
             g_hat = self.model(z, torch.as_tensor(g, dtype=torch.float64))
         return g_hat.numpy(), g

@@ -4,6 +4,7 @@
 an env id (a Task's ``task_id``), a ``"module:attr"`` or a Task object.
 """
 
+from collections.abc import Callable
 from typing import Any
 
 from strol_gym.registry import Registry
@@ -28,7 +29,9 @@ def _check(name: str, task: Any) -> None:
         )
 
 
-TASKS = Registry("task", _TASKS, check=_check, hint=" naming a Task, Task class or factory")
+TASKS = Registry[Task | Callable[[], Task]](
+    "task", _TASKS, check=_check, hint=" naming a Task, Task class or factory"
+)
 
 
 def register_task(name: str, task: Any) -> None:

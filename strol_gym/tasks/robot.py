@@ -208,6 +208,7 @@ class RobotTask(Task):
         np.add(base.transpose(2, 0, 1), u_h.transpose(2, 0, 1), out=x_h)
         np.maximum(x_h, self._box_planes[0], out=x_h)
         np.minimum(x_h, self._box_planes[1], out=x_h)
+        phi_r: tuple[float, float] | np.ndarray
         if len(x) == 1:  # one state: φ(x_R) in plain floats, subtracted as scalars
             zero = [0.0, 0.0, 0.0]
             phi_r = self._features_one(
