@@ -142,12 +142,16 @@ class FrameFit:
 
 def cup_frames_at_homes() -> dict[int, np.ndarray]:
     """Our cup frame (4 × 4) at Task 1's and Task 2's home joints, from the Study env's model."""
+    import warnings
+
     import gymnasium as gym
     import mujoco
 
     out = {}
     for number in (1, 2):
-        env = gym.make("StROL-Study-v0", task=number)
+        with warnings.catch_warnings():  # v0 is the version whose Tasks the logs name
+            warnings.simplefilter("ignore", DeprecationWarning)
+            env = gym.make("StROL-Study-v0", task=number)
         try:
             env.reset(seed=0)
             base = env.unwrapped
