@@ -216,6 +216,7 @@ def test_replay_folder(tree, tmp_path, capsys):
     assert cli.main([*argv, "--plugin", "registry_pieces", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "study1_strol.pt (StROL-Study-v0-task1)" in text and "RM-ANOVA" in text
+    assert "(θ̂0: no update)" in text
     with open(out / "replay_sessions.csv", encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == 2 * 6 * 4  # Tasks × sessions × learners, paired by session

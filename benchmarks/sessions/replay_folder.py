@@ -75,7 +75,7 @@ def _build(
         try:
             built[name] = make_learner(name, task=task, **kwargs.get(name, {}))
         except FileNotFoundError as e:
-            notes[name] = str(e).split(";")[0]
+            notes[name] = str(e).split(";")[0].rsplit(" in ", 1)[0]
     return built, notes
 
 
@@ -110,14 +110,20 @@ def replay_group(
     x0 = np.tile(task.start, (len(sessions), 1))
     group: dict[str, Any] = {"task": task, "sessions": sessions, "notes": notes}
     group["g_hat"] = {n: g_hat_source(le) for n, le in built.items()}
-    group["metrics"] = {}
-    for name, learner in built.items():
-        finals = np.array([final_theta(learner, name, s) for s in sessions])
-        group["metrics"][name] = {
+
+    def scores(finals: np.ndarray) -> dict[str, np.ndarray]:
+        return {
             "error": np.array([error(a, b) for a, b in zip(stars, finals, strict=True)]),
             "cos_error": np.array([cos_error(a, b) for a, b in zip(stars, finals, strict=True)]),
             "regret": np.array(episode_regret(task, finals, stars, x0)),
         }
+
+    # Where every learner starts: what the corrections have to improve on (not tested).
+    group["start"] = scores(np.array([s.episodes[0].theta_hat0 for s in sessions]))
+    group["metrics"] = {}
+    for name, learner in built.items():
+        finals = np.array([final_theta(learner, name, s) for s in sessions])
+        group["metrics"][name] = scores(finals)
     return group
 
 
@@ -181,6 +187,10 @@ def markdown_table(groups: dict[str, dict[str, Any]], reference: str) -> str:
             for m in METRICS:
                 cells += [_cell(ms[m]), _p_cell(g["stats"], m, name, reference)]
             lines.append("| " + " | ".join(cells) + " |")
+        cells = ["(θ̂0: no update)", ""]
+        for m in METRICS:
+            cells += [_cell(g["start"][m]), ""]
+        lines.append("| " + " | ".join(cells) + " |")
         for m in METRICS:
             for r in g["stats"]:
                 if r["metric"] == m and r["test"] == "rm-anova":
