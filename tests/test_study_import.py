@@ -234,3 +234,38 @@ def test_replay_folder(tree, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "strol-unrolled left out: no pretrained" in text
     assert "study1-v1_strol.pt (StROL-Study-v1-task1)" in text
+
+
+def test_implied_theta0_by_hand():
+    """One straight push down by 1 cm per logged step: the authors' One update is +3 cm on the
+    table weight (|z| − |z − 0.03|), their gradient update also moves the plate weight."""
+    start = np.array([0.4, 0.3, 0.5, 0.0, 0.0, 0.0])
+    poses = np.array([start, start - [0, 0, 0.01, 0, 0, 0]])
+    final = np.array([-1.0, 0.5, 0.8])
+    got = implied_theta0(final, [poses, poses[:1], poses[:0]], 1, "one")
+    assert np.allclose(got, final - [0.0, 0.0, 0.03], atol=1e-12)
+    plate = STUDY_TASKS[1]().plate
+    g_plate = np.linalg.norm(start[:3] - plate) - np.linalg.norm(start[:3] - [0, 0, 0.03] - plate)
+    got = implied_theta0(final, [poses], 1, "gradient")
+    assert np.allclose(got, final - [0.0, g_plate, 0.03], atol=1e-12)
+
+
+def test_study_card_and_implied_check(tree, tmp_path, capsys):
+    from strol_gym.benchmarks.sessions import implied_check, study_card
+
+    root, moves = tree
+    logs = tmp_path / "logs"
+    assert cli.main(["import-study", str(root), "--out", str(logs)]) == 0
+    assert study_card.main([str(logs), "--out", str(tmp_path / "card")]) == 0
+    card = (tmp_path / "card" / "card.md").read_text()
+    assert "| corrections logged | 24 | 24 |" in card  # 6 sessions × 4 corrections per Task
+    assert "| of which empty / one pose | 6 / 6 | 6 / 6 |" in card
+    for task, col in ((1, 2), (2, 3)):
+        cm = [100 * np.linalg.norm(m[:3]) for k, mv in moves.items() if k[1] == task for m in mv]
+        row = next(r for r in card.splitlines() if r.startswith("| displacement"))
+        assert float(row.split("|")[col]) == pytest.approx(np.mean(cm), abs=0.006)
+    assert (tmp_path / "card" / "study_data_card.png").stat().st_size > 0
+    capsys.readouterr()
+    assert implied_check.main([str(root)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == len(implied_check.CHECKS) and all("/4" in ln for ln in lines)

@@ -256,7 +256,12 @@ def _theta0(raw: RawSession, task: StudyTask, mode: str) -> tuple[np.ndarray, st
 
 
 def write_session(
-    raw: RawSession, out: Path, fit: FrameFit, authors_updates: bool, theta0: str
+    raw: RawSession,
+    out: Path,
+    fit: FrameFit,
+    authors_updates: bool,
+    theta0: str,
+    packages: dict[str, str | None] | None = None,
 ) -> Path:
     """One authors' session as ``out/user_K_task_J_ALG.jsonl``."""
     task = STUDY_TASKS[raw.task]()
@@ -271,7 +276,7 @@ def write_session(
         "task_describe": task.describe(),
         "learner": ALGORITHMS[raw.alg],
         "learner_kwargs": {},
-        "packages": package_versions(),
+        "packages": packages if packages is not None else package_versions(),
         "extra": {
             "source": "the authors' user study (VT-Collab/StROL_RAL, data removed at d383bef)",
             "user": raw.user,
@@ -345,10 +350,11 @@ def import_study(
     except OSError as e:
         raise OSError(f"--out {out}: cannot create this folder ({e.strerror or e})") from None
     fit = fit_transform()
+    packages = package_versions()
     written = []
     for s in sessions:
         try:
-            written.append(write_session(s, out, fit, authors_updates, theta0))
+            written.append(write_session(s, out, fit, authors_updates, theta0, packages))
         except FileExistsError:
             raise ValueError(
                 f"--out {out}: user_{s.user}_task_{s.task}_{s.alg}.jsonl exists (never overwritten)"
