@@ -234,6 +234,11 @@ def test_replay_folder(tree, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "strol-unrolled left out: no pretrained" in text
     assert "study1-v1_strol.pt (StROL-Study-v1-task1)" in text
+    # bad input: a reference that is not replayed, a log that is not one
+    bad = ["replay", str(logs), "--learners", "gradient,one", "--out", str(tmp_path / "bad")]
+    assert "--reference 'strol' must be one of" in cli_error(bad, capsys)
+    (logs / "junk.jsonl").write_text('{"type": "header"}\n')
+    assert "junk.jsonl:1" in cli_error([*bad, "--reference", "one"], capsys)
 
 
 def test_implied_theta0_by_hand():

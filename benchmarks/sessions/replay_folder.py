@@ -265,6 +265,8 @@ def run_folder(
     version: int | None = None,
 ) -> tuple[dict[str, dict[str, Any]], list[Path]]:
     """Replay every log under ``folder``; print the table; write CSVs, table (+ PNG) to ``out``."""
+    if reference not in learners:
+        raise ValueError(f"--reference {reference!r} must be one of --learners {list(learners)}")
     loaded = load_groups(folder, version)
     dest = Path(out) if out is not None else Path(str(Path(folder).resolve()) + "_replay")
     try:
