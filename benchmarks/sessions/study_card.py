@@ -12,8 +12,8 @@ and draws their histograms (``FOLDER/study_data_card.png``):
 - its direction against θ*'s best correction at that pose: the cosine between u_H and the
   steepest ascent of θ*·φ at x, both in units of the Task's a_max per axis (u / a_max against
   a_max ⊙ ∇ₓ(θ*·φ)), and the share of corrections that raised θ*·φ (θ*·g(x, u_H, 0) > 0);
-- where along the path it starts: the robot-path sample nearest its first pose, as a share of
-  the session's path samples;
+- where along the path it starts: the robot-path sample nearest its first pose (its index,
+  and as a share of the session's path samples);
 - the final θ̂ the authors' learner reached, per Task and learner (mean error and 1 − cos).
 """
 
@@ -67,6 +67,7 @@ def collect(folder: str | Path) -> dict[str, dict[int, list[float]] | Any]:
             out["cos_best"][number].append(float(a @ b / denom) if denom > 0 else np.nan)
             gain = float(star @ task.g(x[None], u[None], np.zeros((1, len(u))))[0])
             out["raised"][number].append(float(gain > 0))
+            out["path_sample"][number].append(c["path_sample"])
             out["path_share"][number].append(c["path_sample"] / c["path_samples"])
         final = ep["theta_hat_final_logged"]
         if final is not None:
@@ -89,6 +90,7 @@ ROWS = (
     ("rotation_deg", "rotation per correction (°)"),
     ("cos_best", "cos(u_H, θ*'s best correction)"),
     ("raised", "share raising θ*·φ"),
+    ("path_sample", "start along the path (sample index)"),
     ("path_share", "start along the path (share of samples)"),
 )
 
@@ -144,7 +146,8 @@ def plot_card(path: Path, data: dict[str, Any]) -> None:
             ax.hist(v[np.isfinite(v)], bins=bins, alpha=0.5, label=f"Task {t}")
         ax.set_title(label, fontsize=9)
     axes.flat[0].legend(fontsize=8)
-    axes.flat[-1].axis("off")
+    for ax in axes.flat[len(ROWS) :]:
+        ax.axis("off")
     fig.suptitle("The authors' user study (12 participants × 3 Tasks × 3 learners): aggregates")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
