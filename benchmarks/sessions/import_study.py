@@ -37,7 +37,7 @@ from strol_gym.benchmarks.sessions.authors_frame import (
     pose_to_frame,
     rotation_angle,
 )
-from strol_gym.benchmarks.sessions.authors_rules import RULES, implied_theta0
+from strol_gym.benchmarks.sessions.authors_rules import AUTHORS_GAIN, RULES, implied_theta0
 from strol_gym.benchmarks.sessions.plain_pickle import load_plain_pickle
 from strol_gym.wrappers.session_log import SessionWriter
 
@@ -225,7 +225,7 @@ def correction_lines(
         }
         if authors_updates:
             steps = [
-                (states[i], 3.0 * state_step(task, states[i], states[i + 1]), i)
+                (states[i], AUTHORS_GAIN * state_step(task, states[i], states[i + 1]), i)
                 for i in range(len(states) - 1)
             ]
         else:
