@@ -25,13 +25,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.analysis.stats import compare_to_reference, describe, rm_anova
-from strol_gym.wrappers.session_log import Session, read_session, session_task
 
+from strol_gym.benchmarks.analysis.stats import compare_to_reference, describe, rm_anova
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import display_name, make_learner
 from strol_gym.metrics import cos_error, episode_regret, error
 from strol_gym.tasks.base import Task
+from strol_gym.wrappers.session_log import Session, read_session, session_task
 
 METRICS = ("error", "cos_error", "regret")
 LABELS = {"error": "error ‖θ* − θ̂‖", "cos_error": "1 − cos(θ*, θ̂)", "regret": "regret"}
@@ -234,6 +234,7 @@ def plot_groups(path: Path, groups: dict[str, dict[str, Any]]) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from strol_gym.benchmarks.analysis.plots import learner_color
 
     rows = len(groups)

@@ -27,10 +27,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.sessions.replay_folder import find_logs
-from strol_gym.wrappers.session_log import read_session, session_task
 
+from strol_gym.benchmarks.sessions.replay_folder import find_logs
 from strol_gym.metrics import cos_error, error
+from strol_gym.wrappers.session_log import read_session, session_task
 
 QUANTILES = (10, 25, 50, 75, 90)
 
