@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import importlib
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any, Generic, TypeVar
 
 from strol_gym import checks
@@ -224,7 +224,7 @@ def resolve(kind: str, spec: str) -> Any:
 
 
 def user_specs(
-    used: dict[str, Iterable[str]] | None = None,
+    used: Mapping[str, Iterable[str]] | None = None,
 ) -> tuple[dict[str, dict[str, Any]], list[str]]:
     """The user entries as importable specs ``{kind: {name: "module:attr"}}``, and the names
     that cannot travel to another process (each as "kind 'name'").

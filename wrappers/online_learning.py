@@ -6,6 +6,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.vector import VectorEnv
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
@@ -21,10 +22,25 @@ class LearningEnv(Protocol):
     @property
     def task(self) -> Task: ...
 
+    @property
+    def theta_hat(self) -> np.ndarray: ...
+
     def set_theta_hat(self, theta: np.ndarray) -> None: ...
 
 
-__all__ = ["OnlineLearningWrapper", "cos_error", "episode_regret"]
+def learning_env(env: gym.Env | VectorEnv) -> LearningEnv:
+    """``env.unwrapped`` as a strol-gym env (single or vector): its Task and θ̂, else
+    ValueError. Typed access for code that holds what ``gym.make`` returned."""
+    base = env.unwrapped
+    if not isinstance(base, LearningEnv):  # it has .task, .theta_hat and .set_theta_hat
+        raise ValueError(
+            "env must be a strol-gym env (env.unwrapped needs .task and .set_theta_hat), "
+            f"got {type(base).__name__}"
+        )
+    return base
+
+
+__all__ = ["LearningEnv", "OnlineLearningWrapper", "cos_error", "episode_regret", "learning_env"]
 
 
 def theta_space(space: gym.Space) -> gym.spaces.Box:
@@ -84,12 +100,7 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             regret=regret,
         )
         gym.Wrapper.__init__(self, env)
-        base = env.unwrapped
-        if not isinstance(base, LearningEnv):  # it has .task and .set_theta_hat
-            raise ValueError(
-                "env must be a strol-gym env (env.unwrapped needs .task and .set_theta_hat), "
-                f"got {type(base).__name__}"
-            )
+        base = learning_env(env)
         for name, flag in (("replace_reward", replace_reward), ("regret", regret)):
             if not isinstance(flag, bool | np.bool_):  # "no" would be true: refuse, not guess
                 raise ValueError(f"{name} must be True or False, got {flag!r}")

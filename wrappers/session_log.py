@@ -43,7 +43,7 @@ from strol_gym.provenance import package_versions
 from strol_gym.registry import spec_of
 from strol_gym.tasks import Task, task_name
 from strol_gym.tasks.base import _jsonable
-from strol_gym.wrappers.online_learning import LearningEnv
+from strol_gym.wrappers.online_learning import learning_env
 
 FORMAT, VERSION = "strol-session", 1
 
@@ -123,10 +123,7 @@ class SessionLogger(gym.Wrapper):
         saved = getattr(learning, "_saved_kwargs", {})
         learner = saved.get("learner", learning.learner)
         spec = env.unwrapped.spec
-        base = env.unwrapped
-        if not isinstance(base, LearningEnv):  # it has .task and .set_theta_hat
-            raise ValueError(f"env must be a strol-gym env, got {type(base).__name__}")
-        task = base.task
+        task = learning_env(env).task
         header = {
             "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             "env_id": spec.id if spec is not None else type(env.unwrapped).__name__,

@@ -69,7 +69,7 @@ def compare(runs, candidates, wanted=METRICS) -> list[str]:
             means = {
                 b: np.mean([v[metric] for v in runs[(env, cond, b)].values()]) for b in BASELINES
             }
-            best = min(means, key=means.get)
+            best = min(means, key=means.__getitem__)
             tests = []
             for cand in candidates:
                 for other in (REFERENCE, best):

@@ -88,7 +88,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
             for i, learner in enumerate(learners):
                 t = a.test(env, cond, learner, metric)
                 s = stats.stars(t["p_holm"]) if t else ""
-                if s:
+                if s and t:
                     y = mean[i] + np.nan_to_num(sem[i]) + 0.03 * abs(top)
                     color = "black" if t["mean_diff"] < 0 else "#b00000"
                     ax.text(xs[i], y, s, ha="center", va="bottom", fontsize=9, color=color)

@@ -246,8 +246,11 @@ def paper_verdicts(a: Analysis) -> list[dict[str, Any]]:
             cond = e.condition.name
             if e.env != env:
                 continue
-            tests = [a.test(env, cond, b, metric) for b in a.config.learners if b != ref]
-            tests = [t for t in tests if t is not None]
+            tests = [
+                t
+                for b in a.config.learners
+                if b != ref and (t := a.test(env, cond, b, metric)) is not None
+            ]
             if not tests:
                 continue
             v: dict[str, Any] = {"env": env, "condition": cond, "metric": metric}

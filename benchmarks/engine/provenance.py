@@ -9,6 +9,7 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.learners.registry import make_learner
+from strol_gym.wrappers.online_learning import learning_env
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
@@ -109,7 +110,7 @@ def check_learners(config: BenchConfig) -> dict[str, Any]:
         exp = next(e for e in config.experiments if e.env == env_key)
         env = gym.make(exp.env_id, **exp.env_kwargs())
         try:
-            task = env.unwrapped.task
+            task = learning_env(env).task
             out[env_key] = {}
             for name in config.learners:
                 try:

@@ -28,7 +28,7 @@ class Worker:
         import gymnasium as gym
 
         import strol_gym  # noqa: F401
-        from strol_gym.wrappers import OnlineLearningWrapper
+        from strol_gym.wrappers.online_learning import OnlineLearningWrapper, learning_env
 
         if self._exp != exp_index:
             self.close()
@@ -39,7 +39,7 @@ class Worker:
                 env = gym.make(exp.env_id, **exp.env_kwargs())
                 self._envs.append(env)
                 learner = make_learner(
-                    name, task=env.unwrapped.task, **self.config.kwargs_for(name)
+                    name, task=learning_env(env).task, **self.config.kwargs_for(name)
                 )
                 wrapped.append(OnlineLearningWrapper(env, learner, regret=False))
 

@@ -65,8 +65,11 @@ def train_and_compare(n: int, steps: int, learner: str | None, seed: int = 0, **
     def trained(obs):
         return model.predict(obs, deterministic=True)[0]
 
+    shape = env.action_space.shape
+    assert shape is not None  # a Box
+
     def random(obs):
-        return rng.uniform(-1, 1, size=(n, *env.action_space.shape)).astype(np.float32)
+        return rng.uniform(-1, 1, size=(n, *shape)).astype(np.float32)
 
     out = {
         "trained": mean_return(env, trained, held_out),

@@ -62,7 +62,7 @@ class Outcome:
 class BenchExperiment:
     """A ``strol-bench`` experiment (see the module docstring). Subclasses fill the hooks."""
 
-    name: ClassVar[str] = ""
+    name: str = ""
     """The subcommand, and the stem of the table and meta files."""
     help: ClassVar[str] = ""
     """The subcommand's one-line help; by default the class docstring's first paragraph."""

@@ -131,7 +131,9 @@ class Changing(BenchExperiment):
                 }
             )
         exp = config.experiments[0]
-        k = exp.condition.human_kwargs["switch_after"]
+        kwargs = exp.condition.human_kwargs
+        assert kwargs is not None  # the changing human's condition always sets switch_after
+        k = kwargs["switch_after"]
         md = table_markdown(rows, metric, k, exp.corrections, exp.condition.sigma)
         meta = {
             "config": config.to_dict(),

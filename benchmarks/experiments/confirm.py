@@ -153,7 +153,7 @@ def analyse(
             _, y = _matrix(records, env, cond, learners, metric)
             ys[metric] = y[np.isfinite(y).all(axis=1)]
             for j, learner in enumerate(learners):
-                row = {"condition": cond, "learner": learner, "metric": metric}
+                row: dict[str, Any] = {"condition": cond, "learner": learner, "metric": metric}
                 row |= stats.describe(ys[metric][:, j])
                 if metric == PRIMARY:
                     row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
@@ -162,7 +162,7 @@ def analyse(
         idx = rng.integers(0, n, size=(int(resamples), n)) if n else np.zeros((0, 0), int)
         for metric in (PRIMARY, *SECONDARY):
             y = ys[metric]
-            block = []
+            block: list[dict[str, Any]] = []
             for b in BASELINES:
                 j = learners.index(b)
                 raw = y[:, r] - y[:, j]

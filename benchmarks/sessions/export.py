@@ -223,7 +223,7 @@ def export_runs(
     from strol_gym.benchmarks.engine.episodes import run_block
     from strol_gym.benchmarks.engine.robots import robot_policy
     from strol_gym.learners.registry import make_learner
-    from strol_gym.wrappers import OnlineLearningWrapper
+    from strol_gym.wrappers.online_learning import OnlineLearningWrapper, learning_env
     from strol_gym.wrappers.session_log import SessionLogger
 
     _minari()  # before any work
@@ -236,8 +236,8 @@ def export_runs(
         task=task,
     )
     genv = gym.make(exp.env_id, **exp.env_kwargs())
-    model = make_learner(learner, task=genv.unwrapped.task, **(learner_kwargs or {}))
-    policy = robot_policy(env_preset(env).robot, genv.unwrapped.task)
+    model = make_learner(learner, task=learning_env(genv).task, **(learner_kwargs or {}))
+    policy = robot_policy(env_preset(env).robot, learning_env(genv).task)
     extra = {
         "benchmark": {
             "env": env,

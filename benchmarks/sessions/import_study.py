@@ -223,6 +223,7 @@ def correction_lines(
             "trace": None,
             "u_r_source": "unknown (0: u_H is the hand's whole logged displacement)",
         }
+        steps: list[tuple[np.ndarray, np.ndarray, int | None]]
         if authors_updates:
             steps = [
                 (states[i], AUTHORS_GAIN * state_step(task, states[i], states[i + 1]), i)

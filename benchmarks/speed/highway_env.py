@@ -91,13 +91,13 @@ def main() -> None:
 
 
 def learning(episodes: int, sigma: float, bias: float, prior: str) -> None:
-    from strol_gym.wrappers import OnlineLearningWrapper
+    from strol_gym.wrappers.online_learning import OnlineLearningWrapper, learning_env
 
     print(f"{episodes} episodes, sigma={sigma}, bias={bias}, prior={prior}, default robot policy")
     errors = {}
     for name in ("gradient", "one", "mof", "e2e", "strol"):
         env = gym.make("StROL-Highway-v0", sigma=sigma, bias=bias, prior=prior)
-        task = env.unwrapped.task
+        task = learning_env(env).task
         wrapped = OnlineLearningWrapper(env, strol_gym.make_learner(name, task=task))
         err, cos, crashes = [], [], 0
         for seed in range(episodes):
