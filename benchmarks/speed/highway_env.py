@@ -54,7 +54,7 @@ def main() -> None:
         learning(args.learning, args.sigma, args.bias, args.prior)
         return
     long = 10**9
-    rows = {
+    rows: dict[str, gym.Env] = {
         "default (nominal human, 10-step episodes)": gym.make("StROL-Highway-v0"),
         "nominal human correcting every step": HighwayEnv(
             n_corrections=long, max_episode_steps=long
