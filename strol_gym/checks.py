@@ -77,10 +77,7 @@ def number(
         try:
             num = int(value) if integer else float(value)
         except ValueError:
-            try:
-                num = float(value)
-            except ValueError:
-                raise _bad(name, what, value, kind=True) from None
+            raise _bad(name, what, value, kind=True) from None
     if isinstance(num, bool | np.bool_) or not isinstance(
         num, int | float | np.integer | np.floating
     ):
