@@ -10,7 +10,6 @@ the task (``strol_gym/pretrained``), looked up by ``task.task_id``.
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -19,6 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from strol_gym import checks
 from strol_gym.learners.checkpoint import (
     check_finite_weights,
     find_pretrained,
@@ -159,13 +159,7 @@ class StROLLearner(CorrectionLearner):
         model: CorrectionNet | None = None,
     ) -> None:
         raw = getattr(task, "strol_lambda", 1.0) if lam is None else lam
-        try:
-            lam = math.nan if isinstance(raw, bool) else float(raw)
-        except (TypeError, ValueError):
-            lam = math.nan
-        if not (np.isfinite(lam) and 0 <= lam <= MAX_LAM):
-            raise ValueError(f"lam must be a number in [0, {MAX_LAM:g}], got {raw!r}")
-        self.lam = lam
+        self.lam = float(checks.number("lam", raw, low=0, high=MAX_LAM, text=True))
         super().__init__(task, checkpoint=checkpoint, model=model)
 
     def config(self) -> dict[str, Any]:
