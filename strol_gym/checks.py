@@ -71,7 +71,15 @@ def number(
     its number. Returns the value itself (an int stays an int), or a float for text.
     """
     rng = _range(low, high, low_open, high_open)
-    what = ("an integer" if integer else "a finite number") + (f" {rng}" if rng else "")
+    # a number between two bounds is finite; 'finite' is said where a bound is missing
+    kind = (
+        "an integer"
+        if integer
+        else "a number"
+        if low is not None and high is not None
+        else "a finite number"
+    )
+    what = kind + (f" {rng}" if rng else "")
     num: Any = value
     if text and isinstance(value, str):
         try:
