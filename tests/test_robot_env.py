@@ -18,11 +18,11 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.panda import N_ARM
-from strol_gym.envs.panda_ik import IK_TOL, PandaIK
-from strol_gym.envs.robot import RobotEnv
-from strol_gym.envs.robot_scene import TABLE_TOP, build_model
-from strol_gym.envs.robot_seeds import SEED_GRID, _grid, seed_table
+from strol_gym.envs.panda.ik import IK_TOL, PandaIK
+from strol_gym.envs.panda.model import N_ARM
+from strol_gym.envs.robot.env import RobotEnv
+from strol_gym.envs.robot.scene import TABLE_TOP, build_model
+from strol_gym.envs.robot.seeds import SEED_GRID, _grid, seed_table
 from strol_gym.humans import NominalHuman
 from strol_gym.priors import FixedPrior
 from strol_gym.tasks.robot import RobotTask

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study_participant import Participant
-from strol_gym.envs.study_user import SimulatedUser
+from strol_gym.envs.study.participant import Participant
+from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.tasks.study import StudyTask1
 
 SEED = 20001

@@ -13,7 +13,7 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes
+from strol_gym.envs.contract import CorrectionEnv, RenderModes
 from strol_gym.humans import Human
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 

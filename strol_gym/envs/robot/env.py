@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes
-from strol_gym.envs.panda import N_ARM, Q_HOME, MujocoRendering
-from strol_gym.envs.panda_ik import IK_ITERS, PandaIK
-from strol_gym.envs.robot_scene import TABLE_TOP, build_model
-from strol_gym.envs.robot_seeds import seed_table
+from strol_gym.envs.contract import CorrectionEnv, RenderModes
+from strol_gym.envs.panda.ik import IK_ITERS, PandaIK
+from strol_gym.envs.panda.model import N_ARM, Q_HOME, MujocoRendering
+from strol_gym.envs.robot.scene import TABLE_TOP, build_model
+from strol_gym.envs.robot.seeds import seed_table
 from strol_gym.tasks.robot import RobotTask
 
 

@@ -10,10 +10,10 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes, int_arg, vector_arg
-from strol_gym.envs.panda import FINGER_OPEN, N_ARM, MujocoRendering
-from strol_gym.envs.study_scene import build_model, model_q
-from strol_gym.envs.study_user import SimulatedUser, angle_delta, rotation_error
+from strol_gym.envs.contract import CorrectionEnv, RenderModes, int_arg, vector_arg
+from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
+from strol_gym.envs.study.scene import build_model, model_q
+from strol_gym.envs.study.user import SimulatedUser, angle_delta, rotation_error
 from strol_gym.humans import Human
 from strol_gym.priors import Prior
 from strol_gym.tasks import make_task
@@ -116,7 +116,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
       ``human_kwargs``: the human model's parameters; ``user_kwargs``: the simulated user's
       (``push_force``, ``push_torque``, ``ramp``, ``max_push``, ``decide_every``, ``rest``,
       ``min_correction``, ``tol``, ``ang_tol``, ``satisfied_regret``;
-      ``strol_gym.envs.study_user``).
+      ``strol_gym.envs.study.user``).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
     - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
       ``stiffness`` (N/m, > 0, default 400), ``rot_stiffness`` (N m/rad, > 0, default 30).
@@ -125,7 +125,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Version History
 
-    - v1 (``strol_gym.envs.study_v1``): u_H is measured from the held setpoint, tracking that
+    - v1 (``strol_gym.envs.study.v1``): u_H is measured from the held setpoint, tracking that
       makes the arm's catch-up negligible, the Panda's joint limits, a force reflex, and a
       participant who judges what it sees. Use it.
     - v0: initial version; kept unchanged for the published results (deprecated).

@@ -1,0 +1,200 @@
+"""A simulated study participant: decides when and where to correct, and pushes the arm there.
+
+What it wants comes from the suite's human models (``strol_gym.humans``: "nominal" is eq. M6,
+"boltzmann" is Boltzmann-rational with β; σ and ε are fractions of the largest admissible
+correction a_max): every ``decide_every`` seconds it first judges the robot's current behaviour:
+the regret under its θ* of the robot's plan for θ̂ from home (``task.regret(θ̂, θ*, start)``,
+the study's own metric; computed once per distinct θ̂, which changes only after corrections). If
+that regret is at most ``satisfied_regret`` it is satisfied and does not push. Otherwise it asks
+its model for a correction u from the cup's current pose. If |u| is at least ``min_correction``
+of a_max on some axis, the pose x + u becomes its target and it pushes: the force (and, for 6-D
+Tasks, the torque) points from the cup's pose to the target, ramps up over ``ramp`` seconds,
+holds, tapers when within a few centimetres, and is released (ramped down) when the target is
+reached (``tol``, ``ang_tol``) or after ``max_push`` seconds (tired). It then rests ``rest``
+seconds before deciding again.
+
+Its only randomness is its model's, drawn from the generator it is given: a pure function of its
+seed. The env reads it through ``wrench`` once per control step, exactly as it reads a scripted
+wrench or a person's push through the viewer (one interface, see docs/study.md).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from strol_gym.humans import HumanFactory, make_human
+from strol_gym.tasks.study import StudyTask, rpy_to_mat, wrap_angle
+
+SATISFIED_REGRET = 1.0
+"""Default ``satisfied_regret``: the user stops pushing once the regret of the robot's plan (from
+home, under its θ*) is at most this (calibrated on seeds 900-919, docs/study.md)."""
+
+
+def rotation_error(r_target: np.ndarray, r_now: np.ndarray) -> np.ndarray:
+    """The rotation vector (world frame, rad) taking ``r_now`` to ``r_target`` (3x3 matrices).
+
+    Plain floats after the one product (``dot``: half the call cost of ``@``): the env calls it
+    every step (setpoint velocity) and the user every step of a push, and numpy's per-call cost
+    dominates on 3x3 matrices.
+    """
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r_target.dot(r_now.T).tolist()
+    angle = math.acos(min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0))))
+    ax, ay, az = r21 - r12, r02 - r20, r10 - r01
+    s = math.sqrt(ax * ax + ay * ay + az * az)
+    if s < 1e-9:
+        return np.zeros(3)
+    return np.array((ax / s * angle, ay / s * angle, az / s * angle))
+
+
+class SimulatedUser:
+    """A seeded study participant (see the module docstring). ``theta_star`` is its preference."""
+
+    taper: float = 0.03
+    """m from its target where the push's force starts to fall (linearly, to 0 at the target)."""
+    ang_taper: float = 0.1
+    """rad from its target orientation where the torque starts to fall."""
+
+    def __init__(
+        self,
+        task: StudyTask,
+        theta_star: np.ndarray,
+        rng: np.random.Generator,
+        *,
+        model: str | HumanFactory = "nominal",
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        beta: float = 50.0,
+        human_kwargs: dict[str, Any] | None = None,
+        push_force: float = 40.0,
+        push_torque: float = 6.0,
+        ramp: float = 0.2,
+        max_push: float = 2.0,
+        decide_every: float = 0.5,
+        rest: float = 1.5,
+        min_correction: float = 0.3,
+        tol: float = 0.015,
+        ang_tol: float = 0.05,
+        satisfied_regret: float = SATISFIED_REGRET,
+    ) -> None:
+        params = {
+            "push_force": push_force,
+            "push_torque": push_torque,
+            "ramp": ramp,
+            "max_push": max_push,
+            "decide_every": decide_every,
+            "rest": rest,
+            "min_correction": min_correction,
+            "tol": tol,
+            "ang_tol": ang_tol,
+        }
+        for name, value in params.items():
+            value = float(value)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"user_kwargs[{name!r}] must be a finite number > 0, got {value}")
+            setattr(self, name, value)
+        value = float(satisfied_regret)
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(
+                f"user_kwargs['satisfied_regret'] must be a finite number >= 0, got {value}"
+            )
+        self.satisfied_regret = value
+        self._regrets: dict[bytes, float] = {}
+        self.task = task
+        self.model = make_human(
+            model, task, theta_star, rng, sigma=sigma, bias=bias, beta=beta, **(human_kwargs or {})
+        )
+        self.phase = "idle"
+        self.target: np.ndarray | None = None
+        self._t_next = 0.0
+        self._t0 = 0.0
+        self._level = 0.0
+
+    @property
+    def theta_star(self) -> np.ndarray:
+        return np.asarray(self.model.theta_star, dtype=np.float64)
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray) -> np.ndarray:
+        """The correction its model wants (the ``Human`` interface)."""
+        return self.model.act(x, u_r, theta_hat)
+
+    def regret(self, theta_hat: np.ndarray) -> float:
+        """The regret under θ* of the robot's plan for ``theta_hat`` from home (cached)."""
+        theta_hat = np.asarray(theta_hat, dtype=np.float64)
+        key = theta_hat.tobytes()
+        if key not in self._regrets:
+            r = self.task.regret(theta_hat, self.theta_star, self.task.start)
+            self._regrets[key] = float(np.asarray(r).reshape(-1)[0])
+        return self._regrets[key]
+
+    def satisfied(self, theta_hat: np.ndarray) -> bool:
+        """Whether the robot's current plan is good enough: regret <= ``satisfied_regret``."""
+        return self.regret(theta_hat) <= self.satisfied_regret
+
+    def _released(self, t: float, x: np.ndarray) -> None:
+        """Called when a push has been let go (a hook for participants that keep count)."""
+
+    def _decide(self, t: float, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray | None:
+        """While idle: the pose to push the cup to now, or None (judged every
+        ``decide_every`` s: unsatisfied by the plan's regret, and a large enough correction)."""
+        if t + 1e-9 < self._t_next:
+            return None
+        self._t_next = t + self.decide_every
+        if self.satisfied(theta_hat):
+            return None
+        u = np.asarray(self.act(x, np.zeros(self.task.action_dim), theta_hat))
+        if np.max(np.abs(u) / self.task.action_bound) < self.min_correction:
+            return None
+        return self.task.dynamics(x, u, np.zeros_like(u))
+
+    def _error(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(position error (3,), rotation error (3,)) from the cup's pose to the target."""
+        assert self.target is not None
+        dp = self.target[:3] - x[:3]
+        if not self.task.oriented:
+            return dp, np.zeros(3)
+        return dp, rotation_error(rpy_to_mat(self.target[3:]), rpy_to_mat(x[3:]))
+
+    def wrench(
+        self, t: float, x: np.ndarray, theta_hat: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(force N, torque N m) on the hand at time ``t`` (s), the cup at pose ``x``."""
+        zero = np.zeros(3)
+        if self.phase == "idle":
+            target = self._decide(t, x, theta_hat)
+            if target is None:
+                return zero, zero
+            self.target = target
+            self.phase, self._t0 = "push", t
+        if self.target is None:
+            return zero, zero
+        dp, dr = self._error(x)
+        if self.phase == "push":
+            done = np.linalg.norm(dp) < self.tol and np.linalg.norm(dr) < self.ang_tol
+            if done or t - self._t0 >= self.max_push:
+                self.phase, self._t0 = "release", t
+            else:
+                self._level = min(1.0, (t - self._t0 + 1e-9) / self.ramp)
+        level = self._level
+        if self.phase == "release":
+            level = self._level * max(0.0, 1.0 - (t - self._t0) / self.ramp)
+            if level <= 0.0:
+                self.phase, self._t_next, self.target = "idle", t + self.rest, None
+                self._released(t, x)
+                return zero, zero
+        n_p, n_r = np.linalg.norm(dp), np.linalg.norm(dr)
+        force = dp / max(n_p, 1e-9) * self.push_force * min(1.0, n_p / self.taper)
+        torque = dr / max(n_r, 1e-9) * self.push_torque * min(1.0, n_r / self.ang_taper)
+        if not self.task.oriented:
+            torque = zero
+        return level * force, level * torque
+
+
+def angle_delta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a − b for poses: positions subtract, angles wrap to [−π, π)."""
+    d = np.asarray(a, dtype=np.float64) - b
+    if d.shape[-1] > 3:
+        d[..., 3:] = wrap_angle(d[..., 3:])
+    return d
