@@ -7,6 +7,7 @@ import importlib
 import sys
 import warnings
 
+import numpy as np
 import pytest
 from gymnasium.envs.registration import load_env_creator
 
@@ -70,3 +71,18 @@ def test_unknown_name_of_an_env_package_is_an_attribute_error():
 
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         robot.nope  # noqa: B018
+
+
+def test_an_env_with_the_old_one_start_hook_still_draws_its_starts():
+    from strol_gym.envs.robot import RobotEnv
+
+    with pytest.warns(DeprecationWarning, match="draw_starts"):
+
+        class OldHookEnv(RobotEnv):
+            def _draw_start(self, rng):
+                return np.array([0.4, 0.0, 0.3]) + 0.0 * rng.random(), rng
+
+    env = OldHookEnv(human=None)
+    obs, _ = env.reset(seed=0)
+    np.testing.assert_allclose(obs["state"], [0.4, 0.0, 0.3], atol=2e-3)
+    env.close()

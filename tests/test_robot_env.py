@@ -73,7 +73,7 @@ def test_state_is_the_real_end_effector():
     env = make()
     env.reset(seed=0)
     obs, *_ = env.step(np.array([0.4, -0.3, 0.2]))
-    site = env.data.site_xpos[env._ik.site] - np.array([0.0, 0.0, 0.75])
+    site = env.data.site_xpos[env.ik.site] - np.array([0.0, 0.0, 0.75])
     np.testing.assert_allclose(obs["state"], site, atol=1e-6)
     np.testing.assert_allclose(obs["phi"], env.task.features(site), atol=1e-5)
 

@@ -1,4 +1,6 @@
-"""What every strol-gym env shares: the corrective human, θ̂, arguments, observation and info.
+"""The env contract: what every strol-gym env shares (the corrective human, θ̂, actions, the
+correction window, observation and info), batch-first, for the single env (one row) and the
+vector env (N rows, ``strol_gym.envs.vector``).
 
 Every env is a Task plus a simulator (MuJoCo arm, highway-env cars, ...). :class:`CorrectionEnv`
 holds the part that is the same whatever simulates the Task, so the envs agree on the contract
@@ -22,8 +24,11 @@ supplies hooks around its simulator:
 
 - ``_setup()``: build the simulator and the spaces (the shared arguments are checked by then);
 - ``_make_task(task)``: the ``task`` argument as a Task (default: a name or Task of ``task_cls``);
-- ``_draw_theta_star(rng)``: θ* (default: from the prior);
-- ``_draw_start(rng)``: the start state x0 and the human's generator, drawn after θ*;
+- ``draw_theta_stars(rngs)``: θ* per generator, (n, d) (default: from the prior);
+- ``draw_starts(rngs)``: the start states (n, state_dim) and the humans' generators, each
+  drawn from its generator after θ* (default: ``task.sample_starts``, the human drawing from
+  the episode's generator);
+- ``start_override(x0)``: a start given as ``reset(options={"state": ...})``, made admissible;
 - ``_place_start(x0)``: put the simulator at x0 and return its state;
 - ``_advance(u_h, u_r)``: one step; returns the new state and the env's own info keys;
 - ``_start_info()`` and ``_terminated()``: the env's own info at reset, and whether the episode
@@ -31,6 +36,11 @@ supplies hooks around its simulator:
 - ``_transition(u_r)``: the whole step between the robot's action and the reward, for an env
   whose corrections come out of its physics (the study env, where a person pushes) rather than
   from the human's ``act`` (default: ``_human_correction`` then ``_advance``).
+
+The draw hooks and ``start_override`` are public and batch-first: the single env calls them
+with one generator, the vector env (``VectorCorrectionEnv``) with one per sub-env, and both
+build observation and info with the functions below (:func:`observation`, :func:`contract_info`,
+:func:`robot_actions`, :func:`correcting`), so a sub-env of the vector env is the single env.
 
 An env with more arguments than the shared ones takes them in its own ``__init__``, stores
 them and passes the rest on to ``CorrectionEnv.__init__``.
@@ -41,6 +51,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import warnings
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -49,7 +60,7 @@ from gymnasium import spaces
 
 from strol_gym.humans import Human, HumanFactory, needs_theta_hat
 from strol_gym.humans.spec import HumanSpec
-from strol_gym.priors import Prior, make_prior
+from strol_gym.priors import Prior, make_prior, sample_each
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
 
@@ -72,6 +83,52 @@ def vector_arg(name: str, value: Any, n: int) -> np.ndarray:
     if v.shape != (n,) or not np.isfinite(v).all():
         raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
     return v.copy()
+
+
+def robot_actions(actions: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Actions in [−1, 1] (one row or N) as u_R in task units: out of range clips."""
+    return np.minimum(np.maximum(actions, -1.0), 1.0) * scale
+
+
+def correcting(steps: Any, n_corrections: int) -> Any:
+    """The correction window: the human corrects during the first ``n_corrections`` steps of
+    an episode (``steps`` an int, or an array of N sub-envs' counts)."""
+    return steps < n_corrections
+
+
+def observation(
+    x: np.ndarray, u_h: np.ndarray, theta_hat: np.ndarray, phi: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The contract's observation of one state (1-D arrays) or N (2-D), as float32 copies."""
+    return {
+        "state": x.astype(np.float32),
+        "correction": np.asarray(u_h, dtype=np.float32),
+        "theta_hat": theta_hat.astype(np.float32),
+        "phi": np.asarray(phi, dtype=np.float32),
+    }
+
+
+def contract_info(
+    features: Any,
+    phi: np.ndarray,
+    u_h: np.ndarray,
+    u_r: np.ndarray,
+    theta_star: np.ndarray,
+    theta_hat: np.ndarray,
+    is_correction: Any,
+) -> dict[str, Any]:
+    """The info keys every env provides, in their order, for one row or N: ``features`` (φ by
+    feature name), φ, u_H, u_R, the human's current θ*, θ̂ and whether the step corrected.
+    Values as given: the single env passes copies, the vector env arrays over its sub-envs."""
+    return {
+        "features": features,
+        "phi": phi,
+        "correction": u_h,
+        "robot_action": u_r,
+        "theta_star": theta_star,
+        "theta_hat": theta_hat,
+        "is_correction": is_correction,
+    }
 
 
 class RenderModes(list):
@@ -103,6 +160,25 @@ class CorrectionEnv:
     """``n_corrections`` when not given."""
     default_size: ClassVar[tuple[int, int]] = (480, 360)
     """Frame ``width`` and ``height`` (pixels) when not given."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "_draw_start" in vars(cls) and "draw_starts" not in vars(cls):
+            # An env written before 0.2 drew one start (``_draw_start(rng)``); until 0.3 its
+            # hook serves as the batch-first one, row by row.
+            warnings.warn(
+                f"{cls.__name__}._draw_start(rng) is deprecated; define draw_starts(rngs) "
+                "(strol_gym.envs.contract)",
+                DeprecationWarning,
+                stacklevel=2,
+            )
+            one = cls._draw_start
+
+            def draw_starts(self, rngs, human_rngs=True):  # type: ignore[no-untyped-def]
+                draws = [one(self, rng) for rng in rngs]
+                return np.stack([x for x, _ in draws]), [h for _, h in draws]
+
+            cls.draw_starts = draw_starts  # type: ignore[method-assign]
 
     def __init__(
         self,
@@ -148,16 +224,21 @@ class CorrectionEnv:
         """Build the simulator and set ``observation_space`` and ``action_space``."""
         raise NotImplementedError
 
-    def _draw_theta_star(self, rng: np.random.Generator) -> np.ndarray:
-        """The episode's θ*, the first draw from its ``rng`` (default: from the prior)."""
-        return self.task.prior.sample(rng, 1)[0]
+    def draw_theta_stars(self, rngs: list[np.random.Generator]) -> np.ndarray:
+        """Each episode's θ*, (len(rngs), d): the first draw from its generator (default: from
+        the prior)."""
+        return sample_each(self.task.prior, rngs)
 
-    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
-        """x0 and the human's generator, drawn from the episode's ``rng`` after θ* (default:
-        ``task.sample_start``; the human draws from ``rng`` itself)."""
-        return self.task.sample_start(rng, 1)[0], rng
+    def draw_starts(
+        self, rngs: list[np.random.Generator], human_rngs: bool = True
+    ) -> tuple[np.ndarray, list[Any]]:
+        """Start states (len(rngs), state_dim) and the humans' generators, each drawn from its
+        episode's generator after θ* (default: ``task.sample_starts``; the human draws from the
+        episode's generator itself). ``human_rngs=False``: no human will act, an env may skip
+        building their generators."""
+        return self.task.sample_starts(rngs), list(rngs)
 
-    def _start_override(self, x0: np.ndarray) -> np.ndarray:
+    def start_override(self, x0: np.ndarray) -> np.ndarray:
         """A start state given as ``reset(options={"state": ...})``, made admissible."""
         return x0
 
@@ -180,14 +261,15 @@ class CorrectionEnv:
     # ------------------------------------------------------------------ the template
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]
-        theta_override, x_override = self._reset_overrides(options)
-        rng = self.np_random  # type: ignore[attr-defined]
-        theta_star = self._draw_theta_star(rng)
-        x0, human_rng = self._draw_start(rng)
+        theta_override, x_override = self.reset_overrides(options)
+        rngs = [self.np_random]  # type: ignore[attr-defined]
+        theta_star = self.draw_theta_stars(rngs)[0]
+        x0s, human_rngs = self.draw_starts(rngs)
+        x0, human_rng = x0s[0], human_rngs[0]
         if theta_override is not None:
             theta_star = theta_override
         if x_override is not None:
-            x0 = self._start_override(x_override)
+            x0 = self.start_override(x_override)
         self._start_episode(theta_star, human_rng)
         self._x = self._place_start(x0)
         zeros = np.zeros(self.task.action_dim)
@@ -259,10 +341,11 @@ class CorrectionEnv:
         modes = self.metadata["render_modes"]
         if render_mode is not None and render_mode not in modes:
             raise ValueError(f"render_mode must be None or one of {modes}, got {render_mode!r}")
-        self._u_scale = np.asarray(self.task.robot_action_bound, dtype=np.float64)
-        self._u_scale_l = self._u_scale.tolist()
+        self.action_scale = np.asarray(self.task.robot_action_bound, dtype=np.float64)
+        """u_R per unit of action (the Task's per-axis bound): u_R = clip(action, −1, 1) · this."""
+        self._u_scale_l = self.action_scale.tolist()
         self._a_shape = (self.task.action_dim,)
-        self.theta_hat = self._default_theta_hat()
+        self.theta_hat = self.initial_theta_hat()
         self.theta_star = self.task.prior.mean.copy()
         self.human = None
         self._started = False
@@ -319,7 +402,8 @@ class CorrectionEnv:
     def theta_star(self, value: np.ndarray) -> None:
         self._theta_star = np.asarray(value, dtype=np.float64)
 
-    def _default_theta_hat(self) -> np.ndarray:
+    def initial_theta_hat(self) -> np.ndarray:
+        """θ̂0, an episode's first estimate: the mean of the Task's prior modes."""
         return np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
 
     def set_theta_hat(self, theta_hat: np.ndarray) -> None:
@@ -342,12 +426,12 @@ class CorrectionEnv:
         """A new episode's θ*, θ̂0 and human (``reset`` calls it after drawing θ*)."""
         self.human = None
         self.theta_star = theta_star
-        self.theta_hat = self._default_theta_hat()
+        self.theta_hat = self.initial_theta_hat()
         self.human = self._make_human(theta_star, human_rng)
         self._started = True
         self.steps = 0
 
-    def _reset_overrides(self, options: dict | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+    def reset_overrides(self, options: dict | None) -> tuple[np.ndarray | None, np.ndarray | None]:
         """``reset(options={"theta_star": ..., "state": ...})``: checked overrides or None."""
         options = dict(options or {})
         bad = set(options) - set(RESET_OPTIONS)
@@ -389,15 +473,13 @@ class CorrectionEnv:
         values = a.tolist()
         if not all(map(math.isfinite, values)):
             raise ValueError(f"action must be finite, got {action}")
-        if min(values) < -1.0 or max(values) > 1.0:
-            a = np.minimum(np.maximum(a, -1.0), 1.0)
-        return a * self._u_scale
+        return robot_actions(a, self.action_scale)
 
     def _human_correction(self, x: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, bool]:
         """(u_H, is_correction): the human's correction during the first ``n_corrections``
         steps, checked to be ``action_dim`` finite numbers; zeros afterwards. θ̂ goes only to a
         human who declares it needs it."""
-        if self.human is None or self.steps >= self.n_corrections:
+        if self.human is None or not correcting(self.steps, self.n_corrections):
             return np.zeros(self.task.action_dim), False
         theta_hat = self.theta_hat if needs_theta_hat(self.human) else None
         u_h = np.asarray(self.human.act(x, u_r, theta_hat), dtype=np.float64)
@@ -412,23 +494,18 @@ class CorrectionEnv:
         return self.max_episode_steps is not None and self.steps >= self.max_episode_steps
 
     def _obs(self, u_h: np.ndarray, phi: np.ndarray) -> dict[str, np.ndarray]:
-        return {
-            "state": self._x.astype(np.float32),
-            "correction": np.asarray(u_h, dtype=np.float32),
-            "theta_hat": self.theta_hat.astype(np.float32),
-            "phi": np.asarray(phi, dtype=np.float32),
-        }
+        return observation(self._x, u_h, self.theta_hat, phi)
 
     def _info(
         self, phi: np.ndarray, u_h: np.ndarray, u_r: np.ndarray, is_correction: bool
     ) -> dict[str, Any]:
         """The info keys every strol-gym env provides; envs add their own on top."""
-        return {
-            "features": dict(zip(self.task.feature_names, phi.tolist(), strict=True)),
-            "phi": phi,
-            "correction": np.array(u_h, dtype=np.float64),
-            "robot_action": np.array(u_r, dtype=np.float64),
-            "theta_star": self.theta_star.copy(),
-            "theta_hat": self.theta_hat.copy(),
-            "is_correction": bool(is_correction),
-        }
+        return contract_info(
+            dict(zip(self.task.feature_names, phi.tolist(), strict=True)),
+            phi,
+            np.array(u_h, dtype=np.float64),
+            np.array(u_r, dtype=np.float64),
+            self.theta_star.copy(),
+            self.theta_hat.copy(),
+            bool(is_correction),
+        )

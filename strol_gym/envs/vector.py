@@ -10,9 +10,12 @@ the human's choice, the dynamics, φ and the bookkeeping run on arrays of all su
 Conventions are gymnasium's ``SyncVectorEnv`` ones: ``reset(seed=s)`` seeds sub-env i with
 s + i; autoreset is ``NEXT_STEP`` (the step after an episode ends resets that sub-env and returns
 its first observation with reward 0); info is a dict of arrays, each with its ``_key`` mask, and
-the ``features`` dict nested the same way. The draws of a reset are the single env's own hooks
-(``_draw_start``, ``_start_override``), called per sub-env; a subclass supplies the batched
-simulator: placing sub-envs at their start states, and one step.
+the ``features`` dict nested the same way. The contract is the single env's
+(``strol_gym.envs.contract``): the draws of a reset are its public batch-first hooks
+(``draw_theta_stars``, ``draw_starts``, ``start_override``) called with one generator per
+sub-env, and actions, the correction window, observation and info are built by the same
+functions; a subclass supplies the batched simulator: placing sub-envs at their start states,
+and one step.
 """
 
 from __future__ import annotations
@@ -24,9 +27,15 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from strol_gym.envs.contract import CorrectionEnv, int_arg
+from strol_gym.envs.contract import (
+    CorrectionEnv,
+    contract_info,
+    correcting,
+    int_arg,
+    observation,
+    robot_actions,
+)
 from strol_gym.humans.population import batched_corrections
-from strol_gym.priors import sample_each
 
 
 class VectorCorrectionEnv(VectorEnv):
@@ -65,11 +74,11 @@ class VectorCorrectionEnv(VectorEnv):
         # as in the single env.
         self._make_human = self.template.human_spec.maker(t)
         self.n_corrections = self.template.n_corrections if self._make_human is not None else 0
-        self._u_scale = self.template._u_scale
+        self.action_scale = self.template.action_scale
         self._rngs: list[np.random.Generator | None] = [None] * n
         self.humans: list[Any] = [None] * n
         self.theta_star = np.tile(self.template.theta_star, (n, 1))
-        self.theta_hat = np.tile(self.template._default_theta_hat(), (n, 1))
+        self.theta_hat = np.tile(self.template.initial_theta_hat(), (n, 1))
         self.steps = np.zeros(n, dtype=np.int64)
         self._x = np.zeros((n, t.state_dim))
         self._started = np.zeros(n, dtype=bool)
@@ -121,7 +130,7 @@ class VectorCorrectionEnv(VectorEnv):
             if mask.shape != (n,) or mask.dtype != np.bool_ or not mask.any():
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},)")
             rows = np.flatnonzero(mask)
-        overrides = self.template._reset_overrides(options)
+        overrides = self.template.reset_overrides(options)
         for i in rows:
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i], _ = seeding.np_random(seeds[i])
@@ -148,34 +157,21 @@ class VectorCorrectionEnv(VectorEnv):
         # The single env's own draws, in its order per sub-env: θ*, then its start and human
         # generator (each sub-env has its own generator, so all θ* first is the same order).
         rngs = [self._rngs[i] for i in rows]
-        theta = sample_each(self.task.prior, rngs)
-        x0, human_rngs = self._draw_starts(rngs)
+        theta = t.draw_theta_stars(rngs)
+        x0, human_rngs = t.draw_starts(rngs, human_rngs=bool(self.n_corrections))
         if theta_override is not None:
             theta[:] = theta_override
         if x_override is not None:
-            x0[:] = t._start_override(x_override)
+            x0[:] = t.start_override(x_override)
         self.theta_star[rows] = theta
         # A human that never acts draws nothing: with n_corrections = 0 it is not built.
         if self.n_corrections:
             for k, i in enumerate(rows):
                 self.humans[i] = self._make_human(theta[k], human_rngs[k])
-        self.theta_hat[rows] = t._default_theta_hat()
+        self.theta_hat[rows] = t.initial_theta_hat()
         self.steps[rows] = 0
         self._started[rows] = True
         self._x[rows], self._reset_extra = self._place_rows(rows, x0)
-
-    def _draw_starts(self, rngs: list[np.random.Generator]) -> tuple[np.ndarray, list[Any]]:
-        """Start states (n, state_dim) and the humans' generators: the single env's batched
-        ``_draw_starts`` if it has one, else its ``_draw_start`` per generator."""
-        t = self.template
-        batched = getattr(t, "_draw_starts", None)
-        if batched is not None:
-            return batched(rngs, human_rngs=bool(self.n_corrections))
-        draws = [t._draw_start(rng) for rng in rngs]
-        x0 = np.empty((len(rngs), self.task.state_dim))
-        for k, (x, _) in enumerate(draws):
-            x0[k] = x
-        return x0, [h for _, h in draws]
 
     def step(self, actions: Any) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, dict]:
         n, t = self.num_envs, self.task
@@ -198,9 +194,9 @@ class VectorCorrectionEnv(VectorEnv):
             raise ValueError(f"actions must be finite, got {actions[bad[0]]} in row {bad[0]}")
         u_r = np.zeros((n, t.action_dim))
         u_h = np.zeros((n, t.action_dim))
-        u_r[rows] = np.minimum(np.maximum(a, -1.0), 1.0) * self._u_scale
+        u_r[rows] = robot_actions(a, self.action_scale)
         corr = np.zeros(n, dtype=bool)
-        corr[rows] = self.steps[rows] < self.n_corrections
+        corr[rows] = correcting(self.steps[rows], self.n_corrections)
         act = np.flatnonzero(corr)
         if len(act):
             humans = [self.humans[i] for i in act]
@@ -254,12 +250,7 @@ class VectorCorrectionEnv(VectorEnv):
         x = self._x[rows]
         if phi is None:
             phi = self.task.features(x)
-        return {
-            "state": x.astype(np.float32),
-            "correction": u_h.astype(np.float32),
-            "theta_hat": self.theta_hat[rows].astype(np.float32),
-            "phi": phi.astype(np.float32),
-        }
+        return observation(x, u_h, self.theta_hat[rows], phi)
 
     def _infos(
         self,
@@ -290,16 +281,16 @@ class VectorCorrectionEnv(VectorEnv):
         features: dict[str, Any] = {}
         for j, name in enumerate(self.task.feature_names):
             features[name], features[f"_{name}"] = full(phi[:, j]), mask.copy()
-        values = {
-            "features": features,
-            "phi": full(phi),
-            "correction": full(u_h),
-            "robot_action": full(u_r),
-            "theta_star": full(self.theta_star[rows]),
-            "theta_hat": full(self.theta_hat[rows]),
-            "is_correction": full(is_correction),
-            **{key: full(value) for key, value in extra.items()},
-        }
+        values = contract_info(
+            features,
+            full(phi),
+            full(u_h),
+            full(u_r),
+            full(self.theta_star[rows]),
+            full(self.theta_hat[rows]),
+            full(is_correction),
+        )
+        values.update((key, full(value)) for key, value in extra.items())
         for key, value in values.items():
             info[key], info[f"_{key}"] = value, mask.copy()
         return info

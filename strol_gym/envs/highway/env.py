@@ -188,16 +188,12 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         self.action_type = None
 
     # ------------------------------------------------------------------ the template's hooks
-    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
-        x0, human_rngs = self._draw_starts([rng])
-        return x0[0], human_rngs[0]
-
-    def _draw_starts(
+    def draw_starts(
         self, rngs: list[np.random.Generator], human_rngs: bool = True
     ) -> tuple[np.ndarray, list[Any]]:
         """Per generator, the start and then the seed of the human's own generator (None
         instead of the generator unless ``human_rngs``: a vector env whose humans never act
-        skips building them); for many generators at once, a vector env's resets."""
+        skips building them)."""
         x0 = self.task.sample_episode_starts(rngs)
         seeds = [int(rng.integers(0, 2**63 - 1)) for rng in rngs]
         return x0, [np.random.default_rng(s) if human_rngs else None for s in seeds]

@@ -29,7 +29,7 @@ class VectorRobotEnv(VectorCorrectionEnv):
     def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
         super().__init__(num_envs, **kwargs)
         self.template: RobotEnv
-        self.ik = BatchedPandaIK(self.template._ik, self.num_envs)
+        self.ik = BatchedPandaIK(self.template.ik, self.num_envs)
         self._x[:] = self.ik.ee
 
     def _place_rows(self, rows: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, dict]:

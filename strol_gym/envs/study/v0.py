@@ -427,16 +427,22 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         """The simulated person who pushes (v0: ``SimulatedUser``, the regret-judging user)."""
         return SimulatedUser(self.task, theta_star, rng, **self._user_params())
 
-    def _draw_theta_star(self, rng: np.random.Generator) -> np.ndarray:
+    def draw_theta_stars(self, rngs: list[np.random.Generator]) -> np.ndarray:
         """The Task's θ* (the study's participant wants one thing); no draw."""
-        return self.task.theta_star
+        return np.tile(self.task.theta_star, (len(rngs), 1))
 
-    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
-        """The arm starts at home; θ̂0 ~ U[−1, 1]^d, then the user's generator."""
-        self._theta_hat0 = rng.uniform(-1.0, 1.0, size=self.task.dim)
-        return self.task.start, np.random.default_rng(int(rng.integers(2**63)))
+    def draw_starts(
+        self, rngs: list[np.random.Generator], human_rngs: bool = True
+    ) -> tuple[np.ndarray, list[np.random.Generator]]:
+        """The arm starts at home; θ̂0 ~ U[−1, 1]^d, then the user's generator. One episode at
+        a time (the study has no vector env): θ̂0 is the last generator's."""
+        users = []
+        for rng in rngs:
+            self._theta_hat0 = rng.uniform(-1.0, 1.0, size=self.task.dim)
+            users.append(np.random.default_rng(int(rng.integers(2**63))))
+        return np.tile(self.task.start, (len(rngs), 1)), users
 
-    def _start_override(self, x0: np.ndarray) -> np.ndarray:
+    def start_override(self, x0: np.ndarray) -> np.ndarray:
         raise ValueError("reset option 'state' is not supported: the study starts at home")
 
     def _place_start(self, x0: np.ndarray) -> np.ndarray:
