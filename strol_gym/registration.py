@@ -14,11 +14,11 @@ ENV_SPECS: dict[str, dict] = {
     # The study env truncates itself after 60 s of simulated time (1200 steps of 0.05 s).
     # v0 is kept for the published results; gymnasium warns on make that v1 supersedes it.
     "StROL-Study-v0": {
-        "entry_point": "strol_gym.envs.study.v0:StudyEnv",
+        "entry_point": "strol_gym.envs.study.env:StudyEnv",
         "max_episode_steps": 1200,
     },
     "StROL-Study-v1": {
-        "entry_point": "strol_gym.envs.study.v1:StudyEnvV1",
+        "entry_point": "strol_gym.envs.study.env:StudyEnvV1",
         "max_episode_steps": 1200,
     },
     "StROL-Highway-v0": {

@@ -12,7 +12,7 @@ import pytest
 from gymnasium.envs.registration import load_env_creator
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.moved import MOVED
+from strol_gym.envs.moved import MOVED, SPLIT
 
 OLD_ENTRY_POINTS = {
     # what gymnasium registrations and Minari dataset headers written before 0.2 name
@@ -22,8 +22,8 @@ OLD_ENTRY_POINTS = {
     "strol_gym.envs.vector_highway:VectorHighwayEnv": (
         "strol_gym.envs.highway.vector:VectorHighwayEnv"
     ),
-    "strol_gym.envs.study:StudyEnv": "strol_gym.envs.study.v0:StudyEnv",
-    "strol_gym.envs.study_v1:StudyEnvV1": "strol_gym.envs.study.v1:StudyEnvV1",
+    "strol_gym.envs.study:StudyEnv": "strol_gym.envs.study.env:StudyEnv",
+    "strol_gym.envs.study_v1:StudyEnvV1": "strol_gym.envs.study.env:StudyEnvV1",
 }
 
 
@@ -34,6 +34,12 @@ def test_old_module_path_warns_and_is_the_new_module(old):
     with pytest.warns(DeprecationWarning, match=MOVED[old].replace(".", r"\.")):
         module = importlib.import_module(old)
     assert module is new
+
+
+def test_a_split_module_warns_on_import():
+    sys.modules.pop("strol_gym.envs.study_v1", None)
+    with pytest.warns(DeprecationWarning, match="strol_gym.envs.study_v1 was split"):
+        importlib.import_module("strol_gym.envs.study_v1")
 
 
 @pytest.mark.parametrize("old", sorted(OLD_ENTRY_POINTS))
@@ -47,13 +53,17 @@ def test_old_entry_points_resolve_to_the_same_class(old):
 @pytest.mark.parametrize(
     ("package", "name", "home"),
     [
-        ("strol_gym.envs.study", "HOLD", "strol_gym.envs.study.v0"),
-        ("strol_gym.envs.study", "Velocity", "strol_gym.envs.study.v0"),
+        ("strol_gym.envs.study", "HOLD", "strol_gym.envs.study.controller"),
+        ("strol_gym.envs.study", "TORQUE_LEVER", "strol_gym.envs.study.env"),
+        *(("strol_gym.envs.study_v1", n, h) for n, h in SPLIT["strol_gym.envs.study_v1"].items()),
     ],
 )
-def test_names_of_a_module_that_became_a_package_warn(package, name, home):
+def test_names_of_a_module_that_was_split_warn(package, name, home):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # the module's own, on import
+        module = importlib.import_module(package)
     with pytest.warns(DeprecationWarning, match=f"{home}.{name}"):
-        value = getattr(importlib.import_module(package), name)
+        value = getattr(module, name)
     assert value is getattr(importlib.import_module(home), name)
 
 

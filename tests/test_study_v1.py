@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.envs.study.controller import VELOCITY_LIMIT
+from strol_gym.envs.study.env import StudyEnvV1
 from strol_gym.envs.study.user import rotation_error
-from strol_gym.envs.study.v1 import VELOCITY_LIMIT, StudyEnvV1
 from strol_gym.tasks.study import rpy_to_mat
 
 ENV_ID = "StROL-Study-v1"
@@ -100,7 +101,7 @@ def test_the_reachable_box_makes_the_hold_target_hold_on_most_seeds():
 
 @pytest.mark.parametrize("task", [1, 2])
 def test_executed_plans_stay_in_the_reachable_box_at_the_planners_pace(task):
-    from strol_gym.envs.study.v1 import REACH_ANGLE, REACH_RADIUS, SHOULDER, within_reach
+    from strol_gym.envs.study.geometry import REACH_ANGLE, REACH_RADIUS, SHOULDER, within_reach
     from strol_gym.tasks import make_task
 
     t = make_task(f"study-task{task}")

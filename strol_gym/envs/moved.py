@@ -19,14 +19,32 @@ MOVED: dict[str, str] = {
     "strol_gym.envs.robot_seeds": "strol_gym.envs.robot.seeds",
     "strol_gym.envs.vector_robot": "strol_gym.envs.robot.vector",
     "strol_gym.envs.vector_highway": "strol_gym.envs.highway.vector",
-    "strol_gym.envs.study_v1": "strol_gym.envs.study.v1",
     "strol_gym.envs.study_participant": "strol_gym.envs.study.participant",
     "strol_gym.envs.study_user": "strol_gym.envs.study.user",
     "strol_gym.envs.study_scene": "strol_gym.envs.study.scene",
     "strol_gym.benchmarks.engine.study_authors": "strol_gym.envs.study.metrics",
 }
 """Old module → new module. (``strol_gym.envs.panda``, ``.robot``, ``.highway`` and ``.study``
-are now packages under the same names; their moved names are in ``MOVED_NAMES``.)"""
+are now packages under the same names; ``strol_gym.envs.study`` resolves the old module's
+other names itself, with a warning.)"""
+_CONTROLLER = "strol_gym.envs.study.controller"
+_GEOMETRY = "strol_gym.envs.study.geometry"
+SPLIT: dict[str, dict[str, str]] = {
+    "strol_gym.envs.study_v1": {
+        "StudyEnvV1": "strol_gym.envs.study.env",
+        **dict.fromkeys(("PARTICIPANTS", "REST_TRUST"), "strol_gym.envs.study.versions"),
+        **dict.fromkeys(
+            ("VELOCITY_LIMIT", "TORQUE_LIMIT", "K_INTEGRAL", "INTEGRAL_MAX", "K_NULL", "D_NULL"),
+            _CONTROLLER,
+        ),
+        **dict.fromkeys(("MODEL_EVERY", "LAMBDA_REG"), _CONTROLLER),
+        **dict.fromkeys(
+            ("REACH_LOW", "REACH_HIGH", "REACH_ANGLE", "SHOULDER", "REACH_RADIUS"), _GEOMETRY
+        ),
+        **dict.fromkeys(("PITCHER_CLEAR", "within_reach"), _GEOMETRY),
+    },
+}
+"""Old module → {name: its new module}, for a module whose names went to several places."""
 
 
 def alias(old: str) -> ModuleType:
@@ -40,6 +58,17 @@ def alias(old: str) -> ModuleType:
     module = importlib.import_module(new)
     sys.modules[old] = module
     return module
+
+
+def warn_split(old: str) -> object:
+    """The ``__getattr__`` of an old module split across new ones (``SPLIT``): warns on import,
+    then each name resolves (with a warning) from its new module."""
+    warnings.warn(
+        f"{old} was split (see strol_gym.envs.moved.SPLIT); the old path works until 0.3",
+        DeprecationWarning,
+        stacklevel=3,
+    )
+    return exports(old, {}, SPLIT[old])
 
 
 def moved_name(package: str, names: dict[str, str], name: str) -> object:

@@ -1,5 +1,6 @@
-"""Deprecated: moved (see strol_gym.envs.moved.MOVED); this path works until 0.3."""
+"""Deprecated: split into strol_gym.envs.study (env, versions, controller, geometry); this
+path works until 0.3."""
 
-from strol_gym.envs.moved import alias
+from strol_gym.envs.moved import warn_split
 
-alias(__name__)
+__getattr__ = warn_split(__name__)

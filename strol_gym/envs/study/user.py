@@ -20,33 +20,20 @@ wrench or a person's push through the viewer (one interface, see docs/study.md).
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
+from strol_gym.envs.study.geometry import (  # noqa: F401  (angle_delta: here until 0.2)
+    angle_delta,
+    rotation_error,
+)
 from strol_gym.humans import HumanFactory, make_human
-from strol_gym.tasks.study import StudyTask, rpy_to_mat, wrap_angle
+from strol_gym.tasks.study import StudyTask, rpy_to_mat
 
 SATISFIED_REGRET = 1.0
 """Default ``satisfied_regret``: the user stops pushing once the regret of the robot's plan (from
 home, under its θ*) is at most this (calibrated on seeds 900-919, docs/study.md)."""
-
-
-def rotation_error(r_target: np.ndarray, r_now: np.ndarray) -> np.ndarray:
-    """The rotation vector (world frame, rad) taking ``r_now`` to ``r_target`` (3x3 matrices).
-
-    Plain floats after the one product (``dot``: half the call cost of ``@``): the env calls it
-    every step (setpoint velocity) and the user every step of a push, and numpy's per-call cost
-    dominates on 3x3 matrices.
-    """
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = r_target.dot(r_now.T).tolist()
-    angle = math.acos(min(1.0, max(-1.0, 0.5 * (r00 + r11 + r22 - 1.0))))
-    ax, ay, az = r21 - r12, r02 - r20, r10 - r01
-    s = math.sqrt(ax * ax + ay * ay + az * az)
-    if s < 1e-9:
-        return np.zeros(3)
-    return np.array((ax / s * angle, ay / s * angle, az / s * angle))
 
 
 class SimulatedUser:
@@ -190,11 +177,3 @@ class SimulatedUser:
         if not self.task.oriented:
             torque = zero
         return level * force, level * torque
-
-
-def angle_delta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a − b for poses: positions subtract, angles wrap to [−π, π)."""
-    d = np.asarray(a, dtype=np.float64) - b
-    if d.shape[-1] > 3:
-        d[..., 3:] = wrap_angle(d[..., 3:])
-    return d
