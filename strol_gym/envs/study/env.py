@@ -21,6 +21,7 @@ from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
 from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
 from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight, within_reach
 from strol_gym.envs.study.participant import Participant
+from strol_gym.envs.study.people import HeldWrench, ScriptedWrench
 from strol_gym.envs.study.scene import build_model, model_q
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, StudyVersion
@@ -279,8 +280,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._time = 0.0
         self._warnings = 0
         self._wrench = np.zeros(6)
-        self._held = np.zeros(6)
-        self._scripted: tuple[np.ndarray, int] | None = None
+        self._held = HeldWrench()
+        self._scripted: ScriptedWrench | None = None
         self._active = False
         self._corr_start_x = self._x.copy()
         self._corr_t0 = 0.0
@@ -313,22 +314,29 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         f = vector_arg("force", force, 3)
         tq = vector_arg("torque", torque, 3)
         duration = _positive("duration", duration)
-        self._scripted = (np.concatenate([f, tq]), max(1, round(duration / CONTROL_DT)))
+        self._scripted = ScriptedWrench(
+            np.concatenate([f, tq]), max(1, round(duration / CONTROL_DT))
+        )
 
     def hold_wrench(self, force: Any, torque: Any = (0.0, 0.0, 0.0)) -> None:
         """Apply ``force``/``torque`` on the hand every step until called again (zeros stop it):
         for an interactive front end that reads a person's push (e.g. the viewer's
         perturbation after ``sync()``) and hands it to the env."""
-        self._held = np.concatenate(
+        self._held.wrench6 = np.concatenate(
             [vector_arg("force", force, 3), vector_arg("torque", torque, 3)]
         )
 
     def _external_wrench(self) -> np.ndarray:
-        w = self._held.copy()
+        """The sum of every pusher's wrench this step (``people.Pusher``: the held one, a
+        script's, the simulated person's), in that order."""
+        t, x = self._time, self._x
+        w = np.concatenate(self._held.wrench(t, x, None))
         if self._scripted is not None:
-            ws, n = self._scripted
-            w += ws
-            self._scripted = (ws, n - 1) if n > 1 else None
+            f, tq = self._scripted.wrench(t, x, None)
+            w[:3] += f
+            w[3:] += tq
+            if self._scripted.done:
+                self._scripted = None
         if self.user_enabled and self.human is not None:
             # A participant who only sees the cup is handed no θ̂.
             seen = self.theta_hat if getattr(self.human, "needs_theta_hat", True) else None

@@ -40,16 +40,16 @@ from __future__ import annotations
 import collections
 import itertools
 import math
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
 
-from strol_gym.envs.study.user import SimulatedUser, angle_delta
+from strol_gym.envs.study.geometry import angle_delta
+from strol_gym.envs.study.people import THRESHOLD, ParticipantParams, PushParams
+from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
 from strol_gym.tasks.study import StudyTask
-
-THRESHOLD = 0.4
-"""Default acceptance threshold on the motion's score (calibrated, docs/study.md)."""
 
 
 class Participant(SimulatedUser):
@@ -92,37 +92,32 @@ class Participant(SimulatedUser):
         super().__init__(
             task, theta_star, rng, push_force=push_force, push_torque=push_torque, **push
         )
+        # Its push checked as the user's; then its judgment (the same order of checks as before).
+        push_params = self.params
         self.task = task
         self._theta_star = np.asarray(theta_star, dtype=np.float64).copy()
         self.rng = rng
         self.sigma = check_fraction("sigma", sigma)
         self.bias = check_fraction("bias", bias, allow_negative=True)
-        for name, value, low in (
-            ("threshold_noise", threshold_noise, 0.0),
-            ("window", window, 1e-9),
-            ("min_motion", min_motion, 1e-9),
-            ("reaction", reaction, 0.0),
-            ("improvement", improvement, 0.0),
-            ("step", step, 1e-9),
-            ("stall", stall, 1e-9),
-        ):
-            v = float(value)
-            if not (math.isfinite(v) and v >= low):
-                raise ValueError(f"user_kwargs[{name!r}] must be a finite number >= {low}, got {v}")
-            setattr(self, name, v)
-        self.threshold = float(threshold)
-        if not math.isfinite(self.threshold):
-            raise ValueError(f"user_kwargs['threshold'] must be finite, got {threshold!r}")
-        if isinstance(patience, bool) or not isinstance(patience, int | np.integer) or patience < 1:
-            raise ValueError(f"user_kwargs['patience'] must be an integer >= 1, got {patience!r}")
-        self.patience = int(patience)
+        self.params: ParticipantParams = ParticipantParams(
+            **{f.name: getattr(push_params, f.name) for f in fields(PushParams)},
+            threshold=threshold,
+            threshold_noise=threshold_noise,
+            window=window,
+            min_motion=min_motion,
+            reaction=reaction,
+            patience=patience,
+            improvement=improvement,
+            step=step,
+            stall=stall,
+        )
         a_max = task.action_bound
         axes = task.action_dim if not task.oriented else 5  # yaw is not a candidate axis
         grid = np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=axes)))
         grid = grid[np.any(grid != 0.0, axis=1)]
         full = np.zeros((len(grid), task.action_dim))
         full[:, :axes] = grid
-        self._candidates = full * a_max * self.step
+        self._candidates = full * a_max * self.params.step
         self._unit = full / np.linalg.norm(full, axis=1, keepdims=True)  # in a_max units
         self._a_max = a_max
         self._seen: collections.deque[tuple[float, np.ndarray]] = collections.deque()
@@ -156,7 +151,7 @@ class Participant(SimulatedUser):
         if self.task.oriented:
             step[5] = 0.0  # yaw: not seen as part of the motion's worth
         size = float(np.linalg.norm(step / self._a_max))
-        if size < self.min_motion:
+        if size < self.params.min_motion:
             return None
         phi0 = self.task.features(x_then)
         gain = float((self.task.features(x_now) - phi0) @ self._theta_star)
@@ -180,7 +175,7 @@ class Participant(SimulatedUser):
         if self._home is None:
             self._home = np.array(x, dtype=np.float64)  # where the robot starts each trial
         self._seen.append((t, np.array(x, dtype=np.float64)))
-        while len(self._seen) > 1 and self._seen[1][0] <= t - self.window + 1e-9:
+        while len(self._seen) > 1 and self._seen[1][0] <= t - self.params.window + 1e-9:
             self._seen.popleft()
         if self.phase == "push" and self._stalled(t, x):
             self.phase, self._t0 = "release", t  # the cup no longer gives: let go
@@ -197,10 +192,10 @@ class Participant(SimulatedUser):
         a = self._a_max
         gap = math.hypot(float(np.linalg.norm(dp)) / a[0], float(np.linalg.norm(dr)) / a[-1])
         self._gaps.append((t, gap))
-        while len(self._gaps) > 1 and self._gaps[1][0] <= t - self.stall + 1e-9:
+        while len(self._gaps) > 1 and self._gaps[1][0] <= t - self.params.stall + 1e-9:
             self._gaps.popleft()
         t0, g0 = self._gaps[0]
-        return t - t0 >= self.stall - 1e-9 and g0 - gap < 0.02
+        return t - t0 >= self.params.stall - 1e-9 and g0 - gap < 0.02
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
         del theta_hat
@@ -214,9 +209,9 @@ class Participant(SimulatedUser):
             return self.task.dynamics(x, u, np.zeros_like(u))
         if t + 1e-9 < self._t_next:
             return None
-        self._t_next = t + self.decide_every
+        self._t_next = t + self.params.decide_every
         t0, x0 = self._seen[0]
-        if t - t0 < self.window - 1e-9:
+        if t - t0 < self.params.window - 1e-9:
             return None
         if self._returning(x0, x):
             return None
@@ -225,21 +220,21 @@ class Participant(SimulatedUser):
             return None
         self.judgments += 1
         if self._pending_score is not None:  # the first judgment since its last push
-            if s > self._pending_score + self.improvement:
+            if s > self._pending_score + self.params.improvement:
                 self._since_better = 0
             else:
                 self._since_better += 1
-                if self._since_better >= self.patience:
+                if self._since_better >= self.params.patience:
                     self.gave_up = True
                     return None
             self._pending_score = None
-        accept = s >= self.threshold + self.threshold_noise * self.rng.normal()
+        accept = s >= self.params.threshold + self.params.threshold_noise * self.rng.normal()
         if accept:
             return None
         self.rejections += 1
         self._rejected = s
-        self._push_at = t + self.reaction
-        if self.reaction <= 0.0:
+        self._push_at = t + self.params.reaction
+        if self.params.reaction <= 0.0:
             return self._decide(t, x, None)
         return None
 

@@ -28,17 +28,16 @@ from strol_gym.envs.study.geometry import (  # noqa: F401  (angle_delta: here un
     angle_delta,
     rotation_error,
 )
+from strol_gym.envs.study.people import SATISFIED_REGRET, PushParams
 from strol_gym.humans import HumanFactory, make_human
 from strol_gym.tasks.study import StudyTask, rpy_to_mat
-
-SATISFIED_REGRET = 1.0
-"""Default ``satisfied_regret``: the user stops pushing once the regret of the robot's plan (from
-home, under its θ*) is at most this (calibrated on seeds 900-919, docs/study.md)."""
 
 
 class SimulatedUser:
     """A seeded study participant (see the module docstring). ``theta_star`` is its preference."""
 
+    needs_theta_hat: bool = True
+    """It judges the robot's plan for θ̂ (``people.Pusher``): the env hands it θ̂."""
     taper: float = 0.03
     """m from its target where the push's force starts to fall (linearly, to 0 at the target)."""
     ang_taper: float = 0.1
@@ -66,28 +65,18 @@ class SimulatedUser:
         ang_tol: float = 0.05,
         satisfied_regret: float = SATISFIED_REGRET,
     ) -> None:
-        params = {
-            "push_force": push_force,
-            "push_torque": push_torque,
-            "ramp": ramp,
-            "max_push": max_push,
-            "decide_every": decide_every,
-            "rest": rest,
-            "min_correction": min_correction,
-            "tol": tol,
-            "ang_tol": ang_tol,
-        }
-        for name, value in params.items():
-            value = float(value)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"user_kwargs[{name!r}] must be a finite number > 0, got {value}")
-            setattr(self, name, value)
-        value = float(satisfied_regret)
-        if not (np.isfinite(value) and value >= 0):
-            raise ValueError(
-                f"user_kwargs['satisfied_regret'] must be a finite number >= 0, got {value}"
-            )
-        self.satisfied_regret = value
+        self.params = PushParams(
+            push_force=push_force,
+            push_torque=push_torque,
+            ramp=ramp,
+            max_push=max_push,
+            decide_every=decide_every,
+            rest=rest,
+            min_correction=min_correction,
+            tol=tol,
+            ang_tol=ang_tol,
+            satisfied_regret=satisfied_regret,
+        )
         self._regrets: dict[bytes, float] = {}
         self.task = task
         self.model = make_human(
@@ -118,7 +107,7 @@ class SimulatedUser:
 
     def satisfied(self, theta_hat: np.ndarray) -> bool:
         """Whether the robot's current plan is good enough: regret <= ``satisfied_regret``."""
-        return self.regret(theta_hat) <= self.satisfied_regret
+        return self.regret(theta_hat) <= self.params.satisfied_regret
 
     def _released(self, t: float, x: np.ndarray) -> None:
         """Called when a push has been let go (a hook for participants that keep count)."""
@@ -128,11 +117,11 @@ class SimulatedUser:
         ``decide_every`` s: unsatisfied by the plan's regret, and a large enough correction)."""
         if t + 1e-9 < self._t_next:
             return None
-        self._t_next = t + self.decide_every
+        self._t_next = t + self.params.decide_every
         if self.satisfied(theta_hat):
             return None
         u = np.asarray(self.act(x, np.zeros(self.task.action_dim), theta_hat))
-        if np.max(np.abs(u) / self.task.action_bound) < self.min_correction:
+        if np.max(np.abs(u) / self.task.action_bound) < self.params.min_correction:
             return None
         return self.task.dynamics(x, u, np.zeros_like(u))
 
@@ -159,21 +148,21 @@ class SimulatedUser:
             return zero, zero
         dp, dr = self._error(x)
         if self.phase == "push":
-            done = np.linalg.norm(dp) < self.tol and np.linalg.norm(dr) < self.ang_tol
-            if done or t - self._t0 >= self.max_push:
+            done = np.linalg.norm(dp) < self.params.tol and np.linalg.norm(dr) < self.params.ang_tol
+            if done or t - self._t0 >= self.params.max_push:
                 self.phase, self._t0 = "release", t
             else:
-                self._level = min(1.0, (t - self._t0 + 1e-9) / self.ramp)
+                self._level = min(1.0, (t - self._t0 + 1e-9) / self.params.ramp)
         level = self._level
         if self.phase == "release":
-            level = self._level * max(0.0, 1.0 - (t - self._t0) / self.ramp)
+            level = self._level * max(0.0, 1.0 - (t - self._t0) / self.params.ramp)
             if level <= 0.0:
-                self.phase, self._t_next, self.target = "idle", t + self.rest, None
+                self.phase, self._t_next, self.target = "idle", t + self.params.rest, None
                 self._released(t, x)
                 return zero, zero
         n_p, n_r = np.linalg.norm(dp), np.linalg.norm(dr)
-        force = dp / max(n_p, 1e-9) * self.push_force * min(1.0, n_p / self.taper)
-        torque = dr / max(n_r, 1e-9) * self.push_torque * min(1.0, n_r / self.ang_taper)
+        force = dp / max(n_p, 1e-9) * self.params.push_force * min(1.0, n_p / self.taper)
+        torque = dr / max(n_r, 1e-9) * self.params.push_torque * min(1.0, n_r / self.ang_taper)
         if not self.task.oriented:
             torque = zero
         return level * force, level * torque
