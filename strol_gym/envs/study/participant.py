@@ -40,13 +40,12 @@ from __future__ import annotations
 import collections
 import itertools
 import math
-from dataclasses import fields
 from typing import Any
 
 import numpy as np
 
 from strol_gym.envs.study.geometry import angle_delta
-from strol_gym.envs.study.people import THRESHOLD, ParticipantParams, PushParams
+from strol_gym.envs.study.people import THRESHOLD, ParticipantParams  # noqa: F401
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
 from strol_gym.tasks.study import StudyTask
@@ -71,46 +70,22 @@ class Participant(SimulatedUser):
         *,
         sigma: float = 0.0,
         bias: float = 0.0,
-        threshold: float = THRESHOLD,
-        threshold_noise: float = 0.1,
-        window: float = 1.0,
-        min_motion: float = 0.2,
-        reaction: float = 0.4,
-        patience: int = 3,
-        improvement: float = 0.25,
-        model: Any = None,
-        beta: float = 50.0,
-        human_kwargs: dict[str, Any] | None = None,
-        satisfied_regret: float | None = None,
-        step: float = 0.5,
-        stall: float = 0.5,
-        push_force: float = 60.0,
-        push_torque: float = 8.0,
-        **push: Any,
+        params: ParticipantParams | None = None,
+        **kwargs: Any,
     ) -> None:
-        del model, beta, human_kwargs, satisfied_regret  # v0's user takes them; it uses none
-        super().__init__(
-            task, theta_star, rng, push_force=push_force, push_torque=push_torque, **push
-        )
-        # Its push checked as the user's; then its judgment (the same order of checks as before).
-        push_params = self.params
+        """``params``, or its fields as keywords (``user_kwargs``), say how it pushes and
+        judges; v0's user's ``model``, ``beta``, ``human_kwargs`` and ``satisfied_regret`` are
+        taken and unused (it judges what it sees)."""
+        for unused in ("model", "beta", "human_kwargs", "satisfied_regret"):
+            kwargs.pop(unused, None)
+        params = params if params is not None else ParticipantParams(**kwargs)
+        super().__init__(task, theta_star, rng, params=params)
+        self.params: ParticipantParams = params
         self.task = task
         self._theta_star = np.asarray(theta_star, dtype=np.float64).copy()
         self.rng = rng
         self.sigma = check_fraction("sigma", sigma)
         self.bias = check_fraction("bias", bias, allow_negative=True)
-        self.params: ParticipantParams = ParticipantParams(
-            **{f.name: getattr(push_params, f.name) for f in fields(PushParams)},
-            threshold=threshold,
-            threshold_noise=threshold_noise,
-            window=window,
-            min_motion=min_motion,
-            reaction=reaction,
-            patience=patience,
-            improvement=improvement,
-            step=step,
-            stall=stall,
-        )
         a_max = task.action_bound
         axes = task.action_dim if not task.oriented else 5  # yaw is not a candidate axis
         grid = np.array(list(itertools.product((-1.0, 0.0, 1.0), repeat=axes)))

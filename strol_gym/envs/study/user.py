@@ -28,7 +28,7 @@ from strol_gym.envs.study.geometry import (  # noqa: F401  (angle_delta: here un
     angle_delta,
     rotation_error,
 )
-from strol_gym.envs.study.people import SATISFIED_REGRET, PushParams
+from strol_gym.envs.study.people import SATISFIED_REGRET, PushParams  # noqa: F401
 from strol_gym.humans import HumanFactory, make_human
 from strol_gym.tasks.study import StudyTask, rpy_to_mat
 
@@ -54,29 +54,11 @@ class SimulatedUser:
         bias: float = 0.0,
         beta: float = 50.0,
         human_kwargs: dict[str, Any] | None = None,
-        push_force: float = 40.0,
-        push_torque: float = 6.0,
-        ramp: float = 0.2,
-        max_push: float = 2.0,
-        decide_every: float = 0.5,
-        rest: float = 1.5,
-        min_correction: float = 0.3,
-        tol: float = 0.015,
-        ang_tol: float = 0.05,
-        satisfied_regret: float = SATISFIED_REGRET,
+        params: PushParams | None = None,
+        **push: Any,
     ) -> None:
-        self.params = PushParams(
-            push_force=push_force,
-            push_torque=push_torque,
-            ramp=ramp,
-            max_push=max_push,
-            decide_every=decide_every,
-            rest=rest,
-            min_correction=min_correction,
-            tol=tol,
-            ang_tol=ang_tol,
-            satisfied_regret=satisfied_regret,
-        )
+        """``params``, or its fields as keywords (``user_kwargs``), say how it pushes."""
+        self.params = params if params is not None else PushParams(**push)
         self._regrets: dict[bytes, float] = {}
         self.task = task
         self.model = make_human(
