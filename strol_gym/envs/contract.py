@@ -142,6 +142,11 @@ class RenderModes(list):
         return super().__contains__(mode)
 
 
+def render_metadata(fps: int) -> dict[str, Any]:
+    """An env's ``metadata``: it renders "human" (a window) and "rgb_array" at ``fps``."""
+    return {"render_modes": RenderModes(["human", "rgb_array"]), "render_fps": fps}
+
+
 class CorrectionEnv:
     """The human-correction half of a strol-gym env (a mixin and template; see the module
     docstring). Subclasses set ``env_id``, ``task_cls`` and the defaults, and fill the hooks."""

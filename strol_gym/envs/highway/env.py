@@ -13,7 +13,7 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.envs.contract import CorrectionEnv, RenderModes
+from strol_gym.envs.contract import CorrectionEnv, render_metadata
 from strol_gym.humans import Human
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
@@ -143,10 +143,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": RenderModes(["human", "rgb_array"]),
-        "render_fps": 4,
-    }
+    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=4)
 
     env_id: ClassVar[str] = "StROL-Highway-v0"
     task_cls: ClassVar[type[HighwayTask]] = HighwayTask

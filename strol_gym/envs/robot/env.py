@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.contract import CorrectionEnv, RenderModes
+from strol_gym.envs.contract import CorrectionEnv, render_metadata
 from strol_gym.envs.panda.ik import IK_ITERS, PandaIK
 from strol_gym.envs.panda.model import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.robot.scene import TABLE_TOP, build_model
@@ -117,10 +117,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": RenderModes(["human", "rgb_array"]),
-        "render_fps": 5,
-    }
+    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=5)
 
     env_id: ClassVar[str] = "StROL-Robot-v0"
     task_cls: ClassVar[type[RobotTask]] = RobotTask

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.contract import CorrectionEnv, RenderModes, int_arg, vector_arg
+from strol_gym.envs.contract import CorrectionEnv, int_arg, render_metadata, vector_arg
 from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
 from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
 from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight, within_reach
@@ -129,10 +129,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
     - v0: initial version; kept unchanged for the published results (deprecated).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": RenderModes(["human", "rgb_array"]),
-        "render_fps": 20,
-    }
+    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=20)
     version: ClassVar[StudyVersion] = V0
     """What this version changes (``strol_gym.envs.study.versions``)."""
     env_id: ClassVar[str] = V0.env_id
