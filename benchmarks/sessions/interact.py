@@ -22,7 +22,7 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from strol_gym.envs.panda import PassiveViewer, has_display
+from strol_gym.envs.panda.model import PassiveViewer, has_display
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
 
