@@ -30,6 +30,7 @@ __all__ = [
     "mapping",
     "name_in",
     "number",
+    "space_shape",
     "vector",
 ]
 
@@ -200,6 +201,14 @@ def instance(name: str, value: object, types: type | tuple[type, ...], what: str
     if not isinstance(value, types):
         raise _bad(name, what, value, kind=True)
     return value
+
+
+def space_shape(name: str, space: Any) -> tuple[int, ...]:
+    """The shape of a space that has one (a Box); gymnasium types ``Space.shape`` as optional."""
+    shape = getattr(space, "shape", None)
+    if shape is None:
+        raise ArgumentTypeError(f"{name} must be a space with a shape (a Box), got {space!r}")
+    return tuple(shape)
 
 
 def cli_type(check: Callable[[str], Any]) -> Callable[[str], Any]:

@@ -19,6 +19,7 @@ import numpy as np
 from stable_baselines3 import PPO
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym import checks
 from strol_gym.wrappers import VectorOnlineLearningWrapper
 from strol_gym.wrappers.sb3 import SB3VecEnv
 
@@ -65,8 +66,7 @@ def train_and_compare(n: int, steps: int, learner: str | None, seed: int = 0, **
     def trained(obs):
         return model.predict(obs, deterministic=True)[0]
 
-    shape = env.action_space.shape
-    assert shape is not None  # a Box
+    shape = checks.space_shape("action_space", env.action_space)
 
     def random(obs):
         return rng.uniform(-1, 1, size=(n, *shape)).astype(np.float32)

@@ -21,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym import checks
 from strol_gym.humans import make_human
 from strol_gym.learners.registry import make_learner
 from strol_gym.tasks.study import StudyTask
@@ -38,9 +39,7 @@ def corrections(task: int, seed: int, participant: str, learner: str) -> list[di
     online = make_learner(learner, task=learning_env(env).task)
     env = OnlineLearningWrapper(env, online)
     env.reset(seed=seed)
-    shape = env.action_space.shape
-    assert shape is not None  # a Box
-    zero = np.zeros(shape, dtype=np.float32)
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     out, truncated = [], False
     theta = learning_env(env).theta_hat.copy()
     while not truncated:

@@ -27,7 +27,7 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
-from strol_gym.benchmarks.speed.timing import box_shape  # noqa: E402
+from strol_gym import checks  # noqa: E402
 
 TOL = 1e-9
 ENV_IDS = {"robot": "StROL-Robot-v0", "highway": "StROL-Highway-v0"}
@@ -52,7 +52,7 @@ def episode_differences(env_id: str, n: int, steps: int, **kwargs) -> np.ndarray
     extra = EXTRA_KEYS[env_id]
     rngs = [np.random.default_rng(10_000 + s) for s in range(n)]
     single = gym.make(env_id, **kwargs)
-    a_dim = box_shape(single.action_space)[0]
+    a_dim = checks.space_shape("action_space", single.action_space)[0]
     actions = np.stack([r.uniform(-1, 1, size=(steps, a_dim)) for r in rngs]).astype(np.float32)
     ref = []
     for s in range(n):
