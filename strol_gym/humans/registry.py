@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.humans.builtin import BoltzmannModel, ChangingModel, DriverModel, NominalModel
 from strol_gym.humans.interface import Draws, Human, HumanModel, SimulatedHuman, needs_theta_hat
 from strol_gym.humans.zoo import ZOO
@@ -117,10 +118,7 @@ def _params(factory: HumanFactory, params: dict[str, Any]) -> dict[str, Any]:
 def check_human_kwargs(human: str | HumanFactory, human_kwargs: dict[str, Any] | None) -> dict:
     """``human_kwargs`` as a dict, else ValueError: not a mapping of names the factory declares,
     or one of the shared parameters (σ, ε, β are arguments of their own)."""
-    if human_kwargs is None:
-        return {}
-    if not isinstance(human_kwargs, dict) or not all(isinstance(k, str) for k in human_kwargs):
-        raise ValueError(f"human_kwargs must be a dict of keyword arguments, got {human_kwargs!r}")
+    human_kwargs = checks.mapping("human_kwargs", human_kwargs)
     shared = sorted(set(human_kwargs) & set(SHARED_PARAMS))
     if shared:
         raise ValueError(
