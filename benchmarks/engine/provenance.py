@@ -70,6 +70,7 @@ def code_fingerprint() -> str:
         spec = importlib.util.find_spec(name)
         if spec is None or spec.origin is None or spec.loader is None:
             raise RuntimeError(f"cannot find the source of module {name!r} to fingerprint it")
+        # a source module's loader is a file loader, which has get_data (Loader does not say)
         source = spec.loader.get_data(spec.origin)  # type: ignore[attr-defined]
         h.update(f"module:{name}".encode() + b"\0" + source + b"\0")
     for package, suffixes in DATA_FILES.items():

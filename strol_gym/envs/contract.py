@@ -151,8 +151,11 @@ class CorrectionEnv:
     _x: np.ndarray
     render_mode: str | None
     if TYPE_CHECKING:  # gym.Env's, which every strol-gym env also is (never defined here)
+        np_random: np.random.Generator
 
         def close(self) -> None: ...
+
+        def render(self) -> Any: ...
 
     env_id: ClassVar[str] = ""
     # Task is abstract: the base's placeholder lets make_task(task, of=Task) take any Task;
@@ -180,6 +183,7 @@ class CorrectionEnv:
                 draws = [one(self, rng) for rng in rngs]
                 return np.stack([x for x, _ in draws]), [h for _, h in draws]
 
+            # the old one-start hook serves as the batch-first one until 0.3
             cls.draw_starts = draw_starts  # type: ignore[method-assign]
 
     def __init__(
@@ -262,9 +266,9 @@ class CorrectionEnv:
 
     # ------------------------------------------------------------------ the template
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]
+        gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]  # a mixin: self is a gym.Env too
         theta_override, x_override = self.reset_overrides(options)
-        rngs = [self.np_random]  # type: ignore[attr-defined]
+        rngs = [self.np_random]
         theta_star = self.draw_theta_stars(rngs)[0]
         x0s, human_rngs = self.draw_starts(rngs)
         x0, human_rng = x0s[0], human_rngs[0]
@@ -280,7 +284,7 @@ class CorrectionEnv:
         info = self._info(phi, zeros, zeros, False)
         info.update(self._start_info())
         if self.render_mode == "human":
-            self.render()  # type: ignore[attr-defined]
+            self.render()
         return obs, info
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
@@ -296,7 +300,7 @@ class CorrectionEnv:
         info = self._info(phi, u_h, u_r, is_correction)
         info.update(extra)
         if self.render_mode == "human":
-            self.render()  # type: ignore[attr-defined]
+            self.render()
         return obs, reward, terminated, truncated, info
 
     def _transition(self, u_r: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, dict[str, Any]]:

@@ -55,7 +55,7 @@ def boltzmann_correction(
     theta_star: np.ndarray,
     candidates: np.ndarray,
     beta: float,
-    rng: np.random.Generator,
+    rng: UniformDraws,
 ) -> np.ndarray:
     """A Boltzmann-rational choice among candidates: P(u) ∝ exp(β θ*·g(x, u, u_R)). (B, a)."""
     g = task.g(x[:, None, :], candidates, u_r[:, None, :])
@@ -73,6 +73,12 @@ class NormalDraws(Protocol):
     (``humans.interface.Replayed``), so the batched choices can replay them."""
 
     def standard_normal(self, size: tuple[int, ...], /) -> np.ndarray: ...
+
+
+class UniformDraws(Protocol):
+    """What the Boltzmann choice draws from: a ``np.random.Generator`` or replayed draws."""
+
+    def random(self, size: tuple[int, ...], /) -> np.ndarray: ...
 
 
 def perturb(

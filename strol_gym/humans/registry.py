@@ -171,7 +171,7 @@ class PerSampleModel(HumanModel):
         self.needs_theta_hat = True  # type: ignore[misc]  # unknown: assume it does
 
     def draw(self, rng: np.random.Generator, n: int) -> Draws:
-        return Draws(np.zeros((n, 0, self.task.action_dim)), np.zeros((n, 0)), {"rng": rng})  # type: ignore[dict-item]
+        return Draws(np.zeros((n, 0, self.task.action_dim)), np.zeros((n, 0)), {"rng": rng})  # type: ignore[dict-item]  # the rows' own generator, not drawn numbers
 
     def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
         rng = draws.extra["rng"]
