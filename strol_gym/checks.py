@@ -44,14 +44,20 @@ def _bad(name: str, what: str, value: object, kind: bool = False) -> Exception:
     return ArgumentTypeError(msg) if kind else ValueError(msg)
 
 
+def _num(v: float) -> str:
+    """A bound as written: an int in full (1000000), a float short (1e+06, 0.5)."""
+    return str(v) if isinstance(v, int) else f"{v:g}"
+
+
 def _range(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
     """The valid range in words: '> 0', '>= 1', 'in [0, 1]', 'in (0, 1]', or ''."""
     if low is not None and high is not None:
-        return f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+        lo, hi = _num(low), _num(high)
+        return f"in {'(' if low_open else '['}{lo}, {hi}{')' if high_open else ']'}"
     if low is not None:
-        return f"{'>' if low_open else '>='} {low:g}"
+        return f"{'>' if low_open else '>='} {_num(low)}"
     if high is not None:
-        return f"{'<' if high_open else '<='} {high:g}"
+        return f"{'<' if high_open else '<='} {_num(high)}"
     return ""
 
 
