@@ -311,3 +311,32 @@ def stars(p: float) -> str:
     if not math.isfinite(p):
         return ""
     return "***" if p < 0.001 else "**" if p < 0.01 else "*" if p < 0.05 else ""
+
+
+LOWER, HIGHER = "↓", "↑"
+"""The direction of a significant difference, always read as the reference learner (StROL)
+against the learner whose cell carries the mark: ↓ reference lower, ↑ reference higher."""
+MARK_LEGEND = (
+    f"{LOWER} = {{ref}} significantly lower than that learner, {HIGHER} = {{ref}} significantly "
+    "higher (paired t, Holm across the baselines; * p < 0.05, ** p < 0.01, *** p < 0.001); "
+    "no mark: not significant"
+)
+"""The one convention every table and figure states (``mark_legend``)."""
+
+
+def mark(row: dict | None, test: str = "t", alpha: float = ALPHA) -> str:
+    """'↓***' / '↑*' for a post-hoc row (``compare_to_reference``) whose test is significant:
+    the arrow is the reference's direction against that baseline, the stars its Holm p; ''
+    otherwise (and for no row)."""
+    if not row:
+        return ""
+    d = direction(row, test, alpha)
+    if d == 0:
+        return ""
+    p = row["p_holm"] if test == "t" else row["wilcoxon_p_holm"]
+    return (LOWER if d < 0 else HIGHER) + stars(p)
+
+
+def mark_legend(reference: str) -> str:
+    """The marks' legend with the reference learner's name."""
+    return MARK_LEGEND.format(ref=reference)
