@@ -9,7 +9,9 @@ markdown table: for each candidate learner and metric (regret where the env has 
 against StROL and against the *best baseline* of that condition (the paper baseline — Gradient,
 One, MOF, e2e — with the lowest mean of that metric), with the paired t-test and the Wilcoxon
 signed-rank test. Holm runs per env × condition × metric over the 2 × (number of candidates)
-comparisons, separately for each test. Stars: * p < 0.05, ** < 0.01, *** < 0.001 (Holm).
+comparisons, separately for each test. Marks (``stats.signed_stars``): ↓ the candidate
+significantly lower than the other, ↑ higher (the t-test's by the mean difference, the
+Wilcoxon test's by the Hodges–Lehmann estimate); * p < 0.05, ** < 0.01, *** < 0.001 (Holm).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from strol_gym.benchmarks.analysis.stats import holm, paired_test, stars
+from strol_gym.benchmarks.analysis.stats import holm, paired_test, signed_stars
 from strol_gym.benchmarks.engine.conditions import REFERENCE_LEARNER as REFERENCE
 
 from strol_gym.metrics import RUN_METRICS
@@ -85,8 +87,8 @@ def compare(runs, candidates, wanted=METRICS) -> list[str]:
                         cells.append(f"{name} ({means[best]:.3g})")
                     cells += [
                         f"{t.mean_diff:+.3g}",
-                        f"{p_t[j]:.2g}{stars(p_t[j])}",
-                        f"{p_w[j]:.2g}{stars(p_w[j])}",
+                        f"{p_t[j]:.2g}{signed_stars(t.mean_diff, p_t[j])}",
+                        f"{p_w[j]:.2g}{signed_stars(t.hl_diff, p_w[j])}",
                     ]
                 lines.append("| " + " | ".join(cells) + " |")
         lines.append("")

@@ -60,9 +60,17 @@ COLUMNS = (
     "p_t_holm",
     "p_wilcoxon_holm",
     "mark",
+    "iqm",
+    "iqm_ci95_low",
+    "iqm_ci95_high",
+    "prob_improvement",
+    "prob_improvement_ci95_low",
+    "prob_improvement_ci95_high",
 )
-WORSE, BETTER = "▲", "▼"
-"""Marks in a baseline's cell: StROL is significantly lower (the baseline worse) / higher."""
+POI_KEYS = ("prob_improvement", "prob_improvement_ci95_low", "prob_improvement_ci95_high")
+WORSE, BETTER = "↓", "↑"
+"""Marks in a baseline's cell (``stats.LOWER`` / ``HIGHER``): StROL is significantly lower
+(the baseline worse) / higher."""
 
 
 def default_humans() -> list[str]:
@@ -210,16 +218,11 @@ class Robustness(BenchExperiment):
 
 
 def mark(test: dict[str, Any] | None) -> str:
-    """▲ / ▼ with stars when StROL's paired t-test (Holm) against this learner is significant:
-    ▲ the learner is worse (StROL lower), ▼ better; '' otherwise."""
-    from strol_gym.benchmarks.analysis.stats import direction, stars
+    """``stats.mark``: ↓ / ↑ with stars when StROL's paired t-test (Holm) against this learner
+    is significant: ↓ StROL lower (the learner worse), ↑ higher; '' otherwise."""
+    from strol_gym.benchmarks.analysis.stats import mark as stats_mark
 
-    if not test:
-        return ""
-    d = direction(test)
-    if d == 0:
-        return ""
-    return (WORSE if d < 0 else BETTER) + stars(test["p_holm"])
+    return stats_mark(test)
 
 
 def collect_rows(a: Any, config: BenchConfig, env: str, metric: str) -> list[dict[str, Any]]:
@@ -243,6 +246,8 @@ def collect_rows(a: Any, config: BenchConfig, env: str, metric: str) -> list[dic
                     "p_t_holm": None if t is None else t.get("p_holm"),
                     "p_wilcoxon_holm": None if t is None else t.get("wilcoxon_p_holm"),
                     "mark": mark(t),
+                    **{k: c.get(k) for k in ("iqm", "iqm_ci95_low", "iqm_ci95_high")},
+                    **{k: None if t is None else t.get(k) for k in POI_KEYS},
                 }
             )
     return rows
@@ -296,7 +301,17 @@ def table_markdown(rows: list[dict], config: BenchConfig, metric: str) -> list[s
             "(significantly lower / higher): "
             + "; ".join(f"{display(lr)} {w}/{b}" for lr, (w, b) in wins.items())
             + ".",
+            "",
+            f"P(StROL better than that learner in a run) at σ = {sigma:g} (paired runs, ties ½; "
+            "95 % bootstrap intervals in robustness.csv):",
+            "",
+            "| learner | " + " | ".join(humans) + " |",
+            "|---" * (len(humans) + 1) + "|",
         ]
+        for lr in learners:
+            if lr != config.reference:
+                poi = [fmt(_num(cell[(lr, h)]["prob_improvement"]), 2) for h in humans]
+                lines.append(f"| {display(lr)} | " + " | ".join(poi) + " |")
     return lines
 
 
