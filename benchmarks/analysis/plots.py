@@ -86,8 +86,8 @@ def run_strip(ax, y: np.ndarray, learners: list[str], cells: list[dict | None]) 
             linewidths=0,
             zorder=2,
         )
-        c = cells[i]
-        if not c:
+        c = {k: np.nan if v is None else v for k, v in (cells[i] or {}).items()}
+        if not np.isfinite(c.get("mean", np.nan)):
             continue
         ax.errorbar(i + 0.25, c["mean"], yerr=np.nan_to_num(c["sem"]), fmt="_", color="black",
                     markersize=10, capsize=2, lw=1.2, zorder=3)  # fmt: skip

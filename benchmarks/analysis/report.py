@@ -28,6 +28,10 @@ from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 
 from strol_gym.metrics import METRICS as METRIC_TABLE
 
+IQM_KEYS = ("iqm", "iqm_ci95_low", "iqm_ci95_high")
+"""A learner's IQM and its 95 % bootstrap interval (summary.csv's columns)."""
+POI_KEYS = ("prob_improvement", "prob_improvement_ci95_low", "prob_improvement_ci95_high")
+"""P(reference better in a run) and its 95 % bootstrap interval (stats.csv's columns)."""
 SUMMARY_COLUMNS = (
     "env",
     "condition",
@@ -40,9 +44,7 @@ SUMMARY_COLUMNS = (
     "median",
     "q1",
     "q3",
-    "iqm",
-    "iqm_ci95_low",
-    "iqm_ci95_high",
+    *IQM_KEYS,
 )
 STATS_COLUMNS = (
     "env",
@@ -67,9 +69,7 @@ STATS_COLUMNS = (
     "hodges_lehmann",
     "significant",
     "plain_language",
-    "prob_improvement",
-    "prob_improvement_ci95_low",
-    "prob_improvement_ci95_high",
+    *POI_KEYS,
     "mark",
 )
 ANOVA_COLUMNS = (
@@ -202,20 +202,23 @@ def robust_cell(
     return iqm, poi
 
 
-def aggregate(a: Analysis, env: str, metric: str, resamples: int) -> dict[str, Any] | None:
-    """IQM and P(improvement) over every run of every condition of ``env``, bootstrapped within
-    each condition (stratified, rliable's aggregate over tasks); None with fewer than two."""
-    conds = [e.condition.name for e in a.config.experiments if e.env == env]
-    ys = [(c, a.runs[(env, c, metric)]) for c in conds if (env, c, metric) in a.runs]
-    ys = [(c, y) for c, y in ys if len(y)]
+def aggregate(
+    a: Analysis, cells: Sequence[tuple[str, str]], metric: str, resamples: int
+) -> dict[str, Any] | None:
+    """IQM and P(improvement) over every run of the (env, condition) ``cells``, bootstrapped
+    within each cell (stratified, rliable's aggregate over tasks); None with fewer than two."""
+    ys = [(k, a.runs[(*k, metric)]) for k in cells if (*k, metric) in a.runs]
+    ys = [(k, y) for k, y in ys if len(y)]
     if len(ys) < 2:
         return None
     y = np.concatenate([y for _, y in ys])
-    strata = [c for c, m in ys for _ in range(len(m))]
+    strata = ["/".join(k) for k, m in ys for _ in range(len(m))]
     learners = list(a.config.learners)
-    iqm, poi = robust_cell(y, learners, a.config.reference, (env, "*", metric), resamples, strata)
-    return {"env": env, "metric": metric, "n": len(y), "conditions": len(ys), "iqm": iqm,
-            "poi": poi}  # fmt: skip
+    key = ("+".join("/".join(k) for k, _ in ys), metric)
+    iqm, poi = robust_cell(y, learners, a.config.reference, key, resamples, strata)
+    envs = list(dict.fromkeys(e for e, _ in cells))
+    return {"env": envs[0] if len(envs) == 1 else envs, "metric": metric, "n": len(y),
+            "conditions": len(ys), "iqm": iqm, "poi": poi}  # fmt: skip
 
 
 def analyse(
@@ -292,7 +295,8 @@ def analyse(
     analysis.verdicts = verdicts(analysis)
     for env in dict.fromkeys(e.env for e in config.experiments):
         for metric in analysis.metrics_for(env):
-            agg = aggregate(analysis, env, metric, resamples)
+            conds = [(env, e.condition.name) for e in config.experiments if e.env == env]
+            agg = aggregate(analysis, conds, metric, resamples)
             if agg is not None:
                 analysis.aggregates.append(agg)
     return analysis
@@ -387,26 +391,36 @@ def _ci(x: float, lo: float, hi: float) -> str:
     return f"{_num(x)} [{_num(lo)}, {_num(hi)}]"
 
 
-def iqm_table(a: Analysis, env: str, metric: str) -> list[str]:
-    """Markdown table: rows conditions (and all of them, stratified), columns learners,
-    'IQM [95 % bootstrap CI]' with the reference's marks from the Wilcoxon signed-rank test
-    (which, like the IQM, speaks of the typical run; the mean table's marks are the t-test's)."""
+def _conditions(a: Analysis, env: str) -> list[tuple[str, str, str]]:
+    return [(e.condition.name, env, e.condition.name) for e in a.config.experiments if e.env == env]
+
+
+def iqm_table(
+    a: Analysis,
+    env: str,
+    metric: str,
+    rows: Sequence[tuple[str, str, str]] | None = None,
+    agg: dict[str, Any] | None = None,
+) -> list[str]:
+    """Markdown table: rows conditions (or ``rows``: (label, env, condition)) and all of them
+    (``agg``, by default the env's stratified aggregate), columns learners, 'IQM [95 % bootstrap
+    CI]' with the reference's marks from the Wilcoxon signed-rank test (which, like the IQM,
+    speaks of the typical run; the mean table's marks are the t-test's)."""
     learners = list(a.config.learners)
-    conds = [e.condition.name for e in a.config.experiments if e.env == env]
     lines = ["| condition | " + " | ".join(display(lr) for lr in learners) + " |"]
     lines.append("|---|" + "---|" * len(learners))
-    for cond in conds:
+    for label, e, cond in _conditions(a, env) if rows is None else rows:
         cells = []
         for lr in learners:
-            c = a.cell(env, cond, lr, metric)
-            mark = stats.mark(a.test(env, cond, lr, metric), "wilcoxon")
+            c = a.cell(e, cond, lr, metric)
+            mark = stats.mark(a.test(e, cond, lr, metric), "wilcoxon")
             cells.append(
                 "n/a"
                 if c is None or "iqm" not in c
                 else _ci(c["iqm"], c["iqm_ci95_low"], c["iqm_ci95_high"]) + mark
             )
-        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
-    agg = _aggregate(a, env, metric)
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    agg = _aggregate(a, env, metric) if agg is None and rows is None else agg
     if agg is not None:
         iv = agg["iqm"]
         cells = [_ci(iv.estimate[j], iv.low[j], iv.high[j]) for j in range(len(learners))]
@@ -414,20 +428,26 @@ def iqm_table(a: Analysis, env: str, metric: str) -> list[str]:
     return lines
 
 
-def poi_table(a: Analysis, env: str, metric: str) -> list[str]:
-    """Markdown table: rows conditions (and all of them), columns baselines, P(reference better
-    than that baseline in a run) [95 % bootstrap CI]; [] without a reference to compare."""
+def poi_table(
+    a: Analysis,
+    env: str,
+    metric: str,
+    rows: Sequence[tuple[str, str, str]] | None = None,
+    agg: dict[str, Any] | None = None,
+) -> list[str]:
+    """Markdown table: rows conditions (or ``rows``) and all of them, columns baselines,
+    P(reference better than that baseline in a run) [95 % bootstrap CI]; [] without a
+    reference to compare."""
     ref = a.config.reference
     bases = [lr for lr in a.config.learners if lr != ref]
     if not bases or ref not in a.config.learners:
         return []
-    conds = [e.condition.name for e in a.config.experiments if e.env == env]
     lines = ["| condition | " + " | ".join(f"vs {display(b)}" for b in bases) + " |"]
     lines.append("|---|" + "---|" * len(bases))
-    for cond in conds:
+    for label, e, cond in _conditions(a, env) if rows is None else rows:
         cells = []
         for b in bases:
-            t = a.test(env, cond, b, metric)
+            t = a.test(e, cond, b, metric)
             cells.append(
                 "n/a"
                 if t is None or "prob_improvement" not in t
@@ -437,8 +457,8 @@ def poi_table(a: Analysis, env: str, metric: str) -> list[str]:
                     t["prob_improvement_ci95_high"],
                 )
             )
-        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
-    agg = _aggregate(a, env, metric)
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    agg = _aggregate(a, env, metric) if agg is None and rows is None else agg
     if agg is not None and agg["poi"] is not None:
         iv, js = agg["poi"], [list(a.config.learners).index(b) for b in bases]
         cells = [_ci(iv.estimate[j], iv.low[j], iv.high[j]) for j in js]

@@ -21,6 +21,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from strol_gym.benchmarks.analysis.report import IQM_KEYS, POI_KEYS
 from strol_gym.benchmarks.args import (
     check_learner_names,
     float_list,
@@ -60,14 +61,9 @@ COLUMNS = (
     "p_t_holm",
     "p_wilcoxon_holm",
     "mark",
-    "iqm",
-    "iqm_ci95_low",
-    "iqm_ci95_high",
-    "prob_improvement",
-    "prob_improvement_ci95_low",
-    "prob_improvement_ci95_high",
+    *IQM_KEYS,
+    *POI_KEYS,
 )
-POI_KEYS = ("prob_improvement", "prob_improvement_ci95_low", "prob_improvement_ci95_high")
 WORSE, BETTER = "↓", "↑"
 """Marks in a baseline's cell (``stats.LOWER`` / ``HIGHER``): StROL is significantly lower
 (the baseline worse) / higher."""
@@ -246,7 +242,7 @@ def collect_rows(a: Any, config: BenchConfig, env: str, metric: str) -> list[dic
                     "p_t_holm": None if t is None else t.get("p_holm"),
                     "p_wilcoxon_holm": None if t is None else t.get("wilcoxon_p_holm"),
                     "mark": mark(t),
-                    **{k: c.get(k) for k in ("iqm", "iqm_ci95_low", "iqm_ci95_high")},
+                    **{k: c.get(k) for k in IQM_KEYS},
                     **{k: None if t is None else t.get(k) for k in POI_KEYS},
                 }
             )
