@@ -229,3 +229,10 @@ def fmt(v: float, digits: int = 3) -> str:
     if v != 0 and abs(v) < 10 ** (-digits):
         return f"{v:.1e}"
     return f"{v:.{digits}f}"
+
+
+def fmt_ci(v: float | None, low: float | None, high: float | None, digits: int = 3) -> str:
+    """'v [low, high]' with ``fmt``'s digits; '—' when there is no estimate."""
+    if v is None:
+        return "—"
+    return f"{fmt(v, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"

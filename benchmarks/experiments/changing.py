@@ -24,6 +24,7 @@ from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
     fmt,
+    fmt_ci,
     fmt_paper,
     primary_metric,
     small_figure,
@@ -175,13 +176,8 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
     ]
     for r in rows:
         paper = fmt_paper(r["paper_mean"])
-        iqm = f"{fmt(r['iqm'])} [{fmt(r['iqm_ci95_low'])}, {fmt(r['iqm_ci95_high'])}]"
-        poi = (
-            "—"
-            if r["prob_improvement"] is None
-            else f"{fmt(r['prob_improvement'])} [{fmt(r['prob_improvement_ci95_low'])}, "
-            f"{fmt(r['prob_improvement_ci95_high'])}]"
-        )
+        iqm = fmt_ci(*(r[k] for k in IQM_KEYS))
+        poi = fmt_ci(*(r[k] for k in POI_KEYS))
         lines.append(
             f"| {display(r['learner'])} | {fmt(r['mean'])} ± {fmt(r['std'])}{r['mark']} | "
             f"{fmt(r['sem'])} | {fmt(r['median'])} | {iqm} | {paper} | {fmt(r['error_mean'])} | "

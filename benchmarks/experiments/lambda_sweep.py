@@ -22,6 +22,7 @@ from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
     fmt,
+    fmt_ci,
     fmt_paper,
     small_figure,
 )
@@ -142,7 +143,7 @@ def table_markdown(rows: list[dict], metric: str) -> list[str]:
     ]
     for r in rows:
         paper = fmt_paper(r["paper_mean"])
-        iqm = f"{fmt(r['iqm'])} [{fmt(r['iqm_ci95_low'])}, {fmt(r['iqm_ci95_high'])}]"
+        iqm = fmt_ci(*(r[k] for k in IQM_KEYS))
         lines.append(
             f"| {r['prior']} | {r['lam']:g} | {fmt(r['mean'])} ± {fmt(r['std'])} | "
             f"{fmt(r['sem'])} | {fmt(r['median'])} | {iqm} | {paper} |"
