@@ -98,18 +98,36 @@ def run_strip(ax, y: np.ndarray, learners: list[str], cells: list[dict | None]) 
                         lw=0.9, zorder=4)  # fmt: skip
 
 
+def _save_with_legend(fig, axes, out: Path, stem: str) -> list[Path]:
+    """One legend for the grid (the first panel's lines) below it, then ``_save``."""
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    return _save(fig, out, stem)
+
+
+def _env_grid(a: Analysis, metric_for_env: dict[str, str], width: float, height: float):
+    """(envs with data for their metric, their conditions, columns, fig, axes): a grid with a
+    row per env and a column per condition; no figure when no env has data."""
+    envs = [e for e in metric_for_env if metric_for_env[e] in a.metrics_for(e)]
+    if not envs:
+        return envs, {}, 0, None, None
+    conds = {e: [x.condition.name for x in a.config.experiments if x.env == e] for e in envs}
+    ncol = max(len(c) for c in conds.values())
+    fig, axes = plt.subplots(
+        len(envs), ncol, figsize=(width * ncol + 0.6, height * len(envs)), squeeze=False
+    )
+    return envs, conds, ncol, fig, axes
+
+
 def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) -> list[Path]:
     """Fig. 4 layout: rows envs, columns conditions; per learner every run, the mean ± SEM and
     the IQM [95 % CI], with StROL's directional marks (``run_strip``)."""
-    envs = [e for e in metric_for_env if metric_for_env[e] in a.metrics_for(e)]
+    envs, conds, ncol, fig, axes = _env_grid(a, metric_for_env, 2.6, 2.8)
     if not envs:
         return []
-    conds = {e: [x.condition.name for x in a.config.experiments if x.env == e] for e in envs}
-    ncol = max(len(c) for c in conds.values())
     learners = list(a.config.learners)
-    fig, axes = plt.subplots(
-        len(envs), ncol, figsize=(2.6 * ncol + 0.6, 2.8 * len(envs)), squeeze=False
-    )
     xs = np.arange(len(learners))
     for r, env in enumerate(envs):
         metric = metric_for_env[env]
@@ -152,15 +170,10 @@ def profile_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: s
     """Performance profiles: per env (rows) and condition (columns), the fraction of runs with
     a score ≤ τ for each learner (higher and further left is better); τ on a log axis for the
     symlog metrics (regret), from 0."""
-    envs = [e for e in metric_for_env if metric_for_env[e] in a.metrics_for(e)]
+    envs, conds, ncol, fig, axes = _env_grid(a, metric_for_env, 2.8, 2.5)
     if not envs:
         return []
-    conds = {e: [x.condition.name for x in a.config.experiments if x.env == e] for e in envs}
-    ncol = max(len(c) for c in conds.values())
     learners = list(a.config.learners)
-    fig, axes = plt.subplots(
-        len(envs), ncol, figsize=(2.8 * ncol + 0.6, 2.5 * len(envs)), squeeze=False
-    )
     for r, env in enumerate(envs):
         metric = metric_for_env[env]
         log = metric in SYMLOG_METRICS
@@ -188,11 +201,7 @@ def profile_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: s
             ax.tick_params(labelsize=8)
             if c == 0:
                 ax.set_ylabel(f"{env_preset(env).env_id}\nfraction of runs ≤ τ", fontsize=9)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    if handles:
-        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
-    return _save(fig, out, stem)
+    return _save_with_legend(fig, axes, out, stem)
 
 
 def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]:
@@ -224,11 +233,7 @@ def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]
             ax.tick_params(labelsize=8)
             if c == 0:
                 ax.set_ylabel(f"{env_preset(env).env_id}\n‖θ* − θ̂‖", fontsize=9)
-    handles, labels = axes[0, 0].get_legend_handles_labels()
-    if handles:
-        fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
-    return _save(fig, out, stem)
+    return _save_with_legend(fig, axes, out, stem)
 
 
 def make_plots(a: Analysis, out: Path) -> list[Path]:

@@ -28,6 +28,8 @@ from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 
 from strol_gym.metrics import METRICS as METRIC_TABLE
 
+CELL_KEYS = ("mean", "std", "sem", "median", "n")
+"""The descriptives an experiment's own table copies from a summary cell."""
 IQM_KEYS = ("iqm", "iqm_ci95_low", "iqm_ci95_high")
 """A learner's IQM and its 95 % bootstrap interval (summary.csv's columns)."""
 POI_KEYS = ("prob_improvement", "prob_improvement_ci95_low", "prob_improvement_ci95_high")
@@ -407,25 +409,16 @@ def iqm_table(
     CI]' with the reference's marks from the Wilcoxon signed-rank test (which, like the IQM,
     speaks of the typical run; the mean table's marks are the t-test's)."""
     learners = list(a.config.learners)
-    lines = ["| condition | " + " | ".join(display(lr) for lr in learners) + " |"]
-    lines.append("|---|" + "---|" * len(learners))
-    for label, e, cond in _conditions(a, env) if rows is None else rows:
-        cells = []
-        for lr in learners:
-            c = a.cell(e, cond, lr, metric)
-            mark = stats.mark(a.test(e, cond, lr, metric), "wilcoxon")
-            cells.append(
-                "n/a"
-                if c is None or "iqm" not in c
-                else _ci(c["iqm"], c["iqm_ci95_low"], c["iqm_ci95_high"]) + mark
-            )
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
-    agg = _aggregate(a, env, metric) if agg is None and rows is None else agg
-    if agg is not None:
-        iv = agg["iqm"]
-        cells = [_ci(iv.estimate[j], iv.low[j], iv.high[j]) for j in range(len(learners))]
-        lines.append(f"| all {agg['conditions']} (n = {agg['n']}) | " + " | ".join(cells) + " |")
-    return lines
+
+    def cell(e: str, cond: str, lr: str) -> str:
+        c = a.cell(e, cond, lr, metric)
+        if c is None or "iqm" not in c:
+            return "n/a"
+        mark = stats.mark(a.test(e, cond, lr, metric), "wilcoxon")
+        return _ci(c["iqm"], c["iqm_ci95_low"], c["iqm_ci95_high"]) + mark
+
+    head = [display(lr) for lr in learners]
+    return _robust_table(a, env, metric, rows, agg, learners, head, cell, "iqm")
 
 
 def poi_table(
@@ -442,26 +435,27 @@ def poi_table(
     bases = [lr for lr in a.config.learners if lr != ref]
     if not bases or ref not in a.config.learners:
         return []
-    lines = ["| condition | " + " | ".join(f"vs {display(b)}" for b in bases) + " |"]
-    lines.append("|---|" + "---|" * len(bases))
+
+    def cell(e: str, cond: str, b: str) -> str:
+        t = a.test(e, cond, b, metric)
+        if t is None or "prob_improvement" not in t:
+            return "n/a"
+        return _ci(*(t[k] for k in POI_KEYS))
+
+    head = [f"vs {display(b)}" for b in bases]
+    return _robust_table(a, env, metric, rows, agg, bases, head, cell, "poi")
+
+
+def _robust_table(a, env, metric, rows, agg, columns, head, cell, key) -> list[str]:
+    """The rows of ``iqm_table`` / ``poi_table``: one per (label, env, condition), then the
+    aggregate's ``key`` interval for each of ``columns`` (learners)."""
+    lines = ["| condition | " + " | ".join(head) + " |", "|---|" + "---|" * len(columns)]
     for label, e, cond in _conditions(a, env) if rows is None else rows:
-        cells = []
-        for b in bases:
-            t = a.test(e, cond, b, metric)
-            cells.append(
-                "n/a"
-                if t is None or "prob_improvement" not in t
-                else _ci(
-                    t["prob_improvement"],
-                    t["prob_improvement_ci95_low"],
-                    t["prob_improvement_ci95_high"],
-                )
-            )
-        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        lines.append(f"| {label} | " + " | ".join(cell(e, cond, c) for c in columns) + " |")
     agg = _aggregate(a, env, metric) if agg is None and rows is None else agg
-    if agg is not None and agg["poi"] is not None:
-        iv, js = agg["poi"], [list(a.config.learners).index(b) for b in bases]
-        cells = [_ci(iv.estimate[j], iv.low[j], iv.high[j]) for j in js]
+    if agg is not None and agg[key] is not None:
+        iv, learners = agg[key], list(a.config.learners)
+        cells = [_ci(iv.estimate[j], iv.low[j], iv.high[j]) for j in map(learners.index, columns)]
         lines.append(f"| all {agg['conditions']} (n = {agg['n']}) | " + " | ".join(cells) + " |")
     return lines
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
-from strol_gym.benchmarks.analysis.report import IQM_KEYS, POI_KEYS, robust_legend
+from strol_gym.benchmarks.analysis.report import CELL_KEYS, IQM_KEYS, POI_KEYS, robust_legend
 from strol_gym.benchmarks.args import finite, nonneg_int, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
@@ -39,11 +39,7 @@ COLUMNS = (
     "env",
     "learner",
     "metric",
-    "mean",
-    "std",
-    "sem",
-    "median",
-    "n",
+    *CELL_KEYS,
     "error_mean",
     "cos_error_mean",
     "p_t_holm",
@@ -130,7 +126,7 @@ class Changing(BenchExperiment):
                     "env": env,
                     "learner": lr,
                     "metric": metric,
-                    **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                    **{k: c.get(k) for k in CELL_KEYS},
                     "error_mean": err.get("mean"),
                     "cos_error_mean": cos.get("mean"),
                     "p_t_holm": t.get("p_holm"),

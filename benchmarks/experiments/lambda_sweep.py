@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_LAMBDA
-from strol_gym.benchmarks.analysis.report import IQM_KEYS
+from strol_gym.benchmarks.analysis.report import CELL_KEYS, IQM_KEYS
 from strol_gym.benchmarks.args import float_list, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
@@ -37,11 +37,7 @@ COLUMNS = (
     "prior",
     "lam",
     "metric",
-    "mean",
-    "std",
-    "sem",
-    "median",
-    "n",
+    *CELL_KEYS,
     "paper_mean",
     *IQM_KEYS,
 )
@@ -109,7 +105,7 @@ class LambdaSweep(BenchExperiment):
                         "prior": prior,
                         "lam": lam,
                         "metric": metric,
-                        **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                        **{k: c.get(k) for k in CELL_KEYS},
                         "paper_mean": PAPER_LAMBDA.get(prior, {}).get(lam),
                         **{k: c.get(k) for k in IQM_KEYS},
                     }

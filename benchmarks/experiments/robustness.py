@@ -21,7 +21,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from strol_gym.benchmarks.analysis.report import IQM_KEYS, POI_KEYS
+from strol_gym.benchmarks.analysis.report import CELL_KEYS, IQM_KEYS, POI_KEYS
 from strol_gym.benchmarks.args import (
     check_learner_names,
     float_list,
@@ -52,11 +52,7 @@ COLUMNS = (
     "sigma",
     "learner",
     "metric",
-    "mean",
-    "std",
-    "sem",
-    "median",
-    "n",
+    *CELL_KEYS,
     "mean_diff_vs_strol",
     "p_t_holm",
     "p_wilcoxon_holm",
@@ -236,7 +232,7 @@ def collect_rows(a: Any, config: BenchConfig, env: str, metric: str) -> list[dic
                     "sigma": cond.sigma,
                     "learner": lr,
                     "metric": metric,
-                    **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                    **{k: c.get(k) for k in CELL_KEYS},
                     # the test's difference is StROL minus the learner
                     "mean_diff_vs_strol": None if t is None else t.get("mean_diff"),
                     "p_t_holm": None if t is None else t.get("p_holm"),
