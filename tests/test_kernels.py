@@ -153,3 +153,16 @@ def test_cross_kernel_lists_every_test_and_names_the_cpu_dependent_verdicts(tmp_
     _, _, changed, poi = compare(tmp_path / "avx512", tmp_path / "avx2")
     assert changed == ["wilcoxon/robot/noisy-biased/regret/strol/e2e: lower -> n.s."]
     assert poi == pytest.approx(0.01)
+
+
+def test_cross_kernel_settings():
+    from strol_gym.benchmarks.experiments.cross_kernel import setting_env
+
+    assert setting_env("native") == {}
+    assert setting_env("Prescott:avx2") == {
+        "OPENBLAS_CORETYPE": "Prescott",
+        "ATEN_CPU_CAPABILITY": "avx2",
+    }
+    assert setting_env("avx2-cpu")["MKL_ENABLE_INSTRUCTIONS"] == "AVX2"
+    with pytest.raises(ValueError, match="--settings"):
+        setting_env("Haswell")

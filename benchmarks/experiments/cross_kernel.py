@@ -39,17 +39,37 @@ def _has_avx512() -> bool:
         return False
 
 
+PRESETS = {
+    "avx2-cpu": {
+        "OPENBLAS_CORETYPE": "Haswell",
+        "ATEN_CPU_CAPABILITY": "avx2",
+        "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR",
+        "MKL_ENABLE_INSTRUCTIONS": "AVX2",
+    },
+}
+"""Named settings: ``avx2-cpu`` makes an AVX-512 CPU compute as an AVX2 one does (OpenBLAS,
+torch's ATen kernels, numpy's dispatched loops and MKL all held to AVX2; numpy ≥ 2's target
+names)."""
+
+
 def setting_env(setting: str) -> dict[str, str]:
-    """The environment variables of a setting ("native": none)."""
+    """The environment variables of a setting ("native": none; a name of ``PRESETS``)."""
     if setting == "native":
         return {}
+    if setting in PRESETS:
+        return dict(PRESETS[setting])
     core, _, cap = setting.partition(":")
     if not core or not cap:
-        raise ValueError(f"--settings: each must be 'native' or CORE:CAPABILITY, got {setting!r}")
+        raise ValueError(
+            f"--settings: each must be 'native', {', '.join(PRESETS)} or CORE:CAPABILITY, "
+            f"got {setting!r}"
+        )
     return {"OPENBLAS_CORETYPE": core, "ATEN_CPU_CAPABILITY": cap}
 
 
 def runnable(setting: str) -> bool:
+    if setting in PRESETS:
+        return True
     parts = set(setting.split(":"))
     return _has_avx512() or not (parts & AVX512_ONLY)
 
