@@ -151,26 +151,29 @@ def improvements(folder: Path) -> dict[tuple[str, ...], float]:
 
 
 def tests_table(folders: dict[str, Path], metrics: Sequence[str] | None = None) -> list[str]:
-    """Markdown: every post-hoc test (both tests) of the folders, one row each, its Holm p and
-    verdict under every setting, and "**depends on the CPU**" where the verdicts differ."""
+    """Markdown: every post-hoc test (both tests) of the folders, one row each: its Holm p and
+    verdict under the first setting, how the other settings differ (their p to 3 significant
+    digits and verdict; "same" when every one agrees) and "**depends on the CPU**" where the
+    verdicts differ."""
     per = {s: tests(f) for s, f in folders.items()}
+    ref, *others = folders
     keys = sorted(set().union(*per.values()), key=lambda k: (k[1:], k[0]))
     if metrics is not None:
         keys = [k for k in keys if k[3] in metrics]
     lines = [
-        "| env | condition | metric | vs | test | "
-        + " | ".join(f"{s}: Holm p (verdict)" for s in folders)
-        + " | CPU-dependent |",
-        "|---|---|---|---|---|" + "---|" * len(folders) + "---|",
+        f"| env | condition | metric | vs | test | Holm p (verdict), {ref} | "
+        f"{', '.join(others) or 'other settings'} | CPU-dependent |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for k in keys:
-        cells = [per[s].get(k, (math.nan, "missing")) for s in folders]
-        differs = len({v for _, v in cells}) > 1
-        shown = [f"{p:.3g} ({v})" for p, v in cells]
+        cells = {s: per[s].get(k, (math.nan, "missing")) for s in folders}
+        shown = {s: f"{p:.3g} ({v})" for s, (p, v) in cells.items()}
+        differ = [f"{s}: {shown[s]}" for s in others if shown[s] != shown[ref]]
+        depends = len({v for _, v in cells.values()}) > 1
         lines.append(
-            f"| {k[1]} | {k[2]} | {k[3]} | {k[5]} | {k[0]} | " + " | ".join(shown)
-            + f" | {'**depends on the CPU**' if differs else 'no'} |"
-        )  # fmt: skip
+            f"| {k[1]} | {k[2]} | {k[3]} | {k[5]} | {k[0]} | {shown[ref]} | "
+            f"{'; '.join(differ) or 'same'} | {'**depends on the CPU**' if depends else 'no'} |"
+        )
     return lines
 
 
