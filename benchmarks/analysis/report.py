@@ -464,15 +464,16 @@ def _aggregate(a: Analysis, env: str, metric: str) -> dict[str, Any] | None:
     return next((g for g in a.aggregates if (g["env"], g["metric"]) == (env, metric)), None)
 
 
-def robust_legend(reference: str, resamples: int | None = None) -> str:
-    """What the IQM and P(improvement) tables show, in one sentence."""
+def robust_legend(reference: str, resamples: int | None = None, pooled: bool = True) -> str:
+    """What the IQM and P(improvement) tables show, in one sentence (``pooled``: the tables
+    have an 'all' row)."""
     boot = f"{resamples:,} resamples, " if resamples else ""
+    strata = "; the 'all' row resamples within each condition" if pooled else ""
     return (
         "IQM = interquartile mean (the mean of the middle 50 % of the runs); P(improvement) = "
         f"the probability that {reference} is better than that learner in a run (paired runs, "
         "ties ½; 0.5 = neither is better in the typical run); [95 % CI]: percentile bootstrap "
-        f"over run seeds ({boot}paired rows resampled together; the 'all' row resamples within "
-        "each condition)."
+        f"over run seeds ({boot}paired rows resampled together{strata})."
     )
 
 

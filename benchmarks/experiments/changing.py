@@ -164,7 +164,7 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
         f"scored against the final preference. {metric} (mean ± std with marks, SEM, median, "
         "IQM [95 % CI]); p: StROL vs that learner, Holm over the four baselines; P(StROL "
         "better) [95 % CI]: in a run. Marks: " + stats.mark_legend("StROL") + ".",
-        f"{robust_legend('StROL')}",
+        robust_legend("StROL", pooled=False),
         "",
         f"| learner | {metric} ours | SEM | median | IQM [95 % CI] | paper | error | 1 − cos | "
         "p (t) | p (Wilcoxon) | P(StROL better) [95 % CI] |",
