@@ -179,3 +179,22 @@ def test_marks_carry_the_reference_direction():
     assert stats.mark({**row, "p_holm": 0.2}) == ""
     assert stats.mark(None) == ""
     assert "↓ = StROL significantly lower" in stats.mark_legend("StROL")
+
+
+def test_resamples_come_from_the_environment_when_set(monkeypatch):
+    monkeypatch.delenv(robust.RESAMPLES_VAR, raising=False)
+    assert robust.default_resamples() == robust.BOOTSTRAP_RESAMPLES == 2000
+    monkeypatch.setenv(robust.RESAMPLES_VAR, "150")
+    assert robust.default_resamples() == 150
+    for bad in ("0", "-3", "2.5", "many", "2000000"):
+        monkeypatch.setenv(robust.RESAMPLES_VAR, bad)
+        with pytest.raises(ValueError, match=robust.RESAMPLES_VAR):
+            robust.default_resamples()
+
+
+def test_chunked_resamples_give_the_bytes_of_one_block(monkeypatch):
+    y = np.random.default_rng(6).exponential(size=(50, 3))
+    whole = robust.iqm_interval(y, rng=np.random.default_rng(1), resamples=RESAMPLES)
+    monkeypatch.setattr(robust, "CHUNK_VALUES", 7 * 50 * 3)  # 7 resamples per block
+    chunked = robust.iqm_interval(y, rng=np.random.default_rng(1), resamples=RESAMPLES)
+    assert np.array_equal(whole.low, chunked.low) and np.array_equal(whole.high, chunked.high)

@@ -228,10 +228,12 @@ def analyse(
     records: Sequence[dict],
     metrics: Sequence[str] = METRICS,
     *,
-    resamples: int = robust.BOOTSTRAP_RESAMPLES,
+    resamples: int | None = None,
 ) -> Analysis:
-    """Descriptives, IQM and probability of improvement (bootstrap intervals, ``resamples``),
-    RM-ANOVA and post-hoc tests per env × condition × metric; learning curves."""
+    """Descriptives, IQM and probability of improvement (bootstrap intervals, ``resamples``;
+    None: ``robust.default_resamples()``), RM-ANOVA and post-hoc tests per env × condition ×
+    metric; learning curves."""
+    resamples = robust.default_resamples() if resamples is None else int(resamples)
     learners = list(config.learners)
     summary, posthoc, anova = [], [], []
     runs: dict[tuple[str, str, str], np.ndarray] = {}
@@ -616,7 +618,7 @@ def _wilcoxon_mark(t: dict[str, Any]) -> str:
 
 
 def write_reports(
-    rd: ResultsDir, *, plots: bool = True, resamples: int = robust.BOOTSTRAP_RESAMPLES
+    rd: ResultsDir, *, plots: bool = True, resamples: int | None = None
 ) -> tuple[Analysis, list[Path]]:
     """Read the records of ``rd`` and (re)write every table, summary.md and the plots."""
     records = rd.read_records()

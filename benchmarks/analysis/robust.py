@@ -24,6 +24,7 @@ task. Every resample comes from a seeded generator: the same inputs give the sam
 from __future__ import annotations
 
 import dataclasses
+import os
 import zlib
 from collections.abc import Sequence
 
@@ -32,7 +33,13 @@ from scipy import stats as sps
 
 BOOTSTRAP_RESAMPLES = 2000
 """Resamples for the benchmark's intervals (the Monte Carlo error of a 95 % percentile bound is
-then about 0.005 in coverage); tests pass 200 or fewer."""
+then about 0.005 in coverage); tests use 200 or fewer (``default_resamples``)."""
+RESAMPLES_VAR = "STROL_BOOTSTRAP_RESAMPLES"
+"""Environment variable that overrides ``BOOTSTRAP_RESAMPLES`` for the reports (the test suite
+sets 200, so its benchmark runs stay fast; summary.md states the count it used)."""
+MAX_RESAMPLES = 1_000_000
+CHUNK_VALUES = 2_000_000
+"""Resampled values held at once (16 MB of float64): the resamples are reduced in chunks."""
 BOOTSTRAP_SEED = 3434
 """The root seed of every report's bootstrap; each cell mixes in its own key (``cell_rng``)."""
 LEVEL = 0.95
@@ -45,6 +52,20 @@ class Interval:
     estimate: np.ndarray
     low: np.ndarray
     high: np.ndarray
+
+
+def default_resamples() -> int:
+    """``BOOTSTRAP_RESAMPLES``, or the positive integer in ``$STROL_BOOTSTRAP_RESAMPLES``."""
+    raw = os.environ.get(RESAMPLES_VAR, "").strip()
+    if not raw:
+        return BOOTSTRAP_RESAMPLES
+    try:
+        n = int(raw)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= MAX_RESAMPLES:
+        raise ValueError(f"{RESAMPLES_VAR} must be an integer in [1, {MAX_RESAMPLES}], got {raw!r}")
+    return n
 
 
 def cell_rng(*key: object) -> np.random.Generator:
@@ -118,9 +139,16 @@ def iqm_interval(
     rows are resampled together, so every learner sees the same resampled runs."""
     y = _matrix(y)
     idx = bootstrap_indices(len(y), resamples, rng, strata)
-    boot = sps.trim_mean(y[idx], 0.25, axis=1)  # (resamples, learners)
+    boot = _chunked(idx, y, lambda block: sps.trim_mean(block, 0.25, axis=1))
     low, high = _percentiles(boot, level)
     return Interval(np.atleast_1d(iqm(y, axis=0)), low, high)
+
+
+def _chunked(idx: np.ndarray, y: np.ndarray, reduce) -> np.ndarray:
+    """``reduce(y[idx])`` (resamples × learners) computed a block of resamples at a time, so
+    a large run count never holds every resampled matrix at once."""
+    step = max(1, CHUNK_VALUES // max(1, idx.shape[1] * y.shape[1]))
+    return np.concatenate([reduce(y[idx[i : i + step]]) for i in range(0, len(idx), step)])
 
 
 def improvement(
@@ -165,7 +193,7 @@ def poi_interval(
         raise ValueError(f"reference must be a column of y (0–{y.shape[1] - 1}), got {reference}")
     w = improvement(y[:, [reference]], y, tol=tol, lower_is_better=lower_is_better)
     idx = bootstrap_indices(len(y), resamples, rng, strata)
-    low, high = _percentiles(w[idx].mean(axis=1), level)
+    low, high = _percentiles(_chunked(idx, w, lambda block: block.mean(axis=1)), level)
     return Interval(w.mean(axis=0), low, high)
 
 

@@ -155,7 +155,9 @@ def analyse(
             if len(ys[metric]):
                 # a generator of its own: the protocol's bootstrap stream below stays as it was
                 iv = robust.iqm_interval(
-                    ys[metric], rng=robust.cell_rng("confirm", cond, metric), resamples=resamples
+                    ys[metric],
+                    rng=robust.cell_rng("confirm", cond, metric),
+                    resamples=robust.default_resamples(),
                 )
                 for j, row in enumerate(descriptives[-len(learners) :]):
                     row |= {"iqm": float(iv.estimate[j]), "iqm_ci95_low": float(iv.low[j]),
@@ -374,8 +376,8 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
         "",
         f"Outcomes other than regret are secondary (no verdict). Ties: |d| ≤ {TIE_TOL:g} on "
         f"regret. Bootstrap: {RESAMPLES} paired resamples, seed {BOOTSTRAP_SEED} (the IQM's: "
-        "its own generator per condition). Marks beside the Wilcoxon p (direction from R− / "
-        "R+) and beside the paired t's p: "
+        f"{robust.default_resamples()}, its own generator per condition). Marks beside the "
+        "Wilcoxon p (direction from R− / R+) and beside the paired t's p: "
         + stats.mark_legend("StROL", "wilcoxon").replace(" (Wilcoxon signed-rank, Holm", " (Holm")
         + ". "
         "IQM = interquartile mean (the mean of the middle 50 % of the runs).",
