@@ -10,7 +10,7 @@ from typing import Any
 from strol_gym.humans import BoltzmannHuman, Human, NominalHuman, register_human
 from strol_gym.priors import FixedPrior, MixturePrior, Prior, UniformPrior
 from strol_gym.registration import register_envs
-from strol_gym.tasks import RobotTask, Task, make_task, register_task
+from strol_gym.tasks import HighwayTask, RobotTask, Task, make_task, register_task
 
 __version__ = "0.1.0"
 
@@ -22,7 +22,6 @@ _LAZY = {
     "register_learner": "strol_gym.learners.registry",
     "list_learners": "strol_gym.learners.registry",
     "OnlineRewardLearner": "strol_gym.learners.protocol",
-    "HighwayTask": "strol_gym.tasks.highway",
 }
 
 

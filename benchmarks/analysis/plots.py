@@ -45,13 +45,8 @@ def learner_color(name: str) -> str:
     return PALETTE[int(hashlib.sha256(name.encode()).hexdigest(), 16) % len(PALETTE)]
 
 
-def _color(i: int, name: str) -> str:
-    """``learner_color(name)``; the position ``i`` no longer matters (the study's plots call
-    this form)."""
-    return learner_color(name)
-
-
-def _save(fig, out: Path, stem: str) -> list[Path]:
+def save_figure(fig, out: Path, stem: str) -> list[Path]:
+    """``out/stem.png`` (130 dpi) and ``out/stem.svg``, then close ``fig``: every plot's files."""
     paths = []
     for ext in ("png", "svg"):
         p = out / f"{stem}.{ext}"
@@ -75,13 +70,13 @@ def jitter(n: int, width: float = 0.55) -> np.ndarray:
 def run_strip(ax, y: np.ndarray, learners: list[str], cells: list[dict | None]) -> None:
     """Every run of each learner (column of ``y``) as a jittered strip, with the mean ± SEM
     (black) and the IQM with its bootstrap interval (white diamond) beside it."""
-    for i, lr in enumerate(learners):
+    for i, learner in enumerate(learners):
         col = y[:, i] if y.size else np.array([])
         ax.scatter(
             i - 0.1 + jitter(len(col), 0.45),
             col,
             s=6,
-            color=learner_color(lr),
+            color=learner_color(learner),
             alpha=0.45,
             linewidths=0,
             zorder=2,
@@ -99,12 +94,12 @@ def run_strip(ax, y: np.ndarray, learners: list[str], cells: list[dict | None]) 
 
 
 def _save_with_legend(fig, axes, out: Path, stem: str) -> list[Path]:
-    """One legend for the grid (the first panel's lines) below it, then ``_save``."""
+    """One legend for the grid (the first panel's lines) below it, then ``save_figure``."""
     handles, labels = axes[0, 0].get_legend_handles_labels()
     if handles:
         fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
-    return _save(fig, out, stem)
+    return save_figure(fig, out, stem)
 
 
 def _env_grid(a: Analysis, metric_for_env: dict[str, str], width: float, height: float):
@@ -137,20 +132,20 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
                 ax.axis("off")
                 continue
             cond = conds[env][c]
-            cells = [a.cell(env, cond, lr, metric) for lr in learners]
+            cells = [a.cell(env, cond, learner, metric) for learner in learners]
             y = a.runs.get((env, cond, metric), np.empty((0, len(learners))))
             run_strip(ax, y, learners, cells)
             if metric in SYMLOG_METRICS:
                 ax.set_yscale("symlog", linthresh=SYMLOG_METRICS[metric], linscale=0.5)
-            for i, lr in enumerate(learners):
-                t = a.test(env, cond, lr, metric)
+            for i, learner in enumerate(learners):
+                t = a.test(env, cond, learner, metric)
                 m = stats.mark(t)
                 if m:
                     color = "black" if t["mean_diff"] < 0 else "#b00000"
                     ax.text(xs[i], 1.0, m, transform=ax.get_xaxis_transform(), ha="center",
                             va="bottom", fontsize=8, color=color)  # fmt: skip
             ax.set_xlim(-0.6, len(learners) - 0.4)
-            ax.set_xticks(xs, [display(lr) for lr in learners], rotation=45, fontsize=8)
+            ax.set_xticks(xs, [display(learner) for learner in learners], rotation=45, fontsize=8)
             ax.tick_params(axis="y", labelsize=8)
             ax.set_title(cond, fontsize=10, pad=13)
             if c == 0:
@@ -163,7 +158,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
         fontsize=9,
     )
     fig.tight_layout()
-    return _save(fig, out, stem)
+    return save_figure(fig, out, stem)
 
 
 def profile_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) -> list[Path]:
@@ -189,9 +184,9 @@ def profile_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: s
                 continue
             taus = robust.profile_taus(y, log=log)
             prof = robust.performance_profile(y, taus)
-            for j, lr in enumerate(learners):
-                ax.step(taus, prof[j], where="post", color=learner_color(lr), lw=1.3,
-                        label=display(lr))  # fmt: skip
+            for j, learner in enumerate(learners):
+                ax.step(taus, prof[j], where="post", color=learner_color(learner), lw=1.3,
+                        label=display(learner))  # fmt: skip
             if log:
                 ax.set_xscale("symlog", linthresh=SYMLOG_METRICS[metric], linscale=0.5)
                 ax.set_xlim(left=0.0)  # runs ≤ 0 (a planner's rounding dust) count at τ = 0
@@ -219,13 +214,13 @@ def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]
                 ax.axis("off")
                 continue
             cond = conds[env][c]
-            for lr in a.config.learners:
-                cur = a.curves.get((env, cond, lr))
+            for learner in a.config.learners:
+                cur = a.curves.get((env, cond, learner))
                 if cur is None:
                     continue
                 steps = np.arange(len(cur["mean"]))
-                col = learner_color(lr)
-                ax.plot(steps, cur["mean"], color=col, label=display(lr), lw=1.5)
+                col = learner_color(learner)
+                ax.plot(steps, cur["mean"], color=col, label=display(learner), lw=1.5)
                 lo, hi = cur["mean"] - cur["sem"], cur["mean"] + cur["sem"]
                 ax.fill_between(steps, lo, hi, color=col, alpha=0.2, lw=0)
             ax.set_title(cond, fontsize=10)

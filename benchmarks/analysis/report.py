@@ -109,7 +109,7 @@ def pooled_matrix(
     per_seed: dict[int, list[list[float]]] = {}
     bad: set[int] = set()
     for (seed, _, _), vals in cells.items():
-        row = [vals.get(lr, math.nan) for lr in learners]
+        row = [vals.get(learner, math.nan) for learner in learners]
         if not np.isfinite(row).all():
             bad.add(seed)
         per_seed.setdefault(seed, []).append(row)
@@ -166,7 +166,7 @@ def pooled_lines(result: dict[str, Any]) -> list[str]:
     ]
     for r in result["pairs"]:
         out.append(
-            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {_num(r['mean_diff'])}, paired t "
+            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {fmt(r['mean_diff'])}, paired t "
             f"{stats.format_p(r['p_holm'])} (Holm; raw {stats.format_p(r['p_t'])}), Wilcoxon "
             f"{stats.format_p(r['wilcoxon_p_holm'])} (Holm)"
         )
@@ -251,9 +251,9 @@ def analyse(
                 if len(y)
                 else (None, None)
             )
-            for j, lr in enumerate(learners):
+            for j, learner in enumerate(learners):
                 summary.append(
-                    {"env": env, "condition": cond, "learner": lr, "metric": metric}
+                    {"env": env, "condition": cond, "learner": learner, "metric": metric}
                     | stats.describe(y[:, j])
                     | _interval("iqm", iqm, j)
                 )
@@ -271,11 +271,11 @@ def analyse(
                     row |= _interval("prob_improvement", poi, learners.index(row["baseline"]))
                     row["mark"] = stats.mark(row)
                     posthoc.append(row)
-        for lr in learners:
+        for learner in learners:
             errs = [
                 r["errors"]
                 for r in records
-                if (r["env"], r["condition"], r["learner"]) == (env, cond, lr)
+                if (r["env"], r["condition"], r["learner"]) == (env, cond, learner)
             ]
             if not errs:
                 continue
@@ -288,7 +288,11 @@ def analyse(
             sd = np.array(
                 [np.nanstd(c, ddof=1) if k > 1 else np.nan for c, k in zip(arr.T, n, strict=True)]
             )
-            curves[(env, cond, lr)] = {"mean": mean, "sem": sd / np.sqrt(np.maximum(n, 1)), "n": n}
+            curves[(env, cond, learner)] = {
+                "mean": mean,
+                "sem": sd / np.sqrt(np.maximum(n, 1)),
+                "n": n,
+            }
     analysis = Analysis(config, summary, posthoc, anova, curves, [], runs=runs)
     analysis.resamples = resamples
     for env in dict.fromkeys(e.env for e in config.experiments):
@@ -296,7 +300,7 @@ def analyse(
         primary = env_preset(env).primary_metric
         if n_cond > 1 and len(learners) > 1 and primary in metrics:
             analysis.pooled.append(pooled_tests(records, [env], learners, primary))
-    analysis.verdicts = verdicts(analysis)
+    analysis.verdicts = paper_verdicts(analysis)
     for env in dict.fromkeys(e.env for e in config.experiments):
         for metric in analysis.metrics_for(env):
             conds = [(env, e.condition.name) for e in config.experiments if e.env == env]
@@ -317,7 +321,7 @@ def _interval(name: str, iv: robust.Interval | None, j: int) -> dict[str, float]
     }
 
 
-def verdicts(a: Analysis) -> list[dict[str, Any]]:
+def paper_verdicts(a: Analysis) -> list[dict[str, Any]]:
     """H1 and H2 per env, on the env's primary metric (Robot: regret; Highway: error).
 
     H1: in the training condition the reference learner is significantly lower than every
@@ -368,31 +372,39 @@ def verdicts(a: Analysis) -> list[dict[str, Any]]:
 
 
 # ---------------------------------------------------------------------- rendering
-def _num(x: float, digits: int = 3) -> str:
+def fmt(x: float | None, digits: int = 3) -> str:
+    """A table number: fixed digits, scientific for tiny non-zero values, 'n/a' for NaN/None."""
     if x is None or not math.isfinite(x):
         return "n/a"
     return f"{x:.{digits}f}" if abs(x) >= 10**-digits or x == 0 else f"{x:.1e}"
+
+
+def fmt_ci(v: float | None, low: float | None, high: float | None, digits: int = 3) -> str:
+    """'v [low, high]' with ``fmt``'s digits; '—' when there is no estimate."""
+    if v is None:
+        return "—"
+    return f"{fmt(v, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"
 
 
 def median_table(a: Analysis, env: str, metric: str) -> list[str]:
     """Markdown table of medians [Q1, Q3] (heavy-tailed metrics such as regret)."""
     learners = list(a.config.learners)
     conds = [e.condition.name for e in a.config.experiments if e.env == env]
-    lines = ["| condition | " + " | ".join(display(lr) for lr in learners) + " |"]
+    lines = ["| condition | " + " | ".join(display(learner) for learner in learners) + " |"]
     lines.append("|---|" + "---|" * len(learners))
     for cond in conds:
         cells = []
-        for lr in learners:
-            c = a.cell(env, cond, lr, metric)
+        for learner in learners:
+            c = a.cell(env, cond, learner, metric)
             cells.append(
-                "n/a" if c is None else f"{_num(c['median'])} [{_num(c['q1'])}, {_num(c['q3'])}]"
+                "n/a" if c is None else f"{fmt(c['median'])} [{fmt(c['q1'])}, {fmt(c['q3'])}]"
             )
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     return lines
 
 
 def _ci(x: float, lo: float, hi: float) -> str:
-    return f"{_num(x)} [{_num(lo)}, {_num(hi)}]"
+    return f"{fmt(x)} [{fmt(lo)}, {fmt(hi)}]"
 
 
 def _conditions(a: Analysis, env: str) -> list[tuple[str, str, str]]:
@@ -412,14 +424,14 @@ def iqm_table(
     speaks of the typical run; the mean table's marks are the t-test's)."""
     learners = list(a.config.learners)
 
-    def cell(e: str, cond: str, lr: str) -> str:
-        c = a.cell(e, cond, lr, metric)
+    def cell(e: str, cond: str, learner: str) -> str:
+        c = a.cell(e, cond, learner, metric)
         if c is None or "iqm" not in c:
             return "n/a"
-        mark = stats.mark(a.test(e, cond, lr, metric), "wilcoxon")
+        mark = stats.mark(a.test(e, cond, learner, metric), "wilcoxon")
         return _ci(c["iqm"], c["iqm_ci95_low"], c["iqm_ci95_high"]) + mark
 
-    head = [display(lr) for lr in learners]
+    head = [display(learner) for learner in learners]
     return _robust_table(a, env, metric, rows, agg, learners, head, cell, "iqm")
 
 
@@ -434,7 +446,7 @@ def poi_table(
     P(reference better than that baseline in a run) [95 % bootstrap CI]; [] without a
     reference to compare."""
     ref = a.config.reference
-    bases = [lr for lr in a.config.learners if lr != ref]
+    bases = [learner for learner in a.config.learners if learner != ref]
     if not bases or ref not in a.config.learners:
         return []
 
@@ -484,17 +496,17 @@ def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
     directional marks (``stats.mark``)."""
     learners = list(a.config.learners)
     conds = [e.condition.name for e in a.config.experiments if e.env == env]
-    head = "| condition | " + " | ".join(display(lr) for lr in learners) + " |"
+    head = "| condition | " + " | ".join(display(learner) for learner in learners) + " |"
     lines = [head, "|---|" + "---|" * len(learners)]
     for cond in conds:
         cells = []
-        for lr in learners:
-            c = a.cell(env, cond, lr, metric)
+        for learner in learners:
+            c = a.cell(env, cond, learner, metric)
             if c is None:
                 cells.append("n/a")
                 continue
-            mark = stats.mark(a.test(env, cond, lr, metric))
-            cells.append(f"{_num(c['mean'])} ± {_num(c['std'])}{mark}")
+            mark = stats.mark(a.test(env, cond, learner, metric))
+            cells.append(f"{fmt(c['mean'])} ± {fmt(c['std'])}{mark}")
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     return lines
 
@@ -505,11 +517,11 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
     out = ["# strol-bench summary", ""]
     git = meta.get("git") or {}
     out += [
-        f"- learners: {', '.join(display(lr) for lr in cfg.learners)}; post-hoc reference: "
-        f"{display(cfg.reference)}",
+        f"- learners: {', '.join(display(learner) for learner in cfg.learners)}; "
+        f"post-hoc reference: {display(cfg.reference)}",
         f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
         f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
-        f"{_num(meta.get('wall_time_s', math.nan), 1)} s",
+        f"{fmt(meta.get('wall_time_s', math.nan), 1)} s",
         "- cells: mean ± std over runs, or IQM [95 % CI]. Marks: "
         + stats.mark_legend(display(cfg.reference))
         + "; in the IQM tables the same marks come from the Wilcoxon signed-rank test (Holm). "
@@ -590,8 +602,8 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                         t["prob_improvement_ci95_high"],
                     )
                     out.append(
-                        f"  - {t['plain_language']}; Δ = {_num(t['mean_diff'])} "
-                        f"[{_num(t['ci95_low'])}, {_num(t['ci95_high'])}], "
+                        f"  - {t['plain_language']}; Δ = {fmt(t['mean_diff'])} "
+                        f"[{fmt(t['ci95_low'])}, {fmt(t['ci95_high'])}], "
                         f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}{_wilcoxon_mark(t)}; "
                         f"P({display(t['learner'])} better in a run) = {poi}"
                     )

@@ -112,12 +112,14 @@ def check_learners(config: BenchConfig) -> dict[str, Any]:
         try:
             task = env.unwrapped.task
             out[env_key] = {}
-            for lr in config.learners:
+            for name in config.learners:
                 try:
-                    learner = make_learner(lr, task=task, **config.kwargs_for(lr))
+                    learner = make_learner(name, task=task, **config.kwargs_for(name))
                 except (OSError, TypeError) as e:
-                    raise ValueError(f"learner {lr!r} cannot be built for {exp.env_id}: {e}") from e
-                out[env_key][lr] = learner_fingerprint(learner)
+                    raise ValueError(
+                        f"learner {name!r} cannot be built for {exp.env_id}: {e}"
+                    ) from e
+                out[env_key][name] = learner_fingerprint(learner)
         finally:
             env.close()
     return out

@@ -16,15 +16,20 @@ from pathlib import Path
 import numpy as np
 from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
-from strol_gym.benchmarks.analysis.report import CELL_KEYS, IQM_KEYS, POI_KEYS, robust_legend
+from strol_gym.benchmarks.analysis.report import (
+    CELL_KEYS,
+    IQM_KEYS,
+    POI_KEYS,
+    fmt,
+    fmt_ci,
+    robust_legend,
+)
 from strol_gym.benchmarks.args import finite, nonneg_int, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
-    fmt,
-    fmt_ci,
     fmt_paper,
     primary_metric,
     small_figure,
@@ -116,22 +121,22 @@ class Changing(BenchExperiment):
         metric = primary_metric(a, env)
         paper = PAPER_CHANGING.get(env, {})
         rows = []
-        for lr in config.learners:
-            c = a.cell(env, "changing", lr, metric) or {}
-            t = a.test(env, "changing", lr, metric) or {}
-            err = a.cell(env, "changing", lr, "error") or {}
-            cos = a.cell(env, "changing", lr, "cos_error") or {}
+        for learner in config.learners:
+            c = a.cell(env, "changing", learner, metric) or {}
+            t = a.test(env, "changing", learner, metric) or {}
+            err = a.cell(env, "changing", learner, "error") or {}
+            cos = a.cell(env, "changing", learner, "cos_error") or {}
             rows.append(
                 {
                     "env": env,
-                    "learner": lr,
+                    "learner": learner,
                     "metric": metric,
                     **{k: c.get(k) for k in CELL_KEYS},
                     "error_mean": err.get("mean"),
                     "cos_error_mean": cos.get("mean"),
                     "p_t_holm": t.get("p_holm"),
                     "p_wilcoxon_holm": t.get("wilcoxon_p_holm"),
-                    "paper_mean": paper.get(lr),
+                    "paper_mean": paper.get(learner),
                     **{k: c.get(k) for k in IQM_KEYS},
                     **{k: t.get(k) for k in POI_KEYS},
                     "mark": stats.mark(t),
@@ -186,7 +191,7 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
 def plot(rows: list[dict], metric: str, stem: Path, runs: np.ndarray | None = None) -> list[Path]:
     """Every run per learner (dots), the mean ± SEM (black) and IQM [95 % CI] (white diamond),
     StROL's directional marks; the paper's values as black diamonds."""
-    from strol_gym.benchmarks.analysis.plots import SYMLOG_METRICS, _save, run_strip
+    from strol_gym.benchmarks.analysis.plots import SYMLOG_METRICS, run_strip, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     fig, ax = small_figure(stem)
@@ -208,4 +213,4 @@ def plot(rows: list[dict], metric: str, stem: Path, runs: np.ndarray | None = No
     ax.set_ylabel(short(metric))
     ax.set_title("Changing preferences: runs, mean ± SEM, IQM [95 % CI]", fontsize=9, pad=12)
     ax.legend(fontsize=8)
-    return _save(fig, stem.parent, stem.name)
+    return save_figure(fig, stem.parent, stem.name)

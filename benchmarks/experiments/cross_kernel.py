@@ -128,7 +128,7 @@ def tests(folder: Path) -> dict[tuple[str, ...], tuple[float, str]]:
     return out
 
 
-def verdicts(folder: Path) -> dict[tuple[str, ...], str]:
+def folder_verdicts(folder: Path) -> dict[tuple[str, ...], str]:
     """Every verdict of the folder: each post-hoc test's (significant, direction), paired t and
     Wilcoxon, and the confirmatory or H3 verdicts where the output has them."""
     out: dict[tuple[str, ...], str] = {k: v for k, (_, v) in tests(folder).items()}
@@ -194,7 +194,7 @@ def compare(ref: Path, other: Path) -> tuple[float, tuple[str, ...] | None, list
             worst, where = d, key
     pa, pb = improvements(ref), improvements(other)
     poi = max((abs(pa[k] - pb[k]) for k in pa.keys() & pb.keys()), default=math.nan)
-    va, vb = verdicts(ref), verdicts(other)
+    va, vb = folder_verdicts(ref), folder_verdicts(other)
     changed = [f"{'/'.join(k)}: {va[k]} -> {vb.get(k)}" for k in sorted(va) if va[k] != vb.get(k)]
     return worst, where, changed, poi
 

@@ -14,15 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_LAMBDA
-from strol_gym.benchmarks.analysis.report import CELL_KEYS, IQM_KEYS
+from strol_gym.benchmarks.analysis.report import CELL_KEYS, IQM_KEYS, fmt, fmt_ci
 from strol_gym.benchmarks.args import float_list, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
-    fmt,
-    fmt_ci,
     fmt_paper,
     small_figure,
 )
@@ -152,7 +150,7 @@ def plot(
 ) -> list[Path]:
     """Regret against λ (symlog x and y): every run (dots), mean ± SEM (line) and IQM (dashed)
     per prior; the paper's values as hollow marks."""
-    from strol_gym.benchmarks.analysis.plots import SYMLOG_METRICS, _save, jitter
+    from strol_gym.benchmarks.analysis.plots import SYMLOG_METRICS, jitter, save_figure
 
     fig, ax = small_figure(stem)
     for i, prior in enumerate(PRIOR_CONDITIONS):
@@ -192,4 +190,4 @@ def plot(
     ax.set_ylabel(short(metric))
     ax.set_title("StROL: G = g + λ·ĝ")
     ax.legend(fontsize=7)
-    return _save(fig, stem.parent, stem.name)
+    return save_figure(fig, stem.parent, stem.name)

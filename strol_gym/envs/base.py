@@ -51,7 +51,7 @@ from strol_gym.humans import Human, HumanFactory, needs_theta_hat
 from strol_gym.humans.spec import HumanSpec
 from strol_gym.priors import Prior, make_prior
 from strol_gym.tasks import make_task
-from strol_gym.tasks.base import Task
+from strol_gym.tasks.base import Task, vector_arg
 
 RESET_OPTIONS = ("theta_star", "state")
 _REAL = (np.dtype(np.float32), np.dtype(np.float64))
@@ -64,14 +64,6 @@ def int_arg(name: str, value: Any, low: int, high: int | None = None) -> int:
         return int(value)
     rng = f">= {low}" if high is None else f"in [{low}, {high}]"
     raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
-
-
-def vector_arg(name: str, value: Any, n: int) -> np.ndarray:
-    """``n`` finite numbers as a fresh float64 vector, else ValueError naming the argument."""
-    v = np.asarray(value, dtype=np.float64).reshape(-1)
-    if v.shape != (n,) or not np.isfinite(v).all():
-        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
-    return v.copy()
 
 
 class RenderModes(list):

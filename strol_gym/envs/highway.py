@@ -14,30 +14,18 @@ from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
 from strol_gym.envs.base import CorrectionEnv, RenderModes
-from strol_gym.humans import Human
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
 ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
 
 
 class HumanVehicle(Vehicle):
-    """A highway-env kinematic vehicle driven by a ``Human``.
+    """A highway-env kinematic vehicle driven by the env's ``Human``.
 
     The env asks the human for u_H = (acceleration, steering) and sets it as the vehicle's
     action, which ``Vehicle.step`` then integrates. Noise and bias are already inside u_H (the
-    human adds them).
+    human adds them). The vehicle keeps no reference to the human: the env holds it.
     """
-
-    def __init__(
-        self,
-        road: Road,
-        position: np.ndarray,
-        heading: float = 0.0,
-        speed: float = 0.0,
-        human: Human | None = None,
-    ) -> None:
-        super().__init__(road, position, heading, speed)
-        self.human = human
 
 
 class HighwayEnv(CorrectionEnv, AbstractEnv):
@@ -229,9 +217,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         )
         robot = Vehicle(self.road, x0[0:2], heading=float(x0[3]), speed=float(x0[2]))
         robot.color = VehicleGraphics.EGO_COLOR
-        human = HumanVehicle(
-            self.road, x0[4:6], heading=float(x0[7]), speed=float(x0[6]), human=self.human
-        )
+        human = HumanVehicle(self.road, x0[4:6], heading=float(x0[7]), speed=float(x0[6]))
         human.color = VehicleGraphics.BLUE
         self.road.vehicles = [robot, human]
         self.controlled_vehicles = [robot]
