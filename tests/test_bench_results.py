@@ -142,6 +142,33 @@ def test_tables_and_summary(tmp_path):
     assert analyse(rd.config, rd.read_records()).summary == a.summary
 
 
+def test_heavy_tail_statistics_in_every_summary(tmp_path):
+    rd = ResultsDir.open(tmp_path / "r", _config(runs=6, learners=PAPER_LEARNERS))
+    _fill(rd)
+    a, _ = write_reports(rd, plots=False, resamples=100)
+    first = (tmp_path / "r" / "summary.csv").read_bytes()
+    with open(tmp_path / "r" / "summary.csv") as f:
+        rows = list(csv.DictReader(f))
+    grad = next(r for r in rows if r["learner"] == "gradient" and r["metric"] == "error")
+    # 6 runs: the IQM cuts one from each end -> mean(0.51, 0.52, 0.53, 0.54)
+    assert float(grad["iqm"]) == pytest.approx(0.525)
+    assert float(grad["iqm_ci95_low"]) <= 0.525 <= float(grad["iqm_ci95_high"])
+    with open(tmp_path / "r" / "stats.csv") as f:
+        stats_rows = list(csv.DictReader(f))
+    reg = [r for r in stats_rows if r["metric"] == "regret"]
+    # StROL's regret is below every baseline's in every run: P = 1 with a degenerate interval.
+    assert all(float(r["prob_improvement"]) == 1.0 for r in reg)
+    assert all(float(r["prob_improvement_ci95_low"]) == 1.0 for r in reg)
+    assert all(r["mark"] == "↓***" for r in reg)
+    md = (tmp_path / "r" / "summary.md").read_text()
+    assert "IQM [95 % CI] of regret" in md and "P(StROL better in a run) [95 % CI]" in md
+    assert "| all 4 (n = 24) |" in md and "↓ = StROL significantly lower" in md
+    # every run's matrix is kept for the figures; the bootstrap is seeded: same bytes again
+    assert a.runs[("robot", "training", "regret")].shape == (6, 5)
+    write_reports(rd, plots=False, resamples=100)
+    assert (tmp_path / "r" / "summary.csv").read_bytes() == first
+
+
 def test_no_verdicts_unless_the_config_is_the_papers(tmp_path):
     """H1/H2 speak of the paper's five learners in the paper's conditions: a subset gets
     tables and tests but no verdict lines."""
