@@ -265,15 +265,22 @@ def save_checkpoint(
         "versions": package_versions(),
         **(extra or {}),
     }
+    _commit(path, tmp_pt, meta)
+    return path
+
+
+def _commit(path: Path, tmp_weights: Path, meta: dict[str, Any]) -> None:
+    """Write ``meta`` as ``path``'s sidecar and move the written ``tmp_weights`` to ``path``:
+    sidecar first, so a failure never leaves weights without their sidecar. The temporary is
+    gone afterwards either way."""
     text = json.dumps(meta, indent=2, sort_keys=True) + "\n"
     side = sidecar_path(path)
     try:
         tmp_json = _write_atomic(side, lambda tmp: tmp.write_text(text))
         os.replace(tmp_json, side)
-        os.replace(tmp_pt, path)
+        os.replace(tmp_weights, path)
     finally:
-        tmp_pt.unlink(missing_ok=True)
-    return path
+        tmp_weights.unlink(missing_ok=True)
 
 
 def read_sidecar(path: str | Path) -> dict[str, Any]:
@@ -457,13 +464,10 @@ def convert_to_safetensors(path: str | Path) -> Path:
         if not same:
             raise ValueError(f"{path}: the safetensors copy does not hold the same tensors")
         meta["weights_sha256"] = weights_sha256(tmp)
-        text = json.dumps(meta, indent=2, sort_keys=True) + "\n"
-        side = sidecar_path(out)
-        tmp_json = _write_atomic(side, lambda t: t.write_text(text))
-        os.replace(tmp_json, side)
-        os.replace(tmp, out)
-    finally:
+    except BaseException:
         tmp.unlink(missing_ok=True)
+        raise
+    _commit(out, tmp, meta)
     return out
 
 
