@@ -18,7 +18,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import platform
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +26,9 @@ import torch
 from safetensors.torch import load as load_safetensors
 from safetensors.torch import save as save_safetensors
 
+from strol_gym.files import temp_beside
 from strol_gym.learners.network import CorrectionNet
+from strol_gym.provenance import package_versions
 from strol_gym.tasks.base import Task
 
 FORMAT_VERSION = 1
@@ -148,24 +149,6 @@ def probe_writable(folder: Path, what: str) -> None:
         raise ValueError(f"{what}: cannot write in {folder} ({e.strerror or e})") from None
 
 
-def _write_atomic(path: Path, write: Any) -> Path:
-    """``write(tmp)`` into a temporary file beside ``path``; returns the temporary's path (the
-    caller renames it). On any error the temporary is removed and OSError names ``path``."""
-    import tempfile
-
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        write(tmp)
-    except BaseException as e:
-        tmp.unlink(missing_ok=True)
-        if isinstance(e, Exception):
-            raise OSError(f"cannot write {path}: {' '.join(str(e).split())}") from None
-        raise
-    return tmp
-
-
 def write_weights(dest: Path, weights: dict[str, torch.Tensor], suffix: str) -> None:
     """Write ``weights`` to ``dest`` in the format ``suffix`` names: safetensors (the same
     tensors always give the same bytes) or, for ``.pt``, a torch state_dict."""
@@ -192,20 +175,6 @@ def read_weights(path: Path) -> dict[str, torch.Tensor]:
 def sidecar_path(path: str | Path) -> Path:
     """The JSON sidecar beside a weights file."""
     return Path(path).with_suffix(".json")
-
-
-def package_versions() -> dict[str, str]:
-    import gymnasium
-
-    import strol_gym
-
-    return {
-        "strol_gym": strol_gym.__version__,
-        "torch": torch.__version__,
-        "numpy": np.__version__,
-        "gymnasium": gymnasium.__version__,
-        "python": platform.python_version(),
-    }
 
 
 def input_dim(task: Task, kind: str) -> int:
@@ -254,7 +223,7 @@ def save_checkpoint(
     check_finite_weights(weights, "model")
     # Both files go to temporaries first and are renamed, sidecar first: a failure (a full
     # disk) leaves no partial weights file, and never weights without their sidecar.
-    tmp_pt = _write_atomic(path, lambda tmp: write_weights(tmp, weights, path.suffix))
+    tmp_pt = temp_beside(path, lambda tmp: write_weights(tmp, weights, path.suffix))
     meta = {
         "format_version": FORMAT_VERSION,
         "kind": kind,
@@ -276,7 +245,7 @@ def _commit(path: Path, tmp_weights: Path, meta: dict[str, Any]) -> None:
     text = json.dumps(meta, indent=2, sort_keys=True) + "\n"
     side = sidecar_path(path)
     try:
-        tmp_json = _write_atomic(side, lambda tmp: tmp.write_text(text))
+        tmp_json = temp_beside(side, lambda tmp: tmp.write_text(text))
         os.replace(tmp_json, side)
         os.replace(tmp_weights, path)
     finally:
@@ -452,7 +421,7 @@ def convert_to_safetensors(path: str | Path) -> Path:
     check_shapes(weights, meta.get("network"), str(path))
     check_finite_weights(weights, str(path))
     out = path.with_suffix(SAFETENSORS)
-    tmp = _write_atomic(out, lambda t: write_weights(t, weights, SAFETENSORS))
+    tmp = temp_beside(out, lambda t: write_weights(t, weights, SAFETENSORS))
     try:
         back = read_weights(tmp)  # not .pt: read as safetensors
         same = back.keys() == weights.keys() and all(
