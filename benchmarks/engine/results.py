@@ -33,7 +33,7 @@ from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label, mix
 
 from strol_gym.files import naming_file, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
-from strol_gym.provenance import git_revision, package_versions
+from strol_gym.provenance import git_revision, package_versions, version_changes
 
 META = "meta.json"
 RECORDS = "records"
@@ -122,6 +122,7 @@ class ResultsDir:
                 shutil.rmtree(path)
             else:
                 meta = cls._read_meta(path)
+                cls._check_versions(path, meta)  # first: the plainest reason a hash differs
                 if meta.get("config_hash") != chash:
                     diffs = diff_configs(meta.get("config", {}), config.to_dict())
                     diffs += diff_configs(meta.get("extra", {}), extra or {}, "extra")
@@ -184,6 +185,28 @@ class ResultsDir:
             [s for s in sessions if isinstance(s, dict)] if isinstance(sessions, list) else []
         )
         return meta
+
+    @staticmethod
+    def _check_versions(path: Path, meta: dict) -> None:
+        """Warn (stderr) and refuse to resume a folder made under other versions of the packages
+        that shape a record's bytes: its records and the new ones would not be one run's.
+        ``--force`` (which starts the folder over) is the way past it."""
+        recorded = meta.get("versions")
+        changed = version_changes(recorded if isinstance(recorded, dict) else {})
+        if not changed:
+            return
+        print(
+            f"warning: {path} was made under other package versions ({'; '.join(changed)}); "
+            "its means and verdicts would hold under these, its bytes only under the same "
+            "versions (docs/reproducibility.md)",
+            file=sys.stderr,
+        )
+        raise ResultsError(
+            f"{path} was made under other package versions ({'; '.join(changed)}), so resuming "
+            "it would mix records of two installs. Reinstall those versions (pip install -c "
+            ".ci/constraints.txt ... for the lock), use another --out, or --force to delete its "
+            "results and start over under these versions."
+        )
 
     @staticmethod
     def _check_ours(path: Path) -> None:
