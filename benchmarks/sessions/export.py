@@ -15,12 +15,19 @@ Datasets are written under ``MINARI_DATASETS_PATH`` (default ``~/.minari/dataset
 from __future__ import annotations
 
 import json
+import shutil
 import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from strol_gym.benchmarks.sessions.dataset_gate import (
+    METADATA,
+    DatasetRefused,
+    check_metadata,
+    dataset_path,
+)
 from strol_gym.wrappers.session_log import (
     Episode,
     Session,
@@ -90,7 +97,11 @@ def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None) -> Any:
 
 
 def export_session(log: str | Path, dataset_id: str) -> Any:
-    """Write session log ``log`` as Minari dataset ``dataset_id``; the MinariDataset."""
+    """Write session log ``log`` as Minari dataset ``dataset_id``; the MinariDataset.
+
+    The id is checked before anything is created (:func:`dataset_gate.dataset_path`), and a
+    failed export removes the folder it began."""
+    folder = new_dataset_path(dataset_id)
     minari = _minari()
     session = read_session(log)
     _, dims = _header(f"{session.path}:1", session.header)
@@ -109,26 +120,49 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
                 description=f"strol-gym session {session.path.name}: corrections on "
                 f"{session.header['env_id']}, task {session.header['task']}",
             )
-        except ValueError as e:  # an existing id, a malformed id
-            raise ValueError(f"dataset_id {dataset_id!r}: {e}") from None
+        except BaseException as e:
+            shutil.rmtree(folder, ignore_errors=True)  # it did not exist: nothing of ours is left
+            if isinstance(e, ValueError):
+                raise ValueError(f"dataset_id {dataset_id!r}: {e}") from None
+            raise
     dataset.storage.update_metadata({HEADER_KEY: json.dumps(session.header)})
     return dataset
 
 
+def new_dataset_path(dataset_id: str) -> Path:
+    """The folder a new dataset ``dataset_id`` goes to: a valid id, not taken (creates nothing)."""
+    folder = dataset_path(dataset_id)
+    if folder.exists():
+        raise ValueError(
+            f"dataset_id {dataset_id!r}: a dataset with this id already exists in {folder.parent}"
+        )
+    return folder
+
+
 def _open(source: str) -> tuple[Any, str]:
+    """The dataset at ``source`` (its folder, its ``data`` folder or an id), once its metadata
+    has passed :func:`dataset_gate.check_metadata`: Minari never sees a folder we have not read."""
     minari = _minari()
     path = Path(source)
+    where = str(path)
+    if (path / "data" / METADATA).is_file():
+        folder = path / "data"
+    elif (path / METADATA).is_file():
+        folder = path
+    else:
+        where = source
+        try:
+            folder = dataset_path(source) / "data"
+        except DatasetRefused:
+            folder = None
+        if folder is None or not (folder / METADATA).is_file():
+            raise ValueError(
+                f"{source}: neither a session log (.jsonl) nor a Minari dataset (an id under "
+                "MINARI_DATASETS_PATH, or its folder)"
+            )
+    check_metadata(folder)
     try:
-        if (path / "data" / "metadata.json").is_file():
-            return minari.MinariDataset(path / "data"), str(path)
-        if (path / "metadata.json").is_file():
-            return minari.MinariDataset(path), str(path)
-        return minari.load_dataset(source), source
-    except FileNotFoundError:
-        raise ValueError(
-            f"{source}: neither a session log (.jsonl) nor a Minari dataset (an id under "
-            "MINARI_DATASETS_PATH, or its folder)"
-        ) from None
+        return minari.MinariDataset(folder), where
     except Exception as e:  # minari raises many kinds on a broken folder
         raise SessionLogError(f"{source}: cannot read the Minari dataset ({e})") from None
 
@@ -225,7 +259,8 @@ def export_runs(
 
     from strol_gym.learners.registry import make_learner
 
-    _minari()  # before any work
+    new_dataset_path(dataset_id)  # before any work
+    _minari()
     exp = Experiment(
         env,
         make_condition(env, condition),
