@@ -145,7 +145,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
 
     metadata: ClassVar[dict[str, Any]] = {
         "render_modes": RenderModes(["human", "rgb_array"]),
-        "render_fps": 4,
+        "render_fps": 2,  # one frame per env step of task.dt = 0.5 s: videos play in real time
     }
 
     env_id: ClassVar[str] = "StROL-Highway-v0"
