@@ -66,3 +66,33 @@ def test_fig4_is_one_figure_and_readable_with_one_condition(run_with_plugin, mon
     assert all(fig4 != (out / "plots" / n).read_bytes() for n in names - {"fig4.png"})
     title, (x0, _, width, _), lines = figures["fig4"]
     assert lines > 1 and x0 <= title.x0 and title.x1 <= x0 + width
+
+
+def test_minari_export_records_algorithm_and_recovers_env(tmp_path, monkeypatch, capsys):
+    """``export --env``: the learner is the dataset's algorithm; its env_spec names our env,
+    kwargs and learner wrapper only, so ``recover_environment()`` builds a working env whose
+    θ̂ comes from that learner; an env_spec tampered with afterwards is refused."""
+    minari = pytest.importorskip("minari")
+    import json
+
+    import numpy as np
+    from cli_checks import cli_error
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    argv = ["export", "strol/runs-v0", "--env", "robot", "--learner", "gradient", "--runs", "2"]
+    assert main(argv) == 0
+    meta_path = tmp_path / "minari" / "strol" / "runs-v0" / "data" / "metadata.json"
+    meta = json.loads(meta_path.read_text())
+    assert meta["algorithm_name"] == "gradient"
+    dataset = minari.load_dataset("strol/runs-v0")
+    env = dataset.recover_environment()
+    assert env.spec.id == "StROL-Robot-v0" and type(env.learner).__name__ == "GradientLearner"
+    obs, _ = env.reset(seed=7)
+    obs, _, _, _, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    np.testing.assert_array_equal(obs["theta_hat"], info["theta_hat"].astype(np.float32))
+    env.close()
+    spec = json.loads(meta["env_spec"])
+    spec["additional_wrappers"][0]["entry_point"] = "os:system"
+    meta_path.write_text(json.dumps({**meta, "env_spec": json.dumps(spec)}))
+    line = cli_error(["replay", "strol/runs-v0", "--learners", "gradient"], capsys)
+    assert str(meta_path) in line and "additional_wrappers[0]" in line

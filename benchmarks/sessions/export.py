@@ -6,7 +6,10 @@ One Minari step is one correction: the observation is what the learner saw (``st
 the last observation carries the final θ̂. Observations are float32 (Minari's spaces), so the
 exact float64 x, u_H, u_R, θ̂ and θ* travel in the episode's infos, and replaying a dataset gives
 the θ̂ of replaying the log, to the bit. The log's header rides in the dataset's metadata and
-is checked like a log's: reading a dataset never runs code.
+is checked like a log's, and the folder's metadata passes :mod:`dataset_gate` before Minari
+reads it: reading a dataset never runs code. The dataset's ``env_spec`` (when the session names
+only registered pieces) is the logged env wrapped in the logged learner, so Minari's
+``recover_environment()`` rebuilds it; ``algorithm_name`` is the learner's name.
 
 Datasets are written under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``). Needs the
 ``[data]`` extra (``pip install ".[data]"``).
@@ -27,6 +30,7 @@ from strol_gym.benchmarks.sessions.dataset_gate import (
     DatasetRefused,
     check_metadata,
     dataset_path,
+    wrappers,
 )
 from strol_gym.wrappers.session_log import (
     Episode,
@@ -107,13 +111,14 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
     _, dims = _header(f"{session.path}:1", session.header)
     obs_space, act_space = _spaces(dims)
     buffers = [_episode_buffer(ep, dims, ep.seed) for ep in session.episodes]
-    # Minari nags for provenance a session log does not have (author, code permalink, env spec)
+    # Minari nags for provenance a session log does not have (author, code permalink)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
         try:
             dataset = minari.create_dataset_from_buffers(
                 dataset_id,
                 buffers,
+                env=env_spec(session.header, dataset_id),
                 observation_space=obs_space,
                 action_space=act_space,
                 algorithm_name=str(session.header.get("learner")),
@@ -127,6 +132,31 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
             raise
     dataset.storage.update_metadata({HEADER_KEY: json.dumps(session.header)})
     return dataset
+
+
+def env_spec(header: dict[str, Any], dataset_id: str) -> Any:
+    """The env a session ran in, as an ``EnvSpec`` Minari's ``recover_environment()`` makes:
+    the registered env id with the logged kwargs, wrapped in the logged learner. None (no
+    env_spec) unless it passes the gate readers apply, i.e. names only our env, our wrapper
+    and registered pieces (a plugin's ``module:attr`` learner or Task cannot be recovered)."""
+    import dataclasses
+
+    import gymnasium as gym
+    from gymnasium.envs.registration import WrapperSpec
+    from strol_gym.benchmarks.sessions.dataset_gate import check_env_spec, registered_envs
+
+    if header.get("env_id") not in registered_envs():
+        return None
+    spec = dataclasses.replace(gym.spec(header["env_id"]), kwargs=dict(header["env_kwargs"]))
+    if header.get("learner") is not None:
+        kwargs = {"learner": header["learner"], "learner_kwargs": header["learner_kwargs"] or None}
+        name, entry = next(iter(wrappers().items()))
+        spec.additional_wrappers = (WrapperSpec(name, entry, kwargs),)
+    try:
+        check_env_spec(f"dataset {dataset_id}: env_spec", spec.to_json())
+    except (DatasetRefused, ValueError):
+        return None
+    return spec
 
 
 def new_dataset_path(dataset_id: str) -> Path:
@@ -257,8 +287,6 @@ def export_runs(
     from strol_gym.wrappers import OnlineLearningWrapper
     from strol_gym.wrappers.session_log import SessionLogger
 
-    from strol_gym.learners.registry import make_learner
-
     new_dataset_path(dataset_id)  # before any work
     _minari()
     exp = Experiment(
@@ -270,7 +298,6 @@ def export_runs(
         task=task,
     )
     genv = gym.make(exp.env_id, **exp.env_kwargs())
-    model = make_learner(learner, task=genv.unwrapped.task, **(learner_kwargs or {}))
     policy = robot_policy(env_preset(env).robot, genv.unwrapped.task)
     extra = {
         "benchmark": {
@@ -281,7 +308,9 @@ def export_runs(
     }
     with tempfile.TemporaryDirectory() as folder:
         logged = SessionLogger(
-            OnlineLearningWrapper(genv, model, regret=False), Path(folder) / "runs.jsonl", extra
+            OnlineLearningWrapper(genv, learner, learner_kwargs or None, regret=False),
+            Path(folder) / "runs.jsonl",
+            extra,
         )
         try:
             for run_seed in exp.seeds:
