@@ -217,7 +217,7 @@ class ResultsDir:
     def _check_ours(path: Path) -> None:
         """Refuse to delete a folder holding anything but our own outputs."""
         ours = {META, RECORDS, "plots", "runs.csv", "curves.csv", "summary.csv", "stats.csv"}
-        ours |= {"anova.csv", "summary.md", LOCK}
+        ours |= {"anova.csv", "summary.md", LOCK, ".slurm"}
         foreign = [p.name for p in path.iterdir() if p.name not in ours]
         if foreign:
             raise ResultsError(
