@@ -87,6 +87,16 @@ def test_minari_export_records_algorithm_and_recovers_env(tmp_path, monkeypatch,
     dataset = minari.load_dataset("strol/runs-v0")
     env = dataset.recover_environment()
     assert env.spec.id == "StROL-Robot-v0" and type(env.learner).__name__ == "GradientLearner"
+    assert dataset.observation_space == env.observation_space
+    assert dataset.action_space == env.action_space
+    task = env.unwrapped.task
+    for ep in dataset.iterate_episodes():  # φ of the logged x; the action is the env's (scaled)
+        np.testing.assert_array_equal(
+            ep.observations["phi"], task.features(ep.infos["x"]).astype(np.float32)
+        )
+        u_r = ep.infos["u_r"][:-1] / task.robot_action_bound
+        np.testing.assert_array_equal(ep.actions, u_r.astype(np.float32))
+        assert env.action_space.contains(ep.actions[0])
     obs, _ = env.reset(seed=7)
     obs, _, _, _, info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
     np.testing.assert_array_equal(obs["theta_hat"], info["theta_hat"].astype(np.float32))

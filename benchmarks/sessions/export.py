@@ -2,14 +2,17 @@
 
 Minari is the Gymnasium ecosystem's format for recorded episodes (``minari.load_dataset``).
 One Minari step is one correction: the observation is what the learner saw (``state`` = x,
-``correction`` = u_H, ``theta_hat`` = θ̂ before the update), the action is the robot's u_R, and
-the last observation carries the final θ̂. Observations are float32 (Minari's spaces), so the
-exact float64 x, u_H, u_R, θ̂ and θ* travel in the episode's infos, and replaying a dataset gives
-the θ̂ of replaying the log, to the bit. The log's header rides in the dataset's metadata and
-is checked like a log's, and the folder's metadata passes :mod:`dataset_gate` before Minari
-reads it: reading a dataset never runs code. The dataset's ``env_spec`` (when the session names
-only registered pieces) is the logged env wrapped in the logged learner, so Minari's
-``recover_environment()`` rebuilds it; ``algorithm_name`` is the learner's name.
+``correction`` = u_H, ``theta_hat`` = θ̂ before the update, ``phi`` = φ(x)), the action is the
+robot's u_R scaled to the env's action space (u_R / ``robot_action_bound``), and the last
+observation carries the final θ̂; the spaces are the env's own. Where the env observes more than
+a log keeps (the study envs' wrench), the dataset keeps its own spaces (no φ, the action u_R).
+Observations are float32 (Minari's spaces), so the exact float64 x, u_H, u_R, θ̂ and θ* travel
+in the episode's infos, and replaying a dataset gives the θ̂ of replaying the log, to the bit.
+The log's header rides in the dataset's metadata and is checked like a log's, and the folder's
+metadata passes :mod:`dataset_gate` before Minari reads it: reading a dataset never runs code.
+The dataset's ``env_spec`` (when the session names only registered pieces) is the logged env
+wrapped in the logged learner, so Minari's ``recover_environment()`` rebuilds it;
+``algorithm_name`` is the learner's name.
 
 Datasets are written under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``). Needs the
 ``[data]`` extra (``pip install ".[data]"``).
@@ -38,6 +41,7 @@ from strol_gym.wrappers.session_log import (
     SessionLogError,
     _header,
     read_session,
+    session_task,
 )
 
 HEADER_KEY = "strol_session_header"
@@ -61,7 +65,30 @@ def _spaces(dims: dict[str, int]) -> tuple[spaces.Dict, spaces.Box]:
     return obs, box(dims["a"])
 
 
-def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None) -> Any:
+def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[spaces.Space, spaces.Space, bool]:
+    """The spaces of the env ``spec`` makes when the dataset fills them (its observation is
+    exactly state, correction, θ̂ and φ; its action the scaled u_R), and True; else the
+    dataset's own spaces (state, correction, θ̂; u_R) and False (e.g. the study envs' wrench,
+    which a session log does not keep per step)."""
+    if spec is None:
+        return (*_spaces(dims), False)
+    import gymnasium as gym
+
+    env = gym.make(spec)
+    try:
+        obs, act = env.observation_space, env.action_space
+    finally:
+        env.close()
+    want = {"state": dims["s"], "correction": dims["a"], "theta_hat": dims["d"], "phi": dims["d"]}
+    ok = isinstance(obs, spaces.Dict) and isinstance(act, spaces.Box)
+    ok = ok and {k: v.shape for k, v in obs.spaces.items()} == {k: (n,) for k, n in want.items()}
+    ok = ok and act.shape == (dims["a"],)
+    return (obs, act, True) if ok else (*_spaces(dims), False)
+
+
+def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None, task: Any = None) -> Any:
+    """One episode as Minari's buffer. With ``task`` (the env's own spaces), the observation
+    adds φ(x) and the action is u_R scaled to the env's action space (u_R / robot_action_bound)."""
     from minari.data_collector import EpisodeBuffer
 
     n, nan = len(ep.corrections), np.nan
@@ -77,14 +104,19 @@ def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None) -> Any:
         x[n] = x[n - 1]  # the last observation: where the last correction began, final θ̂
     star = np.full(dims["d"], nan) if ep.theta_star is None else ep.theta_star
     ctime = [nan if c["correction_time"] is None else c["correction_time"] for c in ep.corrections]
+    observations = {
+        "state": x.astype(np.float32),
+        "correction": u_h.astype(np.float32),
+        "theta_hat": theta.astype(np.float32),
+    }
+    actions = u_r[:n]
+    if task is not None:
+        observations["phi"] = np.asarray(task.features(x), dtype=np.float32).reshape(n + 1, -1)
+        actions = actions / np.asarray(task.robot_action_bound, dtype=np.float64)
     return EpisodeBuffer(
         seed=seed,
-        observations={
-            "state": x.astype(np.float32),
-            "correction": u_h.astype(np.float32),
-            "theta_hat": theta.astype(np.float32),
-        },
-        actions=u_r[:n].astype(np.float32),
+        observations=observations,
+        actions=actions.astype(np.float32),
         rewards=[0.0] * n,  # the person's reward is hidden (θ* in the infos is what they taught)
         terminations=[False] * n,
         truncations=[False] * (n - 1) + [True] if n else [],
@@ -109,8 +141,10 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
     minari = _minari()
     session = read_session(log)
     _, dims = _header(f"{session.path}:1", session.header)
-    obs_space, act_space = _spaces(dims)
-    buffers = [_episode_buffer(ep, dims, ep.seed) for ep in session.episodes]
+    task = session_task(session)  # a registered Task (or a --plugin's): never imported here
+    spec = env_spec(session.header, dataset_id)
+    obs_space, act_space, own = _env_spaces(spec, dims)
+    buffers = [_episode_buffer(ep, dims, ep.seed, task if own else None) for ep in session.episodes]
     # Minari nags for provenance a session log does not have (author, code permalink)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
@@ -118,7 +152,7 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
             dataset = minari.create_dataset_from_buffers(
                 dataset_id,
                 buffers,
-                env=env_spec(session.header, dataset_id),
+                env=spec,
                 observation_space=obs_space,
                 action_space=act_space,
                 algorithm_name=str(session.header.get("learner")),
