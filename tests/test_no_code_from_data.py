@@ -24,6 +24,7 @@ from strol_gym.benchmarks.sessions.export import read_any
 from strol_gym.benchmarks.sessions.replay import replay_session
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import LEGACY_TASKS, SessionLogger, read_session
+from test_minari import cli, robot_session
 
 from strol_gym.learners.checkpoint import rehash_sidecar, save_checkpoint
 from strol_gym.learners.network import CorrectionNet
@@ -34,13 +35,6 @@ minari = pytest.importorskip("minari", reason='Minari is not installed (pip inst
 
 SIDE_EFFECT = "sideeffect_ncfd"
 """A module the test writes whose import writes the marker (a name no other test uses)."""
-
-
-def cli(argv: list[str]) -> int:
-    try:
-        return main(argv)
-    except SystemExit as e:
-        return int(e.code)
 
 
 @pytest.fixture
@@ -72,17 +66,7 @@ def code_names(marker: Path) -> dict[str, tuple[str, dict]]:
 def exported(tmp_path_factory) -> Path:
     """A Robot session log (two episodes of StROL) and its export, written once."""
     root = tmp_path_factory.mktemp("data")
-    log = root / "s.jsonl"
-    env = SessionLogger(OnlineLearningWrapper(gym.make("StROL-Robot-v0", sigma=0.25), "strol"), log)
-    task = env.unwrapped.task
-    for seed in (3, 4):
-        obs, _ = env.reset(seed=seed)
-        done = False
-        while not done:
-            u_r = task.robot_policy(obs["state"], obs["theta_hat"])[0]
-            obs, _, terminated, truncated, _ = env.step(u_r / task.robot_action_bound)
-            done = terminated or truncated
-    env.close()
+    log = robot_session(root / "s.jsonl")
     mp = pytest.MonkeyPatch()
     mp.setenv("MINARI_DATASETS_PATH", str(root / "minari"))
     try:
