@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.engine.config import BenchConfig
+from strol_gym.benchmarks.engine.pool import new_worker
 from strol_gym.benchmarks.engine.slurm import SLURM_DIR, _array_task
 
 pytest.importorskip("submitit", reason='submitit is not installed (pip install ".[slurm]")')
@@ -49,7 +50,7 @@ def test_slurm_array_records_equal_local_and_resume_after_the_submitter_died(tmp
     config = BenchConfig.from_dict(json.loads((local / "meta.json").read_text())["config"])
     units = config.units()
     blocks = slurm / SLURM_DIR / "blocks"
-    _array_task(config.to_dict(), list(sys.path), units[0], str(blocks))
+    _array_task(config.to_dict(), list(sys.path), units[0], str(blocks), new_worker)
     (blocks / f"{units[1].key}.stale.json").write_text('{"config_hash": "other"}')
     submitted = len(list(logs.glob("*_submitted.pkl")))
 

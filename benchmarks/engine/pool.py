@@ -98,7 +98,7 @@ def iter_results(
         from strol_gym.benchmarks.engine.slurm import iter_slurm
 
         assert out is not None, "the Slurm backend collects block files in the results folder"
-        yield from iter_slurm(config, units, jobs, Path(out), **(slurm or {}))
+        yield from iter_slurm(config, units, jobs, Path(out), new_worker, **(slurm or {}))
         return
     if backend == "ray":
         from strol_gym.benchmarks.engine.backends import iter_ray

@@ -21,28 +21,32 @@ import os
 import sys
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
-from strol_gym.benchmarks.engine.results import ResultsError
+from strol_gym.benchmarks.engine.results import ResultsError, write_json_atomic
 
 SLURM_DIR = ".slurm"
 EXECUTORS = ("slurm", "local")
 MAX_BLOCK_BYTES = 256 * 2**20
 
 
-def _array_task(config_dict: dict, sys_path: list[str], unit: Unit, blocks: str) -> str:
-    """One array task: run ``unit`` and write its block file; returns the file's name."""
+def _array_task(
+    config_dict: dict,
+    sys_path: list[str],
+    unit: Unit,
+    blocks: str,
+    make_worker: Callable[[BenchConfig], Any],
+) -> str:
+    """One array task: run ``unit`` with ``make_worker(config)``'s worker (the local pool's,
+    passed in: a backend does not import the pool) and write its block file; its name."""
     for entry in sys_path:  # the submitter's path: user plugins given as .py files import here
         if entry not in sys.path:
             sys.path.append(entry)
-    from strol_gym.benchmarks.engine.pool import new_worker
-    from strol_gym.benchmarks.engine.results import write_json_atomic
-
     config = BenchConfig.from_dict(config_dict)
-    worker = new_worker(config)
+    worker = make_worker(config)
     try:
         records = worker.run_unit(unit)
     finally:
@@ -88,13 +92,15 @@ def iter_slurm(
     units: list[Unit],
     jobs: int,
     out: Path,
+    make_worker: Callable[[BenchConfig], Any],
     executor: str = "slurm",
     partition: str | None = None,
     time_min: int = 60,
     poll_s: float = 2.0,
 ) -> Iterator[tuple[Unit, list[dict]]]:
-    """Run ``units`` as one job array (at most ``jobs`` tasks at once) and yield
-    ``(unit, records)`` as their block files appear in ``out``."""
+    """Run ``units`` as one job array (at most ``jobs`` tasks at once), each with
+    ``make_worker(config)``'s worker, and yield ``(unit, records)`` as their block files appear
+    in ``out``."""
     import submitit
 
     base = Path(out) / SLURM_DIR
@@ -116,7 +122,8 @@ def iter_slurm(
     todo = list(want.values())
     n = len(todo)
     cfg, path = config.to_dict(), list(sys.path)
-    submitted = ex.map_array(_array_task, [cfg] * n, [path] * n, todo, [str(blocks)] * n)
+    where, make = [str(blocks)] * n, [make_worker] * n
+    submitted = ex.map_array(_array_task, [cfg] * n, [path] * n, todo, where, make)
     try:
         while want:
             yield from _collect(blocks, want, config_hash)

@@ -65,16 +65,19 @@ def _spaces(dims: dict[str, int]) -> tuple[spaces.Dict, spaces.Box]:
     return obs, box(dims["a"])
 
 
-def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[spaces.Space, spaces.Space, bool]:
-    """The spaces of the env ``spec`` makes when the dataset fills them (its observation is
-    exactly state, correction, θ̂ and φ; its action the scaled u_R), and True; else the
-    dataset's own spaces (state, correction, θ̂; u_R) and False (e.g. the study envs' wrench,
-    which a session log does not keep per step)."""
+def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[Any, spaces.Space, spaces.Space, bool]:
+    """``spec`` (None if no env can be made from it) and the spaces of the env it makes when
+    the dataset fills them (its observation is exactly state, correction, θ̂ and φ; its action
+    the scaled u_R), and True; else the dataset's own spaces (state, correction, θ̂; u_R) and
+    False (e.g. the study envs' wrench, which a session log does not keep per step)."""
     if spec is None:
-        return (*_spaces(dims), False)
+        return (None, *_spaces(dims), False)
     import gymnasium as gym
 
-    env = gym.make(spec)
+    try:
+        env = gym.make(spec)
+    except Exception:  # logged kwargs this version cannot make an env from: no env_spec
+        return (None, *_spaces(dims), False)
     try:
         obs, act = env.observation_space, env.action_space
     finally:
@@ -83,7 +86,7 @@ def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[spaces.Space, spaces.S
     ok = isinstance(obs, spaces.Dict) and isinstance(act, spaces.Box)
     ok = ok and {k: v.shape for k, v in obs.spaces.items()} == {k: (n,) for k, n in want.items()}
     ok = ok and act.shape == (dims["a"],)
-    return (obs, act, True) if ok else (*_spaces(dims), False)
+    return (spec, obs, act, True) if ok else (spec, *_spaces(dims), False)
 
 
 def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None, task: Any = None) -> Any:
@@ -142,8 +145,7 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
     session = read_session(log)
     _, dims = _header(f"{session.path}:1", session.header)
     task = session_task(session)  # a registered Task (or a --plugin's): never imported here
-    spec = env_spec(session.header, dataset_id)
-    obs_space, act_space, own = _env_spaces(spec, dims)
+    spec, obs_space, act_space, own = _env_spaces(env_spec(session.header, dataset_id), dims)
     buffers = [_episode_buffer(ep, dims, ep.seed, task if own else None) for ep in session.episodes]
     # Minari nags for provenance a session log does not have (author, code permalink)
     with warnings.catch_warnings():
