@@ -48,7 +48,7 @@ def test_fig4_is_one_figure_and_readable_with_one_condition(run_with_plugin, mon
     grids are there; the one-column figure's title fits inside it."""
     out, plugin = run_with_plugin
     figures = {}
-    save = plots._save
+    save = plots.save_figure
 
     def keep(fig, folder, stem):
         if fig._suptitle is not None:
@@ -57,7 +57,7 @@ def test_fig4_is_one_figure_and_readable_with_one_condition(run_with_plugin, mon
             figures[stem] = (title, fig.bbox.bounds, len(fig._suptitle.get_text().splitlines()))
         return save(fig, folder, stem)
 
-    monkeypatch.setattr(plots, "_save", keep)
+    monkeypatch.setattr(plots, "save_figure", keep)
     assert main(["report", str(out), "--plugin", str(plugin)]) == 0
     names = {p.name for p in (out / "plots").glob("*.png")}
     assert {"fig4.png", "bars_error.png", "bars_cos_error.png"} <= names

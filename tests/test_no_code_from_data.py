@@ -29,6 +29,7 @@ from test_minari import cli, robot_session
 from strol_gym.learners.checkpoint import rehash_sidecar, save_checkpoint
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.registry import make_learner
+from strol_gym.registration import ENV_SPECS
 from strol_gym.tasks import make_task
 
 minari = pytest.importorskip("minari", reason='Minari is not installed (pip install ".[data]")')
@@ -84,11 +85,12 @@ def _dataset(exported: Path, tmp_path: Path, name: str) -> tuple[Path, dict]:
     return meta_path, json.loads(meta_path.read_text())
 
 
-def _spec(entry_point: str = "strol_gym.envs.robot:RobotEnv", **over) -> dict:
+def _spec(entry_point: str | None = None, **over) -> dict:
     """A registered-looking env spec (StROL-Robot-v0, its entry points), fields overridden."""
+    registered = ENV_SPECS["StROL-Robot-v0"]
     spec = {
         "id": "StROL-Robot-v0",
-        "entry_point": entry_point,
+        "entry_point": entry_point or registered["entry_point"],
         "reward_threshold": None,
         "nondeterministic": False,
         "max_episode_steps": 10,
@@ -96,7 +98,7 @@ def _spec(entry_point: str = "strol_gym.envs.robot:RobotEnv", **over) -> dict:
         "disable_env_checker": False,
         "kwargs": {},
         "additional_wrappers": [],
-        "vector_entry_point": "strol_gym.envs.vector_robot:VectorRobotEnv",
+        "vector_entry_point": registered["vector_entry_point"],
     }
     return {**spec, **over}
 
@@ -319,7 +321,7 @@ def test_experiment_tables_naming_code(tmp_path, marker):
     """The experiments' own readers (runs.csv, summary/stats CSV, confirm.json, study.json)
     read names as strings: a file full of module:attr imports nothing."""
     from strol_gym.benchmarks.analysis.compare_learners import load_runs
-    from strol_gym.benchmarks.experiments.cross_kernel import means, verdicts
+    from strol_gym.benchmarks.experiments.cross_kernel import folder_verdicts, means
 
     from strol_gym.metrics import RUN_METRICS
 
@@ -338,7 +340,7 @@ def test_experiment_tables_naming_code(tmp_path, marker):
     (tmp_path / "confirm.json").write_text(json.dumps({"verdicts": {spec: "os:system"}}))
     (tmp_path / "study.json").write_text(json.dumps({"verdicts": [{"task": 1, "verdict": spec}]}))
     assert means(tmp_path) == {(spec, spec, "os:system", "regret"): 1.0}
-    got = verdicts(tmp_path)
+    got = folder_verdicts(tmp_path)
     assert got[("confirm", spec)] == "os:system" and got[("H3", "Task 1")] == spec
 
 
@@ -405,3 +407,18 @@ def test_headers_name_registered_pieces_and_study_v1_exports_replay(tmp_path, mo
         out = tmp_path / f"out-{code}"
         argv = ["replay", str(old), "--learners", "gradient", "--no-plots", "--out", str(out)]
         assert cli(argv) == code, path
+
+
+def test_study_pickles_naming_code(tmp_path, marker):
+    """The authors' study logs (import-study's plain-data unpickler): a pickle whose loading
+    would call os.system, eval, or import the side-effect module is refused, and runs nothing."""
+    from strol_gym.benchmarks.sessions.plain_pickle import PickleRefused, load_plain_pickle
+
+    for how, (spec, kwargs) in code_names(marker).items():
+        module, name = spec.split(":")
+        arg = json.dumps(next(iter(kwargs.values()), ""))  # a quoted string pickle reads as is
+        path = tmp_path / f"{how}.pkl"  # protocol 0 by hand: GLOBAL module name, MARK, arg, REDUCE
+        path.write_bytes(f"c{module}\n{name}\n(S{arg}\ntR.".encode())
+        with pytest.raises(PickleRefused):
+            load_plain_pickle(path)
+        assert not marker.exists(), how

@@ -39,7 +39,7 @@ from strol_gym.wrappers.session_log import (
     Episode,
     Session,
     SessionLogError,
-    _header,
+    check_header,
     read_session,
     session_task,
 )
@@ -143,7 +143,7 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
     folder = new_dataset_path(dataset_id)
     minari = _minari()
     session = read_session(log)
-    _, dims = _header(f"{session.path}:1", session.header)
+    _, dims = check_header(f"{session.path}:1", session.header)
     task = session_task(session)  # a registered Task (or a --plugin's): never imported here
     spec, obs_space, act_space, own = _env_spaces(env_spec(session.header, dataset_id), dims)
     buffers = [_episode_buffer(ep, dims, ep.seed, task if own else None) for ep in session.episodes]
@@ -244,7 +244,7 @@ def read_dataset(source: str) -> Session:
         ) from None
     if not isinstance(header, dict):
         raise SessionLogError(f"{where}: not a strol-gym session dataset (no valid header)")
-    header, dims = _header(f"{where}:header", header)
+    header, dims = check_header(f"{where}:header", header)
     episodes = []
     for k, ep in enumerate(dataset.iterate_episodes()):
         at = f"{where}:episode {k}"
