@@ -212,7 +212,7 @@ class ResultsDir:
     def _check_ours(path: Path) -> None:
         """Refuse to delete a folder holding anything but our own outputs."""
         ours = {META, RECORDS, "plots", "runs.csv", "curves.csv", "summary.csv", "stats.csv"}
-        ours |= {"anova.csv", "summary.md", LOCK}
+        ours |= {"anova.csv", "summary.md", LOCK, ".slurm"}
         foreign = [p.name for p in path.iterdir() if p.name not in ours]
         if foreign:
             raise ResultsError(
@@ -227,7 +227,7 @@ class ResultsDir:
             raise ResultsError(f"{path} has no {META}: not a strol-bench results folder")
         meta = cls._read_meta(path)
         try:
-            config = BenchConfig.from_dict(meta["config"])
+            config = BenchConfig.from_dict(meta["config"], trusted=False)
         except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise ResultsError(
                 f"{path / META} has an invalid config ({type(e).__name__}: {e})"
@@ -302,10 +302,16 @@ class ResultsDir:
                 raise ResultsError(f"{p} is corrupt ({e}); delete it to rerun that unit") from e
             if not ok:
                 raise ResultsError(f"{p} was written by another config (hash differs)")
+            if not isinstance(recs, list) or not all(isinstance(r, dict) for r in recs):
+                raise ResultsError(f"{p} is corrupt (its records are not a list of objects)")
             expected = {(s, learner) for s in unit.seeds for learner in self.config.learners}
             got = [(r.get("seed"), r.get("learner")) for r in recs]
+            exp = self.config.experiments[unit.experiment]
+            where = {(r.get("env"), r.get("condition")) for r in recs}
             if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
                 raise ResultsError(f"{p} does not hold exactly its unit's runs; delete it to rerun")
+            if where != {(exp.env, exp.condition.name)}:
+                raise ResultsError(f"{p} holds runs of another env or condition than its unit's")
             out.extend(recs)
         order = {learner: i for i, learner in enumerate(self.config.learners)}
         exp_index = {(e.env, e.condition.name): i for i, e in enumerate(self.config.experiments)}
