@@ -21,8 +21,8 @@ from typing import Any
 import numpy as np
 from scipy import stats as sps
 
-from strol_gym.benchmarks.analysis import stats
-from strol_gym.benchmarks.analysis.report import fmt
+from strol_gym.benchmarks.analysis import robust, stats
+from strol_gym.benchmarks.analysis.report import fmt, fmt_ci
 from strol_gym.benchmarks.args import nonneg_int, positive_int
 from strol_gym.benchmarks.engine.conditions import (
     CONDITION_NAMES,
@@ -126,10 +126,6 @@ def verdict(outcomes: Sequence[str]) -> str:
     return "not confirmed"
 
 
-def _improvement(d: np.ndarray) -> np.ndarray:
-    return (d < 0).astype(np.float64) + 0.5 * (d == 0)
-
-
 def analyse(
     records: Sequence[dict],
     env: str = "robot",
@@ -158,8 +154,18 @@ def analyse(
                 if metric == PRIMARY:
                     row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
                 descriptives.append(row)
+            if len(ys[metric]):
+                # a generator of its own: the protocol's bootstrap stream below stays as it was
+                iv = robust.iqm_interval(
+                    ys[metric],
+                    rng=robust.cell_rng("confirm", cond, metric),
+                    resamples=robust.default_resamples(),
+                )
+                for j, row in enumerate(descriptives[-len(learners) :]):
+                    row |= {"iqm": float(iv.estimate[j]), "iqm_ci95_low": float(iv.low[j]),
+                            "iqm_ci95_high": float(iv.high[j])}  # fmt: skip
         n = len(ys[PRIMARY])
-        idx = rng.integers(0, n, size=(int(resamples), n)) if n else np.zeros((0, 0), int)
+        idx = robust.bootstrap_indices(n, int(resamples), rng) if n else np.zeros((0, 0), int)
         for metric in (PRIMARY, *SECONDARY):
             y = ys[metric]
             block: list[dict[str, Any]] = []
@@ -169,7 +175,7 @@ def analyse(
                 d = tie_rule(raw, metric)
                 sr = signed_rank(d)
                 pt = stats.paired_test(y[:, r], y[:, j])
-                imp = _improvement(d)
+                imp = robust.improvement(d, np.zeros_like(d))  # d after the tie rule
                 if len(d) and len(idx):
                     med_ci = np.percentile(np.median(d[idx], axis=1), [2.5, 97.5])
                     poi_ci = np.percentile(imp[idx].mean(axis=1), [2.5, 97.5])
@@ -332,7 +338,7 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
             else "; ".join(f"{c} would be {v}" for c, v in changed.items())
         ),
         "",
-        "## Regret per learner (mean ± std; median; runs with regret ≥ 0.3)",
+        "## Regret per learner (mean ± std; median; IQM [95 % CI]; runs with regret ≥ 0.3)",
         "",
         "| condition | " + " | ".join(display(learner) for learner in LEARNERS) + " |",
         "|---|" + "---|" * len(LEARNERS),
@@ -342,7 +348,10 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
         cells = []
         for learner in LEARNERS:
             x = desc[(cond, learner, PRIMARY)]
-            cells.append(f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])}; {x['n_switch']}")
+            iqm = fmt_ci(x.get("iqm"), x.get("iqm_ci95_low"), x.get("iqm_ci95_high"))
+            cells.append(
+                f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])}; {iqm}; {x['n_switch']}"
+            )
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     lines += [
         "",
@@ -353,19 +362,27 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for x in result["rows"]:
+        w_mark = stats.signed_stars(x["r_plus"] - x["r_minus"], x["wilcoxon_p_holm"])
         lines.append(
             f"| {x['condition']} | {x['metric']} | {display(x['baseline'])} | "
-            f"{fmt(x['wilcoxon_p_holm'], 4)} | {x['r_minus']:.0f} / {x['r_plus']:.0f} | "
+            f"{fmt(x['wilcoxon_p_holm'], 4)}{w_mark} | "
+            f"{x['r_minus']:.0f} / {x['r_plus']:.0f} | "
             f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
             f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
             f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
             f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
-            f"{fmt(x['t_p_holm'], 4)}, {fmt(x['cohen_dz'], 2)} |"
+            f"{fmt(x['t_p_holm'], 4)}{stats.signed_stars(x['t_mean_diff'], x['t_p_holm'])}, "
+            f"{fmt(x['cohen_dz'], 2)} |"
         )
     lines += [
         "",
         f"Outcomes other than regret are secondary (no verdict). Ties: |d| ≤ {TIE_TOL:g} on "
-        f"regret. Bootstrap: {RESAMPLES} paired resamples, seed {BOOTSTRAP_SEED}.",
+        f"regret. Bootstrap: {RESAMPLES} paired resamples, seed {BOOTSTRAP_SEED} (the IQM's: "
+        f"{robust.default_resamples()}, its own generator per condition). Marks beside the "
+        "Wilcoxon p (direction from R− / R+) and beside the paired t's p: "
+        + stats.mark_legend("StROL", "wilcoxon").replace(" (Wilcoxon signed-rank, Holm", " (Holm")
+        + ". "
+        "IQM = interquartile mean (the mean of the middle 50 % of the runs).",
     ]
     return lines
 

@@ -131,7 +131,8 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     - v0: initial version.
     """
 
-    metadata: dict[str, Any] = render_metadata(fps=4)
+    # one frame per env step of task.dt = 0.5 s (2 Hz): videos play in real time
+    metadata: dict[str, Any] = render_metadata(fps=2)
     time: float
     """Simulated seconds (highway-env starts it as the int 0)."""
 
