@@ -253,9 +253,14 @@ def analyse(
             )
             for j, learner in enumerate(learners):
                 summary.append(
-                    {"env": env, "condition": cond, "learner": learner, "metric": metric}
-                    | stats.describe(y[:, j])
-                    | _interval("iqm", iqm, j)
+                    {
+                        "env": env,
+                        "condition": cond,
+                        "learner": learner,
+                        "metric": metric,
+                        **stats.describe(y[:, j]),
+                        **_interval("iqm", iqm, j),
+                    }
                 )
             a = stats.rm_anova(y)
             anova.append({"env": env, "condition": cond, "metric": metric} | dataclasses.asdict(a))
@@ -599,7 +604,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
             for t in a.posthoc:
                 if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):
                     wil = stats.format_p(t["wilcoxon_p_holm"])
-                    poi = _ci(
+                    p_better = _ci(
                         t["prob_improvement"],
                         t["prob_improvement_ci95_low"],
                         t["prob_improvement_ci95_high"],
@@ -608,7 +613,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                         f"  - {t['plain_language']}; Δ = {fmt(t['mean_diff'])} "
                         f"[{fmt(t['ci95_low'])}, {fmt(t['ci95_high'])}], "
                         f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}{_wilcoxon_mark(t)}; "
-                        f"P({display(t['learner'])} better in a run) = {poi}"
+                        f"P({display(t['learner'])} better in a run) = {p_better}"
                     )
         for pooled in a.pooled:
             if pooled["envs"] == [env]:

@@ -84,9 +84,12 @@ def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[Any, spaces.Space, spa
     finally:
         env.close()
     want = {"state": dims["s"], "correction": dims["a"], "theta_hat": dims["d"], "phi": dims["d"]}
-    ok = isinstance(obs, spaces.Dict) and isinstance(act, spaces.Box)
-    ok = ok and {k: v.shape for k, v in obs.spaces.items()} == {k: (n,) for k, n in want.items()}
-    ok = ok and act.shape == (dims["a"],)
+    ok = (
+        isinstance(obs, spaces.Dict)
+        and isinstance(act, spaces.Box)
+        and {k: v.shape for k, v in obs.spaces.items()} == {k: (n,) for k, n in want.items()}
+        and act.shape == (dims["a"],)
+    )
     return (spec, obs, act, True) if ok else (spec, *_spaces(dims), False)
 
 
@@ -220,14 +223,15 @@ def _open(source: str) -> tuple[Any, str]:
     else:
         where = source
         try:
-            folder = dataset_path(source) / "data"
+            found: Path | None = dataset_path(source) / "data"
         except DatasetRefused:
-            folder = None
-        if folder is None or not (folder / METADATA).is_file():
+            found = None
+        if found is None or not (found / METADATA).is_file():
             raise ValueError(
                 f"{source}: neither a session log (.jsonl) nor a Minari dataset (an id under "
                 "MINARI_DATASETS_PATH, or its folder)"
             )
+        folder = found
     check_metadata(folder)
     try:
         return minari.MinariDataset(folder), where
