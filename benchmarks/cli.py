@@ -50,6 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
     export.add_parser(sub)
     interact.add_parser(sub)
 
+    from strol_gym.benchmarks.experiments import fit_human
+
+    fit_human.add_parser(sub)  # strol-bench fit-human (issue 35)
+
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
     p.add_argument("--no-plots", action="store_true")
@@ -143,7 +147,14 @@ def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> i
     return command(args, parser)
 
 
+def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.experiments.fit_human import command
+
+    return command(args, parser)
+
+
 COMMANDS = {
+    "fit-human": cmd_fit_human,
     "replay": cmd_replay,
     "interact": cmd_interact,
     "export": cmd_export,

@@ -20,6 +20,7 @@ from strol_gym.humans.choices import (
     optimal_correction,
     perturb,
 )
+from strol_gym.humans.findings import register_findings
 from strol_gym.humans.model import (
     DEFAULT_CANDIDATES,
     Draws,
@@ -53,6 +54,8 @@ from strol_gym.humans.registry import (
 )
 from strol_gym.humans.spec import HumanSpec
 from strol_gym.humans.teaching import teach
+
+register_findings()  # the findings' models join the registry (strol_gym.humans.findings)
 
 SimulatedHuman = ModelHuman
 """The base of the built-in simulated humans (the adapter of a ``HumanModel``)."""
