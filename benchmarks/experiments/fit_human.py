@@ -4,8 +4,11 @@ model to correction logs (the likelihood and its machinery: ``strol_gym.humans.f
 A SOURCE is a session log (.jsonl), a folder of them, or a Minari dataset (``strol-bench
 export``). The fit reads only what a person's log holds (``fitting.Corrections``): the header's
 Task (to compute φ and g) and, per episode, θ* and θ̂0; per correction x, u_H, u_R and θ̂ after
-it. The person is the header's ``extra["participant"]`` where a front end logged one (the
-study importer does), else each episode. Never the seeds, the env's kwargs (σ, the human) or
+it. The person is the header's ``extra["participant"]`` or ``extra["user"]`` where a front end
+logged one (``strol-bench import-study`` does), else each episode; θ̂ is unknown after a
+correction whose ``theta_hat_after`` is null, and from the start where ``extra["unknown"]``
+lists ``theta_hat0`` (the imported study sessions: models that teach relative to θ̂ are then
+left out, saying so). Never the seeds, the env's kwargs (σ, the human) or
 anything else of the header: a test strips them and gets the same estimate.
 
 Writes DIR/fit.json (the named model: estimates, 95 % bootstrap intervals over people,
@@ -52,12 +55,26 @@ def _sources(sources: Sequence[str]) -> list[str]:
     return out
 
 
+def _extra(header: dict[str, Any]) -> dict[str, Any]:
+    extra = header.get("extra")
+    return extra if isinstance(extra, dict) else {}
+
+
 def _person(header: dict[str, Any], source: str, episode: int) -> str:
-    extra = header.get("extra") if isinstance(header.get("extra"), dict) else {}
-    who = extra.get("participant")
-    if isinstance(who, str | int) and not isinstance(who, bool) and str(who):
-        return f"participant {who}"
+    """Who made an episode's corrections: ``extra["participant"]`` or ``extra["user"]`` (the
+    study importer's), else the episode itself."""
+    extra = _extra(header)
+    for key in ("participant", "user"):
+        who = extra.get(key)
+        if isinstance(who, str | int) and not isinstance(who, bool) and str(who):
+            return f"participant {who}"
     return f"{source}#{episode}"
+
+
+def _theta0_unknown(header: dict[str, Any]) -> bool:
+    """Whether the log marks θ̂0 as not logged (its ``theta_hat0`` a placeholder)."""
+    unknown = _extra(header).get("unknown")
+    return isinstance(unknown, list) and "theta_hat0" in unknown
 
 
 def load_corrections(sources: Sequence[str]) -> Corrections:
@@ -84,11 +101,15 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
             task, task_name = session_task(session), name
         elif name != task_name:
             raise ValueError(f"SOURCE {src}: task {name!r}, the others {task_name!r}")
+        no_theta0 = _theta0_unknown(session.header)
+        unknown |= no_theta0
         for e, ep in enumerate(session.episodes):
             if ep.theta_star is None:
                 continue
             who = people.setdefault(_person(session.header, src, e), len(people))
             hat = np.asarray(ep.theta_hat0, dtype=np.float64)
+            if no_theta0:
+                hat = np.full_like(hat, np.nan)
             for i, c in enumerate(ep.corrections):
                 rows["x"].append(c["x"])
                 rows["u_h"].append(c["u_h"])
