@@ -70,7 +70,7 @@ def _log(path, seed0: int = 0) -> None:
         extra={"note": "simulated", "sigma": 0.3},
     )
     task = env.unwrapped.task
-    for seed in range(seed0, seed0 + 8):
+    for seed in range(seed0, seed0 + 6):
         obs, _ = env.reset(seed=seed)
         done = False
         while not done:
@@ -107,7 +107,7 @@ def test_fit_ignores_the_headers_generating_parameters_and_seeds(tmp_path, capsy
         outs.append(json.loads((out / "fit.json").read_text()))
     assert outs[0]["params"] == outs[1]["params"]
     assert outs[0]["loglik"] == outs[1]["loglik"]
-    assert outs[0]["n_people"] == 8 and outs[0]["n_corrections"] == 40
+    assert outs[0]["n_people"] == 6 and outs[0]["n_corrections"] == 30
     for p in outs[0]["params"].values():
         lo, hi = p["ci95"]
         assert lo <= p["estimate"] <= hi
