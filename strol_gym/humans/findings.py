@@ -282,6 +282,62 @@ class BPrefEqualModel(MarginNoiseModel):
         super().__init__(task, sigma, bias, kappa, equal, n_candidates)
 
 
+FITTED_STUDY: dict[str, Any] = {
+    "model": "scale-free",
+    "params": {"sigma": 0.490, "bias": 0.050, "beta_rel": 8.02},
+    "per_task": {
+        "study-task1": {
+            "sigma": [0.552, 0.455, 0.656],
+            "bias": [-0.029, -0.213, 0.139],
+            "beta_rel": [6.80, 3.93, 11.11],
+            "heldout_loglik": 375.1,
+        },
+        "study-task2": {
+            "sigma": [0.451, 0.373, 0.516],
+            "bias": [0.121, 0.040, 0.210],
+            "beta_rel": [9.13, 6.70, 11.52],
+            "heldout_loglik": 863.6,
+        },
+        "study-task3": {
+            "sigma": [0.467, 0.401, 0.522],
+            "bias": [0.057, -0.015, 0.094],
+            "beta_rel": [8.13, 6.44, 9.84],
+            "heldout_loglik": 872.4,
+        },
+    },
+    "source": "the authors' user study (github VT-Collab/StROL_RAL, data removed at d383bef): "
+    "12 participants × 3 Tasks × 3 learners, imported with strol-bench import-study (issue 32, "
+    "one update per correction, θ̂0 not logged)",
+    "command": "strol-bench fit-human OUT/user_*_task_J_*.jsonl --human myopic "
+    "--compare boltzmann,scale-free,nominal --bootstrap 30 --folds 4 --out DIR (J = 1, 2, 3)",
+    "date": "2026-11-25",
+}
+"""The fit behind ``fitted-study`` (docs/humans.md, "Fitted to the twelve people"): per Task the
+estimate and its 95 % bootstrap interval over people [estimate, low, high]; ``params`` the mean
+of the three Tasks' estimates (σ, ε in units of a_max)."""
+
+
+class FittedStudyModel(ScaleFreeBoltzmannModel):
+    """The people of the authors' user study as fitted (``FITTED_STUDY``): the scale-free
+    Boltzmann person, the best of the θ̂-free models by held-out log-likelihood over folds of
+    participants (pooled over the three Tasks: scale-free 2111.1, Boltzmann 2103.2, myopic
+    1883.4; scale-free best in Tasks 2 and 3, Boltzmann in Task 1), with the mean of the Tasks'
+    estimates: β = 8.0 (log-odds of the best candidate over the worst), σ = 0.49, ε = 0.05.
+    The eq. M6 teacher and its zoo could not be fitted there (θ̂ per correction was not logged).
+    In ``strol-bench robustness`` σ and ε are the grid's, as for every human; β is the fit's.
+    Parameters as ``scale-free``."""
+
+    def __init__(
+        self,
+        task: Task,
+        sigma: float = FITTED_STUDY["params"]["sigma"],
+        bias: float = FITTED_STUDY["params"]["bias"],
+        beta_rel: float = FITTED_STUDY["params"]["beta_rel"],
+        n_candidates: int = DEFAULT_CANDIDATES,
+    ) -> None:
+        super().__init__(task, sigma, bias, beta_rel, n_candidates)
+
+
 FINDINGS: dict[str, type[HumanModel]] = {
     "competence": CompetenceModel,
     "margin-noise": MarginNoiseModel,
@@ -292,6 +348,7 @@ FINDINGS: dict[str, type[HumanModel]] = {
     "bpref-mistake": BPrefMistakeModel,
     "bpref-skip": BPrefSkipModel,
     "bpref-equal": BPrefEqualModel,
+    "fitted-study": FittedStudyModel,
 }
 """The models of this module by name, registered on import of ``strol_gym.humans``."""
 
@@ -313,11 +370,13 @@ def register_findings() -> None:
 
 __all__ = [
     "FINDINGS",
+    "FITTED_STUDY",
     "BPrefEqualModel",
     "BPrefMistakeModel",
     "BPrefSkipModel",
     "BPrefStocModel",
     "CompetenceModel",
+    "FittedStudyModel",
     "HazardModel",
     "MarginNoiseModel",
     "ReversingModel",

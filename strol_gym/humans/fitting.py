@@ -503,6 +503,7 @@ def families() -> dict[str, Family]:
         ("bpref-mistake", "reversing"),
         ("bpref-skip", "skipping"),
         ("bpref-equal", "margin-noise"),
+        ("fitted-study", "scale-free"),
     ):
         out[preset] = _Preset(preset, out[base])
     return out
