@@ -293,7 +293,7 @@ FITTED_STUDY: dict[str, Any] = {
             "heldout_loglik": 375.1,
         },
         "study-task2": {
-            "sigma": [0.451, 0.373, 0.516],
+            "sigma": [0.451, 0.372, 0.516],
             "bias": [0.121, 0.040, 0.210],
             "beta_rel": [9.13, 6.70, 11.52],
             "heldout_loglik": 863.6,
