@@ -110,7 +110,7 @@ def test_fit_ignores_the_headers_generating_parameters_and_seeds(tmp_path, capsy
     assert outs[0]["n_people"] == 6 and outs[0]["n_corrections"] == 30
     for p in outs[0]["params"].values():
         lo, hi = p["ci95"]
-        assert lo <= p["estimate"] <= hi
+        assert lo - 1e-6 <= p["estimate"] <= hi + 1e-6  # (p ≈ 0 here: no skips to see)
     assert "fit.json" in capsys.readouterr().out
 
 
