@@ -49,6 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_parser(sub)
     export.add_parser(sub)
     interact.add_parser(sub)
+    from strol_gym.benchmarks.sessions import import_study
+
+    import_study.add_parser(sub)
 
     from strol_gym.benchmarks.experiments import fit_human
 
@@ -153,8 +156,15 @@ def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     return command(args, parser)
 
 
+def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.import_study import command
+
+    return command(args, parser)
+
+
 COMMANDS = {
     "fit-human": cmd_fit_human,
+    "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
     "export": cmd_export,

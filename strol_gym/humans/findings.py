@@ -37,10 +37,10 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym.humans.builtin import NominalModel
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.choices import perturb
-from strol_gym.humans.model import DEFAULT_CANDIDATES, HumanModel, ModelHuman, Replayed
-from strol_gym.humans.models import TeacherModel
+from strol_gym.humans.interface import DEFAULT_CANDIDATES, HumanModel, Replayed, SimulatedHuman
 from strol_gym.humans.zoo import SkippingModel, _silence, check_probability
 from strol_gym.tasks.base import Task
 
@@ -76,7 +76,7 @@ def check_positive(name: str, value: Any, high: float) -> float:
     return v
 
 
-class CompetenceModel(TeacherModel):
+class CompetenceModel(NominalModel):
     """Competence-dependent propensity (arXiv 2501.03515): the eq. M6 teacher who corrects with
     probability p(m) = p_good + (p_bad − p_good)·m, where m is the correction's margin (module
     docstring: 0 when the robot's motion is already about the best, 1 when it does badly), and
@@ -113,7 +113,7 @@ class CompetenceModel(TeacherModel):
         return _silence(u, draws.extra["act"] >= self.propensity(m))
 
 
-class HazardModel(TeacherModel):
+class HazardModel(NominalModel):
     """A state-dependent timing hazard (issue 35 cites arXiv 2602.18603): at each step the
     person steps in with probability h = 1 − exp(−λ·exp(γ (m − 1))), a proportional hazard in
     the margin m (module docstring), else lets the robot be (u_H = 0). λ is the hazard where the
@@ -150,7 +150,7 @@ class HazardModel(TeacherModel):
         return _silence(u, draws.extra["act"] >= self.hazard(m))
 
 
-class MarginNoiseModel(TeacherModel):
+class MarginNoiseModel(NominalModel):
     """Margin-dependent noise and indifference (arXiv 2601.01904's similarity noise; B-Pref's
     "equal"): the eq. M6 teacher whose hand is noisier the smaller the margin m (module
     docstring), σ_m = σ + κ (1 − m), and who gives no correction (u_H = 0) when m < ``equal``:
@@ -222,7 +222,7 @@ def scale_free_logits(rewards: np.ndarray, beta_rel: float) -> np.ndarray:
     return rewards * scale[:, None]
 
 
-class ReversingModel(TeacherModel):
+class ReversingModel(NominalModel):
     """B-Pref's "mistake" as a correction: with probability ``rate`` the person pushes the
     opposite way to the teacher's correction, u = −u*, else u = u*; then δ. A flipped label
     of a preference is the reverse of what the teacher wants, and so is the reversed push.
@@ -352,11 +352,11 @@ FINDINGS: dict[str, type[HumanModel]] = {
 }
 """The models of this module by name, registered on import of ``strol_gym.humans``."""
 
-CompetenceHuman = ModelHuman.of(CompetenceModel, "CompetenceHuman")
-HazardHuman = ModelHuman.of(HazardModel, "HazardHuman")
-MarginNoiseHuman = ModelHuman.of(MarginNoiseModel, "MarginNoiseHuman")
-ScaleFreeBoltzmannHuman = ModelHuman.of(ScaleFreeBoltzmannModel, "ScaleFreeBoltzmannHuman")
-ReversingHuman = ModelHuman.of(ReversingModel, "ReversingHuman")
+CompetenceHuman = SimulatedHuman.of(CompetenceModel, "CompetenceHuman")
+HazardHuman = SimulatedHuman.of(HazardModel, "HazardHuman")
+MarginNoiseHuman = SimulatedHuman.of(MarginNoiseModel, "MarginNoiseHuman")
+ScaleFreeBoltzmannHuman = SimulatedHuman.of(ScaleFreeBoltzmannModel, "ScaleFreeBoltzmannHuman")
+ReversingHuman = SimulatedHuman.of(ReversingModel, "ReversingHuman")
 
 
 def register_findings() -> None:

@@ -46,7 +46,7 @@ from scipy import optimize, special
 from scipy.stats import qmc
 
 from strol_gym.humans.findings import margin, scale_free_logits
-from strol_gym.humans.model import DEFAULT_CANDIDATES
+from strol_gym.humans.interface import DEFAULT_CANDIDATES
 from strol_gym.tasks.base import Task
 
 QUADRATURE = 4096
