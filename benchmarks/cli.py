@@ -53,7 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     import_study.add_parser(sub)
 
-    from strol_gym.benchmarks.experiments import fit_human
+    from strol_gym.benchmarks.sessions import fit_human
 
     fit_human.add_parser(sub)  # strol-bench fit-human (issue 35)
 
@@ -151,7 +151,7 @@ def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> i
 
 
 def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from strol_gym.benchmarks.experiments.fit_human import command
+    from strol_gym.benchmarks.sessions.fit_human import command
 
     return command(args, parser)
 

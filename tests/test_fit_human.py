@@ -11,7 +11,7 @@ import pytest
 from cli_checks import cli_error
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.analysis.fit_recovery import recovery, selection, simulate_people
-from strol_gym.benchmarks.experiments.fit_human import load_corrections
+from strol_gym.benchmarks.sessions.fit_human import load_corrections
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
 
@@ -28,7 +28,7 @@ def test_recovery_of_the_teacher_covers_its_parameters():
     """5 datasets of 8 people (σ 0.35, ε 0.1, not the defaults), 30 bootstrap samples each:
     each interval holds the truth in most datasets and the mean estimate sits within half an
     interval's width (the benchmark script measures 20 datasets: docs/humans.md)."""
-    out = recovery(TASK, "nominal", {"sigma": 0.35, "bias": 0.1}, 5, 8, 30, seed=11)
+    out = recovery(TASK, "nominal", {"sigma": 0.35, "bias": 0.1}, 5, 8, 30, seed=11, robot=False)
     for name, r in out.items():
         assert r["coverage"] >= 0.6, (name, r)
         assert abs(r["bias"]) < r["mean_ci_width"] / 2, (name, r)
@@ -39,7 +39,9 @@ def test_selection_by_heldout_likelihood_finds_the_generating_model():
         "mistaken": ("mistaken", {"sigma": 0.2, "rate": 0.35}),
         "nominal": ("nominal", {"sigma": 0.3}),
     }
-    conf = selection(TASK, scen, 1, 10, candidates=("nominal", "mistaken", "myopic"), seed=5)
+    conf = selection(
+        TASK, scen, 1, 10, candidates=("nominal", "mistaken", "myopic"), seed=5, robot=False
+    )
     assert conf["mistaken"]["mistaken"] == 1, conf
     assert conf["nominal"]["myopic"] == 0, conf  # the teacher's data are not the myopic's
 
@@ -47,7 +49,7 @@ def test_selection_by_heldout_likelihood_finds_the_generating_model():
 def test_censored_gaussian_recovers_sigma_from_clipped_corrections():
     """A log that clips u_H at the bound holds less spread; the censored likelihood gets σ back,
     the plain Gaussian would not."""
-    data = simulate_people(TASK, "nominal", 25, 3, sigma=0.6)
+    data = simulate_people(TASK, "nominal", 25, 3, robot=False, sigma=0.6)
     bound = np.asarray(TASK.action_bound)
     clipped = np.clip(data.u_h, -bound, bound)
     assert (np.abs(clipped) == bound).mean() > 0.2  # many components sit on the bound
@@ -166,7 +168,7 @@ def test_loading_reads_theta_hat_before_each_correction(tmp_path):
 
 def test_competence_propensity_follows_the_margin():
     """Silences of the competence person happen at the rate 1 − p(m), m the margin."""
-    n = 1500
+    n = 800
     rng = np.random.default_rng(1)
     x = TASK.sample_start(rng, n)
     u_r = TASK.robot_policy(x, np.zeros((n, TASK.dim)))

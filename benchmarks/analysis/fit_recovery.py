@@ -64,10 +64,12 @@ def simulate_people(
     n_people: int,
     seed: int,
     n_corrections: int = 5,
+    robot: bool = True,
     **params: Any,
 ) -> Corrections:
     """``n_people`` people of ``human`` (with ``params``) teaching the Gradient learner: every
-    correction as a log would hold it (x, u_H, u_R, θ*, θ̂ before it)."""
+    correction as a log would hold it (x, u_H, u_R, θ*, θ̂ before it). u_R is the Task's robot
+    policy (``robot``; else 0: the tests' cheaper episodes)."""
     kw = {k: v for k, v in params.items() if k not in ("sigma", "bias", "beta")}
     model = human_model(
         human,
@@ -92,7 +94,8 @@ def simulate_people(
         rec["hat"].append(np.array(np.broadcast_to(learner.theta, (n_people, task.dim))))
         return learner.update(x, u_h, u_r)
 
-    teach(task, model, star, theta0, x0, update, rng, n_corrections, robot_policy=task.robot_policy)
+    policy = task.robot_policy if robot else None
+    teach(task, model, star, theta0, x0, update, rng, n_corrections, robot_policy=policy)
     k = np.repeat(np.arange(n_corrections), n_people)
     person = np.tile(np.arange(n_people), n_corrections)
     return Corrections(
@@ -135,13 +138,14 @@ def recovery(
     n_people: int,
     n_boot: int,
     seed: int = 0,
+    robot: bool = True,
 ) -> dict[str, Any]:
     """Coverage and bias of each parameter over ``datasets`` simulated datasets."""
     est: dict[str, list[float]] = {k: [] for k in truth}
     cover: dict[str, list[bool]] = {k: [] for k in truth}
     width: dict[str, list[float]] = {k: [] for k in truth}
     for d in range(datasets):
-        data = simulate_people(task, human, n_people, seed + 1000 * d, **truth)
+        data = simulate_people(task, human, n_people, seed + 1000 * d, robot=robot, **truth)
         f = fit(human, data, n_boot=n_boot, heldout_too=False, seed=d)
         for k, v in truth.items():
             lo, hi = f.ci95[k]
@@ -171,13 +175,16 @@ def selection(
     candidates: Sequence[str] = CANDIDATES,
     seed: int = 0,
     folds: int = 5,
+    robot: bool = True,
 ) -> dict[str, dict[str, int]]:
     """Confusion counts: scenario -> model chosen by held-out log-likelihood -> datasets."""
     out: dict[str, dict[str, int]] = {}
     for label, (human, params) in scenarios.items():
         counts = dict.fromkeys(candidates, 0)
         for d in range(datasets):
-            data = simulate_people(task, human, n_people, seed + 7919 * (d + 1), **params)
+            data = simulate_people(
+                task, human, n_people, seed + 7919 * (d + 1), robot=robot, **params
+            )
             held = {
                 c: fit(c, data, n_boot=0, folds=folds, seed=d).heldout_loglik for c in candidates
             }
