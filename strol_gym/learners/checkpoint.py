@@ -2,7 +2,7 @@
 ``weights_only=True``, never a pickled object) plus a JSON sidecar that says what they are for.
 
 The sidecar (``<name>.json`` next to ``<name>.pt``) records the task (id, version, feature names,
-dims, α, action bound), the network input width and architecture, the kind ("strol" | "e2e"),
+dims, α, action bound), the network input width and architecture, the kind ("strol" | "e2e" | ...),
 the training config and seed, package versions, the final loss and the held-out Lyapunov
 check. Loading compares it with the Task and raises ValueError naming every difference.
 """
@@ -43,7 +43,12 @@ def register_kind(name: str, *, sees_theta_hat: bool = False) -> None:
         THETA_KINDS.add(name)
 
 
-for _kind, _sees in (("strol", False), ("e2e", False), ("strol-unrolled", True)):
+for _kind, _sees in (
+    ("strol", False),
+    ("e2e", False),
+    ("e2e-scratch", False),
+    ("strol-unrolled", True),
+):
     register_kind(_kind, sees_theta_hat=_sees)
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 
