@@ -1,6 +1,12 @@
-"""``strol-bench confirm``: the pre-registered confirmatory Robot test (docs/confirmatory.md).
+"""``strol-bench confirm``: the pre-registered confirmatory tests.
 
-This module implements that protocol and nothing else: 1000 paired runs per paper condition on
+``--protocol paper-conditions`` (the default) is the Robot test of docs/confirmatory.md;
+``--protocol held-out`` is protocol 1 of docs/confirmatory-held-out.md: the same analysis on
+cells env × held-out human (Boltzmann, myopic, driver), 1000 runs each on seeds 3_200_000 –
+3_200_999, primary outcome regret on the Robot and 1 − cos on the Highway.
+
+The first protocol is implemented as written and nothing else: 1000 paired runs per paper
+condition on
 seeds 3_000_000 – 3_000_999, Gradient, One, MOF and StROL; primary outcome regret; the two-sided
 Wilcoxon signed-rank test of StROL against each baseline after the tie rule (|d| ≤ 1e-6 -> 0),
 Holm over the three baselines per condition, direction from the signed ranks; verdicts
@@ -25,6 +31,8 @@ from strol_gym.benchmarks.args import nonneg_int, positive_int
 from strol_gym.benchmarks.engine.conditions import (
     CONDITION_NAMES,
     REFERENCE_LEARNER,
+    Condition,
+    env_preset,
     make_condition,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
@@ -74,6 +82,16 @@ COLUMNS = (
 )
 
 
+PROTOCOLS = ("paper-conditions", "held-out")
+"""docs/confirmatory.md and docs/confirmatory-held-out.md (protocol 1)."""
+HELD_OUT_SEED = 3_200_000
+HELD_OUT_HUMANS = ("boltzmann", "myopic", "driver")
+"""Protocol 1's humans: none is the eq. M6 teacher that every shipped Robot/Highway ĝ saw."""
+HELD_OUT_ENVS = ("robot", "highway")
+HELD_OUT_PRIMARY = {"robot": "regret", "highway": "cos_error"}
+"""The scale-free primary outcome per env (the Highway Task has no planner, so no regret)."""
+
+
 def make_config(env: str = "robot", *, runs: int = PROTOCOL_RUNS, seed: int = PROTOCOL_SEED):
     """The protocol's config: the four paper conditions, the four learners, the default block."""
     exps = tuple(
@@ -82,8 +100,27 @@ def make_config(env: str = "robot", *, runs: int = PROTOCOL_RUNS, seed: int = PR
     return BenchConfig(exps, LEARNERS, REFERENCE, DEFAULT_BLOCK)
 
 
-def is_protocol(runs: int, seed: int) -> bool:
-    return int(runs) == PROTOCOL_RUNS and int(seed) == PROTOCOL_SEED
+def held_out_condition(env: str, human: str) -> Condition:
+    """A held-out cell: ``human`` at its defaults, the env's training σ, ε = 0, bimodal prior."""
+    sigma = env_preset(env).training_sigma
+    return Condition(human, sigma=sigma, bias=0.0, prior="bimodal", human=human)
+
+
+def make_held_out_config(
+    envs: Sequence[str] = HELD_OUT_ENVS, *, runs: int = PROTOCOL_RUNS, seed: int = HELD_OUT_SEED
+) -> BenchConfig:
+    """Protocol 1's config: env × held-out human, the four learners, the default block."""
+    exps = tuple(
+        Experiment(env, held_out_condition(env, h), runs=runs, seed=seed)
+        for env in envs
+        for h in HELD_OUT_HUMANS
+    )
+    return BenchConfig(exps, LEARNERS, REFERENCE, DEFAULT_BLOCK)
+
+
+def is_protocol(runs: int, seed: int, protocol: str = "paper-conditions") -> bool:
+    first = PROTOCOL_SEED if protocol == "paper-conditions" else HELD_OUT_SEED
+    return int(runs) == PROTOCOL_RUNS and int(seed) == first
 
 
 # ---------------------------------------------------------------------- the analysis
@@ -135,10 +172,16 @@ def analyse(
     *,
     resamples: int = RESAMPLES,
     boot_seed: int = BOOTSTRAP_SEED,
+    primary: str = PRIMARY,
 ) -> dict[str, Any]:
-    """The protocol's analysis of the per-run records: test rows, verdicts, descriptives."""
+    """The protocol's analysis of the per-run records: test rows, verdicts, descriptives.
+    ``primary`` is the verdicts' outcome (held-out Highway: 1 − cos); the others are secondary.
+    Rows carry ``env``; the 12-test sensitivity spans this call's conditions."""
     from strol_gym.benchmarks.analysis.base import _matrix
 
+    metrics = (primary, *[m for m in (PRIMARY, *SECONDARY) if m != primary])
+    if env == "highway":  # no planner, no regret
+        metrics = tuple(m for m in metrics if m != "regret")
     rng = np.random.default_rng(boot_seed)
     learners = list(LEARNERS)
     r = learners.index(REFERENCE)
@@ -147,18 +190,18 @@ def analyse(
     verdicts: dict[str, str] = {}
     for cond in conditions:
         ys = {}
-        for metric in (PRIMARY, *SECONDARY):
+        for metric in metrics:
             _, y = _matrix(records, env, cond, learners, metric)
             ys[metric] = y[np.isfinite(y).all(axis=1)]
             for j, lr in enumerate(learners):
-                row = {"condition": cond, "learner": lr, "metric": metric}
+                row = {"env": env, "condition": cond, "learner": lr, "metric": metric}
                 row |= stats.describe(ys[metric][:, j])
                 if metric == PRIMARY:
                     row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
                 descriptives.append(row)
-        n = len(ys[PRIMARY])
+        n = len(ys[primary])
         idx = rng.integers(0, n, size=(int(resamples), n)) if n else np.zeros((0, 0), int)
-        for metric in (PRIMARY, *SECONDARY):
+        for metric in metrics:
             y = ys[metric]
             block = []
             for b in BASELINES:
@@ -175,6 +218,7 @@ def analyse(
                     med_ci = poi_ci = (math.nan, math.nan)
                 block.append(
                     {
+                        "env": env,
                         "condition": cond,
                         "metric": metric,
                         "baseline": b,
@@ -207,22 +251,23 @@ def analyse(
                 row["outcome"] = outcome(float(ph), row["r_minus"], row["r_plus"])
             rows += block
         verdicts[cond] = verdict(
-            [x["outcome"] for x in rows if x["condition"] == cond and x["metric"] == PRIMARY]
+            [x["outcome"] for x in rows if x["condition"] == cond and x["metric"] == primary]
         )
-    primary = [x for x in rows if x["metric"] == PRIMARY]
-    for row, p12 in zip(primary, stats.holm([x["wilcoxon_p_raw"] for x in primary]), strict=True):
+    prim = [x for x in rows if x["metric"] == primary]
+    for row, p12 in zip(prim, stats.holm([x["wilcoxon_p_raw"] for x in prim]), strict=True):
         row["wilcoxon_p_holm_12"] = float(p12)
     sensitivity = {
         cond: verdict(
             [
                 outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
-                for x in primary
+                for x in prim
                 if x["condition"] == cond
             ]
         )
         for cond in conditions
     }
     return {
+        "primary": primary,
         "rows": rows,
         "descriptives": descriptives,
         "verdicts": verdicts,
@@ -232,17 +277,31 @@ def analyse(
 
 # ---------------------------------------------------------------------- the command
 class Confirm(BenchExperiment):
-    """the pre-registered confirmatory Robot test (docs/confirmatory.md)
+    """the pre-registered confirmatory tests (docs/confirmatory.md; --protocol held-out:
+    docs/confirmatory-held-out.md)
 
-    Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other than the
-    protocol's make an exploratory run (for tests), labelled as such.
+    Runs exactly a protocol. --seed/--runs other than the protocol's make an exploratory run
+    (for tests), labelled as such.
     """
 
     name = "confirm"
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
-        p.add_argument("--env", choices=("robot",), default="robot")
+        p.add_argument(
+            "--protocol",
+            choices=PROTOCOLS,
+            default="paper-conditions",
+            help="paper-conditions: docs/confirmatory.md (Robot); held-out: protocol 1 of "
+            "docs/confirmatory-held-out.md (Boltzmann, myopic, driver; Robot and Highway)",
+        )
+        p.add_argument(
+            "--env",
+            choices=(*HELD_OUT_ENVS, "all"),
+            default=None,
+            help="paper-conditions: robot (its only env); held-out: robot, highway or all "
+            "(default)",
+        )
         p.add_argument(
             "--runs",
             type=positive_int("--runs"),
@@ -252,34 +311,73 @@ class Confirm(BenchExperiment):
         p.add_argument(
             "--seed",
             type=nonneg_int("--seed"),
-            default=PROTOCOL_SEED,
-            help=f"first run seed (protocol: {PROTOCOL_SEED}; tests use other seeds)",
+            default=None,
+            help=f"first run seed (protocols: {PROTOCOL_SEED}, held-out {HELD_OUT_SEED}; tests "
+            "use other seeds)",
         )
         p.add_argument("--jobs", type=positive_int("--jobs"), default=None, help="worker processes")
-        p.add_argument("--out", default=None, help="results folder (default results/confirm-<env>)")
+        p.add_argument(
+            "--out",
+            default=None,
+            help="results folder (default results/confirm-<env>, results/confirm-held-out)",
+        )
         p.add_argument("--quiet", action="store_true", help="no progress bar")
         p.add_argument("--force", action="store_true", help="replace a folder of another config")
         p.add_argument("--no-plots", action="store_true")
 
+    def _envs(self, args: argparse.Namespace) -> list[str]:
+        if args.protocol == "paper-conditions":
+            if args.env not in (None, "robot"):
+                raise ValueError(
+                    f"--env must be robot for --protocol paper-conditions, got {args.env!r}"
+                )
+            return ["robot"]
+        return list(HELD_OUT_ENVS) if args.env in (None, "all") else [args.env]
+
+    def default_out(self, args: argparse.Namespace) -> str:
+        if args.protocol == "held-out":
+            envs = self._envs(args)
+            return "results/confirm-held-out" + ("" if len(envs) > 1 else f"-{envs[0]}")
+        return "results/confirm-robot"
+
     def plan(self, args: argparse.Namespace) -> BenchConfig:
         self._t0 = time.perf_counter()
-        return make_config(args.env, runs=args.runs, seed=args.seed)
+        envs = self._envs(args)
+        if args.protocol == "held-out":
+            if args.seed is None:
+                args.seed = HELD_OUT_SEED
+            self.columns = ("env", *COLUMNS)
+            return make_held_out_config(envs, runs=args.runs, seed=args.seed)
+        if args.seed is None:
+            args.seed = PROTOCOL_SEED
+        self.columns = COLUMNS
+        return make_config(envs[0], runs=args.runs, seed=args.seed)
 
     def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
-        protocol = is_protocol(args.runs, args.seed)
+        protocol = is_protocol(args.runs, args.seed, args.protocol)
         rd, _, run_wall = self.run(config, out, args)
-        result = analyse(rd.read_records(), args.env)
+        records = rd.read_records()
+        if args.protocol == "held-out":
+            result = analyse_held_out(records, self._envs(args))
+        else:
+            result = analyse(records, "robot")
         wall = time.perf_counter() - self._t0
+        doc = (
+            "docs/confirmatory.md"
+            if args.protocol == "paper-conditions"
+            else ("docs/confirmatory-held-out.md, protocol 1")
+        )
         label = (
-            "PRE-REGISTERED confirmatory run (docs/confirmatory.md)"
+            f"PRE-REGISTERED confirmatory run ({doc})"
             if protocol
             else "EXPLORATORY run (not the pre-registered seeds or run count; no confirmatory "
             "claim)"
         )
         seeds = [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1]
-        md = markdown(result, label, seeds, rd.meta)
+        md = markdown(result, label, seeds, rd.meta, args.protocol)
         meta = {
             "protocol": protocol,
+            "protocol_name": args.protocol,
             "config": config.to_dict(),
             "seeds": seeds,
             "tie_tol": TIE_TOL,
@@ -290,6 +388,8 @@ class Confirm(BenchExperiment):
             "verdicts_holm_12": result["verdicts_holm_12"],
             "wall_time_s": {"total": wall, "episodes": run_wall},
         }
+        if args.protocol == "paper-conditions":  # the published meta's keys, unchanged
+            del meta["protocol_name"]
         line = (
             f"\nwall time {wall:.1f} s (episodes {run_wall:.1f} s; {load()}); results in {rd.path}/"
         )
@@ -299,8 +399,59 @@ class Confirm(BenchExperiment):
         return plot(outcome.state, folder)
 
 
-def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str]:
+def analyse_held_out(records: Sequence[dict], envs: Sequence[str]) -> dict[str, Any]:
+    """Protocol 1: ``analyse`` per env on its held-out cells with its primary outcome; verdict
+    keys are "env/human"; the sensitivity check is Holm over every cell's three tests."""
+    rows: list[dict[str, Any]] = []
+    descriptives: list[dict[str, Any]] = []
+    verdicts: dict[str, str] = {}
+    for env in envs:
+        r = analyse(records, env, HELD_OUT_HUMANS, primary=HELD_OUT_PRIMARY[env])
+        for x in (*r["rows"], *r["descriptives"]):
+            x["cell"] = f"{env}/{x['condition']}"
+        rows += r["rows"]
+        descriptives += r["descriptives"]
+        verdicts |= {f"{env}/{c}": v for c, v in r["verdicts"].items()}
+    prim = [x for x in rows if x["metric"] == HELD_OUT_PRIMARY[x["env"]]]
+    for row, p in zip(prim, stats.holm([x["wilcoxon_p_raw"] for x in prim]), strict=True):
+        row["wilcoxon_p_holm_12"] = float(p)  # the column keeps its name; here over all cells
+    sensitivity = {
+        cell: verdict(
+            [
+                outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
+                for x in prim
+                if x["cell"] == cell
+            ]
+        )
+        for cell in verdicts
+    }
+    return {
+        "primary": HELD_OUT_PRIMARY,
+        "rows": rows,
+        "descriptives": descriptives,
+        "verdicts": verdicts,
+        "verdicts_holm_12": sensitivity,
+    }
+
+
+def _primary_row(result: dict, key: str, baseline: str) -> dict:
+    """The primary-outcome test row of a verdict key (a condition, or "env/human")."""
+    for r in result["rows"]:
+        where = r.get("cell", r["condition"])
+        prim = result["primary"]
+        metric = prim[r["env"]] if isinstance(prim, dict) else prim
+        if (where, r["metric"], r["baseline"]) == (key, metric, baseline):
+            return r
+    raise KeyError(f"no primary row for {key} vs {baseline}")
+
+
+def markdown(
+    result: dict, label: str, seeds: list[int], meta: dict, protocol: str = "paper-conditions"
+) -> list[str]:
     from strol_gym.benchmarks.analysis.report import display
+
+    if protocol == "held-out":
+        return markdown_held_out(result, label, seeds, meta)
 
     git = meta.get("git") or {}
     lines = [
@@ -368,6 +519,86 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
     return lines
 
 
+def markdown_held_out(result: dict, label: str, seeds: list[int], meta: dict) -> list[str]:
+    """The held-out protocol's report: verdicts per cell, descriptives, every test row."""
+    from strol_gym.benchmarks.analysis.base import METRIC_LABELS
+    from strol_gym.benchmarks.analysis.report import display
+
+    git = meta.get("git") or {}
+    prim = result["primary"]
+    lines = [
+        f"# Confirmatory test with held-out humans — {label}",
+        "",
+        f"Run seeds {seeds[0]}–{seeds[1]} per cell; git {git.get('commit', '?')[:10]}"
+        f"{' (dirty tree)' if git.get('dirty') else ''}; code fingerprint "
+        f"{meta.get('extra', {}).get('code', '?')}. Primary outcome: "
+        + ", ".join(f"{env} {METRIC_LABELS.get(m, m)}" for env, m in prim.items())
+        + ".",
+        "",
+        "## Verdicts (two-sided Wilcoxon, Holm over 3 per cell; H2 holds unless contradicted)",
+        "",
+    ]
+    for cell, v in result["verdicts"].items():
+        outs = [
+            f"{display(b)}: {_primary_row(result, cell, b)['outcome']} (Holm p = "
+            f"{fmt(_primary_row(result, cell, b)['wilcoxon_p_holm'], 4)})"
+            for b in BASELINES
+        ]
+        lines.append(f"- **{cell}: {v.upper()}** — " + "; ".join(outs))
+    changed = {c: v for c, v in result["verdicts_holm_12"].items() if v != result["verdicts"][c]}
+    n_tests = len(BASELINES) * len(result["verdicts"])
+    lines += [
+        "",
+        f"Sensitivity (Holm over all {n_tests} comparisons): "
+        + (
+            "no verdict changes."
+            if not changed
+            else "; ".join(f"{c} would be {v}" for c, v in changed.items())
+        ),
+        "",
+        "## Primary outcome per learner (mean ± std; median [Q1, Q3])",
+        "",
+        "| cell | " + " | ".join(display(lr) for lr in LEARNERS) + " |",
+        "|---|" + "---|" * len(LEARNERS),
+    ]
+    desc = {(x["cell"], x["learner"], x["metric"]): x for x in result["descriptives"]}
+    for cell in result["verdicts"]:
+        m = prim[cell.split("/")[0]]
+        cells = []
+        for lr in LEARNERS:
+            x = desc[(cell, lr, m)]
+            cells.append(
+                f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])} "
+                f"[{fmt(x['q1'])}, {fmt(x['q3'])}]"
+            )
+        lines.append(f"| {cell} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "## Tests (StROL − baseline; lower is better)",
+        "",
+        "| cell | metric | vs | Wilcoxon p (Holm) | R− / R+ | outcome | median diff [95 % CI] "
+        "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for x in result["rows"]:
+        lines.append(
+            f"| {x['cell']} | {x['metric']} | {display(x['baseline'])} | "
+            f"{fmt(x['wilcoxon_p_holm'], 4)} | {x['r_minus']:.0f} / {x['r_plus']:.0f} | "
+            f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
+            f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
+            f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
+            f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
+            f"{fmt(x['t_p_holm'], 4)}, {fmt(x['cohen_dz'], 2)} |"
+        )
+    lines += [
+        "",
+        f"Outcomes other than each env's primary one are secondary (no verdict). Ties: "
+        f"|d| ≤ {TIE_TOL:g} on regret, exact equality otherwise. Bootstrap: {RESAMPLES} paired "
+        f"resamples, seed {BOOTSTRAP_SEED}.",
+    ]
+    return lines
+
+
 def plot(result: dict, out: Path) -> list[Path]:
     """Probability that StROL's regret is lower than each baseline's, with bootstrap CIs, per
     condition (0.5 = no difference)."""
@@ -381,11 +612,7 @@ def plot(result: dict, out: Path) -> list[Path]:
     for k, b in enumerate(BASELINES):
         xs, ys, lo, hi = [], [], [], []
         for i, cond in enumerate(conds):
-            x = next(
-                r
-                for r in result["rows"]
-                if (r["condition"], r["metric"], r["baseline"]) == (cond, PRIMARY, b)
-            )
+            x = _primary_row(result, cond, b)
             xs.append(i + (k - 1) * width)
             ys.append(x["prob_improvement"])
             lo.append(x["prob_improvement"] - x["prob_improvement_ci95_low"])
@@ -401,7 +628,9 @@ def plot(result: dict, out: Path) -> list[Path]:
         )
     ax.axhline(0.5, color="k", lw=0.8, ls="--")
     ax.set_xticks(range(len(conds)), [f"{c}\n{result['verdicts'][c]}" for c in conds], fontsize=8)
-    ax.set_ylabel("P(StROL regret lower)")
+    ax.set_ylabel(
+        "P(StROL lower)" if isinstance(result["primary"], dict) else "P(StROL regret lower)"
+    )
     ax.set_title("Confirmatory test: probability of improvement (95 % bootstrap CI)")
     ax.legend(fontsize=7)
     return _save(fig, out, "confirm")
