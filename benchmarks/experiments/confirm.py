@@ -399,14 +399,18 @@ class Confirm(BenchExperiment):
         return plot(outcome.state, folder)
 
 
-def analyse_held_out(records: Sequence[dict], envs: Sequence[str]) -> dict[str, Any]:
+def analyse_held_out(
+    records: Sequence[dict], envs: Sequence[str], *, resamples: int = RESAMPLES
+) -> dict[str, Any]:
     """Protocol 1: ``analyse`` per env on its held-out cells with its primary outcome; verdict
     keys are "env/human"; the sensitivity check is Holm over every cell's three tests."""
     rows: list[dict[str, Any]] = []
     descriptives: list[dict[str, Any]] = []
     verdicts: dict[str, str] = {}
     for env in envs:
-        r = analyse(records, env, HELD_OUT_HUMANS, primary=HELD_OUT_PRIMARY[env])
+        r = analyse(
+            records, env, HELD_OUT_HUMANS, primary=HELD_OUT_PRIMARY[env], resamples=resamples
+        )
         for x in (*r["rows"], *r["descriptives"]):
             x["cell"] = f"{env}/{x['condition']}"
         rows += r["rows"]
