@@ -46,8 +46,8 @@ def register_kind(name: str, *, sees_theta_hat: bool = False) -> None:
 for _kind, _sees in (
     ("strol", False),
     ("e2e", False),
-    ("e2e-scratch", False),
     ("strol-unrolled", True),
+    ("e2e-scratch", False),
 ):
     register_kind(_kind, sees_theta_hat=_sees)
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"

@@ -21,12 +21,12 @@ _REGISTRY: dict[str, Factory | str] = {
     "one": "strol_gym.learners.rules:OneLearner",
     "mof": "strol_gym.learners.rules:MOFLearner",
     "e2e": "strol_gym.learners.correction:E2ELearner",
-    "e2e-scratch": "strol_gym.learners.correction:E2EScratchLearner",
     "strol": "strol_gym.learners.correction:StROLLearner",
     "bayes": "strol_gym.learners.bayes:BayesLearner",
     "bayes-teacher": "strol_gym.learners.bayes:teacher_bayes",
     "strol-adaptive": "strol_gym.learners.adaptive:AdaptiveStROLLearner",
     "strol-unrolled": "strol_gym.learners.correction:UnrolledStROLLearner",
+    "e2e-scratch": "strol_gym.learners.correction:E2EScratchLearner",
 }
 
 _DISPLAY: dict[str, str] = {
