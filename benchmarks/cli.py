@@ -49,6 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_parser(sub)
     export.add_parser(sub)
     interact.add_parser(sub)
+    from strol_gym.benchmarks.sessions import import_study
+
+    import_study.add_parser(sub)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -143,7 +146,14 @@ def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> i
     return command(args, parser)
 
 
+def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.import_study import command
+
+    return command(args, parser)
+
+
 COMMANDS = {
+    "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
     "export": cmd_export,

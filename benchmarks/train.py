@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from strol_gym.benchmarks.args import json_object
+from strol_gym.benchmarks.args import TRAIN_CAPS, add_allow_large, check_size_caps, json_object
 
 from strol_gym.learners.checkpoint import KINDS, check_weights_path, save_checkpoint
 from strol_gym.learners.network import BOUNDS
@@ -24,7 +24,6 @@ from strol_gym.learners.training import (
     train_correction,
     training_prior,
 )
-from strol_gym.limits import TRAIN_CAPS, add_allow_large, check_size_caps
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
 

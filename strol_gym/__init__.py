@@ -1,6 +1,8 @@
 """strol-gym: Gymnasium envs, online reward learners and benchmarks for StROL (RA-L 2024).
 
-Importing the package registers ``StROL-Robot-v0`` and ``StROL-Highway-v0``.
+Importing the package registers ``StROL-Robot-v0``, ``StROL-Highway-v0``, ``StROL-Study-v0``
+and ``StROL-Study-v1`` (strol_gym.registration; the envs live in strol_gym.envs, one
+subpackage per simulator).
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from typing import Any
 from strol_gym.humans import BoltzmannHuman, Human, NominalHuman, register_human
 from strol_gym.priors import FixedPrior, MixturePrior, Prior, UniformPrior
 from strol_gym.registration import register_envs
-from strol_gym.tasks import RobotTask, Task, make_task, register_task
+from strol_gym.tasks import HighwayTask, RobotTask, Task, make_task, register_task
 
 __version__ = "0.1.0"
 
@@ -22,7 +24,6 @@ _LAZY = {
     "register_learner": "strol_gym.learners.registry",
     "list_learners": "strol_gym.learners.registry",
     "OnlineRewardLearner": "strol_gym.learners.protocol",
-    "HighwayTask": "strol_gym.tasks.highway",
 }
 
 

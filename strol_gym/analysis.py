@@ -120,14 +120,14 @@ def basin_map(
     theta0[:, i0], theta0[:, i1] = g0.ravel(), g1.ravel()
     b = len(theta0)
 
-    lr = make_learner(learner, task=task) if isinstance(learner, str) else learner
-    lr.reset(theta0)
+    learner = make_learner(learner, task=task) if isinstance(learner, str) else learner
+    learner.reset(theta0)
     rng = np.random.default_rng(seed)
     x = np.repeat(task.sample_start(rng, 1), b, axis=0)
     teacher = human_model("nominal", task, sigma=sigma, bias=bias, n_candidates=int(n_candidates))
     stars = np.broadcast_to(star, (b, d))
-    teach(task, teacher, stars, theta0, x, lr.update, rng, int(steps), shared_draws=True)
-    final = np.atleast_2d(np.asarray(lr.theta, dtype=np.float64))
+    teach(task, teacher, stars, theta0, x, learner.update, rng, int(steps), shared_draws=True)
+    final = np.atleast_2d(np.asarray(learner.theta, dtype=np.float64))
     err = np.linalg.norm(final - star, axis=1).reshape(g0.shape)
     if not np.isfinite(err).all():  # θ̂ itself is checked by every update; its error too
         raise ValueError("the final errors overflow: theta_star or the grid is too large")

@@ -1,10 +1,12 @@
 """Where a result came from: the versions of the packages that made it and the git revision.
 
-Shared by the benchmark's results folders and the session logs of ``strol_gym.wrappers``.
+Shared by the benchmark's results folders, the session logs of ``strol_gym.wrappers`` and the
+sidecars of trained ĝ weights (``strol_gym.learners.checkpoint``).
 """
 
 from __future__ import annotations
 
+import platform
 import subprocess
 from importlib import metadata
 from pathlib import Path
@@ -24,12 +26,15 @@ PACKAGES = (
 
 
 def package_versions() -> dict[str, str | None]:
+    """The installed version of each package a result depends on (None: not installed), and the
+    Python version: the one list that results folders, session logs and ĝ sidecars record."""
     out: dict[str, str | None] = {}
     for name in PACKAGES:
         try:
             out[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             out[name] = None
+    out["python"] = platform.python_version()
     return out
 
 

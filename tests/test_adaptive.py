@@ -71,7 +71,7 @@ def test_batch_equals_single_and_state_round_trip():
     copy = _learner(reference=0.1)
     copy.load_state_dict(batched.state_dict())
     clone = pickle.loads(pickle.dumps(batched))
-    nxt = [lr.update(xs[0], us[0]) for lr in (batched, copy, clone)]
+    nxt = [learner.update(xs[0], us[0]) for learner in (batched, copy, clone)]
     np.testing.assert_array_equal(nxt[0], nxt[1])
     np.testing.assert_array_equal(nxt[0], nxt[2])
     batched.reset()

@@ -138,7 +138,7 @@ def test_state_dict_and_pickle_round_trip():
     b = BayesLearner(task, n_particles=1000)
     b.load_state_dict(a.state_dict())
     c = pickle.loads(pickle.dumps(a))
-    after = [lr.update(x, u[:, 1]) for lr in (a, b, c)]
+    after = [learner.update(x, u[:, 1]) for learner in (a, b, c)]
     np.testing.assert_array_equal(after[0], after[1])
     np.testing.assert_array_equal(after[0], after[2])
     with pytest.raises(ValueError, match="config"):

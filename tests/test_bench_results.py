@@ -22,18 +22,18 @@ def _fake_records(config, unit, offset=0.0):
     """Synthetic records with the runner's schema (values derived from seed and learner)."""
     exp = config.experiments[unit.experiment]
     out = []
-    for lr_i, lr in enumerate(config.learners):
+    for lr_i, learner in enumerate(config.learners):
         for s in unit.seeds:
             errs = [1.0, 0.5 + 0.1 * lr_i + 0.01 * s + offset]
             out.append(
                 {
                     "env": exp.env,
                     "condition": exp.condition.name,
-                    "learner": lr,
+                    "learner": learner,
                     "seed": s,
                     "error": errs[-1],
                     "cos_error": 0.1 * errs[-1],
-                    "regret": 0.3 + 0.01 * s - (0.05 + 0.01 * (s % 2) if lr == "strol" else 0),
+                    "regret": 0.3 + 0.01 * s - (0.05 + 0.01 * (s % 2) if learner == "strol" else 0),
                     "errors": errs,
                     "cos_errors": [0.1 * e for e in errs],
                     "steps": 1,
@@ -74,7 +74,7 @@ def test_records_read_back_in_canonical_order(tmp_path):
     recs = rd.read_records()
     keys = [(r["condition"], r["seed"], r["learner"]) for r in recs]
     conds = [e.condition.name for e in cfg.experiments]
-    expected = [(c, s, lr) for c in conds for s in range(4) for lr in cfg.learners]
+    expected = [(c, s, learner) for c in conds for s in range(4) for learner in cfg.learners]
     assert keys == expected
 
 

@@ -76,7 +76,7 @@ def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):
     rows = list(csv.DictReader(open(out / "study_table.csv")))
     learners = ["gradient", "one", "mof", "e2e", "strol"]
     assert [(r["metric"], r["learner"]) for r in rows] == [
-        (m, lr) for m in METRICS for lr in learners
+        (m, learner) for m in METRICS for learner in learners
     ]
     for r in rows:
         assert math.isfinite(float(r["task1_mean"])) and int(r["all_n"]) == 2
@@ -109,7 +109,7 @@ def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):
         for r in json.loads(p.read_text())["records"]
     ]
     assert sorted((r["learner"], r["seed"]) for r in recs) == sorted(
-        (lr, s) for lr in learners for s in (20000, 20001)
+        (learner, s) for learner in learners for s in (20000, 20001)
     )
     for r in recs:
         assert r["steps"] == 1200 and (r["corrections"] >= 1) == (r["correction_time"] > 0)

@@ -289,8 +289,8 @@ def _config():
 def _records(config, unit):
     exp = config.experiments[unit.experiment]
     return [
-        {"env": exp.env, "condition": exp.condition.name, "learner": lr, "seed": s}
-        for lr in config.learners
+        {"env": exp.env, "condition": exp.condition.name, "learner": learner, "seed": s}
+        for learner in config.learners
         for s in unit.seeds
     ]
 

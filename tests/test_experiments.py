@@ -93,14 +93,14 @@ def _records(deltas: dict[str, np.ndarray]) -> list[dict]:
     n = len(next(iter(deltas.values())))
     for cond, delta in deltas.items():
         base = 1.0 + rng.random(n)
-        for lr in confirm.LEARNERS:
-            vals = base + (delta if lr == "strol" else 0.0)
+        for learner in confirm.LEARNERS:
+            vals = base + (delta if learner == "strol" else 0.0)
             for i, v in enumerate(vals):
                 out.append(
                     {
                         "env": "robot",
                         "condition": cond,
-                        "learner": lr,
+                        "learner": learner,
                         "seed": i,
                         "regret": float(v),
                         "error": float(v),

@@ -27,6 +27,7 @@ import pytest
 import torch
 from cli_checks import cli_error
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.args import BASIN_CAPS, RUN_CAPS, TRAIN_CAPS
 from strol_gym.benchmarks.engine import pool as engine_pool
 from strol_gym.benchmarks.engine import results
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
@@ -39,7 +40,6 @@ from strol_gym.analysis import basin_map
 from strol_gym.learners import checkpoint as ckpt
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.registry import list_learners, make_learner
-from strol_gym.limits import BASIN_CAPS, RUN_CAPS, TRAIN_CAPS
 from strol_gym.tasks.robot import RobotTask
 
 ROBOT = RobotTask()
@@ -224,7 +224,7 @@ def test_sizes_above_their_fixed_cap_are_refused_at_once(argv, flag, cap, capsys
 
 
 def test_allow_large_lifts_the_caps():
-    from strol_gym.limits import check_size_caps
+    from strol_gym.benchmarks.args import check_size_caps
 
     args = cli.build_parser().parse_args(["basin", "--grid", "1000", "--allow-large"])
     check_size_caps(args, BASIN_CAPS)  # no error: lifted

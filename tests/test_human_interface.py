@@ -12,8 +12,8 @@ from strol_gym.humans import (
     HUMANS,
     BoltzmannModel,
     HumanModel,
+    NominalModel,
     PerSampleModel,
-    TeacherModel,
     human_factory,
     human_model,
     make_human,
@@ -103,7 +103,7 @@ def test_a_registered_model_is_one_file_and_serves_env_training_and_the_loop():
         needs_theta_hat = True
 
         def choose(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
-            return 0.5 * TeacherModel.choose(self, x, u_r, theta_star, draws, theta_hat, k)
+            return 0.5 * NominalModel.choose(self, x, u_r, theta_star, draws, theta_hat, k)
 
     register_human("test-lazy", Lazy)
     try:

@@ -78,3 +78,14 @@ def test_every_learner_name_has_a_colour_that_does_not_depend_on_the_others():
     mine = learner_color("my_pieces:MyLearner")
     assert mine in PALETTE and mine == learner_color("my_pieces:MyLearner")
     assert len({learner_color(f"learner-{i}") for i in range(40)}) > 1
+
+
+def test_the_zeros_robot_acts_in_the_action_space_not_the_state_space():
+    """Robot (state 3, action 3) hid the bug; Highway (state 8, action 2) shows it."""
+    from strol_gym.tasks import HighwayTask, RobotTask
+
+    for task in (HighwayTask(), RobotTask()):
+        x = task.sample_start(np.random.default_rng(0), 4)
+        u = robot_policy("zeros", task)(x, np.zeros((4, len(task.prior_modes[0]))))
+        assert u.shape == (4, task.action_dim)
+        assert not u.any()

@@ -29,10 +29,10 @@ def test_writes_heat_map_csv_and_markdown(tmp_path, capsys):
     rows = list(csv.DictReader((out / "robustness.csv").open()))
     cells = {(r["human"], float(r["sigma"]), r["learner"]) for r in rows}
     assert cells == {
-        (h, s, lr)
+        (h, s, learner)
         for h in ("nominal", "skipping", "late")
         for s in (0.25, 0.5)
-        for lr in ("gradient", "strol")
+        for learner in ("gradient", "strol")
     }
     assert all(r["metric"] == "regret" and r["n"] == "3" for r in rows)
     # StROL is the reference: no test against itself; the baseline's cell has its p-value

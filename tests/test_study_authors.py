@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 from strol_gym.benchmarks.analysis.report import pooled_matrix, pooled_tests
-from strol_gym.benchmarks.engine import study_authors as sa
+
+from strol_gym.envs.study import metrics as sa
 
 
 def _record(times, mags):
@@ -101,10 +102,10 @@ def _rec(env, seed, learner, value, cond="c"):
 
 def test_pooled_matrix_averages_each_subject_over_the_tasks():
     recs = [
-        _rec(env, s, lr, v)
+        _rec(env, s, learner, v)
         for env, off in (("t1", 0.0), ("t2", 2.0))
         for s in (1, 2, 3)
-        for lr, v in (("a", s + off), ("b", 10.0 * s + off))
+        for learner, v in (("a", s + off), ("b", 10.0 * s + off))
     ]
     recs.append(_rec("t3", 1, "a", 100.0))  # another Task, not pooled
     seeds, y = pooled_matrix(recs, ["t1", "t2"], ["a", "b"], "m")
@@ -112,7 +113,7 @@ def test_pooled_matrix_averages_each_subject_over_the_tasks():
     assert seeds == [1, 2, 3]
     np.testing.assert_allclose(y, [[2, 11], [3, 21], [4, 31]])
     recs.append(_rec("t2", 4, "a", 1.0))  # seed 4 lacks b: left out (listwise)
-    recs += [_rec("t1", 5, lr, 1.0) for lr in "ab"]  # seed 5 lacks Task t2: left out
+    recs += [_rec("t1", 5, learner, 1.0) for learner in "ab"]  # seed 5 lacks Task t2: left out
     recs[0 * 6 + 1 * 2] = _rec("t1", 2, "a", math.nan)  # a NaN value drops seed 2
     seeds, _ = pooled_matrix(recs, ["t1", "t2"], ["a", "b"], "m")
     assert seeds == [1, 3]
@@ -122,10 +123,10 @@ def test_pooled_tests_runs_the_anova_and_every_pair_with_holm():
     rng = np.random.default_rng(0)
     base = rng.normal(size=8)
     recs = [
-        _rec(env, s, lr, base[s] + shift + 0.1 * rng.normal())
+        _rec(env, s, learner, base[s] + shift + 0.1 * rng.normal())
         for env in ("t1", "t2", "t3")
         for s in range(8)
-        for lr, shift in (("one", 1.0), ("mof", 0.9), ("strol", 0.0))
+        for learner, shift in (("one", 1.0), ("mof", 0.9), ("strol", 0.0))
     ]
     out = pooled_tests(recs, ["t1", "t2", "t3"], ["one", "mof", "strol"], "m")
     assert out["n"] == 8 and out["anova"].k == 3 and out["anova"].df2 == 14

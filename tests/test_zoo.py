@@ -195,19 +195,19 @@ def test_a_skipped_correction_leaves_the_rules_where_they_were():
     """u_H = 0: g = 0, so Gradient, One, MOF, StROL and e2e keep θ̂; the Bayesian learner
     reads "no correction" as evidence."""
     moved = {}
-    for lr in ("gradient", "one", "mof", "e2e", "strol", "bayes"):
+    for learner in ("gradient", "one", "mof", "e2e", "strol", "bayes"):
         env = gym.make("StROL-Robot-v0", human="skipping", human_kwargs={"p": 1.0}, sigma=0.3)
-        w = OnlineLearningWrapper(env, make_learner(lr, task=env.unwrapped.task))
+        w = OnlineLearningWrapper(env, make_learner(learner, task=env.unwrapped.task))
         try:
             w.reset(seed=SEED)
             theta0 = np.array(w.learner.theta)
             for _ in range(5):
                 info = w.step(np.zeros(3, dtype=np.float32))[4]
                 assert info["is_correction"] and not np.any(info["correction"])
-            moved[lr] = not np.array_equal(theta0, w.learner.theta)
+            moved[learner] = not np.array_equal(theta0, w.learner.theta)
         finally:
             w.close()
-    assert moved == {lr: lr == "bayes" for lr in moved}
+    assert moved == {learner: learner == "bayes" for learner in moved}
 
 
 @pytest.mark.parametrize("env_id", ["StROL-Highway-v0"])

@@ -20,6 +20,9 @@ Format (JSON Lines, UTF-8, one object per line, ``"type"`` says which):
 
 Each line is flushed and fsynced when written, so a crash loses at most the correction under
 way. :func:`read_session` validates a file and names the file and line of the first bad one.
+
+This module owns the format: the writer, the reader and :func:`check_header`. Converters to
+other formats (``benchmarks/sessions/export.py``, Minari) validate through these, never their own.
 """
 
 from __future__ import annotations
@@ -244,7 +247,7 @@ def _dimension(where: str, desc: dict, key: str) -> int:
     return value
 
 
-def _header(where: str, rec: dict) -> tuple[dict[str, Any], dict[str, int]]:
+def check_header(where: str, rec: dict) -> tuple[dict[str, Any], dict[str, int]]:
     """Check line 1 (types only: resolving the Task is the reader's business, never an import)."""
     if rec.get("type") != "header" or rec.get("format") != FORMAT:
         raise SessionLogError(f"{where}: not a {FORMAT} log (line 1 must be its header)")
@@ -304,7 +307,7 @@ def read_session(path: str | Path) -> Session:
             raise SessionLogError(f"{where}: a session log line must be a JSON object")
         kind = rec.get("type")
         if header is None:
-            header, dims = _header(where, rec)
+            header, dims = check_header(where, rec)
         elif kind == "episode":
             theta0 = _vector(where, rec, "theta_hat0", dims["d"])
             star = _vector(where, rec, "theta_star", dims["d"], optional=True)

@@ -71,7 +71,9 @@ def _matrix(records: Sequence[dict], env: str, cond: str, learners: Sequence[str
         if (r["env"], r["condition"]) == (env, cond)
     }
     seeds = sorted({s for s, _ in by})
-    return seeds, np.array([[_f(by[(s, lr)]) for lr in learners] for s in seeds], dtype=np.float64)
+    return seeds, np.array(
+        [[_f(by[(s, learner)]) for learner in learners] for s in seeds], dtype=np.float64
+    )
 
 
 def _f(v: Any) -> float:

@@ -102,18 +102,20 @@ designer's (bimodal) prior and the uniform prior, read off that figure (approxim
 def side_by_side(a: Analysis, env: str, metric: str, learners: Sequence[str]) -> list[str]:
     """Markdown: rows condition × source (ours / paper), columns learners, mean ± std."""
     paper = PAPER.get((env, metric), {})
-    lines = ["| condition | source | " + " | ".join(display(lr) for lr in learners) + " |"]
+    lines = [
+        "| condition | source | " + " | ".join(display(learner) for learner in learners) + " |"
+    ]
     lines.append("|---|---|" + "---|" * len(learners))
     for cond in [e.condition.name for e in a.config.experiments if e.env == env]:
         ours = []
-        for lr in learners:
-            c = a.cell(env, cond, lr, metric)
-            t = a.test(env, cond, lr, metric)
+        for learner in learners:
+            c = a.cell(env, cond, learner, metric)
+            t = a.test(env, cond, learner, metric)
             star = ("*" if t["significant"] else "") if t else ""
             ours.append("n/a" if c is None else f"{c['mean']:.3f} ± {c['std']:.3f}{star}")
         lines.append(f"| {cond} | ours | " + " | ".join(ours) + " |")
         if cond in paper:
-            ref = [paper[cond].get(lr) for lr in learners]
+            ref = [paper[cond].get(learner) for learner in learners]
             cells = ["—" if r is None else f"{r[0]:g} ± {r[1]:g}" for r in ref]
             lines.append(f"| {cond} | paper | " + " | ".join(cells) + " |")
     return lines

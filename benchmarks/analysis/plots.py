@@ -41,13 +41,8 @@ def learner_color(name: str) -> str:
     return PALETTE[int(hashlib.sha256(name.encode()).hexdigest(), 16) % len(PALETTE)]
 
 
-def _color(i: int, name: str) -> str:
-    """``learner_color(name)``; the position ``i`` no longer matters (the study's plots call
-    this form)."""
-    return learner_color(name)
-
-
-def _save(fig, out: Path, stem: str) -> list[Path]:
+def save_figure(fig, out: Path, stem: str) -> list[Path]:
+    """``out/stem.png`` (130 dpi) and ``out/stem.svg``, then close ``fig``: every plot's files."""
     paths = []
     for ext in ("png", "svg"):
         p = out / f"{stem}.{ext}"
@@ -77,21 +72,21 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
                 ax.axis("off")
                 continue
             cond = conds[env][c]
-            cells = [a.cell(env, cond, lr, metric) for lr in learners]
+            cells = [a.cell(env, cond, learner, metric) for learner in learners]
             mean = np.array([x["mean"] if x else np.nan for x in cells])
             sem = np.array([x["sem"] if x else np.nan for x in cells])
             ax.bar(
                 xs,
                 mean,
                 yerr=np.nan_to_num(sem),
-                color=[learner_color(lr) for lr in learners],
+                color=[learner_color(learner) for learner in learners],
                 capsize=3,
                 edgecolor="black",
                 linewidth=0.5,
             )
             top = np.nanmax(mean + np.nan_to_num(sem)) if np.isfinite(mean).any() else 1.0
-            for i, lr in enumerate(learners):
-                t = a.test(env, cond, lr, metric)
+            for i, learner in enumerate(learners):
+                t = a.test(env, cond, learner, metric)
                 s = stats.stars(t["p_holm"]) if t else ""
                 if s:
                     y = mean[i] + np.nan_to_num(sem[i]) + 0.03 * abs(top)
@@ -100,7 +95,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
             ax.set_ylim(
                 min(0.0, np.nanmin(mean - np.nan_to_num(sem))), 1.15 * top if top > 0 else 1
             )
-            ax.set_xticks(xs, [display(lr) for lr in learners], rotation=45, fontsize=8)
+            ax.set_xticks(xs, [display(learner) for learner in learners], rotation=45, fontsize=8)
             ax.tick_params(axis="y", labelsize=8)
             ax.set_title(cond, fontsize=10)
             if c == 0:
@@ -112,7 +107,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
         fontsize=9,
     )
     fig.tight_layout()
-    return _save(fig, out, stem)
+    return save_figure(fig, out, stem)
 
 
 def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]:
@@ -130,13 +125,13 @@ def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]
                 ax.axis("off")
                 continue
             cond = conds[env][c]
-            for lr in a.config.learners:
-                cur = a.curves.get((env, cond, lr))
+            for learner in a.config.learners:
+                cur = a.curves.get((env, cond, learner))
                 if cur is None:
                     continue
                 steps = np.arange(len(cur["mean"]))
-                col = learner_color(lr)
-                ax.plot(steps, cur["mean"], color=col, label=display(lr), lw=1.5)
+                col = learner_color(learner)
+                ax.plot(steps, cur["mean"], color=col, label=display(learner), lw=1.5)
                 lo, hi = cur["mean"] - cur["sem"], cur["mean"] + cur["sem"]
                 ax.fill_between(steps, lo, hi, color=col, alpha=0.2, lw=0)
             ax.set_title(cond, fontsize=10)
@@ -148,7 +143,7 @@ def curve_grid(a: Analysis, out: Path, stem: str = "curves_error") -> list[Path]
     if handles:
         fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
-    return _save(fig, out, stem)
+    return save_figure(fig, out, stem)
 
 
 def make_plots(a: Analysis, out: Path) -> list[Path]:

@@ -98,7 +98,7 @@ def pooled_matrix(
     per_seed: dict[int, list[list[float]]] = {}
     bad: set[int] = set()
     for (seed, _, _), vals in cells.items():
-        row = [vals.get(lr, math.nan) for lr in learners]
+        row = [vals.get(learner, math.nan) for learner in learners]
         if not np.isfinite(row).all():
             bad.add(seed)
         per_seed.setdefault(seed, []).append(row)
@@ -155,7 +155,7 @@ def pooled_lines(result: dict[str, Any]) -> list[str]:
     ]
     for r in result["pairs"]:
         out.append(
-            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {_num(r['mean_diff'])}, paired t "
+            f"  - {display(r['a'])} − {display(r['b'])}: Δ = {fmt(r['mean_diff'])}, paired t "
             f"{stats.format_p(r['p_holm'])} (Holm; raw {stats.format_p(r['p_t'])}), Wilcoxon "
             f"{stats.format_p(r['wilcoxon_p_holm'])} (Holm)"
         )
@@ -176,9 +176,9 @@ def analyse(
             if y.size == 0 or not np.isfinite(y).any():
                 continue
             y = y[np.isfinite(y).all(axis=1)]  # listwise: paired tests need every learner's value
-            for j, lr in enumerate(learners):
+            for j, learner in enumerate(learners):
                 summary.append(
-                    {"env": env, "condition": cond, "learner": lr, "metric": metric}
+                    {"env": env, "condition": cond, "learner": learner, "metric": metric}
                     | stats.describe(y[:, j])
                 )
             a = stats.rm_anova(y)
@@ -193,11 +193,11 @@ def analyse(
                         row["p_holm"],
                     )
                     posthoc.append(row)
-        for lr in learners:
+        for learner in learners:
             errs = [
                 r["errors"]
                 for r in records
-                if (r["env"], r["condition"], r["learner"]) == (env, cond, lr)
+                if (r["env"], r["condition"], r["learner"]) == (env, cond, learner)
             ]
             if not errs:
                 continue
@@ -210,18 +210,22 @@ def analyse(
             sd = np.array(
                 [np.nanstd(c, ddof=1) if k > 1 else np.nan for c, k in zip(arr.T, n, strict=True)]
             )
-            curves[(env, cond, lr)] = {"mean": mean, "sem": sd / np.sqrt(np.maximum(n, 1)), "n": n}
+            curves[(env, cond, learner)] = {
+                "mean": mean,
+                "sem": sd / np.sqrt(np.maximum(n, 1)),
+                "n": n,
+            }
     analysis = Analysis(config, summary, posthoc, anova, curves, [])
     for env in dict.fromkeys(e.env for e in config.experiments):
         n_cond = sum(e.env == env for e in config.experiments)
         primary = env_preset(env).primary_metric
         if n_cond > 1 and len(learners) > 1 and primary in metrics:
             analysis.pooled.append(pooled_tests(records, [env], learners, primary))
-    analysis.verdicts = verdicts(analysis)
+    analysis.verdicts = paper_verdicts(analysis)
     return analysis
 
 
-def verdicts(a: Analysis) -> list[dict[str, Any]]:
+def paper_verdicts(a: Analysis) -> list[dict[str, Any]]:
     """H1 and H2 per env, on the env's primary metric (Robot: regret; Highway: error).
 
     H1: in the training condition the reference learner is significantly lower than every
@@ -272,7 +276,8 @@ def verdicts(a: Analysis) -> list[dict[str, Any]]:
 
 
 # ---------------------------------------------------------------------- rendering
-def _num(x: float, digits: int = 3) -> str:
+def fmt(x: float | None, digits: int = 3) -> str:
+    """A table number: fixed digits, scientific for tiny non-zero values, 'n/a' for NaN/None."""
     if x is None or not math.isfinite(x):
         return "n/a"
     return f"{x:.{digits}f}" if abs(x) >= 10**-digits or x == 0 else f"{x:.1e}"
@@ -282,14 +287,14 @@ def median_table(a: Analysis, env: str, metric: str) -> list[str]:
     """Markdown table of medians [Q1, Q3] (heavy-tailed metrics such as regret)."""
     learners = list(a.config.learners)
     conds = [e.condition.name for e in a.config.experiments if e.env == env]
-    lines = ["| condition | " + " | ".join(display(lr) for lr in learners) + " |"]
+    lines = ["| condition | " + " | ".join(display(learner) for learner in learners) + " |"]
     lines.append("|---|" + "---|" * len(learners))
     for cond in conds:
         cells = []
-        for lr in learners:
-            c = a.cell(env, cond, lr, metric)
+        for learner in learners:
+            c = a.cell(env, cond, learner, metric)
             cells.append(
-                "n/a" if c is None else f"{_num(c['median'])} [{_num(c['q1'])}, {_num(c['q3'])}]"
+                "n/a" if c is None else f"{fmt(c['median'])} [{fmt(c['q1'])}, {fmt(c['q3'])}]"
             )
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     return lines
@@ -299,18 +304,18 @@ def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
     """Markdown table: rows conditions, columns learners, 'mean ± std' with stars vs StROL."""
     learners = list(a.config.learners)
     conds = [e.condition.name for e in a.config.experiments if e.env == env]
-    head = "| condition | " + " | ".join(display(lr) for lr in learners) + " |"
+    head = "| condition | " + " | ".join(display(learner) for learner in learners) + " |"
     lines = [head, "|---|" + "---|" * len(learners)]
     for cond in conds:
         cells = []
-        for lr in learners:
-            c = a.cell(env, cond, lr, metric)
+        for learner in learners:
+            c = a.cell(env, cond, learner, metric)
             if c is None:
                 cells.append("n/a")
                 continue
-            t = a.test(env, cond, lr, metric)
+            t = a.test(env, cond, learner, metric)
             star = stats.stars(t["p_holm"]) if t else ""
-            cells.append(f"{_num(c['mean'])} ± {_num(c['std'])}{star}")
+            cells.append(f"{fmt(c['mean'])} ± {fmt(c['std'])}{star}")
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     return lines
 
@@ -321,11 +326,11 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
     out = ["# strol-bench summary", ""]
     git = meta.get("git") or {}
     out += [
-        f"- learners: {', '.join(display(lr) for lr in cfg.learners)}; post-hoc reference: "
-        f"{display(cfg.reference)}",
+        f"- learners: {', '.join(display(learner) for learner in cfg.learners)}; "
+        f"post-hoc reference: {display(cfg.reference)}",
         f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
         f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
-        f"{_num(meta.get('wall_time_s', math.nan), 1)} s",
+        f"{fmt(meta.get('wall_time_s', math.nan), 1)} s",
         f"- cells: mean ± std over runs; stars: {display(cfg.reference)} vs that learner, "
         "paired t-test, "
         "Holm-corrected across baselines (* p<0.05, ** p<0.01, *** p<0.001). Lower is better.",
@@ -394,8 +399,8 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                 if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):
                     wil = stats.format_p(t["wilcoxon_p_holm"])
                     out.append(
-                        f"  - {t['plain_language']}; Δ = {_num(t['mean_diff'])} "
-                        f"[{_num(t['ci95_low'])}, {_num(t['ci95_high'])}], "
+                        f"  - {t['plain_language']}; Δ = {fmt(t['mean_diff'])} "
+                        f"[{fmt(t['ci95_low'])}, {fmt(t['ci95_high'])}], "
                         f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}"
                     )
         for pooled in a.pooled:

@@ -13,8 +13,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.engine import study_authors
 
+from strol_gym.envs.study import metrics as study_authors
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.metrics import cos_error, episode_regret, error, info_metrics
 
@@ -35,12 +35,17 @@ def score_regret(task: Any, records: list[dict]) -> None:
     from a run's x0, shared by all learners on that seed, is made once (``Task.regret``)."""
     if not records:
         return
-    rows = [np.asarray([r[k] for r in records], dtype=np.float64) for k in _REGRET_INPUTS]
-    for record, regret in zip(records, episode_regret(task, *rows), strict=True):
+    for record, regret in zip(records, episode_regret(task, *regret_inputs(records)), strict=True):
         record["regret"] = regret
 
 
-_REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
+REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
+"""The record fields a run's regret is computed from (here and the study's authors' way)."""
+
+
+def regret_inputs(records: Sequence[dict]) -> list[np.ndarray]:
+    """The ``REGRET_INPUTS`` columns of ``records``, one float64 array each."""
+    return [np.asarray([r[k] for r in records], dtype=np.float64) for k in REGRET_INPUTS]
 
 
 def run_block(

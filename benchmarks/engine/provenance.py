@@ -13,15 +13,14 @@ from strol_gym.learners.registry import make_learner
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
-# shipped data, by data package and the suffixes setup.cfg installs. ``study_authors`` computes
-# a recorded value (the authors'-way correction time), so it counts.
+# shipped data, by data package and the suffixes setup.cfg installs. (The study's metrics the
+# authors' way, a recorded value, live in strol_gym.envs.study.metrics, so they count.)
 BENCHMARK_CODE = (
     "engine",
     "engine.config",
     "engine.conditions",
     "engine.episodes",
     "engine.robots",
-    "engine.study_authors",
     "engine.worker",
 )
 MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")
@@ -112,12 +111,14 @@ def check_learners(config: BenchConfig) -> dict[str, Any]:
         try:
             task = env.unwrapped.task
             out[env_key] = {}
-            for lr in config.learners:
+            for name in config.learners:
                 try:
-                    learner = make_learner(lr, task=task, **config.kwargs_for(lr))
+                    learner = make_learner(name, task=task, **config.kwargs_for(name))
                 except (OSError, TypeError) as e:
-                    raise ValueError(f"learner {lr!r} cannot be built for {exp.env_id}: {e}") from e
-                out[env_key][lr] = learner_fingerprint(learner)
+                    raise ValueError(
+                        f"learner {name!r} cannot be built for {exp.env_id}: {e}"
+                    ) from e
+                out[env_key][name] = learner_fingerprint(learner)
         finally:
             env.close()
     return out

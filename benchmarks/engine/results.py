@@ -17,7 +17,6 @@ raises :class:`ResultsError` and is never overwritten unless the caller asks (``
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import datetime as _dt
 import json
@@ -25,13 +24,14 @@ import math
 import os
 import shutil
 import sys
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit, diff_configs
 from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label, mixed_kernels_message
 
+from strol_gym.files import naming_file, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.provenance import git_revision, package_versions
 
@@ -48,34 +48,6 @@ assert set(RUN_FIELDS) == set(RUN_METRICS), "runs.csv must hold every run metric
 
 class ResultsError(RuntimeError):
     """A results folder that cannot be used as asked: mismatched config, corrupt, or not ours."""
-
-
-def write_json_atomic(path: Path, obj: Any) -> None:
-    """Write JSON to a temp file beside ``path``, fsync it, then os.replace: all or nothing."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    data = json.dumps(obj, indent=1, allow_nan=True).encode()
-    with naming_file(path):
-        try:
-            with open(tmp, "wb") as f:
-                f.write(data)
-                f.flush()
-                os.fsync(f.fileno())
-        except OSError:
-            tmp.unlink(missing_ok=True)
-            raise
-        os.replace(tmp, path)
-
-
-@contextlib.contextmanager
-def naming_file(path: Path) -> Iterator[None]:
-    """Re-raise an OSError that names no file (a full disk: "[Errno 28] No space left on
-    device") with ``path``, so the error says which file could not be written."""
-    try:
-        yield
-    except OSError as e:
-        if e.filename is not None or e.errno is None:
-            raise
-        raise OSError(e.errno, f"cannot write it: {e.strerror}", str(path)) from None
 
 
 def _explain(diff: str) -> str:
@@ -307,12 +279,12 @@ class ResultsDir:
                 raise ResultsError(f"{p} is corrupt ({e}); delete it to rerun that unit") from e
             if not ok:
                 raise ResultsError(f"{p} was written by another config (hash differs)")
-            expected = {(s, lr) for s in unit.seeds for lr in self.config.learners}
+            expected = {(s, learner) for s in unit.seeds for learner in self.config.learners}
             got = [(r.get("seed"), r.get("learner")) for r in recs]
             if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
                 raise ResultsError(f"{p} does not hold exactly its unit's runs; delete it to rerun")
             out.extend(recs)
-        order = {lr: i for i, lr in enumerate(self.config.learners)}
+        order = {learner: i for i, learner in enumerate(self.config.learners)}
         exp_index = {(e.env, e.condition.name): i for i, e in enumerate(self.config.experiments)}
         out.sort(
             key=lambda r: (exp_index[(r["env"], r["condition"])], r["seed"], order[r["learner"]])

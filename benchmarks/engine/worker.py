@@ -23,7 +23,7 @@ class Worker:
         self.config = config
         self._exp: int | None = None
         self._envs: list[Any] = []
-        self._wrapped: dict[str, list[Any]] = {lr: [] for lr in config.learners}
+        self._wrapped: dict[str, list[Any]] = {learner: [] for learner in config.learners}
 
     def _prepare(self, exp_index: int, n: int) -> None:
         import gymnasium as gym
@@ -35,18 +35,20 @@ class Worker:
             self.close()
             self._exp = exp_index
         exp = self.config.experiments[exp_index]
-        for lr, wrapped in self._wrapped.items():
+        for name, wrapped in self._wrapped.items():
             while len(wrapped) < n:  # an env per learner and slot: the learners run in lockstep
                 env = gym.make(exp.env_id, **exp.env_kwargs())
                 self._envs.append(env)
-                learner = make_learner(lr, task=env.unwrapped.task, **self.config.kwargs_for(lr))
+                learner = make_learner(
+                    name, task=env.unwrapped.task, **self.config.kwargs_for(name)
+                )
                 wrapped.append(OnlineLearningWrapper(env, learner, regret=False))
 
     def close(self) -> None:
         for env in self._envs:
             env.close()
         self._envs, self._exp = [], None
-        self._wrapped = {lr: [] for lr in self.config.learners}
+        self._wrapped = {learner: [] for learner in self.config.learners}
 
     def run_unit(self, unit: Unit) -> list[dict]:
         """Every learner on every seed of ``unit``: a list of per-run records (learner-major)."""
@@ -56,9 +58,9 @@ class Worker:
         task = self._envs[0].unwrapped.task
         policy = robot_policy(env_preset(exp.env).robot, task)
         runs = [
-            (lr, seed, wrapped)
-            for lr in self.config.learners
-            for seed, wrapped in zip(unit.seeds, self._wrapped[lr][:n], strict=True)
+            (learner, seed, wrapped)
+            for learner in self.config.learners
+            for seed, wrapped in zip(unit.seeds, self._wrapped[learner][:n], strict=True)
         ]
         out = run_block(runs, exp.corrections, exp.env, exp.condition.name, policy)
         score_regret(task, out)

@@ -4,7 +4,8 @@
 
 ``gymnasium.make_vec("StROL-Robot-v0", vectorization_mode="vector_entry_point")`` steps N arms
 at once; ``VectorOnlineLearningWrapper`` gives each sub-env its online learner (θ̂ in
-``obs["theta_hat"]``); ``strol_gym.sb3.SB3VecEnv`` hands the batch to SB3 without subprocesses.
+``obs["theta_hat"]``); ``strol_gym.wrappers.sb3.SB3VecEnv`` hands the batch to SB3 without
+subprocesses.
 Prints the mean episode return of the trained policy and of a random policy on held-out seeds.
 """
 
@@ -17,9 +18,9 @@ import gymnasium as gym
 import numpy as np
 from stable_baselines3 import PPO
 from strol_gym.wrappers import VectorOnlineLearningWrapper
+from strol_gym.wrappers.sb3 import SB3VecEnv
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.sb3 import SB3VecEnv
 
 
 def make_vec_env(n: int, learner: str | None, **kwargs) -> SB3VecEnv:

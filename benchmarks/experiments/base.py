@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import inspect
-import math
 import os
 import time
 from collections.abc import Sequence
@@ -160,13 +159,6 @@ class BenchExperiment:
         return f"\nwall time {seconds:.1f} s ({load()}); results in {folder}/"
 
 
-def run_config(
-    config: BenchConfig, out: Path, args: argparse.Namespace
-) -> tuple[ResultsDir, Any, float]:
-    """:meth:`BenchExperiment.run` with the standard tables."""
-    return BenchExperiment.run(config, out, args)
-
-
 def load() -> str:
     """The 1/5/15-minute load averages, for quoting beside a wall time."""
     try:
@@ -220,12 +212,3 @@ def small_figure(stem: Path) -> tuple[Any, Any]:
 
     stem.parent.mkdir(parents=True, exist_ok=True)
     return plt.subplots(figsize=(4.8, 3.2))
-
-
-def fmt(v: float, digits: int = 3) -> str:
-    """A table number: fixed digits, scientific for tiny non-zero values, 'n/a' for NaN."""
-    if v is None or not math.isfinite(v):
-        return "n/a"
-    if v != 0 and abs(v) < 10 ** (-digits):
-        return f"{v:.1e}"
-    return f"{v:.{digits}f}"

@@ -14,11 +14,17 @@ import time
 from pathlib import Path
 
 import numpy as np
-from strol_gym.benchmarks.args import finite, float_list, nonneg_int, positive_int
+from strol_gym.benchmarks.args import (
+    BASIN_CAPS,
+    add_allow_large,
+    check_size_caps,
+    finite,
+    float_list,
+    nonneg_int,
+    positive_int,
+)
 from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
-
-from strol_gym.limits import BASIN_CAPS, add_allow_large, check_size_caps
 
 LEARNERS = {"gradient": "g (Gradient)", "strol": "g + ĝ (StROL)"}
 COLUMNS = ("learner", "theta0_a", "theta0_b", "error", "converged")
@@ -71,26 +77,32 @@ class Basin(BenchExperiment):
         env.close()
         t0 = time.perf_counter()
         maps = {
-            lr: basin_map(
+            learner: basin_map(
                 task,
-                lr,
+                learner,
                 args.grid,
                 theta_star=args.theta_star,
                 steps=args.steps,
                 sigma=args.sigma,
                 seed=args.seed,
             )
-            for lr in LEARNERS
+            for learner in LEARNERS
         }
         wall = time.perf_counter() - t0
         rows = []
-        for lr, m in maps.items():
+        for learner, m in maps.items():
             g0, g1 = np.meshgrid(m.axis0, m.axis1)
             for a, b, e, c in zip(
                 g0.ravel(), g1.ravel(), m.error.ravel(), m.converged.ravel(), strict=True
             ):
                 rows.append(
-                    {"learner": lr, "theta0_a": a, "theta0_b": b, "error": e, "converged": bool(c)}
+                    {
+                        "learner": learner,
+                        "theta0_a": a,
+                        "theta0_b": b,
+                        "error": e,
+                        "converged": bool(c),
+                    }
                 )
         star = next(iter(maps.values())).theta_star
         md = [
@@ -102,8 +114,8 @@ class Basin(BenchExperiment):
             "| rule | fraction converged | median final error |",
             "|---|---|---|",
             *(
-                f"| {LEARNERS[lr]} | {m.fraction_converged:.3f} | {np.median(m.error):.3f} |"
-                for lr, m in maps.items()
+                f"| {LEARNERS[learner]} | {m.fraction_converged:.3f} | {np.median(m.error):.3f} |"
+                for learner, m in maps.items()
             ),
         ]
         meta = {
@@ -115,7 +127,7 @@ class Basin(BenchExperiment):
             "theta_star": star.tolist(),
             "dims": list(next(iter(maps.values())).dims),
             "converged_tol": CONVERGED_TOL,
-            "fraction_converged": {lr: m.fraction_converged for lr, m in maps.items()},
+            "fraction_converged": {learner: m.fraction_converged for learner, m in maps.items()},
             "wall_time_s": wall,
         }
         return Outcome(out, md, rows, meta, self.wall(wall, out), state=(maps, task))
@@ -127,13 +139,13 @@ class Basin(BenchExperiment):
 def plot(maps: dict, task, out: Path) -> list[Path]:
     """Side-by-side maps of the final error; the converged region outlined, θ* and the prior
     modes marked."""
-    from strol_gym.benchmarks.analysis.plots import _save, plt
+    from strol_gym.benchmarks.analysis.plots import plt, save_figure
 
     out.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(1, len(maps), figsize=(4.2 * len(maps), 3.6), squeeze=False)
     vmax = max(float(m.error.max()) for m in maps.values())
     names = task.feature_names
-    for ax, (lr, m) in zip(axes[0], maps.items(), strict=True):
+    for ax, (learner, m) in zip(axes[0], maps.items(), strict=True):
         ext = [m.axis0[0], m.axis0[-1], m.axis1[0], m.axis1[-1]]
         im = ax.imshow(m.error, origin="lower", extent=ext, vmin=0, vmax=vmax, cmap="viridis")
         if m.error.shape[0] > 1 and m.error.shape[1] > 1:
@@ -142,10 +154,10 @@ def plot(maps: dict, task, out: Path) -> list[Path]:
         ax.plot(m.theta_star[i], m.theta_star[j], "r*", ms=12, label="θ*")
         modes = np.asarray(task.prior_modes)
         ax.plot(modes[:, i], modes[:, j], "wo", mfc="none", label="prior modes")
-        ax.set_title(f"{LEARNERS[lr]}: {m.fraction_converged:.0%} converge")
+        ax.set_title(f"{LEARNERS[learner]}: {m.fraction_converged:.0%} converge")
         ax.set_xlabel(f"θ̂0[{names[i]}]")
         if ax is axes[0, 0]:
             ax.set_ylabel(f"θ̂0[{names[j]}]")
         ax.legend(fontsize=7, loc="lower left")
     fig.colorbar(im, ax=list(axes[0]), label="final error ‖θ̂ − θ*‖")
-    return _save(fig, out, "basin")
+    return save_figure(fig, out, "basin")

@@ -14,13 +14,13 @@ import argparse
 from pathlib import Path
 
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import finite, nonneg_int, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
-    fmt,
     fmt_paper,
     primary_metric,
     small_figure,
@@ -113,22 +113,22 @@ class Changing(BenchExperiment):
         metric = primary_metric(a, env)
         paper = PAPER_CHANGING.get(env, {})
         rows = []
-        for lr in config.learners:
-            c = a.cell(env, "changing", lr, metric) or {}
-            t = a.test(env, "changing", lr, metric) or {}
-            err = a.cell(env, "changing", lr, "error") or {}
-            cos = a.cell(env, "changing", lr, "cos_error") or {}
+        for learner in config.learners:
+            c = a.cell(env, "changing", learner, metric) or {}
+            t = a.test(env, "changing", learner, metric) or {}
+            err = a.cell(env, "changing", learner, "error") or {}
+            cos = a.cell(env, "changing", learner, "cos_error") or {}
             rows.append(
                 {
                     "env": env,
-                    "learner": lr,
+                    "learner": learner,
                     "metric": metric,
                     **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
                     "error_mean": err.get("mean"),
                     "cos_error_mean": cos.get("mean"),
                     "p_t_holm": t.get("p_holm"),
                     "p_wilcoxon_holm": t.get("wilcoxon_p_holm"),
-                    "paper_mean": paper.get(lr),
+                    "paper_mean": paper.get(learner),
                 }
             )
         exp = config.experiments[0]
@@ -171,7 +171,7 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Bars: mean ± SEM per learner; the paper's values as black diamonds."""
-    from strol_gym.benchmarks.analysis.plots import _save, learner_color
+    from strol_gym.benchmarks.analysis.plots import learner_color, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     fig, ax = small_figure(stem)
@@ -191,4 +191,4 @@ def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     ax.set_ylabel(short(metric))
     ax.set_title("Changing preferences")
     ax.legend(fontsize=8)
-    return _save(fig, stem.parent, stem.name)
+    return save_figure(fig, stem.parent, stem.name)

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from scipy import stats as sps
 from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import nonneg_int, positive_int
 from strol_gym.benchmarks.engine.conditions import (
     CONDITION_NAMES,
@@ -36,7 +37,7 @@ from strol_gym.benchmarks.engine.conditions import (
     make_condition,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
-from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt, load
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, load
 
 PROTOCOL_RUNS = 1000
 PROTOCOL_SEED = 3_000_000
@@ -193,8 +194,8 @@ def analyse(
         for metric in metrics:
             _, y = _matrix(records, env, cond, learners, metric)
             ys[metric] = y[np.isfinite(y).all(axis=1)]
-            for j, lr in enumerate(learners):
-                row = {"env": env, "condition": cond, "learner": lr, "metric": metric}
+            for j, learner in enumerate(learners):
+                row = {"env": env, "condition": cond, "learner": learner, "metric": metric}
                 row |= stats.describe(ys[metric][:, j])
                 if metric == PRIMARY:
                     row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
@@ -487,14 +488,14 @@ def markdown(
         "",
         "## Regret per learner (mean ± std; median; runs with regret ≥ 0.3)",
         "",
-        "| condition | " + " | ".join(display(lr) for lr in LEARNERS) + " |",
+        "| condition | " + " | ".join(display(learner) for learner in LEARNERS) + " |",
         "|---|" + "---|" * len(LEARNERS),
     ]
     desc = {(x["condition"], x["learner"], x["metric"]): x for x in result["descriptives"]}
     for cond in result["verdicts"]:
         cells = []
-        for lr in LEARNERS:
-            x = desc[(cond, lr, PRIMARY)]
+        for learner in LEARNERS:
+            x = desc[(cond, learner, PRIMARY)]
             cells.append(f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])}; {x['n_switch']}")
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     lines += [
@@ -606,7 +607,7 @@ def markdown_held_out(result: dict, label: str, seeds: list[int], meta: dict) ->
 def plot(result: dict, out: Path) -> list[Path]:
     """Probability that StROL's regret is lower than each baseline's, with bootstrap CIs, per
     condition (0.5 = no difference)."""
-    from strol_gym.benchmarks.analysis.plots import _save, learner_color, plt
+    from strol_gym.benchmarks.analysis.plots import learner_color, plt, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     out.mkdir(parents=True, exist_ok=True)
@@ -637,4 +638,4 @@ def plot(result: dict, out: Path) -> list[Path]:
     )
     ax.set_title("Confirmatory test: probability of improvement (95 % bootstrap CI)")
     ax.legend(fontsize=7)
-    return _save(fig, out, "confirm")
+    return save_figure(fig, out, "confirm")

@@ -84,7 +84,7 @@ def means(folder: Path) -> dict[tuple[str, ...], float]:
     }
 
 
-def verdicts(folder: Path) -> dict[tuple[str, ...], str]:
+def folder_verdicts(folder: Path) -> dict[tuple[str, ...], str]:
     """Every verdict of the folder: each post-hoc test's (significant, direction), and the
     confirmatory or H3 verdicts where the output has them."""
     out: dict[tuple[str, ...], str] = {}
@@ -117,7 +117,7 @@ def compare(ref: Path, other: Path) -> tuple[float, tuple[str, ...] | None, list
         d = rel_diff(ma[key], mb[key])
         if d > worst:
             worst, where = d, key
-    va, vb = verdicts(ref), verdicts(other)
+    va, vb = folder_verdicts(ref), folder_verdicts(other)
     changed = [f"{'/'.join(k)}: {va[k]} -> {vb.get(k)}" for k in sorted(va) if va[k] != vb.get(k)]
     return worst, where, changed
 

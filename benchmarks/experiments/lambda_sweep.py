@@ -13,13 +13,13 @@ import argparse
 from pathlib import Path
 
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_LAMBDA
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import float_list, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import (
     BenchExperiment,
     Outcome,
-    fmt,
     fmt_paper,
     small_figure,
 )
@@ -130,7 +130,7 @@ def table_markdown(rows: list[dict], metric: str) -> list[str]:
 
 def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Regret against λ (symlog x), mean ± SEM per prior; the paper's values as hollow marks."""
-    from strol_gym.benchmarks.analysis.plots import _save
+    from strol_gym.benchmarks.analysis.plots import save_figure
 
     fig, ax = small_figure(stem)
     for i, prior in enumerate(PRIOR_CONDITIONS):
@@ -160,4 +160,4 @@ def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     ax.set_ylabel(short(metric))
     ax.set_title("StROL: G = g + λ·ĝ")
     ax.legend(fontsize=7)
-    return _save(fig, stem.parent, stem.name)
+    return save_figure(fig, stem.parent, stem.name)

@@ -21,6 +21,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from strol_gym.benchmarks.analysis.report import fmt
 from strol_gym.benchmarks.args import (
     check_learner_names,
     float_list,
@@ -36,7 +37,7 @@ from strol_gym.benchmarks.engine.conditions import (
     env_preset,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, MAX_RUNS, BenchConfig, Experiment
-from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, fmt, primary_metric
+from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, primary_metric
 from strol_gym.benchmarks.experiments.changing import DEFAULT_SWITCH
 
 from strol_gym.metrics import short
@@ -227,15 +228,15 @@ def collect_rows(a: Any, config: BenchConfig, env: str, metric: str) -> list[dic
     rows = []
     for exp in config.experiments:
         cond = exp.condition
-        for lr in config.learners:
-            c = a.cell(env, cond.name, lr, metric) or {}
-            t = None if lr == config.reference else a.test(env, cond.name, lr, metric)
+        for learner in config.learners:
+            c = a.cell(env, cond.name, learner, metric) or {}
+            t = None if learner == config.reference else a.test(env, cond.name, learner, metric)
             rows.append(
                 {
                     "env": env,
                     "human": cond.human,
                     "sigma": cond.sigma,
-                    "learner": lr,
+                    "learner": learner,
                     "metric": metric,
                     **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
                     # the test's difference is StROL minus the learner
@@ -274,39 +275,39 @@ def table_markdown(rows: list[dict], config: BenchConfig, metric: str) -> list[s
         lines.append("| learner | " + " | ".join(humans) + " |")
         lines.append("|---" * (len(humans) + 1) + "|")
         best = {h: _best(cell, learners, h) for h in humans}
-        for lr in learners:
+        for learner in learners:
             cells = []
             for h in humans:
-                r = cell[(lr, h)]
-                v = fmt(_num(r["mean"]))
-                v = f"**{v}**" if lr == best[h] else v
+                r = cell[(learner, h)]
+                v = fmt(_float(r["mean"]))
+                v = f"**{v}**" if learner == best[h] else v
                 cells.append(f"{v} {r['mark']}".strip())
-            lines.append(f"| {display(lr)} | " + " | ".join(cells) + " |")
+            lines.append(f"| {display(learner)} | " + " | ".join(cells) + " |")
         wins = {
-            lr: (
-                sum(cell[(lr, h)]["mark"].startswith(WORSE) for h in humans),
-                sum(cell[(lr, h)]["mark"].startswith(BETTER) for h in humans),
+            learner: (
+                sum(cell[(learner, h)]["mark"].startswith(WORSE) for h in humans),
+                sum(cell[(learner, h)]["mark"].startswith(BETTER) for h in humans),
             )
-            for lr in learners
-            if lr != config.reference
+            for learner in learners
+            if learner != config.reference
         }
         lines += [
             "",
             f"StROL against each learner over the {len(humans)} humans at σ = {sigma:g} "
             "(significantly lower / higher): "
-            + "; ".join(f"{display(lr)} {w}/{b}" for lr, (w, b) in wins.items())
+            + "; ".join(f"{display(learner)} {w}/{b}" for learner, (w, b) in wins.items())
             + ".",
         ]
     return lines
 
 
-def _num(v: Any) -> float:
+def _float(v: Any) -> float:
     return math.nan if v is None else float(v)
 
 
 def _best(cell: dict, learners: list[str], human: str) -> str | None:
-    means = [(_num(cell[(lr, human)]["mean"]), lr) for lr in learners]
-    means = [(m, lr) for m, lr in means if math.isfinite(m)]
+    means = [(_float(cell[(learner, human)]["mean"]), learner) for learner in learners]
+    means = [(m, learner) for m, learner in means if math.isfinite(m)]
     return min(means)[1] if means else None
 
 
@@ -314,7 +315,7 @@ def heat_map(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Learners × humans per σ: colour = the mean scaled within its column (0 = the column's
     lowest, 1 = its highest), text = the mean and StROL's mark."""
     import numpy as np
-    from strol_gym.benchmarks.analysis.plots import _save, plt
+    from strol_gym.benchmarks.analysis.plots import plt, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     sigmas = list(dict.fromkeys(r["sigma"] for r in rows))
@@ -325,21 +326,21 @@ def heat_map(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     fig, axes = plt.subplots(len(sigmas), 1, figsize=(width, height), squeeze=False)
     for ax, sigma in zip(axes[:, 0], sigmas, strict=True):
         learners, humans, cell = _grid(rows, sigma)
-        m = np.array([[_num(cell[(lr, h)]["mean"]) for h in humans] for lr in learners])
+        m = np.array([[_float(cell[(learner, h)]["mean"]) for h in humans] for learner in learners])
         lo, hi = np.nanmin(m, axis=0), np.nanmax(m, axis=0)
         span = np.where(hi > lo, hi - lo, 1.0)
         ax.imshow((m - lo) / span, cmap="RdYlGn_r", vmin=0, vmax=1, aspect="auto")
-        for i, lr in enumerate(learners):
+        for i, learner in enumerate(learners):
             for j, h in enumerate(humans):
-                r = cell[(lr, h)]
+                r = cell[(learner, h)]
                 ax.text(
                     j, i, f"{fmt(m[i, j], 2)}\n{r['mark']}", ha="center", va="center", fontsize=6.5
                 )
         ax.set_xticks(range(len(humans)), humans, rotation=40, ha="right", fontsize=7)
-        ax.set_yticks(range(len(learners)), [display(lr) for lr in learners], fontsize=7)
+        ax.set_yticks(range(len(learners)), [display(learner) for learner in learners], fontsize=7)
         ax.set_title(
             f"{short(metric)} (mean), σ = {sigma:g}: {WORSE} StROL lower, {BETTER} higher (Holm)",
             fontsize=8,
         )
     fig.tight_layout()
-    return _save(fig, stem.parent, stem.name)
+    return save_figure(fig, stem.parent, stem.name)

@@ -7,8 +7,11 @@ import time
 from pathlib import Path
 
 from strol_gym.benchmarks.args import (
+    RUN_CAPS,
+    add_allow_large,
     beta,
     check_learner_names,
+    check_size_caps,
     fraction,
     json_object,
     learner_kwargs,
@@ -28,8 +31,6 @@ from strol_gym.benchmarks.engine.conditions import (
 )
 from strol_gym.benchmarks.engine.config import MAX_RUNS, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
-
-from strol_gym.limits import RUN_CAPS, add_allow_large, check_size_caps
 
 
 class RunsAndReports(BenchExperiment):

@@ -28,11 +28,13 @@ from strol_gym.benchmarks.analysis.report import (
     pooled_tests,
 )
 from strol_gym.benchmarks.args import nonneg_int, positive_int
-from strol_gym.benchmarks.engine import study_authors
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
+from strol_gym.benchmarks.engine.episodes import regret_inputs
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
+
+from strol_gym.envs.study import metrics as study_authors
 
 TASKS = (1, 2, 3)
 DEFAULT_USERS = 20
@@ -137,7 +139,7 @@ def _task_of(env: str) -> int:
     return int(env.removeprefix("study")[0])
 
 
-def verdicts(a: Analysis) -> list[dict[str, Any]]:
+def h3_verdicts(a: Analysis) -> list[dict[str, Any]]:
     """H3 per Task: StROL against One and MOF on regret and on correction time (Holm-corrected
     paired t-tests, the Wilcoxon test alongside). "supported" needs all four lower."""
     out = []
@@ -170,8 +172,8 @@ def verdicts(a: Analysis) -> list[dict[str, Any]]:
     return out
 
 
-def _cell(a: Analysis, env: str, lr: str, metric: str) -> dict[str, Any] | None:
-    return a.cell(env, USERS.name, lr, metric)
+def _cell(a: Analysis, env: str, learner: str, metric: str) -> dict[str, Any] | None:
+    return a.cell(env, USERS.name, learner, metric)
 
 
 def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
@@ -179,20 +181,20 @@ def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
     envs = [e.env for e in a.config.experiments]
     rows = []
     for metric in METRICS:
-        for lr in a.config.learners:
-            row: dict[str, Any] = {"metric": metric, "learner": lr}
+        for learner in a.config.learners:
+            row: dict[str, Any] = {"metric": metric, "learner": learner}
             for env in envs:
-                c = _cell(a, env, lr, metric)
+                c = _cell(a, env, learner, metric)
                 row[f"task{_task_of(env)}_mean"] = c["mean"] if c else math.nan
                 row[f"task{_task_of(env)}_sem"] = c["sem"] if c else math.nan
             v = np.array(
-                [r[metric] for r in records if r["learner"] == lr and metric in r], dtype=float
+                [r[metric] for r in records if r["learner"] == learner and metric in r], dtype=float
             )
             v = v[np.isfinite(v)]
             row["all_mean"] = float(v.mean()) if v.size else math.nan
             row["all_sem"] = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan
             row["all_n"] = int(v.size)
-            paper = PAPER.get(metric, {}).get(lr, (math.nan, math.nan))
+            paper = PAPER.get(metric, {}).get(learner, (math.nan, math.nan))
             row["paper_mean"], row["paper_spread"] = paper
             rows.append(row)
     return rows
@@ -232,7 +234,7 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strol_gym.benchmarks.analysis.plots import _color, _save
+    from strol_gym.benchmarks.analysis.plots import learner_color, save_figure
 
     out.mkdir(parents=True, exist_ok=True)
     envs = [e.env for e in a.config.experiments]
@@ -240,29 +242,29 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
     fig, axes = plt.subplots(1, 3, figsize=(14, 3.6))
     width = 0.8 / len(learners)
     for ax, metric in zip(axes[:2], H3_METRICS, strict=True):
-        for j, lr in enumerate(learners):
+        for j, learner in enumerate(learners):
             for i, env in enumerate(envs):
-                c = _cell(a, env, lr, metric)
+                c = _cell(a, env, learner, metric)
                 if c is None:
                     continue
                 x = i + (j - (len(learners) - 1) / 2) * width
-                ax.bar(x, c["mean"], width, yerr=c["sem"], color=_color(j, lr), capsize=2,
-                       label=display(lr) if i == 0 else None)  # fmt: skip
-                t = a.test(env, USERS.name, lr, metric)
+                ax.bar(x, c["mean"], width, yerr=c["sem"], color=learner_color(learner), capsize=2,
+                       label=display(learner) if i == 0 else None)  # fmt: skip
+                t = a.test(env, USERS.name, learner, metric)
                 if t is not None and t["significant"]:
                     ax.text(x, c["mean"] + (c["sem"] or 0), "*", ha="center", va="bottom")
         ax.set_xticks(range(len(envs)), [f"Task {_task_of(e)}" for e in envs])
         ax.set_ylabel(LABELS[metric])
     axes[0].legend(fontsize=7)
     ax = axes[2]
-    for j, lr in enumerate(learners):
-        rs = [r for r in records if r["learner"] == lr]
+    for learner in learners:
+        rs = [r for r in records if r["learner"] == learner]
         ax.scatter([r["correction_time"] for r in rs], [r["regret"] for r in rs], s=10,
-                   color=_color(j, lr), alpha=0.6, label=display(lr))  # fmt: skip
+                   color=learner_color(learner), alpha=0.6, label=display(learner))  # fmt: skip
     ax.set_xlabel(LABELS["correction_time"])
     ax.set_ylabel(LABELS["regret"])
     ax.set_title("per simulated user", fontsize=9)
-    return _save(fig, out, "study")
+    return save_figure(fig, out, "study")
 
 
 def _anova_text(r: dict[str, Any]) -> str:
@@ -294,7 +296,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
     write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
-    verd = verdicts(a)
+    verd = h3_verdicts(a)
     anova = [
         f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: {_anova_text(r)}"
         for r in a.anova
@@ -355,12 +357,9 @@ def add_authors_regret(records: list[dict]) -> None:
 
     for env in dict.fromkeys(r["env"] for r in records):
         rs = [r for r in records if r["env"] == env]
-        cols = [np.array([r[k] for r in rs], dtype=np.float64) for k in _REGRET_INPUTS]
+        cols = regret_inputs(rs)
         for r, v in zip(rs, study_authors.regret(STUDY_TASKS[_task_of(env)](), *cols), strict=True):
             r["regret_authors"] = float(v)
-
-
-_REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
 
 
 def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int, users: int) -> list[str]:

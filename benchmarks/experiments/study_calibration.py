@@ -29,8 +29,8 @@ def rows(records: list[dict]) -> list[str]:
     """One markdown row per Task × learner."""
     out = []
     for env in dict.fromkeys(r["env"] for r in records):
-        for lr in LEARNERS:
-            rs = [r for r in records if r["env"] == env and r["learner"] == lr]
+        for learner in LEARNERS:
+            rs = [r for r in records if r["env"] == env and r["learner"] == learner]
             if not rs:
                 continue
             n = np.array([r["corrections"] for r in rs], dtype=float)
@@ -41,8 +41,8 @@ def rows(records: list[dict]) -> list[str]:
             per = ours.sum() / max(n.sum(), 1.0)
             per_a = auth.sum() / max(n.sum(), 1.0)
             out.append(
-                f"| {env[5]} | {lr} | {len(rs)} | {n.mean():.1f} | {ours.mean():.1f} | {per:.2f} "
-                f"| {auth.mean():.2f} | {per_a:.2f} | {np.nanmean(gave):.0%} "
+                f"| {env[5]} | {learner} | {len(rs)} | {n.mean():.1f} | {ours.mean():.1f} "
+                f"| {per:.2f} | {auth.mean():.2f} | {per_a:.2f} | {np.nanmean(gave):.0%} "
                 f"| {reg.mean():.2f} ({np.median(reg):.2f}) |"
             )
     return out

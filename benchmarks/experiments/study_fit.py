@@ -34,8 +34,8 @@ SEED = 930
 def corrections(task: int, seed: int, participant: str, learner: str) -> list[dict]:
     """Every correction of one episode: pose, θ̂ before it, u_H."""
     env = gym.make("StROL-Study-v1", task=V1_TASK.format(task), participant=participant, sigma=0.0)
-    lr = make_learner(learner, task=env.unwrapped.task)
-    env = OnlineLearningWrapper(env, lr)
+    online = make_learner(learner, task=env.unwrapped.task)
+    env = OnlineLearningWrapper(env, online)
     env.reset(seed=seed)
     zero = np.zeros(env.action_space.shape, dtype=np.float32)
     out, truncated = [], False

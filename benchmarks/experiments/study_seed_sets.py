@@ -36,8 +36,8 @@ from strol_gym.benchmarks.experiments.study import (
     SEED,
     TASKS,
     add_authors_regret,
+    h3_verdicts,
     study_config,
-    verdicts,
 )
 
 
@@ -76,7 +76,7 @@ def analyse_prefix(
     records = [r for r in records if first <= r["seed"] < first + n]
     a = analyse(config, records, [m for m in METRICS if all(m in r for r in records)])
     out = []
-    for v, exp in zip(verdicts(a), config.experiments, strict=True):
+    for v, exp in zip(h3_verdicts(a), config.experiments, strict=True):
         margin, nearest = decisive_margin(a, exp.env, exp.condition.name)
         out.append({"task": v["task"], "verdict": v["verdict"], "margin": margin, "near": nearest})
     return out

@@ -25,7 +25,7 @@ from strol_gym.wrappers.session_log import (
     Episode,
     Session,
     SessionLogError,
-    _header,
+    check_header,
     read_session,
 )
 
@@ -93,7 +93,7 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
     """Write session log ``log`` as Minari dataset ``dataset_id``; the MinariDataset."""
     minari = _minari()
     session = read_session(log)
-    _, dims = _header(f"{session.path}:1", session.header)
+    _, dims = check_header(f"{session.path}:1", session.header)
     obs_space, act_space = _spaces(dims)
     buffers = [_episode_buffer(ep, dims, ep.seed) for ep in session.episodes]
     # Minari nags for provenance a session log does not have (author, code permalink, env spec)
@@ -144,7 +144,7 @@ def read_dataset(source: str) -> Session:
         ) from None
     if not isinstance(header, dict):
         raise SessionLogError(f"{where}: not a strol-gym session dataset (no valid header)")
-    header, dims = _header(f"{where}:header", header)
+    header, dims = check_header(f"{where}:header", header)
     episodes = []
     for k, ep in enumerate(dataset.iterate_episodes()):
         at = f"{where}:episode {k}"

@@ -171,7 +171,11 @@ def add_parser(sub: Any) -> None:
         "SessionLogger) through learners: each starts at the logged θ̂0 and updates on the "
         "logged (x, u_H, u_R). Prints final θ̂, error to the logged θ* and 1 − cos.",
     )
-    p.add_argument("log", help="a session log (.jsonl), or a Minari dataset (strol-bench export)")
+    p.add_argument(
+        "log",
+        help="a session log (.jsonl), a Minari dataset (strol-bench export), or a folder of "
+        "session logs (every learner on every log, paired by session, with statistics)",
+    )
     p.add_argument(
         "--learners",
         type=learner_list,
@@ -181,12 +185,23 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--learner-kwargs", default=None, help='JSON, e.g. \'{"strol": {"lam": 0.5}}\'')
     p.add_argument("--out", default=None, help="output folder (default: LOG's name + _replay)")
     p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--reference", default="strol", help="a folder's tests: this learner vs each")
+    p.add_argument(
+        "--task-version",
+        type=int,
+        choices=(0, 1),
+        default=None,
+        help="a folder's Study logs replayed with that version's Task (and its ĝ)",
+    )
     plugin_option(p)
 
 
 def command(args: Any, parser: Any) -> int:
     from strol_gym.benchmarks.args import check_learner_names, learner_kwargs
+    from strol_gym.benchmarks.sessions import replay_folder
 
+    if replay_folder.is_log_folder(args.log):
+        return replay_folder.command(args, parser)
     check_learner_names(args.learners)
     kwargs = learner_kwargs(args.learner_kwargs)
     run_replay(args.log, args.learners, args.out, kwargs, plots=not args.no_plots)

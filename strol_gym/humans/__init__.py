@@ -2,33 +2,31 @@
 
 One interface serves every caller: a :class:`HumanModel` chooses the corrections of a whole
 batch of people (states, θ*, θ̂ where the model needs it, candidates drawn from one generator),
-and the envs' single-sample ``Human.act`` is its thin adapter :class:`ModelHuman`. Real and
+and the envs' single-sample ``Human.act`` is its thin adapter :class:`SimulatedHuman`. Real and
 simulated humans share the ``Human`` protocol, so a user can pass their own object to the envs.
 Noise and bias are fractions of the action bound a_max (docs/benchmark.md, "Conditions"):
 δ ~ N(ε·a_max, (σ·a_max)²).
 
-- ``choices``: the batched choices (eq. M6, Boltzmann, driver) and the noise;
-- ``model``: the interface (``HumanModel``, ``Draws``, ``ModelHuman``, ``Human``);
-- ``models``: the built-in models; ``zoo``: the robustness zoo; ``registry``: names and
-  builders; ``spec``: one value for a human and its arguments; ``teaching``: the loop.
+The vocabulary, one name per idea:
+
+- ``HumanModel``: what people of one kind do, batched (``XModel``: ``NominalModel``,
+  ``BoltzmannModel``, ``DriverModel``, ``ChangingModel`` and the zoo's);
+- ``HumanSpec``: which person an env or a benchmark asks for (a registered name and its
+  arguments), validated;
+- ``SimulatedHuman``: one person of a model behind the envs' single-sample ``Human.act``, the
+  per-env adapter (``XHuman``: ``NominalHuman``, ``BoltzmannHuman``, ...);
+- ``Human``: the protocol real and simulated people share.
+
+Modules: ``choices`` (the batched choices: eq. M6, Boltzmann, driver; the noise),
+``interface`` (``Human``, ``HumanModel``, ``Draws``, ``SimulatedHuman``), ``builtin`` (the
+built-in models and their humans), ``zoo`` (the robustness zoo), ``registry`` (names and
+builders), ``spec`` (``HumanSpec``), ``population`` (many people of one spec), ``teaching`` (the
+loop). ``ModelHuman`` and ``TeacherModel`` are the old names of ``SimulatedHuman`` and
+``NominalModel`` (they warn; CHANGELOG.md).
 """
 
-from strol_gym.humans.checks import MAX_BETA, MAX_FRACTION, check_beta, check_fraction
-from strol_gym.humans.choices import (
-    boltzmann_correction,
-    driver_correction,
-    optimal_correction,
-    perturb,
-)
-from strol_gym.humans.model import (
-    DEFAULT_CANDIDATES,
-    Draws,
-    Human,
-    HumanModel,
-    ModelHuman,
-    needs_theta_hat,
-)
-from strol_gym.humans.models import (
+from strol_gym.deprecation import moved
+from strol_gym.humans.builtin import (
     BoltzmannHuman,
     BoltzmannModel,
     ChangingHuman,
@@ -36,7 +34,22 @@ from strol_gym.humans.models import (
     DriverHuman,
     DriverModel,
     NominalHuman,
-    TeacherModel,
+    NominalModel,
+)
+from strol_gym.humans.checks import MAX_BETA, MAX_FRACTION, check_beta, check_fraction
+from strol_gym.humans.choices import (
+    boltzmann_correction,
+    driver_correction,
+    optimal_correction,
+    perturb,
+)
+from strol_gym.humans.interface import (
+    DEFAULT_CANDIDATES,
+    Draws,
+    Human,
+    HumanModel,
+    SimulatedHuman,
+    needs_theta_hat,
 )
 from strol_gym.humans.registry import (
     HUMAN_MODELS,
@@ -54,8 +67,13 @@ from strol_gym.humans.registry import (
 from strol_gym.humans.spec import HumanSpec
 from strol_gym.humans.teaching import teach
 
-SimulatedHuman = ModelHuman
-"""The base of the built-in simulated humans (the adapter of a ``HumanModel``)."""
+__getattr__ = moved(
+    __name__,
+    {
+        "ModelHuman": "strol_gym.humans.interface:SimulatedHuman",
+        "TeacherModel": "strol_gym.humans.builtin:NominalModel",
+    },
+)
 
 __all__ = [
     "DEFAULT_CANDIDATES",
@@ -75,11 +93,10 @@ __all__ = [
     "HumanFactory",
     "HumanModel",
     "HumanSpec",
-    "ModelHuman",
     "NominalHuman",
+    "NominalModel",
     "PerSampleModel",
     "SimulatedHuman",
-    "TeacherModel",
     "_accepted",
     "boltzmann_correction",
     "check_beta",

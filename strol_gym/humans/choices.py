@@ -1,5 +1,7 @@
 """The batched choices of simulated humans: pure functions of a batch of states, θ*, θ̂ and
-candidate actions, shared by every human model, the Tasks and the tests.
+candidate actions, shared by every human model, the Tasks and the tests. ``driver_correction``
+lives with the Tasks (``strol_gym.tasks.driver``: the highway Task's robot policy predicts the
+human with it) and is re-exported here.
 
 Noise and bias are fractions of the action bound a_max (docs/benchmark.md, "Conditions"):
 δ ~ N(ε·a_max, (σ·a_max)²).
@@ -10,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from strol_gym.tasks.base import Task
+from strol_gym.tasks.driver import driver_correction as driver_correction
 
 
 def optimal_correction(
@@ -60,32 +63,6 @@ def boltzmann_correction(
     u = rng.random((len(p), 1))
     idx = np.minimum((p.cumsum(axis=1) < u).sum(axis=1), p.shape[1] - 1)
     return candidates[np.arange(len(candidates)), idx]
-
-
-def driver_correction(
-    task: Task,
-    x: np.ndarray,
-    u_r: np.ndarray,
-    theta_star: np.ndarray,
-    candidates: np.ndarray,
-    horizon: int,
-) -> np.ndarray:
-    """A short-horizon driver, batched: the candidate u maximising Σ_{t=1..horizon} θ*·φ(x_t)
-    when u (and the robot's u_R) act for the first step and both coast (zero action) after it.
-    Acting for itself, not to teach: it ignores θ̂. Coasting, rather than repeating u, lets a
-    car value "steer now, then hold the wheel" without the plan turning it around.
-
-    Shapes: x (B, s), u_r (B, a), theta_star (B, d), candidates (B, K, a) -> (B, a).
-    """
-    if int(horizon) < 1:
-        raise ValueError(f"horizon must be an integer >= 1, got {horizon}")
-    xs = task.dynamics(x[:, None, :], candidates, u_r[:, None, :])
-    total = np.einsum("bkd,bd->bk", task.features(xs), theta_star)
-    zero = np.zeros((1, 1, candidates.shape[-1]))
-    for _ in range(int(horizon) - 1):
-        xs = task.dynamics(xs, zero, zero)
-        total += np.einsum("bkd,bd->bk", task.features(xs), theta_star)
-    return candidates[np.arange(len(candidates)), np.argmax(total, axis=1)]
 
 
 def perturb(

@@ -14,18 +14,19 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans.model import Human, ModelHuman, needs_theta_hat
+from strol_gym.humans.interface import Human, SimulatedHuman, needs_theta_hat
 from strol_gym.humans.registry import _params, human_factory, make_human
 from strol_gym.tasks.base import Task
 
 
 def _one_model(humans: Sequence[Human]) -> bool:
     first = humans[0]
-    if not isinstance(first, ModelHuman):
+    if not isinstance(first, SimulatedHuman):
         return False
     model = first.model
     return all(
-        isinstance(h, ModelHuman) and (h.model is model or h.model.same_as(model)) for h in humans
+        isinstance(h, SimulatedHuman) and (h.model is model or h.model.same_as(model))
+        for h in humans
     )
 
 
@@ -61,7 +62,7 @@ class HumanMaker:
     def __init__(self, human: Any, task: Task, **params: Any) -> None:
         self.human, self.task, self.params = human, task, params
         self._factory: Any = None
-        self._person: type[ModelHuman] = ModelHuman
+        self._person: type[SimulatedHuman] = SimulatedHuman
         self._model: Any = None
 
     def __call__(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human:
@@ -70,7 +71,7 @@ class HumanMaker:
             self._factory = human_factory(self.human)
             self.params = _params(self._factory, self.params)
             # People of one model share it (built and checked once, by make_human).
-            if isinstance(obj, ModelHuman):
+            if isinstance(obj, SimulatedHuman):
                 self._person, self._model = type(obj), obj.model
             return obj
         if self._model is not None:

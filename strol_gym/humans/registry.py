@@ -9,14 +9,14 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans.model import Draws, Human, HumanModel, ModelHuman, needs_theta_hat
-from strol_gym.humans.models import BoltzmannModel, ChangingModel, DriverModel, TeacherModel
+from strol_gym.humans.builtin import BoltzmannModel, ChangingModel, DriverModel, NominalModel
+from strol_gym.humans.interface import Draws, Human, HumanModel, SimulatedHuman, needs_theta_hat
 from strol_gym.humans.zoo import ZOO
 from strol_gym.registry import Registry
 from strol_gym.tasks.base import Task
 
 HUMAN_MODELS: dict[str, Any] = {
-    "nominal": TeacherModel,
+    "nominal": NominalModel,
     "boltzmann": BoltzmannModel,
     "driver": DriverModel,
     "changing": ChangingModel,
@@ -58,12 +58,12 @@ def register_human(name: str, factory: type[HumanModel] | HumanFactory | str) ->
 
 def human_factory(human: str | HumanFactory | type[HumanModel]) -> HumanFactory:
     """The factory of single-sample humans for a registered name, a ``"module:attr"``, a
-    :class:`HumanModel` subclass (its :class:`ModelHuman` adapter) or a callable; else
+    :class:`HumanModel` subclass (its :class:`SimulatedHuman` adapter) or a callable; else
     ValueError."""
     factory = HUMANS.get(human) if isinstance(human, str) else human
     HUMANS.check(str(human), factory)
     if _is_model(factory):
-        return ModelHuman.of(factory)
+        return SimulatedHuman.of(factory)
     return factory
 
 
@@ -83,7 +83,11 @@ def human_model(
     factory = human_factory(human)
     params = _params(factory, {"sigma": sigma, "bias": bias, "beta": beta, **human_kwargs})
     model_class = getattr(factory, "model_class", None)
-    if isinstance(factory, type) and issubclass(factory, ModelHuman) and model_class is not None:
+    if (
+        isinstance(factory, type)
+        and issubclass(factory, SimulatedHuman)
+        and model_class is not None
+    ):
         return model_class(task, **params)
     return PerSampleModel(factory, task, **params)
 

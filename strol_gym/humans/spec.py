@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from strol_gym.humans.checks import check_beta, check_fraction
-from strol_gym.humans.model import Human
+from strol_gym.humans.interface import Human
 from strol_gym.humans.population import HumanMaker
 from strol_gym.humans.registry import HumanFactory, check_human_kwargs, human_factory
 from strol_gym.tasks.base import Task

@@ -3,7 +3,7 @@ Task's dynamics after each correction.
 
 The Task-level simulation (``learners.simulate``), the basin map (``analysis.basin_map``) and
 anything else that teaches without an env run this loop; the envs run the same model one
-correction at a time through ``ModelHuman.act``, and ĝ's training data ask the same model for
+correction at a time through ``SimulatedHuman.act``, and ĝ's training data ask the same model for
 whole batches (``HumanModel.correct``).
 """
 
@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from strol_gym.humans.model import HumanModel
+from strol_gym.humans.interface import HumanModel
 from strol_gym.tasks.base import Task
 
 Update = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]

@@ -4,7 +4,7 @@ Robustness claims depend on the human model, so the benchmark can swap the teach
 is noisier where it matters, short-sighted, silent at times, heavy- or light-handed, early or
 late, or sometimes wrong about what it wants. Each model below is a registered human
 (``strol_gym.humans.HUMANS``); every one but ``myopic`` is the eq. M6 teacher
-(:class:`~strol_gym.humans.models.TeacherModel`, the envs' default human) changed in exactly one
+(:class:`~strol_gym.humans.builtin.NominalModel`, the envs' default human) changed in exactly one
 respect, so a difference in a learner's score is that respect's doing.
 
 All of them keep the interface's promises: their extra randomness is drawn in
@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym.humans.builtin import DriverModel, NominalModel
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.choices import perturb
-from strol_gym.humans.model import DEFAULT_CANDIDATES, ModelHuman, Replayed
-from strol_gym.humans.models import DriverModel, TeacherModel
+from strol_gym.humans.interface import DEFAULT_CANDIDATES, Replayed, SimulatedHuman
 from strol_gym.tasks.base import Task
 
 MAX_SCALE = 10.0
@@ -65,7 +65,7 @@ def _silence(u: np.ndarray, quiet: np.ndarray) -> np.ndarray:
     return np.where(quiet[:, None], 0.0, u)
 
 
-class FeatureNoiseModel(TeacherModel):
+class FeatureNoiseModel(NominalModel):
     """Feature-dependent noise: the eq. M6 teacher whose hand is noisier when it matters.
 
     Model: u* is the teacher's choice; u_H = u* + δ with δ ~ N(ε a_max, (σ_x a_max)²) per
@@ -152,7 +152,7 @@ class MyopicModel(DriverModel):
         super().__init__(task, sigma, bias, horizon=1, n_candidates=n_candidates)
 
 
-class SkippingModel(TeacherModel):
+class SkippingModel(NominalModel):
     """Skipping: with probability ``p`` a correction is not given, u_H = 0 exactly (no noise);
     otherwise the eq. M6 teacher's u* + δ. Each correction skips independently (a uniform draw
     per correction, taken whatever the outcome). Parameters: σ, ε, ``p`` ∈ [0, 1] (default
@@ -178,7 +178,7 @@ class SkippingModel(TeacherModel):
         return _silence(u, draws.extra["skip"] < self.p)
 
 
-class _ScaledModel(TeacherModel):
+class _ScaledModel(NominalModel):
     """The teacher's noise-free u* times ``scale``, then δ (the shared body of over/under)."""
 
     low: float = 0.0
@@ -232,7 +232,7 @@ class UnderCorrectingModel(_ScaledModel):
     default_scale = 0.5
 
 
-class _WindowModel(TeacherModel):
+class _WindowModel(NominalModel):
     """The teacher during corrections k ∈ [start, stop), silent (u_H = 0) outside them."""
 
     start = 0
@@ -286,7 +286,7 @@ class LateModel(_WindowModel):
         self.start = check_index("start", start, 0)
 
 
-class MistakenModel(TeacherModel):
+class MistakenModel(NominalModel):
     """Mistaken: with probability ``rate`` a correction teaches toward a wrong θ instead of θ*.
 
     Per correction it draws a uniform number and a θ_wrong from the Task's prior (the prior
@@ -318,7 +318,7 @@ class MistakenModel(TeacherModel):
         return super().choose(x, u_r, target, draws, theta_hat, k)
 
 
-ZOO: dict[str, type[TeacherModel] | type[DriverModel]] = {
+ZOO: dict[str, type[NominalModel] | type[DriverModel]] = {
     "feature-noise": FeatureNoiseModel,
     "myopic": MyopicModel,
     "skipping": SkippingModel,
@@ -330,14 +330,14 @@ ZOO: dict[str, type[TeacherModel] | type[DriverModel]] = {
 }
 """The zoo's names (registered in ``strol_gym.humans.registry.HUMAN_MODELS``)."""
 
-FeatureNoiseHuman = ModelHuman.of(FeatureNoiseModel, "FeatureNoiseHuman")
-MyopicHuman = ModelHuman.of(MyopicModel, "MyopicHuman")
-SkippingHuman = ModelHuman.of(SkippingModel, "SkippingHuman")
-OverCorrectingHuman = ModelHuman.of(OverCorrectingModel, "OverCorrectingHuman")
-UnderCorrectingHuman = ModelHuman.of(UnderCorrectingModel, "UnderCorrectingHuman")
-EarlyHuman = ModelHuman.of(EarlyModel, "EarlyHuman")
-LateHuman = ModelHuman.of(LateModel, "LateHuman")
-MistakenHuman = ModelHuman.of(MistakenModel, "MistakenHuman")
+FeatureNoiseHuman = SimulatedHuman.of(FeatureNoiseModel, "FeatureNoiseHuman")
+MyopicHuman = SimulatedHuman.of(MyopicModel, "MyopicHuman")
+SkippingHuman = SimulatedHuman.of(SkippingModel, "SkippingHuman")
+OverCorrectingHuman = SimulatedHuman.of(OverCorrectingModel, "OverCorrectingHuman")
+UnderCorrectingHuman = SimulatedHuman.of(UnderCorrectingModel, "UnderCorrectingHuman")
+EarlyHuman = SimulatedHuman.of(EarlyModel, "EarlyHuman")
+LateHuman = SimulatedHuman.of(LateModel, "LateHuman")
+MistakenHuman = SimulatedHuman.of(MistakenModel, "MistakenHuman")
 
 __all__ = [
     "ZOO",

@@ -12,14 +12,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import platform
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from strol_gym.files import temp_beside
 from strol_gym.learners.network import CorrectionNet
+from strol_gym.provenance import package_versions
 from strol_gym.tasks.base import Task
 
 FORMAT_VERSION = 1
@@ -127,41 +128,9 @@ def probe_writable(folder: Path, what: str) -> None:
         raise ValueError(f"{what}: cannot write in {folder} ({e.strerror or e})") from None
 
 
-def _write_atomic(path: Path, write: Any) -> Path:
-    """``write(tmp)`` into a temporary file beside ``path``; returns the temporary's path (the
-    caller renames it). On any error the temporary is removed and OSError names ``path``."""
-    import tempfile
-
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    tmp = Path(name)
-    try:
-        write(tmp)
-    except BaseException as e:
-        tmp.unlink(missing_ok=True)
-        if isinstance(e, Exception):
-            raise OSError(f"cannot write {path}: {' '.join(str(e).split())}") from None
-        raise
-    return tmp
-
-
 def sidecar_path(path: str | Path) -> Path:
     """The JSON sidecar beside a weights file."""
     return Path(path).with_suffix(".json")
-
-
-def package_versions() -> dict[str, str]:
-    import gymnasium
-
-    import strol_gym
-
-    return {
-        "strol_gym": strol_gym.__version__,
-        "torch": torch.__version__,
-        "numpy": np.__version__,
-        "gymnasium": gymnasium.__version__,
-        "python": platform.python_version(),
-    }
 
 
 def input_dim(task: Task, kind: str) -> int:
@@ -210,7 +179,7 @@ def save_checkpoint(
     check_finite_weights(weights, "model")
     # Both files go to temporaries first and are renamed, sidecar first: a failure (a full
     # disk) leaves no partial .pt, and never a .pt without its sidecar.
-    tmp_pt = _write_atomic(path, lambda tmp: torch.save(weights, tmp))
+    tmp_pt = temp_beside(path, lambda tmp: torch.save(weights, tmp))
     meta = {
         "format_version": FORMAT_VERSION,
         "kind": kind,
@@ -224,7 +193,7 @@ def save_checkpoint(
     text = json.dumps(meta, indent=2, sort_keys=True) + "\n"
     side = sidecar_path(path)
     try:
-        tmp_json = _write_atomic(side, lambda tmp: tmp.write_text(text))
+        tmp_json = temp_beside(side, lambda tmp: tmp.write_text(text))
         os.replace(tmp_json, side)
         os.replace(tmp_pt, path)
     finally:

@@ -39,10 +39,11 @@ def positive_field(name: str, value: object, *, integer: bool = False) -> float:
     return value
 
 
-def vector_field(name: str, value: object, n: int) -> np.ndarray:
-    """A Task field that must be ``n`` finite numbers; returned as a float64 array."""
+def vector_arg(name: str, value: object, n: int) -> np.ndarray:
+    """``n`` finite numbers (any shape holding n) as a fresh float64 vector, else ValueError
+    naming the argument: for Task fields and env arguments alike."""
     try:
-        v = np.asarray(value, dtype=np.float64)
+        v = np.array(value, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
         v = np.full(0, np.nan)
     if v.shape != (n,) or not np.isfinite(v).all():

@@ -48,7 +48,8 @@ from typing import ClassVar
 import numpy as np
 
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task, positive_field, vector_field
+from strol_gym.tasks.base import Task, positive_field, vector_arg
+from strol_gym.tasks.driver import driver_correction
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
 """Prior modes over (gap, speed, lane_change): "tailgate" and "pass on the right"."""
@@ -148,7 +149,7 @@ class HighwayTask(Task):
             if not (isinstance(v, int | float | np.number) and np.isfinite(v)):
                 raise ValueError(f"{name} must be a finite number, got {v!r}")
         for name in ("start_gap", "start_speed", "start_x"):
-            lo, hi = vector_field(name, getattr(self, name), 2)
+            lo, hi = vector_arg(name, getattr(self, name), 2)
             if not lo <= hi:
                 raise ValueError(f"{name} must be (low, high) with low <= high, got {(lo, hi)}")
         if self.start_gap[0] <= CAR_LENGTH:
@@ -334,15 +335,13 @@ class HighwayTask(Task):
         manoeuvres, (stay in the current lane | go to the right lane) x (hold speed | slow by
         5 m/s), each flown by a lane- and speed-tracking controller for ``POLICY_HORIZON`` steps
         while the human is predicted with θ̂ by the ``driver`` model (receding horizon: each
-        predicted step is ``humans.driver_correction`` over a 5 x 5 action grid, reacting to
+        predicted step is ``driver_correction`` over a 5 x 5 action grid, reacting to
         the robot's manoeuvre). Cost per step: distance from the right lane's centre (lanes)
         + 0.5 x speed change (m/s) + 1000 if the predicted cars are closer than two car lengths
         longitudinally and 3 m laterally. The first action of the cheapest manoeuvre is returned.
         So θ̂ matters: a predicted tailgater follows it into the right lane, a predicted
         right-hand passer makes it keep the left lane.
         """
-        from strol_gym.humans import driver_correction
-
         x = np.atleast_2d(np.asarray(x, dtype=np.float64))
         theta_hat = np.atleast_2d(np.asarray(theta_hat, dtype=np.float64))
         b = len(x)

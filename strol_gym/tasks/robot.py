@@ -18,7 +18,7 @@ import numpy as np
 
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task, positive_field, vector_field
+from strol_gym.tasks.base import Task, positive_field, vector_arg
 
 PLATE = np.array([0.35, 0.10, 0.00])
 CUP = np.array([0.70, -0.45, 0.10])
@@ -80,7 +80,7 @@ class RobotTask(Task):
         positive_field("plan_steps", self.plan_steps, integer=True)
         object.__setattr__(self, "plan_steps", int(self.plan_steps))
         for name in ("plate", "cup", "start", "workspace_low", "workspace_high"):
-            object.__setattr__(self, name, vector_field(name, getattr(self, name), 3).copy())
+            object.__setattr__(self, name, vector_arg(name, getattr(self, name), 3).copy())
         lo, hi = self.workspace_low, self.workspace_high
         if not (lo < hi).all():
             raise ValueError(

@@ -1,0 +1,94 @@
+"""The authors' study learner's settings, expressed with this project's Tasks and learners.
+
+What their learner did with a logged correction (poses x_0 … x_n in their logged frame): one
+update per consecutive pair, θ ← θ + 1 · G(x_k, 3 (x_{k+1} − x_k)), with g = φ(x + u) − φ(x),
+their φ = −(planar distance to the pitcher, distance to the plate, height[, ‖(roll′, pitch,
+yaw)‖]) and no clipping of x + u. ``AuthorsStudyTask`` is that φ and f on our StudyTask (Task 1:
+positions only), so our own One and Gradient rules run under their settings; α = 1.
+
+Because none of these updates depends on θ̂, the θ̂0 a session started from follows from its
+final θ̂: θ̂0 = θ̂_final − Σ updates (:func:`implied_theta0`). Their θ̂0 was uniform in
+[−1, 1]^d, so an implied θ̂0 outside that box says the rule assumed is not the one that ran.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from strol_gym.learners.registry import make_learner
+from strol_gym.tasks.study import STUDY_TASKS, StudyTask
+
+AUTHORS_ALPHA = 1.0
+AUTHORS_GAIN = 3.0
+"""Their learner's u: 3 × the step between consecutive logged poses."""
+RULES = {"b1": "one", "b2": "gradient"}
+"""The rule under which a session's θ̂0 can be worked back (their MOF gate never rejected, so
+its sessions ran the ungated gradient rule); StROL's ĝ term needs their network."""
+
+
+class _AuthorsFeatures:
+    """Their φ and f on a StudyTask: orientation −‖(roll′, pitch, yaw)‖, x + u not clipped."""
+
+    oriented: bool
+    pitcher: np.ndarray
+    plate: np.ndarray
+
+    def features(self, x: np.ndarray) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        cols = [
+            -np.linalg.norm(x[..., :2] - self.pitcher[:2], axis=-1),
+            -np.linalg.norm(x[..., :3] - self.plate, axis=-1),
+            -np.abs(x[..., 2]),
+        ]
+        if self.oriented:
+            cols.append(-np.linalg.norm(x[..., 3:6], axis=-1))
+        return np.stack(cols, axis=-1)
+
+    def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        return np.asarray(x, dtype=np.float64) + u_r + u_h
+
+
+def authors_task(number: int) -> StudyTask:
+    """Study Task ``number`` (1-3) with the authors' φ, f and α = 1."""
+    base = STUDY_TASKS[number]
+    cls = type(
+        f"Authors{base.__name__}",
+        (_AuthorsFeatures, base),
+        {"task_id": f"authors-study-task{number}", "__module__": __name__},
+    )
+    return cls(alpha=AUTHORS_ALPHA)
+
+
+def sample_updates(poses: np.ndarray, number: int) -> tuple[np.ndarray, np.ndarray]:
+    """A correction's logged poses (n, 6) as their learner's (x_k, u_k = 3 Δx_k), k < n − 1
+    (Task 1: positions only)."""
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 6)
+    if number == 1:
+        poses = poses[:, :3]
+    return poses[:-1], AUTHORS_GAIN * np.diff(poses, axis=0)
+
+
+def summed_updates(corrections: list[np.ndarray], number: int, rule: str) -> np.ndarray:
+    """Σ of the updates our ``rule`` learner makes on every logged sample pair, under the
+    authors' settings (each update is independent of θ̂, so the sum starts from 0)."""
+    task = authors_task(number)
+    learner = make_learner(rule, task=task)
+    learner.reset(np.zeros(task.dim))
+    for poses in corrections:
+        if len(poses) < 2:
+            continue  # their loop over consecutive pairs makes no update
+        x, u = sample_updates(poses, number)
+        for xk, uk in zip(x, u, strict=True):
+            learner.update(xk, uk, np.zeros_like(uk))
+    return np.asarray(learner.theta, dtype=np.float64)
+
+
+def implied_theta0(
+    final: np.ndarray, corrections: list[np.ndarray], number: int, rule: str
+) -> np.ndarray:
+    """θ̂0 = final θ̂ − Σ updates, under ``rule`` ("one" or "gradient") and the authors'
+    settings."""
+    return np.asarray(final, dtype=np.float64) - summed_updates(corrections, number, rule)
+
+
+__all__ = ["AUTHORS_GAIN", "RULES", "authors_task", "implied_theta0", "sample_updates"]

@@ -1,0 +1,65 @@
+"""Writing a file all or nothing, and errors that name the file.
+
+A temporary beside the target, fsync'ed, then ``os.replace``: after a crash or a full disk the
+target holds the old bytes or the new ones, never a part. The benchmark's results folders and
+the ĝ checkpoints (weights and sidecar, renamed together) write through here.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+
+@contextlib.contextmanager
+def naming_file(path: Path) -> Iterator[None]:
+    """Re-raise an OSError that names no file (a full disk: "[Errno 28] No space left on
+    device") with ``path``, so the error says which file could not be written."""
+    try:
+        yield
+    except OSError as e:
+        if e.filename is not None or e.errno is None:
+            raise
+        raise OSError(e.errno, f"cannot write it: {e.strerror}", str(path)) from None
+
+
+def temp_beside(path: Path, write: Callable[[Path], object]) -> Path:
+    """``write(tmp)`` into a temporary file beside ``path``, fsync'ed; returns the temporary
+    (the caller renames it, with others if files must appear together). On any error the
+    temporary is removed and the OSError names ``path``."""
+    path = Path(path)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        with naming_file(path):
+            write(tmp)
+            with open(tmp, "rb+") as f:
+                os.fsync(f.fileno())
+    except BaseException as e:
+        tmp.unlink(missing_ok=True)
+        if isinstance(e, Exception) and not isinstance(e, OSError):
+            raise OSError(f"cannot write {path}: {' '.join(str(e).split())}") from None
+        raise
+    return tmp
+
+
+def write_atomic(path: Path, write: Callable[[Path], object]) -> Path:
+    """``write(tmp)``, then rename the temporary onto ``path``: all or nothing."""
+    tmp = temp_beside(path, write)
+    try:
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return Path(path)
+
+
+def write_json_atomic(path: Path, obj: Any) -> Path:
+    """``obj`` as JSON (indent 1, NaN allowed) written all or nothing."""
+    data = json.dumps(obj, indent=1, allow_nan=True).encode()
+    return write_atomic(path, lambda tmp: tmp.write_bytes(data))
