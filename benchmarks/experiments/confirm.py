@@ -255,24 +255,31 @@ def analyse(
             [x["outcome"] for x in rows if x["condition"] == cond and x["metric"] == primary]
         )
     prim = [x for x in rows if x["metric"] == primary]
-    for row, p12 in zip(prim, stats.holm([x["wilcoxon_p_raw"] for x in prim]), strict=True):
-        row["wilcoxon_p_holm_12"] = float(p12)
-    sensitivity = {
-        cond: verdict(
-            [
-                outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
-                for x in prim
-                if x["condition"] == cond
-            ]
-        )
-        for cond in conditions
-    }
+    sensitivity = holm_sensitivity(prim, "condition", conditions)
     return {
         "primary": primary,
         "rows": rows,
         "descriptives": descriptives,
         "verdicts": verdicts,
         "verdicts_holm_12": sensitivity,
+    }
+
+
+def holm_sensitivity(prim: list[dict], key: str, keys: Sequence[str]) -> dict[str, str]:
+    """The stated sensitivity check: Holm over every primary test row in ``prim`` (written to
+    ``wilcoxon_p_holm_12``, the column's name whatever the count), and the verdict per ``key``
+    value (a condition, or a held-out "env/human" cell) under it."""
+    for row, p in zip(prim, stats.holm([x["wilcoxon_p_raw"] for x in prim]), strict=True):
+        row["wilcoxon_p_holm_12"] = float(p)
+    return {
+        k: verdict(
+            [
+                outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
+                for x in prim
+                if x[key] == k
+            ]
+        )
+        for k in keys
     }
 
 
@@ -418,18 +425,7 @@ def analyse_held_out(
         descriptives += r["descriptives"]
         verdicts |= {f"{env}/{c}": v for c, v in r["verdicts"].items()}
     prim = [x for x in rows if x["metric"] == HELD_OUT_PRIMARY[x["env"]]]
-    for row, p in zip(prim, stats.holm([x["wilcoxon_p_raw"] for x in prim]), strict=True):
-        row["wilcoxon_p_holm_12"] = float(p)  # the column keeps its name; here over all cells
-    sensitivity = {
-        cell: verdict(
-            [
-                outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
-                for x in prim
-                if x["cell"] == cell
-            ]
-        )
-        for cell in verdicts
-    }
+    sensitivity = holm_sensitivity(prim, "cell", verdicts)
     return {
         "primary": HELD_OUT_PRIMARY,
         "rows": rows,
@@ -448,6 +444,48 @@ def _primary_row(result: dict, key: str, baseline: str) -> dict:
         if (where, r["metric"], r["baseline"]) == (key, metric, baseline):
             return r
     raise KeyError(f"no primary row for {key} vs {baseline}")
+
+
+def _verdict_lines(result: dict) -> list[str]:
+    """One bullet per verdict key: the verdict and each baseline's outcome and Holm p."""
+    from strol_gym.benchmarks.analysis.report import display
+
+    lines = []
+    for key, v in result["verdicts"].items():
+        rows = [_primary_row(result, key, b) for b in BASELINES]
+        outs = [
+            f"{display(r['baseline'])}: {r['outcome']} (Holm p = {fmt(r['wilcoxon_p_holm'], 4)})"
+            for r in rows
+        ]
+        lines.append(f"- **{key}: {v.upper()}** — " + "; ".join(outs))
+    return lines
+
+
+def _sensitivity_line(result: dict) -> str:
+    """The report's line on the Holm-over-every-comparison check."""
+    changed = {c: v for c, v in result["verdicts_holm_12"].items() if v != result["verdicts"][c]}
+    n_tests = len(BASELINES) * len(result["verdicts"])
+    return f"Sensitivity (Holm over all {n_tests} comparisons): " + (
+        "no verdict changes."
+        if not changed
+        else "; ".join(f"{c} would be {v}" for c, v in changed.items())
+    )
+
+
+def _test_rows(result: dict, key: str) -> list[str]:
+    """One markdown row per test row, first column ``key`` (condition or cell)."""
+    from strol_gym.benchmarks.analysis.report import display
+
+    return [
+        f"| {x[key]} | {x['metric']} | {display(x['baseline'])} | "
+        f"{fmt(x['wilcoxon_p_holm'], 4)} | {x['r_minus']:.0f} / {x['r_plus']:.0f} | "
+        f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
+        f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
+        f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
+        f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
+        f"{fmt(x['t_p_holm'], 4)}, {fmt(x['cohen_dz'], 2)} |"
+        for x in result["rows"]
+    ]
 
 
 def markdown(
@@ -469,22 +507,10 @@ def markdown(
         "## Verdicts (primary: regret, two-sided Wilcoxon, Holm over 3 per condition)",
         "",
     ]
-    for cond, v in result["verdicts"].items():
-        outs = [
-            f"{display(x['baseline'])}: {x['outcome']} (Holm p = {fmt(x['wilcoxon_p_holm'], 4)})"
-            for x in result["rows"]
-            if x["condition"] == cond and x["metric"] == PRIMARY
-        ]
-        lines.append(f"- **{cond}: {v.upper()}** — " + "; ".join(outs))
-    changed = {c: v for c, v in result["verdicts_holm_12"].items() if v != result["verdicts"][c]}
+    lines += _verdict_lines(result)
     lines += [
         "",
-        "Sensitivity (Holm over all 12 comparisons): "
-        + (
-            "no verdict changes."
-            if not changed
-            else "; ".join(f"{c} would be {v}" for c, v in changed.items())
-        ),
+        _sensitivity_line(result),
         "",
         "## Regret per learner (mean ± std; median; runs with regret ≥ 0.3)",
         "",
@@ -506,16 +532,7 @@ def markdown(
         "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for x in result["rows"]:
-        lines.append(
-            f"| {x['condition']} | {x['metric']} | {display(x['baseline'])} | "
-            f"{fmt(x['wilcoxon_p_holm'], 4)} | {x['r_minus']:.0f} / {x['r_plus']:.0f} | "
-            f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
-            f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
-            f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
-            f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
-            f"{fmt(x['t_p_holm'], 4)}, {fmt(x['cohen_dz'], 2)} |"
-        )
+    lines += _test_rows(result, "condition")
     lines += [
         "",
         f"Outcomes other than regret are secondary (no verdict). Ties: |d| ≤ {TIE_TOL:g} on "
@@ -543,23 +560,10 @@ def markdown_held_out(result: dict, label: str, seeds: list[int], meta: dict) ->
         "## Verdicts (two-sided Wilcoxon, Holm over 3 per cell; H2 holds unless contradicted)",
         "",
     ]
-    for cell, v in result["verdicts"].items():
-        outs = [
-            f"{display(b)}: {_primary_row(result, cell, b)['outcome']} (Holm p = "
-            f"{fmt(_primary_row(result, cell, b)['wilcoxon_p_holm'], 4)})"
-            for b in BASELINES
-        ]
-        lines.append(f"- **{cell}: {v.upper()}** — " + "; ".join(outs))
-    changed = {c: v for c, v in result["verdicts_holm_12"].items() if v != result["verdicts"][c]}
-    n_tests = len(BASELINES) * len(result["verdicts"])
+    lines += _verdict_lines(result)
     lines += [
         "",
-        f"Sensitivity (Holm over all {n_tests} comparisons): "
-        + (
-            "no verdict changes."
-            if not changed
-            else "; ".join(f"{c} would be {v}" for c, v in changed.items())
-        ),
+        _sensitivity_line(result),
         "",
         "## Primary outcome per learner (mean ± std; median [Q1, Q3])",
         "",
@@ -585,16 +589,7 @@ def markdown_held_out(result: dict, label: str, seeds: list[int], meta: dict) ->
         "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for x in result["rows"]:
-        lines.append(
-            f"| {x['cell']} | {x['metric']} | {display(x['baseline'])} | "
-            f"{fmt(x['wilcoxon_p_holm'], 4)} | {x['r_minus']:.0f} / {x['r_plus']:.0f} | "
-            f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
-            f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
-            f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
-            f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
-            f"{fmt(x['t_p_holm'], 4)}, {fmt(x['cohen_dz'], 2)} |"
-        )
+    lines += _test_rows(result, "cell")
     lines += [
         "",
         f"Outcomes other than each env's primary one are secondary (no verdict). Ties: "
