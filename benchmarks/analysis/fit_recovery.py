@@ -133,7 +133,7 @@ def matched_beta(task: Task, target: float, n_people: int, seed: int) -> float:
 def recovery(
     task: Task,
     human: str,
-    truth: dict[str, float],
+    truth: dict[str, Any],
     datasets: int,
     n_people: int,
     n_boot: int,
@@ -169,7 +169,7 @@ def recovery(
 
 def selection(
     task: Task,
-    scenarios: dict[str, tuple[str, dict[str, float]]],
+    scenarios: dict[str, tuple[str, dict[str, Any]]],
     datasets: int,
     n_people: int,
     candidates: Sequence[str] = CANDIDATES,

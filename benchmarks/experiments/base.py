@@ -68,7 +68,7 @@ class BenchExperiment:
     """The subcommand's one-line help; by default the class docstring's first paragraph."""
     description: ClassVar[str] = ""
     """``--help``'s description; by default the rest of the class docstring."""
-    columns: ClassVar[tuple[str, ...]] = ()
+    columns: tuple[str, ...] = ()
     """The table's columns; empty when the experiment writes its own tables."""
     out_stem: ClassVar[str] = ""
     """The default results folder is ``results/<out_stem or name>-<env>``."""

@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -277,7 +277,7 @@ def analyse(
     }
 
 
-def holm_sensitivity(prim: list[dict], key: str, keys: Sequence[str]) -> dict[str, str]:
+def holm_sensitivity(prim: list[dict], key: str, keys: Iterable[str]) -> dict[str, str]:
     """The stated sensitivity check: Holm over every primary test row in ``prim`` (written to
     ``wilcoxon_p_holm_12``, the column's name whatever the count), and the verdict per ``key``
     value (a condition, or a held-out "env/human" cell) under it."""
@@ -305,7 +305,7 @@ class Confirm(BenchExperiment):
     """
 
     name = "confirm"
-    columns = COLUMNS
+    columns: tuple[str, ...] = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
         p.add_argument(
