@@ -21,7 +21,11 @@ def positive_int(name: str, high: int | None = None, *, low: int = 1) -> Callabl
     """An argparse type: an integer in [low, high] (low defaults to 1; no upper bound)."""
 
     def parse(text: str) -> int:
-        return int(checks.number(name, text, low=low, high=high, integer=True, text=True))
+        try:
+            value: object = int(text)  # out of range: the error quotes the number (got 1)
+        except ValueError:
+            value = text  # not an integer: it quotes the text (got 'x')
+        return int(checks.number(name, value, low=low, high=high, integer=True))
 
     return checks.cli_type(parse)
 
