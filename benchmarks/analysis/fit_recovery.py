@@ -188,6 +188,7 @@ def selection(
             held = {
                 c: fit(c, data, n_boot=0, folds=folds, seed=d).heldout_loglik for c in candidates
             }
+            # heldout_loglik is None only without folds; folds are given here
             counts[max(held, key=lambda c: held[c])] += 1  # type: ignore[arg-type, return-value]
         out[label] = counts
     return out
