@@ -34,7 +34,7 @@ from strol_gym.benchmarks.speed.vector import (  # noqa: E402
     vector_rate,
 )
 
-from strol_gym.kernels import kernels_in_use  # noqa: E402
+from strol_gym.compiled import kernels_in_use  # noqa: E402
 
 
 def chain_seconds(seconds: float, repeats: int) -> float:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from strol_gym.kernels import use_fast
+from strol_gym.compiled import use_fast
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.driver import driver_correction as driver_correction
 
@@ -27,7 +27,7 @@ def optimal_correction(
     """Eq. M6, batched: the candidate u minimising ‖θ* − (θ̂ + α g(x, u, u_R))‖.
 
     Shapes: x (B, s), u_r (B, a), theta_hat / theta_star (B, d), candidates (B, K, a) -> (B, a).
-    With compiled kernels on (``strol_gym.kernels``), a Task's own kernel (``Task.m6_choice``)
+    With compiled kernels on (``strol_gym.compiled``), a Task's own kernel (``Task.m6_choice``)
     searches instead: the same choice, bit for bit.
     """
     if use_fast():

@@ -166,7 +166,7 @@ class Task(ABC):
         candidates: np.ndarray,
     ) -> np.ndarray | None:
         """Eq. M6's chosen candidate per person, (B,) indices, from a compiled kernel
-        (``strol_gym.kernels``), or None: then ``optimal_correction``'s plain search runs. A
+        (``strol_gym.compiled``), or None: then ``optimal_correction``'s plain search runs. A
         Task offers a kernel only while the methods it repeats are its own (``_unchanged``)."""
         return None
 

@@ -1,5 +1,5 @@
 """Eq. M6's candidate search for the Robot and Highway Tasks as compiled loops (numba, through
-``strol_gym.kernels``): one pass over each person's candidates, no (B, K) temporaries.
+``strol_gym.compiled``): one pass over each person's candidates, no (B, K) temporaries.
 
 Each loop repeats, number for number, the IEEE operations of the plain path (``RobotTask.g_planes``
 or ``HighwayTask.g`` followed by ``strol_gym.humans.choices.optimal_correction``), in the same
@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from strol_gym.kernels import compiled
+from strol_gym.compiled import compiled
 
 
 @compiled

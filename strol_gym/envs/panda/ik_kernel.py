@@ -27,8 +27,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from strol_gym.compiled import _numba, use_fast
 from strol_gym.envs.panda.model import N_ARM
-from strol_gym.kernels import _numba, use_fast
 
 _SYMBOLS = (
     "mj_kinematics",
@@ -103,14 +103,33 @@ def _compiled() -> Callable[..., Any] | None:
         return fma(a[i, 8], x[8], r)
 
     @jit
-    def update(jp, jt, out, nt, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip) -> bool:  # noqa: ANN001
+    def jjt(jp: Any, i: int, k: int) -> float:
+        """Entry (i, k) of J Jᵀ: OpenBLAS's one fused multiply-add per joint, in order."""
+        acc = 0.0
+        for j in range(N_ARM):
+            acc = fma(jp[i, j], jp[k, j], acc)
+        return acc
+
+    @jit
+    def probe(jp, jf, s, orient, xmat, out):
+        """The products as ``solve`` computes them, for ``_agrees`` to compare with numpy's."""
+        for i in range(3):
+            for k in range(3):
+                out[i, k] = jjt(jp, i, k)
+                out[i, 3 + k] = jjt(jf, i, k)
+            out[i, 6] = dot7(jp, i, s)
+            out[i, 7] = dot7(jf, i, s)
+            out[i, 8] = dot9(orient, i, xmat)
+
+    if not _agrees(probe):
+        return None
+
+    @jit
+    def update(jp, jt, out, nt, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip) -> bool:
         """``PandaIK._update``: q_new and q_clip; whether a joint was clipped."""
         for i in range(3):
             for k in range(3):
-                acc = 0.0
-                for j in range(N_ARM):
-                    acc = fma(jp[i, j], jp[k, j], acc)
-                a[i, k] = acc + (damp2 if i == k else 0.0)
+                a[i, k] = jjt(jp, i, k) + (damp2 if i == k else 0.0)
         chol_factor(a.ctypes.data, 3, 0.0)
         for i in range(3):
             r[i] = e[i] - dot7(jp, i, s)
@@ -147,7 +166,7 @@ def _compiled() -> Callable[..., Any] | None:
         damp2,
         lo,
         hi,
-    ) -> float:  # noqa: ANN001
+    ) -> float:
         tx, ty, tz = target[0], target[1], target[2]
         tol2 = tol * tol
         a, y, r = np.empty((3, 3)), np.empty(3), np.empty(3)
@@ -187,6 +206,25 @@ def _compiled() -> Callable[..., Any] | None:
     return solve
 
 
+def _agrees(probe: Callable[..., None], cases: int = 200) -> bool:
+    """Whether the kernel's products equal numpy's (this process's BLAS) bit for bit on random
+    Jacobians, in the layouts ``PandaIK`` uses: a (3, 7) view of MuJoCo's (3, 9) Jacobian, a
+    (3, 7) copy (the limit step), and the (3, 9) gripper-down term. Another BLAS kernel
+    (``OPENBLAS_CORETYPE``, another library) sums in another order: then the plain path runs."""
+    rng = np.random.default_rng(0)
+    out = np.empty((3, 9))
+    for _ in range(cases):
+        full, orient = rng.standard_normal((2, 3, 9))
+        jp, jf = full[:, :N_ARM], np.ascontiguousarray(full[:, :N_ARM] * 0.5)
+        s, xmat = rng.standard_normal(N_ARM), rng.standard_normal(9)
+        probe(jp, jf, s, orient, xmat, out)
+        want = np.hstack([jp @ jp.T, jf @ jf.T, (jp @ s)[:, None], (jf @ s)[:, None]])
+        want = np.hstack([want, (orient @ xmat)[:, None]])
+        if want.tobytes() != out.tobytes():
+            return False
+    return True
+
+
 def _fma(numba: Any) -> Callable[[float, float, float], float]:
     """A fused multiply-add a·b + c (LLVM's ``llvm.fma.f64``) usable in numba code."""
     from llvmlite import ir
@@ -194,10 +232,10 @@ def _fma(numba: Any) -> Callable[[float, float, float], float]:
     from numba.extending import intrinsic
 
     @intrinsic
-    def fma(typingctx, a, b, c):  # noqa: ANN001, ANN202, ARG001
+    def fma(typingctx, a, b, c):
         sig = types.float64(types.float64, types.float64, types.float64)
 
-        def codegen(context, builder, signature, args):  # noqa: ANN001, ANN202, ARG001
+        def codegen(context, builder, signature, args):
             d = ir.DoubleType()
             fnty = ir.FunctionType(d, [d, d, d])
             fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.fma.f64")
