@@ -87,23 +87,28 @@ def robot_m6(
 
 
 @compiled
+def _robot_ahead(xr: float, yr: float, vr: float, hr: float, t: float) -> tuple[float, float]:
+    """The robot car's position ``headway`` seconds ahead, as ``HighwayTask._phi`` computes it
+    (once per person here: it does not depend on the candidate)."""
+    return xr + t * vr * math.cos(hr), yr + t * vr * math.sin(hr)
+
+
+@compiled
 def _phi(
-    xr: float,
-    yr: float,
-    vr: float,
-    hr: float,
+    ahead: tuple[float, float],
     xh: float,
     yh: float,
     vh: float,
     hh: float,
     prm: np.ndarray,
 ) -> tuple[float, float, float]:
-    """``HighwayTask._phi`` of one pair of cars; ``prm`` as ``HighwayTask._kernel_params``."""
+    """``HighwayTask._phi`` of one pair of cars, the robot's part ``ahead`` (``_robot_ahead``);
+    ``prm`` as ``HighwayTask._kernel_params``."""
     t, min_gap, close, lane_w = prm[0], prm[1], prm[2], prm[3]
     lane0, lane_width, gap_scale, speed_ref, speed_scale = prm[4], prm[5], prm[6], prm[7], prm[8]
     vh_sin = vh * math.sin(hh)
-    behind = (xr + t * vr * math.cos(hr)) - (xh + t * vh * math.cos(hh))
-    beside = (yr + t * vr * math.sin(hr)) - (yh + t * vh_sin)
+    behind = ahead[0] - (xh + t * vh * math.cos(hh))
+    beside = ahead[1] - (yh + t * vh_sin)
     short = min_gap - behind
     a, c = -short, close * short
     slot = (a if a >= c else c) + lane_w * abs(beside)
@@ -157,7 +162,8 @@ def highway_m6(
     for b in range(acc_h.shape[0]):
         r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], acc_r[b], beta_r[b], dt, half, vmax, vmin)
         z = _car(x[b, 4], x[b, 5], x[b, 6], x[b, 7], 0.0, 0.0, dt, half, vmax, vmin)
-        f0 = _phi(r[0], r[1], r[2], r[3], z[0], z[1], z[2], z[3], prm)
+        ahead = _robot_ahead(r[0], r[1], r[2], r[3], prm[0])
+        f0 = _phi(ahead, z[0], z[1], z[2], z[3], prm)
         h0, h1, h2 = th_hat[b, 0], th_hat[b, 1], th_hat[b, 2]
         s0, s1, s2 = th_star[b, 0], th_star[b, 1], th_star[b, 2]
         pick, low = 0, 0.0
@@ -165,7 +171,7 @@ def highway_m6(
             c = _car(
                 x[b, 4], x[b, 5], x[b, 6], x[b, 7], acc_h[b, k], beta_h[b, k], dt, half, vmax, vmin
             )
-            f = _phi(r[0], r[1], r[2], r[3], c[0], c[1], c[2], c[3], prm)
+            f = _phi(ahead, c[0], c[1], c[2], c[3], prm)
             q0 = s0 - ((f[0] - f0[0]) * alpha + h0)
             q1 = s1 - ((f[1] - f0[1]) * alpha + h1)
             q2 = s2 - ((f[2] - f0[2]) * alpha + h2)
