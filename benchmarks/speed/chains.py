@@ -9,8 +9,9 @@ costs, and a yardstick taken in the same process scales with the same core and c
 figure is CPU seconds per env step divided by CPU seconds per chain: per single-env step, and
 per sub-env step of a vector env of ``--envs`` sub-envs. Rows: StROL-Robot-v0 and
 StROL-Highway-v0 with the default human and without one (``n_corrections=0``). Which kernels
-ran (``STROL_GYM_KERNELS``, docs/vector.md "Speed") is printed, with the load averages and the
-memory per sub-env (traced allocations, as ``speed.vector``).
+ran (``STROL_GYM_KERNELS``, docs/vector.md "Speed") is printed, with the load averages, the
+first env's extra cost (compiling the IK kernel) and the memory per sub-env (traced allocations,
+as ``speed.vector``). Pin it to one core: ``taskset -c 1``.
 """
 
 from __future__ import annotations
@@ -58,6 +59,21 @@ def chain_seconds(seconds: float, repeats: int) -> float:
     return best
 
 
+def first_calls() -> tuple[float, float]:
+    """Wall seconds of the first Robot env's build, reset and corrected step in this process
+    (with the fast kernels: the IK kernel's compilation, and loading the cached M6 kernel), and
+    of a second env's, which finds everything compiled."""
+    out = []
+    for _ in range(2):
+        start = time.perf_counter()
+        env = gym.make("StROL-Robot-v0")
+        env.reset(seed=0)
+        env.step(env.action_space.sample())
+        out.append(time.perf_counter() - start)
+        env.close()
+    return out[0], out[1]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--envs", type=int, default=1024)
@@ -68,6 +84,8 @@ def main() -> None:
         parser.error("--envs must be at least 65 (memory is measured against 64 sub-envs)")
     print(f"kernels: {kernels_in_use()}; cores allowed: {sorted(os.sched_getaffinity(0))}")
     print(f"load average before: {load()}")
+    first, second = first_calls()
+    print(f"first Robot env build + reset + step: {first:.2f} s wall; a second one: {second:.2f} s")
     chain = chain_seconds(args.seconds, args.repeats)
     many = f"N={args.envs}"
     print(f"one chain: {chain * 1e6:.2f} µs CPU")
