@@ -10,6 +10,7 @@ second process loads them instead of compiling.
 
 from __future__ import annotations
 
+import importlib.util
 import os
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -34,7 +35,7 @@ def _choose() -> bool:
         raise ValueError(f"{KERNELS_VAR} must be one of {', '.join(MODES)}, got {mode!r}")
     if mode == "plain":
         return False
-    found = _numba() is not None
+    found = importlib.util.find_spec("numba") is not None  # numba itself loads on first use
     if mode == "fast" and not found:
         raise ImportError(f"{KERNELS_VAR}=fast needs numba: pip install 'strol-gym[fast]'")
     return found

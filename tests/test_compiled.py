@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 import strol_gym.compiled as compiled
-from strol_gym.envs.panda.ik import PandaIK
-from strol_gym.envs.panda.ik_kernel import solver
+from strol_gym.envs.panda.ik import PandaIK, solver
 from strol_gym.humans.choices import optimal_correction
 from strol_gym.tasks.highway import HighwayTask
 from strol_gym.tasks.robot import RobotTask

@@ -6,11 +6,12 @@ shifted by ``lift``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 
-from strol_gym.envs.panda.ik_kernel import solver
+from strol_gym.compiled import use_fast
 from strol_gym.envs.panda.model import EE_SITE, FINGER_OPEN, N_ARM, Q_HOME
 
 IK_ITERS = 6
@@ -248,6 +249,16 @@ class PandaIK:
             for qn, lj, hj in zip(q_new, lo, hi, strict=True)
         ]
         return q_new, q_clip
+
+
+def solver() -> Callable[..., float] | None:
+    """The compiled ``PandaIK._solve`` (``strol_gym.envs.panda.ik_kernel``) when the fast
+    kernels are on and it can run here; None: the plain path."""
+    if not use_fast():
+        return None
+    from strol_gym.envs.panda.ik_kernel import solver as compiled_solver
+
+    return compiled_solver()
 
 
 def _skew(v: np.ndarray) -> np.ndarray:

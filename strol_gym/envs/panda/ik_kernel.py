@@ -4,15 +4,14 @@ The C-calling kernel: ``mj_kinematics``, ``mj_comPos``, ``mj_jacSite`` and MuJoC
 Jᵀ products are the very calls of the plain path, reached through ``libmujoco``'s exported
 symbols and the private ``MjModel._address`` / ``MjData._address`` of the Python binding. The
 3x7 algebra that the plain path leaves to numpy's BLAS (OpenBLAS) is written out in the order
-and with the fused multiply-adds that OpenBLAS's kernels use on this machine (J Jᵀ: one fused
-multiply-add per joint, in order; J s and the gripper-down term: ``dgemv_t``'s pairwise sums
-and its fused tail), so every iteration reaches the same bits (tests/test_kernels.py compares
-both paths on fixed seeds; a BLAS that sums differently shows there first).
+and with the fused multiply-adds of OpenBLAS's kernels (J Jᵀ: one fused multiply-add per joint,
+in order; J s and the gripper-down term: ``dgemv_t``'s pairwise sums and fused tail), so every
+iteration reaches the same bits. ``solver()`` checks that on random Jacobians against this
+process's numpy first (``_agrees``): under another BLAS kernel the plain path runs.
 
-Not cached on disk: the C functions' addresses are compiled in and change per process, so the
-kernel compiles on first use (about a second, ``benchmarks/speed/chains.py`` prints it).
-Without the binding's addresses or the symbols (another MuJoCo build), ``solver()`` is None and
-the plain path runs.
+The C functions' addresses are arguments, not constants compiled in (``_call``), so the kernel
+is cached on disk like the others (``cache=True``): a process loads it instead of compiling.
+This module imports numba: import it only when ``strol_gym.compiled.use_fast()``.
 """
 
 from __future__ import annotations
@@ -26,8 +25,11 @@ from typing import Any
 
 import mujoco
 import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
-from strol_gym.compiled import _numba, use_fast
 from strol_gym.envs.panda.model import N_ARM
 
 _SYMBOLS = (
@@ -38,10 +40,216 @@ _SYMBOLS = (
     "mju_cholSolve",
     "mju_mulMatTVec",
 )
+"""The C functions the kernel calls, in the order of its ``fp`` argument."""
+KIN, COM, JAC, CHOL, SOLVE, MUL_T = range(len(_SYMBOLS))
+
+_jit = njit(cache=True, nogil=True)
 
 
-def _library() -> ctypes.CDLL | None:
-    """MuJoCo's shared library as the Python binding loaded it, with the symbols used here."""
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """a·b + c rounded once (LLVM's ``llvm.fma.f64``), as OpenBLAS's kernels compute."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(d, [d, d, d]), "llvm.fma.f64"
+        )
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+def _c_function(ret: Any, params: tuple[Any, ...]) -> tuple[Any, Callable[..., Any]]:
+    """The typing signature and code generator of a call to the C function whose address is
+    the first argument, with C parameter types ``params`` (numba types) returning ``ret``."""
+
+    def ll(t: Any) -> ir.Type:
+        return ir.DoubleType() if t == types.float64 else ir.IntType(t.bitwidth)
+
+    sig = (types.void if ret is None else ret)(types.intp, *params)
+
+    def codegen(context, builder, signature, llargs):
+        fnty = ir.FunctionType(ir.VoidType() if ret is None else ll(ret), [ll(p) for p in params])
+        out = builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), llargs[1:])
+        return context.get_dummy_value() if ret is None else out
+
+    return sig, codegen
+
+
+_p, _i, _f = types.intp, types.int32, types.float64
+
+
+@intrinsic
+def _call_md(typingctx, address, m, d):
+    """mj_kinematics(m, d) or mj_comPos(m, d) at ``address``."""
+    return _c_function(None, (_p, _p))
+
+
+@intrinsic
+def _call_jac(typingctx, address, m, d, jacp, jacr, site):
+    """mj_jacSite(m, d, jacp, jacr, site) at ``address``."""
+    return _c_function(None, (_p, _p, _p, _p, _i))
+
+
+@intrinsic
+def _call_chol(typingctx, address, mat, n, mindiag):
+    """mju_cholFactor(mat, n, mindiag) at ``address``."""
+    return _c_function(_i, (_p, _i, _f))
+
+
+@intrinsic
+def _call_solve(typingctx, address, res, mat, vec, n):
+    """mju_cholSolve(res, mat, vec, n) at ``address``."""
+    return _c_function(None, (_p, _p, _p, _i))
+
+
+@intrinsic
+def _call_mul_t(typingctx, address, res, mat, vec, nr, nc):
+    """mju_mulMatTVec(res, mat, vec, nr, nc) at ``address``."""
+    return _c_function(None, (_p, _p, _p, _i, _i))
+
+
+@_jit
+def _dot7(a, i, x):
+    """Row i of a (3, 7) by x (7,): OpenBLAS ``dgemv_t`` (a 4-row block, a 3-row tail)."""
+    r = (a[i, 0] * x[0] + a[i, 2] * x[2]) + (a[i, 1] * x[1] + a[i, 3] * x[3])
+    return r + _fma(a[i, 6], x[6], _fma(a[i, 4], x[4], a[i, 5] * x[5]))
+
+
+@_jit
+def _dot9(a, i, x):
+    """Row i of a (3, 9) by x (9,): OpenBLAS ``dgemv_t`` (rows 0-1 by its 2-column kernel,
+    row 2 by its 1-column kernel, then a 1-row tail)."""
+    p = np.empty(8)
+    for k in range(8):
+        p[k] = a[i, k] * x[k]
+    if i < 2:
+        r = (((p[0] + p[2]) + p[4]) + p[6]) + (((p[1] + p[3]) + p[5]) + p[7])
+    else:
+        r = ((p[0] + p[4]) + (p[2] + p[6])) + ((p[1] + p[5]) + (p[3] + p[7]))
+    return _fma(a[i, 8], x[8], r)
+
+
+@_jit
+def _jjt(jp, i, k):
+    """Entry (i, k) of J Jᵀ: OpenBLAS's one fused multiply-add per joint, in order."""
+    acc = 0.0
+    for j in range(N_ARM):
+        acc = _fma(jp[i, j], jp[k, j], acc)
+    return acc
+
+
+@_jit
+def _probe(jp, jf, s, orient, xmat, out):
+    """The products as ``_solve`` computes them, for ``_agrees`` to compare with numpy's."""
+    for i in range(3):
+        for k in range(3):
+            out[i, k] = _jjt(jp, i, k)
+            out[i, 3 + k] = _jjt(jf, i, k)
+        out[i, 6] = _dot7(jp, i, s)
+        out[i, 7] = _dot7(jf, i, s)
+        out[i, 8] = _dot9(orient, i, xmat)
+
+
+@_jit
+def _update(fp, jp, jt, out, nt, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip):
+    """``PandaIK._update``: q_new and q_clip; whether a joint was clipped."""
+    for i in range(3):
+        for k in range(3):
+            a[i, k] = _jjt(jp, i, k) + (damp2 if i == k else 0.0)
+    _call_chol(fp[CHOL], a.ctypes.data, np.int32(3), 0.0)
+    for i in range(3):
+        r[i] = e[i] - _dot7(jp, i, s)
+    _call_solve(fp[SOLVE], y.ctypes.data, a.ctypes.data, r.ctypes.data, np.int32(3))
+    _call_mul_t(
+        fp[MUL_T], out.ctypes.data, jt.ctypes.data, y.ctypes.data, np.int32(3), np.int32(nt)
+    )
+    clipped = False
+    for j in range(N_ARM):
+        qn = q[j] + (s[j] + out[j])
+        q_new[j] = qn
+        c = hi[j] if qn > hi[j] else (lo[j] if qn < lo[j] else qn)
+        clipped = clipped or c != qn
+        q_clip[j] = c
+    return clipped
+
+
+@_jit
+def _solve(
+    fp,
+    m,
+    d,
+    site,
+    xpos,
+    xmat,
+    q,
+    jp_full,
+    jr_full,
+    w9,
+    orient,
+    target,
+    iters,
+    tol,
+    ref,
+    has_ref,
+    orient_gain,
+    posture,
+    damp2,
+    lo,
+    hi,
+):
+    """``PandaIK._solve``: ``iters`` iterations towards ``target`` (world frame); the error."""
+    tx, ty, tz = target[0], target[1], target[2]
+    tol2 = tol * tol
+    a, y, r = np.empty((3, 3)), np.empty(3), np.empty(3)
+    s, ox, e = np.empty(N_ARM), np.empty(3), np.empty(3)
+    q_new, q_clip = np.empty(N_ARM), np.empty(N_ARM)
+    jp = np.empty((3, N_ARM))
+    jf = np.empty((3, N_ARM))
+    nv = jp_full.shape[1]
+    site32 = np.int32(site)
+    for _ in range(iters):
+        e[0], e[1], e[2] = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+        if e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < tol2:
+            break
+        _call_md(fp[COM], m, d)
+        _call_jac(fp[JAC], m, d, jp_full.ctypes.data, jr_full.ctypes.data, site32)
+        for i in range(3):
+            ox[i] = _dot9(orient, i, xmat)
+        _call_mul_t(
+            fp[MUL_T],
+            w9.ctypes.data,
+            jr_full.ctypes.data,
+            ox.ctypes.data,
+            np.int32(3),
+            np.int32(nv),
+        )
+        for j in range(N_ARM):
+            s[j] = orient_gain * w9[j]
+            if has_ref:
+                s[j] = s[j] + posture * (ref[j] - q[j])
+            for i in range(3):
+                jp[i, j] = jp_full[i, j]
+        if _update(fp, jp, jp_full, w9, nv, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip):
+            # Joints at a limit drop out (their columns of J and entries of s times 0).
+            for j in range(N_ARM):
+                free = 1.0 if lo[j] <= q_new[j] <= hi[j] else 0.0
+                s[j] = s[j] * free
+                for i in range(3):
+                    jf[i, j] = jp[i, j] * free
+            _update(fp, jf, jf, w9, N_ARM, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip)
+        for j in range(N_ARM):
+            q[j] = q_clip[j]
+        _call_md(fp[KIN], m, d)
+    e0, e1, e2 = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+    return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
+def _addresses() -> np.ndarray | None:
+    """The C functions' addresses in MuJoCo's shared library (the one the binding loaded), in
+    ``_SYMBOLS``' order; None where there is no such library or a symbol is missing."""
     here = os.path.dirname(mujoco.__file__)
     for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
         for path in sorted(glob.glob(os.path.join(here, pattern))):
@@ -50,163 +258,12 @@ def _library() -> ctypes.CDLL | None:
             except OSError:
                 continue
             if all(hasattr(lib, s) for s in _SYMBOLS):
-                return lib
+                addr = [ctypes.cast(getattr(lib, s), ctypes.c_void_p).value for s in _SYMBOLS]
+                return np.array(addr, dtype=np.intp)
     return None
 
 
-@functools.cache
-def _compiled() -> Callable[..., Any] | None:
-    numba = _numba()
-    lib = _library()
-    if numba is None or lib is None:
-        return None
-    ptr, dbl, i32 = ctypes.c_size_t, ctypes.c_double, ctypes.c_int
-    sigs = {
-        "mj_kinematics": (None, [ptr, ptr]),
-        "mj_comPos": (None, [ptr, ptr]),
-        "mj_jacSite": (None, [ptr, ptr, ptr, ptr, i32]),
-        "mju_cholFactor": (i32, [ptr, i32, dbl]),
-        "mju_cholSolve": (None, [ptr, ptr, ptr, i32]),
-        "mju_mulMatTVec": (None, [ptr, ptr, ptr, i32, i32]),
-    }
-    fns = {}
-    for name, (res, args) in sigs.items():
-        fn = getattr(lib, name)
-        fn.restype, fn.argtypes = res, args
-        fns[name] = fn
-    kinematics, com_pos, jac_site = fns["mj_kinematics"], fns["mj_comPos"], fns["mj_jacSite"]
-    chol_factor, chol_solve, mul_t = (
-        fns["mju_cholFactor"],
-        fns["mju_cholSolve"],
-        fns["mju_mulMatTVec"],
-    )
-    fma = _fma(numba)
-    jit = numba.njit(cache=False, nogil=True)
-
-    @jit
-    def dot7(a: Any, i: int, x: Any) -> float:
-        """Row i of a (3, 7) by x (7,): OpenBLAS ``dgemv_t`` (a 4-row block, a 3-row tail)."""
-        r = (a[i, 0] * x[0] + a[i, 2] * x[2]) + (a[i, 1] * x[1] + a[i, 3] * x[3])
-        return r + fma(a[i, 6], x[6], fma(a[i, 4], x[4], a[i, 5] * x[5]))
-
-    @jit
-    def dot9(a: Any, i: int, x: Any) -> float:
-        """Row i of a (3, 9) by x (9,): OpenBLAS ``dgemv_t`` (rows 0-1 by its 2-column kernel,
-        row 2 by its 1-column kernel, then a 1-row tail)."""
-        p = np.empty(8)
-        for k in range(8):
-            p[k] = a[i, k] * x[k]
-        if i < 2:
-            r = (((p[0] + p[2]) + p[4]) + p[6]) + (((p[1] + p[3]) + p[5]) + p[7])
-        else:
-            r = ((p[0] + p[4]) + (p[2] + p[6])) + ((p[1] + p[5]) + (p[3] + p[7]))
-        return fma(a[i, 8], x[8], r)
-
-    @jit
-    def jjt(jp: Any, i: int, k: int) -> float:
-        """Entry (i, k) of J Jᵀ: OpenBLAS's one fused multiply-add per joint, in order."""
-        acc = 0.0
-        for j in range(N_ARM):
-            acc = fma(jp[i, j], jp[k, j], acc)
-        return acc
-
-    @jit
-    def probe(jp, jf, s, orient, xmat, out):
-        """The products as ``solve`` computes them, for ``_agrees`` to compare with numpy's."""
-        for i in range(3):
-            for k in range(3):
-                out[i, k] = jjt(jp, i, k)
-                out[i, 3 + k] = jjt(jf, i, k)
-            out[i, 6] = dot7(jp, i, s)
-            out[i, 7] = dot7(jf, i, s)
-            out[i, 8] = dot9(orient, i, xmat)
-
-    if not _agrees(probe):
-        return None
-
-    @jit
-    def update(jp, jt, out, nt, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip) -> bool:
-        """``PandaIK._update``: q_new and q_clip; whether a joint was clipped."""
-        for i in range(3):
-            for k in range(3):
-                a[i, k] = jjt(jp, i, k) + (damp2 if i == k else 0.0)
-        chol_factor(a.ctypes.data, 3, 0.0)
-        for i in range(3):
-            r[i] = e[i] - dot7(jp, i, s)
-        chol_solve(y.ctypes.data, a.ctypes.data, r.ctypes.data, 3)
-        mul_t(out.ctypes.data, jt.ctypes.data, y.ctypes.data, 3, nt)
-        clipped = False
-        for j in range(N_ARM):
-            qn = q[j] + (s[j] + out[j])
-            q_new[j] = qn
-            c = hi[j] if qn > hi[j] else (lo[j] if qn < lo[j] else qn)
-            clipped = clipped or c != qn
-            q_clip[j] = c
-        return clipped
-
-    @jit
-    def solve(
-        m,
-        d,
-        site,
-        xpos,
-        xmat,
-        q,
-        jp_full,
-        jr_full,
-        w9,
-        orient,
-        target,
-        iters,
-        tol,
-        ref,
-        has_ref,
-        orient_gain,
-        posture,
-        damp2,
-        lo,
-        hi,
-    ) -> float:
-        tx, ty, tz = target[0], target[1], target[2]
-        tol2 = tol * tol
-        a, y, r = np.empty((3, 3)), np.empty(3), np.empty(3)
-        s, ox = np.empty(N_ARM), np.empty(3)
-        q_new, q_clip = np.empty(N_ARM), np.empty(N_ARM)
-        jp = jp_full[:, :N_ARM]
-        jf = np.empty((3, N_ARM))
-        nv = jp_full.shape[1]
-        e = np.empty(3)
-        for _ in range(iters):
-            e[0], e[1], e[2] = tx - xpos[0], ty - xpos[1], tz - xpos[2]
-            if e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < tol2:
-                break
-            com_pos(m, d)
-            jac_site(m, d, jp_full.ctypes.data, jr_full.ctypes.data, site)
-            for i in range(3):
-                ox[i] = dot9(orient, i, xmat)
-            mul_t(w9.ctypes.data, jr_full.ctypes.data, ox.ctypes.data, 3, nv)
-            for j in range(N_ARM):
-                s[j] = orient_gain * w9[j]
-                if has_ref:
-                    s[j] = s[j] + posture * (ref[j] - q[j])
-            jpc = np.ascontiguousarray(jp)
-            if update(jpc, jp_full, w9, nv, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip):
-                for j in range(N_ARM):
-                    free = 1.0 if lo[j] <= q_new[j] <= hi[j] else 0.0
-                    s[j] = s[j] * free
-                    for i in range(3):
-                        jf[i, j] = jp[i, j] * free
-                update(jf, jf, w9, N_ARM, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip)
-            for j in range(N_ARM):
-                q[j] = q_clip[j]
-            kinematics(m, d)
-        e0, e1, e2 = tx - xpos[0], ty - xpos[1], tz - xpos[2]
-        return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-
-    return solve
-
-
-def _agrees(probe: Callable[..., None], cases: int = 200) -> bool:
+def _agrees(cases: int = 200) -> bool:
     """Whether the kernel's products equal numpy's (this process's BLAS) bit for bit on random
     Jacobians, in the layouts ``PandaIK`` uses: a (3, 7) view of MuJoCo's (3, 9) Jacobian, a
     (3, 7) copy (the limit step), and the (3, 9) gripper-down term. Another BLAS kernel
@@ -217,7 +274,7 @@ def _agrees(probe: Callable[..., None], cases: int = 200) -> bool:
         full, orient = rng.standard_normal((2, 3, 9))
         jp, jf = full[:, :N_ARM], np.ascontiguousarray(full[:, :N_ARM] * 0.5)
         s, xmat = rng.standard_normal(N_ARM), rng.standard_normal(9)
-        probe(jp, jf, s, orient, xmat, out)
+        _probe(jp, jf, s, orient, xmat, out)
         want = np.hstack([jp @ jp.T, jf @ jf.T, (jp @ s)[:, None], (jf @ s)[:, None]])
         want = np.hstack([want, (orient @ xmat)[:, None]])
         if want.tobytes() != out.tobytes():
@@ -225,30 +282,13 @@ def _agrees(probe: Callable[..., None], cases: int = 200) -> bool:
     return True
 
 
-def _fma(numba: Any) -> Callable[[float, float, float], float]:
-    """A fused multiply-add a·b + c (LLVM's ``llvm.fma.f64``) usable in numba code."""
-    from llvmlite import ir
-    from numba.core import cgutils, types
-    from numba.extending import intrinsic
-
-    @intrinsic
-    def fma(typingctx, a, b, c):
-        sig = types.float64(types.float64, types.float64, types.float64)
-
-        def codegen(context, builder, signature, args):
-            d = ir.DoubleType()
-            fnty = ir.FunctionType(d, [d, d, d])
-            fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.fma.f64")
-            return builder.call(fn, args)
-
-        return sig, codegen
-
-    return fma
-
-
-def solver() -> Callable[..., Any] | None:
-    """The compiled ``PandaIK._solve`` when fast kernels are on and MuJoCo's symbols and the
-    binding's addresses are there; None otherwise (the plain path runs)."""
-    if not use_fast() or not hasattr(mujoco.MjModel, "_address"):
+@functools.cache
+def solver() -> Callable[..., float] | None:
+    """``_solve`` with MuJoCo's function addresses bound, or None: no binding addresses
+    (``MjModel._address``), no library or symbols, or a BLAS that sums otherwise."""
+    if not hasattr(mujoco.MjModel, "_address"):
         return None
-    return _compiled()
+    fp = _addresses()
+    if fp is None or not _agrees():
+        return None
+    return functools.partial(_solve, fp)
