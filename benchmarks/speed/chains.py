@@ -60,16 +60,16 @@ def chain_seconds(seconds: float, repeats: int) -> float:
 
 
 def first_calls() -> tuple[float, float]:
-    """Wall seconds of the first Robot env's build, reset and corrected step in this process
-    (with the fast kernels: the IK kernel's compilation, and loading the cached M6 kernel), and
-    of a second env's, which finds everything compiled."""
+    """CPU seconds of the first Robot env's build, reset and corrected step in this process
+    (with the fast kernels: importing numba and loading the kernels from the disk cache, or
+    compiling them when there is none), and of a second env's, which finds them loaded."""
     out = []
     for _ in range(2):
-        start = time.perf_counter()
+        start = time.process_time()
         env = gym.make("StROL-Robot-v0")
         env.reset(seed=0)
         env.step(env.action_space.sample())
-        out.append(time.perf_counter() - start)
+        out.append(time.process_time() - start)
         env.close()
     return out[0], out[1]
 
@@ -85,7 +85,7 @@ def main() -> None:
     print(f"kernels: {kernels_in_use()}; cores allowed: {sorted(os.sched_getaffinity(0))}")
     print(f"load average before: {load()}")
     first, second = first_calls()
-    print(f"first Robot env build + reset + step: {first:.2f} s wall; a second one: {second:.2f} s")
+    print(f"first Robot env build + reset + step: {first:.2f} s CPU; a second one: {second:.2f} s")
     chain = chain_seconds(args.seconds, args.repeats)
     many = f"N={args.envs}"
     print(f"one chain: {chain * 1e6:.2f} µs CPU")
