@@ -48,6 +48,22 @@ def test_eq_m6_choices_are_the_plain_searchs(task, path):
         assert fast.tobytes() == plain.tobytes()
 
 
+@pytest.mark.parametrize("task", [RobotTask(), HighwayTask()], ids=["robot", "highway"])
+def test_a_nan_norm_is_chosen_first_as_numpys_argmin_does(task, path):
+    rng = np.random.default_rng(1)
+    x = task.sample_start(rng, 2)
+    u_r = np.zeros((2, task.action_dim))
+    theta_hat = np.zeros((2, task.dim))
+    theta_hat[0, 0] = np.nan
+    cand = task.candidate_actions(rng, 2, 16)
+    path(False)
+    plain = optimal_correction(task, x, u_r, theta_hat, np.ones((2, task.dim)), cand)
+    path(True)
+    fast = optimal_correction(task, x, u_r, theta_hat, np.ones((2, task.dim)), cand)
+    assert fast.tobytes() == plain.tobytes()
+    assert (fast[0] == cand[0, 0]).all()
+
+
 def test_a_task_that_overrides_what_the_kernel_repeats_takes_the_plain_path(path):
     class Shifted(RobotTask):
         def features(self, x):

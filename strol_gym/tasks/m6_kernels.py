@@ -19,7 +19,8 @@ from strol_gym.compiled import compiled
 
 @compiled
 def _argmin_first(norm: float, k: int, best: int, best_norm: float) -> tuple[int, float, bool]:
-    """One step of numpy's argmin: the first minimum, or the first NaN (which ends the search)."""
+    """One step of numpy's argmin (from pick 0 at +inf): the first minimum, or the first NaN
+    (which ends the search)."""
     if norm != norm:
         return k, norm, True
     if norm < best_norm:
@@ -57,7 +58,7 @@ def robot_m6(
         phi0 = -math.sqrt(d0 * d0 + d1 * d1)
         phi1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1)
         h0, h1, s0, s1 = th_hat[b, 0], th_hat[b, 1], th_star[b, 0], th_star[b, 1]
-        pick, low = 0, 0.0
+        pick, low = 0, math.inf
         for k in range(cand.shape[1]):
             xh0 = base[0] + cand[b, k, 0]
             xh1 = base[1] + cand[b, k, 1]
@@ -75,11 +76,6 @@ def robot_m6(
             r0 = s0 - (g0 * alpha + h0)
             r1 = s1 - (g1 * alpha + h1)
             norm = r0 * r0 + r1 * r1
-            if k == 0:
-                pick, low = 0, norm
-                if norm != norm:
-                    break
-                continue
             pick, low, stop = _argmin_first(norm, k, pick, low)
             if stop:
                 break
@@ -166,7 +162,7 @@ def highway_m6(
         f0 = _phi(ahead, z[0], z[1], z[2], z[3], prm)
         h0, h1, h2 = th_hat[b, 0], th_hat[b, 1], th_hat[b, 2]
         s0, s1, s2 = th_star[b, 0], th_star[b, 1], th_star[b, 2]
-        pick, low = 0, 0.0
+        pick, low = 0, math.inf
         for k in range(acc_h.shape[1]):
             c = _car(
                 x[b, 4], x[b, 5], x[b, 6], x[b, 7], acc_h[b, k], beta_h[b, k], dt, half, vmax, vmin
@@ -176,11 +172,6 @@ def highway_m6(
             q1 = s1 - ((f[1] - f0[1]) * alpha + h1)
             q2 = s2 - ((f[2] - f0[2]) * alpha + h2)
             norm = q0 * q0 + q1 * q1 + q2 * q2
-            if k == 0:
-                pick, low = 0, norm
-                if norm != norm:
-                    break
-                continue
             pick, low, stop = _argmin_first(norm, k, pick, low)
             if stop:
                 break
