@@ -10,7 +10,6 @@ second process loads them instead of compiling.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -22,37 +21,48 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def _numba() -> Any:
+    """numba, or None where it is missing or fails to load (a numpy newer than it supports)."""
     try:
         import numba
-    except ImportError:
+    except Exception:  # ImportError, or llvmlite's OSError: either way, no compiled kernels
         return None
     return numba
 
 
-def _choose() -> bool:
+def _mode() -> str:
     mode = os.environ.get(KERNELS_VAR, "auto").strip().lower() or "auto"
     if mode not in MODES:
         raise ValueError(f"{KERNELS_VAR} must be one of {', '.join(MODES)}, got {mode!r}")
+    return mode
+
+
+def _choose(mode: str) -> bool:
+    """Whether the kernels run under ``mode``: loads numba (once per process) unless plain."""
     if mode == "plain":
         return False
-    found = importlib.util.find_spec("numba") is not None  # numba itself loads on first use
+    found = _numba() is not None
     if mode == "fast" and not found:
         raise ImportError(f"{KERNELS_VAR}=fast needs numba: pip install 'strol-gym[fast]'")
     return found
 
 
-FAST = _choose()
-"""Whether the compiled kernels run (tests flip it to compare both paths)."""
-
-
-def kernels_in_use() -> str:
-    """``"fast"`` or ``"plain"``: what runs now."""
-    return "fast" if FAST else "plain"
+MODE = _mode()
+FAST: bool | None = False if MODE == "plain" else None
+"""Whether the compiled kernels run; None until first asked (numba loads then, not when
+strol_gym is imported). Tests set it to compare both paths."""
 
 
 def use_fast() -> bool:
     """Whether callers take the compiled kernels (read at each call: tests switch it)."""
+    global FAST
+    if FAST is None:
+        FAST = _choose(MODE)
     return FAST
+
+
+def kernels_in_use() -> str:
+    """``"fast"`` or ``"plain"``: what runs now."""
+    return "fast" if use_fast() else "plain"
 
 
 def compiled(fn: F) -> F:

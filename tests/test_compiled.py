@@ -175,8 +175,9 @@ def test_the_ik_kernel_is_there_where_numba_and_this_mujoco_are(path):
     assert solver() is None
 
 
-def _mode_in_a_fresh_process(value: str) -> subprocess.CompletedProcess:
-    code = "import strol_gym.compiled as c; print(c.kernels_in_use())"
+def _mode_in_a_fresh_process(value: str, numba: bool = True) -> subprocess.CompletedProcess:
+    code = "" if numba else "import sys; sys.modules['numba'] = None; "  # as if it failed to load
+    code += "import strol_gym.compiled as c; print(c.kernels_in_use())"
     env = {"STROL_GYM_KERNELS": value, "PATH": ""}
     return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
 
@@ -185,6 +186,9 @@ def test_the_switch_reads_its_variable_and_names_a_bad_value():
     assert _mode_in_a_fresh_process("plain").stdout.strip() == "plain"
     assert _mode_in_a_fresh_process("fast").stdout.strip() == "fast"
     assert _mode_in_a_fresh_process("auto").stdout.strip() == "fast"  # numba is here
+    assert _mode_in_a_fresh_process("auto", numba=False).stdout.strip() == "plain"
+    missing = _mode_in_a_fresh_process("fast", numba=False)
+    assert "STROL_GYM_KERNELS=fast needs numba: pip install 'strol-gym[fast]'" in missing.stderr
     bad = _mode_in_a_fresh_process("turbo")
     assert bad.returncode != 0
     assert "STROL_GYM_KERNELS must be one of auto, plain, fast, got 'turbo'" in bad.stderr
