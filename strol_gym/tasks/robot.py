@@ -254,8 +254,14 @@ class RobotTask(Task):
         from strol_gym.tasks.m6_kernels import robot_m6
 
         best = np.empty(len(candidates), dtype=np.int64)
+        x, u_r, theta_hat, theta_star = (
+            np.ascontiguousarray(a, dtype=np.float64) for a in (x, u_r, theta_hat, theta_star)
+        )
         robot_m6(
-            *(np.ascontiguousarray(a, dtype=np.float64) for a in (x, u_r, theta_hat, theta_star)),
+            x,
+            u_r,
+            theta_hat,
+            theta_star,
             np.ascontiguousarray(candidates, dtype=np.float64),
             float(self.alpha),
             self.plate,
