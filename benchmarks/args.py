@@ -9,46 +9,37 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Callable
 from typing import Any
 
+from strol_gym import checks
 from strol_gym.benchmarks.engine.backends import add_backend_options
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK
 
 
-def positive_int(name: str, high: int | None = None, *, low: int = 1):
+def positive_int(name: str, high: int | None = None, *, low: int = 1) -> Callable[[str], int]:
     """An argparse type: an integer in [low, high] (low defaults to 1; no upper bound)."""
-    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
 
     def parse(text: str) -> int:
         try:
-            v = int(text)
+            value: object = int(text)  # out of range: the error quotes the number (got 1)
         except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"{name} must be an integer {rng}, got {text!r}"
-            ) from None
-        if v < low or (high is not None and v > high):
-            raise argparse.ArgumentTypeError(f"{name} must be an integer {rng}, got {v}")
-        return v
+            value = text  # not an integer: it quotes the text (got 'x')
+        return int(checks.number(name, value, low=low, high=high, integer=True))
 
-    return parse
+    return checks.cli_type(parse)
 
 
-def nonneg_int(name: str):
+def nonneg_int(name: str) -> Callable[[str], int]:
     """An argparse type: an integer >= 0."""
     return positive_int(name, low=0)
 
 
-def fraction(name: str, allow_negative: bool = False):
+def fraction(name: str, allow_negative: bool = False) -> Callable[[str], float]:
     """σ or ε as a fraction of a_max, checked by the humans' own rule (one range everywhere)."""
     from strol_gym.humans import check_fraction
 
-    def parse(text: str) -> float:
-        try:
-            return check_fraction(name, text, allow_negative=allow_negative)
-        except ValueError as e:
-            raise argparse.ArgumentTypeError(str(e)) from None
-
-    return parse
+    return checks.cli_type(lambda text: check_fraction(name, text, allow_negative=allow_negative))
 
 
 def beta(text: str) -> float:
@@ -91,43 +82,29 @@ def learner_kwargs(text: str | None) -> dict[str, dict[str, Any]]:
     return kwargs
 
 
-def float_list(name: str, *, low: float = 0.0):
+def float_list(name: str, *, low: float = 0.0) -> Callable[[str], list[float]]:
     """An argparse type: comma-separated finite numbers >= ``low``, at least one."""
+    bound = "" if low == -math.inf else f" >= {low:g}"
 
     def parse(text: str) -> list[float]:
         out = []
         for tok in (t.strip() for t in text.split(",")):
             try:
-                v = float(tok)
+                out.append(float(checks.number(name, tok, low=low, text=True)))
             except ValueError:
-                v = math.nan
-            if not math.isfinite(v) or v < low:
-                bound = "" if low == -math.inf else f" >= {low:g}"
-                raise argparse.ArgumentTypeError(
+                raise ValueError(
                     f"{name} must be comma-separated finite numbers{bound}, got {tok!r}"
-                )
-            out.append(v)
+                ) from None
         if not out:
-            raise argparse.ArgumentTypeError(f"{name} must name at least one value")
+            raise ValueError(f"{name} must name at least one value")
         return out
 
-    return parse
+    return checks.cli_type(parse)
 
 
-def finite(name: str, *, low: float | None = None):
+def finite(name: str, *, low: float | None = None) -> Callable[[str], float]:
     """An argparse type: one finite number (>= ``low`` when given)."""
-
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            v = math.nan
-        if not math.isfinite(v) or (low is not None and v < low):
-            rng = "a finite number" + ("" if low is None else f" >= {low:g}")
-            raise argparse.ArgumentTypeError(f"{name} must be {rng}, got {text!r}")
-        return v
-
-    return parse
+    return checks.cli_type(lambda text: float(checks.number(name, text, low=low, text=True)))
 
 
 def json_object(name: str):

@@ -21,7 +21,6 @@ from strol_gym.benchmarks.args import plugin_option
 from strol_gym.benchmarks.engine.conditions import ENV_PRESETS, make_condition
 from strol_gym.benchmarks.engine.results import ResultsError
 from strol_gym.benchmarks.experiments import EXPERIMENTS, make_experiment
-
 from strol_gym.learners.protocol import LearnerFailed
 
 

@@ -9,9 +9,9 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from strol_gym.benchmarks.args import TRAIN_CAPS, add_allow_large, check_size_caps, json_object
-
 from strol_gym.learners.checkpoint import KINDS, SAFETENSORS, check_weights_path, save_checkpoint
 from strol_gym.learners.network import BOUNDS
 from strol_gym.learners.training import (
@@ -139,7 +139,7 @@ def run_train(args: argparse.Namespace) -> Path:
     model, history = train_correction(task, config, quiet=args.quiet)
     check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)
     prior = training_prior(task, config)
-    extra = {
+    extra: dict[str, Any] = {
         "final_loss": float(history["loss"][-10:].mean()),
         "prior": {"name": getattr(prior, "name", type(prior).__name__), "repr": repr(prior)},
         "heldout_lyapunov": check,

@@ -15,7 +15,10 @@ from strol_gym.registry import Registry
 class Prior(Protocol):
     """A distribution over θ ∈ R^d. ``mean`` is the robot's initial estimate θ̂0."""
 
-    dim: int
+    @property
+    def dim(self) -> int:
+        """d, fixed when the prior is built (read-only: priors are frozen dataclasses)."""
+        ...
 
     @property
     def mean(self) -> np.ndarray: ...
@@ -143,7 +146,7 @@ def _uniform(task_modes: np.ndarray) -> Prior:
 
 PRIOR_FACTORIES: dict[str, PriorFactory | str] = {"bimodal": _bimodal, "uniform": _uniform}
 """The named priors; ``register_prior`` adds to it (through ``PRIORS``)."""
-PRIORS = Registry(
+PRIORS = Registry[PriorFactory](
     "prior",
     PRIOR_FACTORIES,
     callable_as="(task_modes) -> Prior",
@@ -211,6 +214,7 @@ class HedgedPrior:
         return self.modes.mean(axis=0)
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        assert self.broad_scale is not None  # resolved to a number by __post_init__
         out = MixturePrior(self.modes, self.jitter).sample(rng, n)
         broad = rng.random(n) < self.broad_weight
         out[broad] = self.mean + self.broad_scale * rng.standard_normal(

@@ -17,8 +17,12 @@ from __future__ import annotations
 
 import importlib
 import sys
-from collections.abc import Callable, Iterable
-from typing import Any
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any, Generic, TypeVar
+
+from strol_gym import checks
+
+T = TypeVar("T")
 
 __all__ = [
     "Registry",
@@ -85,20 +89,17 @@ def _names(entry: Any, piece: Any) -> bool:
 
 def _callable_check(kind: str, signature: str) -> Callable[[str, Any], None]:
     def check(name: str, piece: Any) -> None:
-        if not callable(piece):
-            raise ValueError(
-                f"{kind} {name!r} must be a callable {signature} or a 'module:attr' string, "
-                f"got {piece!r}"
-            )
+        checks.callable_arg(f"{kind} {name!r}", piece, signature, spec=True)
 
     return check
 
 
-class Registry:
-    """Names -> pieces of one kind, over a built-in table (shared, not copied).
+class Registry(Generic[T]):
+    """Names -> pieces of one kind ``T``, over a built-in table (shared, not copied).
 
     An entry is the piece itself (a class, factory or object) or a lazy ``"module:attr"``
-    string. ``get`` accepts a registered name or any ``"module:attr"``.
+    string. ``get`` accepts a registered name or any ``"module:attr"`` and returns a ``T``
+    (what a ``"module:attr"`` names is trusted to be one: ``check`` runs on registration).
     """
 
     def __init__(
@@ -117,7 +118,7 @@ class Registry:
         ``"(task) -> policy"``) is the common check that the piece is callable.
         ``shared``: the kind's user entries travel to worker processes (``user_specs``)."""
         self.kind = kind
-        self.table = table
+        self.table: dict[str, T | str] = table
         self.builtin = tuple(table)
         if check is None and callable_as is not None:
             check = _callable_check(kind, callable_as)
@@ -142,10 +143,11 @@ class Registry:
     def __contains__(self, name: object) -> bool:
         return name in self.table
 
-    def register(self, name: str, piece: Any, *, replace: bool = False) -> None:
+    def register(self, name: str, piece: T | str, *, replace: bool = False) -> None:
         """Add ``piece`` (or a ``"module:attr"`` string, imported on first use) as ``name``."""
         if not isinstance(name, str) or not name or ":" in name or "," in name:
-            raise ValueError(
+            error = ValueError if isinstance(name, str) else checks.ArgumentTypeError
+            raise error(
                 f"{self.kind} name must be a non-empty string without ':' or ',', got {name!r}"
             )
         current = self.table.get(name)
@@ -181,10 +183,12 @@ class Registry:
     def user_names(self) -> list[str]:
         return [n for n in self.table if n not in self.builtin]
 
-    def get(self, spec: str) -> Any:
+    def get(self, spec: str) -> T:
         """The piece for a registered name or a ``"module:attr"``; ValueError listing names."""
         if not isinstance(spec, str):
-            raise ValueError(f"{self.kind} must be a name or 'module:attr', got {spec!r}")
+            raise checks.ArgumentTypeError(
+                f"{self.kind} must be a name or 'module:attr', got {spec!r}"
+            )
         if spec not in self.table and ":" not in spec and load_installed_plugins():
             return self.get(spec)  # an installed plugin may have registered it
         if spec in self.table:
@@ -211,11 +215,11 @@ class Registry:
         return spec
 
 
-_KINDS: dict[str, Registry] = {}
+_KINDS: dict[str, Registry[Any]] = {}
 """Every shared registry of this process, by kind (each joins when it is built)."""
 
 
-def registries() -> dict[str, Registry]:
+def registries() -> dict[str, Registry[Any]]:
     """Every registry of this process by kind: learner, human, task, and the benchmark's env
     presets and conditions once it is imported."""
     return dict(_KINDS)
@@ -238,7 +242,7 @@ def registered_name(obj: Any) -> str | None:
 
 
 def user_specs(
-    used: dict[str, Iterable[str]] | None = None,
+    used: Mapping[str, Iterable[str]] | None = None,
 ) -> tuple[dict[str, dict[str, Any]], list[str]]:
     """The user entries as importable specs ``{kind: {name: "module:attr"}}``, and the names
     that cannot travel to another process (each as "kind 'name'").

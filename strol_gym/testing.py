@@ -15,6 +15,7 @@ import pickle
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from strol_gym.humans import Human, HumanFactory, human_model, make_human
 from strol_gym.tasks.base import Task
@@ -37,7 +38,7 @@ def _shape(what: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     return arr
 
 
-def _close(what: str, a: np.ndarray, b: np.ndarray, atol: float = 1e-9) -> None:
+def _close(what: str, a: ArrayLike, b: ArrayLike, atol: float = 1e-9) -> None:
     if not np.allclose(a, b, rtol=1e-7, atol=atol):
         _fail(what, f"{np.asarray(a).tolist()} != {np.asarray(b).tolist()}")
 

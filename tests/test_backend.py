@@ -13,12 +13,12 @@ import subprocess
 from pathlib import Path
 
 import pytest
+
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.engine.backends import check_backend
 from strol_gym.benchmarks.engine.config import paper_config
 from strol_gym.benchmarks.engine.kernels import kernel_label
 from strol_gym.benchmarks.engine.runner import run_benchmark
-
 from strol_gym.learners.registry import register_learner, unregister_learner
 
 MY_LEARNER = "test-backend-gradient"
@@ -49,6 +49,7 @@ def test_the_cli_rejects_an_unknown_backend_with_status_2(capsys):
 def ray_cluster():
     pytest.importorskip("ray", reason="Ray is not installed (pip install '.[ray]')")
     import ray
+
     from strol_gym.benchmarks.engine.backends import _start_ray
 
     started = _start_ray(2, None)  # both runs below reuse this local cluster

@@ -6,6 +6,7 @@ import json
 import sys
 
 import pytest
+
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.engine.conditions import Condition, env_preset, paper_condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment, paper_config

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+
 from strol_gym.benchmarks.analysis.report import analyse, write_reports
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS
 from strol_gym.benchmarks.engine.config import paper_config
@@ -225,6 +226,7 @@ def test_versions_that_do_not_shape_records_do_not_block_a_resume(tmp_path, caps
 
 def test_cli_resume_under_other_versions_exits_2_until_forced(tmp_path, capsys):
     from cli_checks import cli_error
+
     from strol_gym.benchmarks import cli
 
     out = tmp_path / "r"

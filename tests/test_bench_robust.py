@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy import stats as sps
+
 from strol_gym.benchmarks.analysis import robust, stats
 
 RESAMPLES = 200

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+
 from strol_gym.benchmarks.engine.config import BenchConfig, paper_config
 from strol_gym.benchmarks.engine.results import ResultsDir
 from strol_gym.benchmarks.engine.runner import run_benchmark

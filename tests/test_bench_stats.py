@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 from scipy import stats as sps
+
 from strol_gym.benchmarks.analysis import stats
 
 # 4 subjects (runs) × 3 levels (learners).

@@ -9,10 +9,10 @@ import math
 
 import pytest
 from cli_checks import cli_error
+
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.engine.kernels import float_kernels
 from strol_gym.benchmarks.experiments.study import METRICS
-
 from strol_gym.tasks import make_task
 
 
@@ -38,7 +38,6 @@ def test_study_defaults_to_v1_with_the_held_out_participant():
     import argparse
 
     from strol_gym.benchmarks.experiments.study import Study
-
     from strol_gym.learners.registry import make_learner
 
     p = argparse.ArgumentParser()

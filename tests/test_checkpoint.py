@@ -9,8 +9,8 @@ import shutil
 
 import pytest
 import torch
-from strol_gym.benchmarks.engine.provenance import learner_fingerprint
 
+from strol_gym.benchmarks.engine.provenance import learner_fingerprint
 from strol_gym.learners import checkpoint as ckpt
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.registry import make_learner

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 import torch
 from cli_checks import cli_error
+
 from strol_gym.benchmarks.engine.config import MAX_RUNS, paper_config
 from strol_gym.benchmarks.engine.results import LOCK, META, RECORDS, ResultsDir, ResultsError
-
 from strol_gym.humans import MAX_BETA, MAX_FRACTION, make_human
 from strol_gym.learners import checkpoint as ckpt
 from strol_gym.learners.network import CorrectionNet

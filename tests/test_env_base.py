@@ -5,12 +5,12 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from strol_gym.wrappers import OnlineLearningWrapper
 from test_wrapper import CONTRACT_ID, ContractEnv
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.humans import NominalHuman
 from strol_gym.learners.rules import GradientLearner
+from strol_gym.wrappers import OnlineLearningWrapper
 
 ENV_IDS = ("StROL-Robot-v0", "StROL-Highway-v0")
 

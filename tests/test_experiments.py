@@ -9,12 +9,12 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
-from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.engine.kernels import float_kernels
-from strol_gym.benchmarks.experiments import confirm
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.analysis import basin_map
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.engine.kernels import float_kernels
+from strol_gym.benchmarks.experiments import confirm
 from strol_gym.humans import ChangingHuman, human_factory
 from strol_gym.learners.registry import make_learner
 from strol_gym.tasks.robot import RobotTask

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import gymnasium as gym
 import pytest
-from strol_gym.benchmarks.experiments import EXPERIMENTS
 
+from strol_gym.benchmarks.experiments import EXPERIMENTS
 from strol_gym.humans import HUMANS
 from strol_gym.tasks import TASKS
 

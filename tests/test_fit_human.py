@@ -9,17 +9,17 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from cli_checks import cli_error
+
+import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.analysis.fit_recovery import recovery, selection, simulate_people
 from strol_gym.benchmarks.sessions.fit_human import load_corrections
-from strol_gym.wrappers import OnlineLearningWrapper
-from strol_gym.wrappers.session_log import SessionLogger
-
-import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.humans import human_model
 from strol_gym.humans.findings import candidate_rewards, margin
 from strol_gym.humans.fitting import fit
 from strol_gym.tasks import make_task
+from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.session_log import SessionLogger
 
 TASK = make_task("robot")
 

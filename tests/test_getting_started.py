@@ -8,6 +8,7 @@ import shlex
 from pathlib import Path
 
 import pytest
+
 from strol_gym.benchmarks.cli import main
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "getting-started.md"

@@ -26,6 +26,9 @@ import numpy as np
 import pytest
 import torch
 from cli_checks import cli_error
+
+import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.analysis import basin_map
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.args import BASIN_CAPS, RUN_CAPS, TRAIN_CAPS
 from strol_gym.benchmarks.engine import pool as engine_pool
@@ -33,14 +36,11 @@ from strol_gym.benchmarks.engine import results
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.results import LOCK, META, ResultsDir, ResultsError
 from strol_gym.benchmarks.train import add_train_arguments, run_train
-from strol_gym.wrappers import OnlineLearningWrapper
-
-import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.analysis import basin_map
 from strol_gym.learners import checkpoint as ckpt
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.registry import list_learners, make_learner
 from strol_gym.tasks.robot import RobotTask
+from strol_gym.wrappers import OnlineLearningWrapper
 
 ROBOT = RobotTask()
 CLI = Path(sys.executable).with_name("strol-bench")

@@ -7,9 +7,9 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from strol_gym.benchmarks.analysis import plots
 from strol_gym.benchmarks.cli import main
-
 from strol_gym.learners.registry import unregister_learner
 
 PLUGIN = """

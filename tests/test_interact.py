@@ -15,6 +15,7 @@ import sys
 import mujoco
 import numpy as np
 import pytest
+
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.sessions.interact import run_interactive
 from strol_gym.wrappers.session_log import SessionLogError, read_session
@@ -117,7 +118,6 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
 
 def test_panel_tells_how_to_push_what_to_teach_and_cues_the_correction(session):
     from strol_gym.benchmarks.sessions.interact import teach_words
-
     from strol_gym.tasks.study import StudyTask1
 
     log, _, viewer = session

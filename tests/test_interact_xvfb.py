@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from strol_gym.benchmarks.sessions.interact import teach_words
-from strol_gym.wrappers.session_log import read_session
 
+from strol_gym.benchmarks.sessions.interact import teach_words
 from strol_gym.tasks.study import StudyTask1
+from strol_gym.wrappers.session_log import read_session
 
 pytestmark = pytest.mark.skipif(
     shutil.which("xvfb-run") is None, reason="xvfb-run is not installed (apt-get install xvfb)"

@@ -9,9 +9,10 @@ import subprocess
 import sys
 
 import pytest
+from test_bench_results import _config, _fake_records
+
 from strol_gym.benchmarks.engine.kernels import ENV_VARS, float_kernels, kernel_label
 from strol_gym.benchmarks.engine.results import ResultsDir
-from test_bench_results import _config, _fake_records
 
 OTHER = "openblas=SkylakeX numpy=X86_V4 torch=AVX512 torch-blas=mkl"
 """A label no process here has: an AVX-512 machine's kernels."""

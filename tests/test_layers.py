@@ -35,6 +35,7 @@ ROOTS = {"strol_gym", BENCHMARK}
 # matching prefix; it may import its own unit and any unit of a lower layer, nothing else.
 # Prefixes, not files: a unit's inner layout (envs/ by simulator or flat) is its own business.
 LAYERS: list[tuple[str, ...]] = [
+    ("strol_gym.checks",),
     (
         "strol_gym.registry",
         "strol_gym.provenance",

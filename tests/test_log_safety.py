@@ -11,9 +11,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from strol_gym.wrappers.session_log import SessionWriter
 
 from strol_gym.tasks import make_task
+from strol_gym.wrappers.session_log import SessionWriter
 
 TASK = "study-task1"
 

@@ -8,13 +8,13 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
+
+import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.sessions.export import read_any
 from strol_gym.benchmarks.sessions.replay import replay_session
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger, read_session
-
-import strol_gym  # noqa: F401  (registers the envs)
 
 minari = pytest.importorskip("minari", reason='Minari is not installed (pip install ".[data]")')
 

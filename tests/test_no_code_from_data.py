@@ -18,19 +18,19 @@ import numpy as np
 import pytest
 import torch
 from cli_checks import cli_error
+from test_minari import cli, robot_session
+
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.sessions.dataset_gate import check_env_spec, wrappers
 from strol_gym.benchmarks.sessions.export import read_any
 from strol_gym.benchmarks.sessions.replay import replay_session
-from strol_gym.wrappers import OnlineLearningWrapper
-from strol_gym.wrappers.session_log import LEGACY_TASKS, SessionLogger, read_session
-from test_minari import cli, robot_session
-
 from strol_gym.learners.checkpoint import rehash_sidecar, save_checkpoint
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.registry import make_learner
 from strol_gym.registration import ENV_SPECS
 from strol_gym.tasks import make_task
+from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.session_log import LEGACY_TASKS, SessionLogger, read_session
 
 minari = pytest.importorskip("minari", reason='Minari is not installed (pip install ".[data]")')
 
@@ -322,7 +322,6 @@ def test_experiment_tables_naming_code(tmp_path, marker):
     read names as strings: a file full of module:attr imports nothing."""
     from strol_gym.benchmarks.analysis.compare_learners import load_runs
     from strol_gym.benchmarks.experiments.cross_kernel import folder_verdicts, means
-
     from strol_gym.metrics import RUN_METRICS
 
     spec = f"{SIDE_EFFECT}:Mine"

@@ -6,11 +6,11 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+
+import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.benchmarks.analysis.plots import PALETTE, PAPER_COLORS, learner_color
 from strol_gym.benchmarks.engine.conditions import Condition, EnvPreset
 from strol_gym.benchmarks.engine.robots import ROBOTS, register_robot, robot_policy
-
-import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.learners.checkpoint import KINDS, THETA_KINDS, register_kind
 from strol_gym.priors import PRIORS, FixedPrior, make_prior, register_prior
 

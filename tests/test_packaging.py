@@ -18,6 +18,7 @@ import zipfile
 from pathlib import Path
 
 import pytest
+
 from strol_gym.benchmarks.engine.provenance import DATA_FILES, code_fingerprint
 
 ROOT = Path(__file__).resolve().parents[1]

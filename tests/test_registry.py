@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 import registry_pieces
 from registry_pieces import HalfGradient, NearCupTask, shy_human
+
+import strol_gym
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.engine.conditions import (
     CONDITIONS,
@@ -24,14 +26,12 @@ from strol_gym.benchmarks.engine.conditions import (
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.runner import run_benchmark
 from strol_gym.benchmarks.engine.worker import Worker as _Worker
-from strol_gym.wrappers import OnlineLearningWrapper
-
-import strol_gym
 from strol_gym.humans import HUMANS, register_human
 from strol_gym.learners.registry import LEARNERS, register_learner
 from strol_gym.learners.training import TrainConfig, sample_batch
 from strol_gym.registry import registries, spec_of, user_specs
 from strol_gym.tasks import TASKS, make_task, register_task
+from strol_gym.wrappers import OnlineLearningWrapper
 
 PIECES = "registry_pieces"
 

@@ -8,9 +8,9 @@ import json
 
 import pytest
 from cli_checks import cli_error
+
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.experiments import robustness
-
 from strol_gym.humans import HUMAN_MODELS
 
 SEED = 1000  # the diagnostics seed range

@@ -14,10 +14,10 @@ import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv, VectorWrapper
 from gymnasium.wrappers import RecordEpisodeStatistics, TimeLimit
 from stable_baselines3.common.vec_env import DummyVecEnv, VecCheckNan
-from strol_gym.wrappers import OnlineLearningWrapper, VectorOnlineLearningWrapper
-from strol_gym.wrappers.sb3 import SB3VecEnv
 
 import strol_gym  # noqa: F401
+from strol_gym.wrappers import OnlineLearningWrapper, VectorOnlineLearningWrapper
+from strol_gym.wrappers.sb3 import SB3VecEnv
 
 N = 3
 

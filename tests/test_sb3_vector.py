@@ -6,9 +6,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import torch
-from strol_gym.wrappers.sb3 import SB3VecEnv
 
 import strol_gym  # noqa: F401
+from strol_gym.wrappers.sb3 import SB3VecEnv
 
 
 @pytest.fixture

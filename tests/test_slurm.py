@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import pytest
+
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.benchmarks.engine.pool import new_worker

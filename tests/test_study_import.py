@@ -14,13 +14,13 @@ import pickle
 import numpy as np
 import pytest
 from cli_checks import cli_error
+
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.sessions.authors_frame import fit_transform, frame_to_pose, logged_frame
 from strol_gym.benchmarks.sessions.authors_rules import implied_theta0
 from strol_gym.benchmarks.sessions.plain_pickle import PickleRefused, load_plain_pickle
-from strol_gym.wrappers.session_log import read_session
-
 from strol_gym.tasks.study import STUDY_TASKS
+from strol_gym.wrappers.session_log import read_session
 
 RNG_SEED = 32
 

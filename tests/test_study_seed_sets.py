@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+
 from strol_gym.benchmarks.experiments.study_seed_sets import complete_users, decisive_margin
 
 

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import safetensors.torch
 import torch
-from strol_gym.benchmarks.train import add_train_arguments, main
 
 from strol_gym import RobotTask
+from strol_gym.benchmarks.train import add_train_arguments, main
 from strol_gym.learners.checkpoint import (
     find_pretrained,
     load_checkpoint,

@@ -6,10 +6,10 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.vector import SyncVectorEnv
-from strol_gym.wrappers import OnlineLearningWrapper, VectorOnlineLearningWrapper
 from test_vector_envs import worst_difference
 
 import strol_gym  # noqa: F401
+from strol_gym.wrappers import OnlineLearningWrapper, VectorOnlineLearningWrapper
 
 TOL = 1e-9
 

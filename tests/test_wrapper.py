@@ -10,13 +10,13 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium import spaces
-from strol_gym.wrappers import OnlineLearningWrapper
-from strol_gym.wrappers.online_learning import episode_regret
 from test_learners import LinearTask
 
 import strol_gym
 from strol_gym import NominalHuman, RobotTask
 from strol_gym.learners.rules import GradientLearner
+from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.online_learning import episode_regret
 
 CONTRACT_ID = "StROLTest-Contract-v0"
 

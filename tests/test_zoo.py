@@ -7,10 +7,9 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from strol_gym.benchmarks import cli
-from strol_gym.wrappers import OnlineLearningWrapper
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.benchmarks import cli
 from strol_gym.humans import HUMANS, human_model, make_human
 from strol_gym.humans.zoo import ZOO
 from strol_gym.learners.registry import make_learner
@@ -19,6 +18,7 @@ from strol_gym.priors import FixedPrior
 from strol_gym.tasks.highway import HighwayTask
 from strol_gym.tasks.robot import RobotTask
 from strol_gym.testing import check_human
+from strol_gym.wrappers import OnlineLearningWrapper
 
 SEED = 1000  # the diagnostics seed range
 N = 3000

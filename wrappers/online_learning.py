@@ -2,16 +2,54 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.vector import VectorEnv
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cos_error, episode_regret, error
+from strol_gym.tasks.base import Task
 
-__all__ = ["OnlineLearningWrapper", "cos_error", "episode_regret"]
+
+@runtime_checkable
+class LearningEnv(Protocol):
+    """What the learning wrappers need of a strol-gym env, single or vector (its ``unwrapped``):
+    its Task, and a way to hand it θ̂ (a teacher human corrects relative to it)."""
+
+    @property
+    def task(self) -> Task: ...
+
+    @property
+    def theta_hat(self) -> np.ndarray: ...
+
+    def set_theta_hat(self, theta: np.ndarray) -> None: ...
+
+
+def learning_env(env: gym.Env | VectorEnv) -> LearningEnv:
+    """``env.unwrapped`` as a strol-gym env (single or vector): its Task and θ̂, else
+    ValueError. Typed access for code that holds what ``gym.make`` returned."""
+    base = env.unwrapped
+    if not isinstance(base, LearningEnv):  # it has .task, .theta_hat and .set_theta_hat
+        raise ValueError(
+            "env must be a strol-gym env (env.unwrapped needs .task and .set_theta_hat), "
+            f"got {type(base).__name__}"
+        )
+    return base
+
+
+__all__ = ["LearningEnv", "OnlineLearningWrapper", "cos_error", "episode_regret", "learning_env"]
+
+
+def theta_space(space: gym.Space) -> gym.spaces.Box:
+    """The ``theta_hat`` Box of a strol-gym env's Dict observation space (where the learning
+    wrappers publish θ̂), else ValueError."""
+    box = space.spaces.get("theta_hat") if isinstance(space, gym.spaces.Dict) else None
+    if not isinstance(box, gym.spaces.Box):
+        raise ValueError(f"env's observations must be a Dict with a 'theta_hat' Box, got {space}")
+    return box
 
 
 class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -62,12 +100,7 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             regret=regret,
         )
         gym.Wrapper.__init__(self, env)
-        base = env.unwrapped
-        if not hasattr(base, "task") or not hasattr(base, "set_theta_hat"):
-            raise ValueError(
-                "env must be a strol-gym env (env.unwrapped needs .task and .set_theta_hat), "
-                f"got {type(base).__name__}"
-            )
+        base = learning_env(env)
         for name, flag in (("replace_reward", replace_reward), ("regret", regret)):
             if not isinstance(flag, bool | np.bool_):  # "no" would be true: refuse, not guess
                 raise ValueError(f"{name} must be True or False, got {flag!r}")
@@ -78,16 +111,17 @@ class OnlineLearningWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.score_regret = bool(regret)
         self._x: np.ndarray | None = None
         self._x0: np.ndarray | None = None
+        self._base: LearningEnv = base
+        self._theta_dtype = theta_space(self.observation_space).dtype
 
     @property
-    def task(self):
-        return self.env.unwrapped.task
+    def task(self) -> Task:
+        return self._base.task
 
     def _publish(self, obs: dict, info: dict) -> None:
         theta = np.asarray(self.learner.theta, dtype=np.float64)
-        self.env.unwrapped.set_theta_hat(theta)
-        space = self.observation_space["theta_hat"]
-        obs["theta_hat"] = theta.astype(space.dtype)
+        self._base.set_theta_hat(theta)
+        obs["theta_hat"] = theta.astype(self._theta_dtype)
         info["theta_hat"] = theta.copy()
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):

@@ -33,15 +33,17 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import gymnasium as gym
 import numpy as np
 
+from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.provenance import package_versions
 from strol_gym.registry import registered_name, spec_of
 from strol_gym.tasks import Task, task_name
 from strol_gym.tasks.base import _jsonable
+from strol_gym.wrappers.online_learning import learning_env
 
 FORMAT, VERSION = "strol-session", 1
 
@@ -88,11 +90,19 @@ class SessionWriter:
             self._file.close()
 
 
-def _unwrap_learning(env: gym.Env) -> gym.Env:
+@runtime_checkable
+class _Learning(Protocol):
+    """A wrapper that holds a learner (an OnlineLearningWrapper, or a wrapper reading its)."""
+
+    @property
+    def learner(self) -> OnlineRewardLearner: ...
+
+
+def _unwrap_learning(env: gym.Env) -> _Learning:
     """The OnlineLearningWrapper in ``env``'s stack (it owns the learner)."""
     e = env
     while isinstance(e, gym.Wrapper):
-        if hasattr(e, "learner"):
+        if isinstance(e, _Learning):  # it has .learner
             return e
         e = e.env
     raise ValueError("env must be wrapped in OnlineLearningWrapper (it holds the learner)")
@@ -113,7 +123,7 @@ class SessionLogger(gym.Wrapper):
         saved = getattr(learning, "_saved_kwargs", {})
         learner = saved.get("learner", learning.learner)
         spec = env.unwrapped.spec
-        task = env.unwrapped.task
+        task = learning_env(env).task
         header = {
             "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             "env_id": spec.id if spec is not None else type(env.unwrapped).__name__,
@@ -173,7 +183,7 @@ class SessionLogger(gym.Wrapper):
                 theta_hat_after=info["theta_hat"],
                 start_time=start,
                 end_time=end,
-                correction_time=None if start is None else float(end) - float(start),
+                correction_time=None if start is None or end is None else float(end) - float(start),
                 trace=trace,
             )
             self._index += 1

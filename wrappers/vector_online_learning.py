@@ -6,11 +6,12 @@ from typing import Any
 
 import numpy as np
 from gymnasium.vector import VectorEnv, VectorWrapper
-from strol_gym.wrappers.online_learning import episode_regret
 
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cos_error, error
+from strol_gym.tasks.base import Task
+from strol_gym.wrappers.online_learning import LearningEnv, episode_regret, theta_space
 
 FIXED_STATE = frozenset({"name", "task_id", "config", "arch", "model"})
 """``state_dict`` keys that do not change as a learner learns (its configuration, ĝ's weights)."""
@@ -47,7 +48,7 @@ class VectorOnlineLearningWrapper(VectorWrapper):
     ) -> None:
         super().__init__(env)
         base = env.unwrapped
-        if not hasattr(base, "task") or not hasattr(base, "set_theta_hat"):
+        if not isinstance(base, LearningEnv):  # it has .task and .set_theta_hat
             raise ValueError(
                 "env must be a strol-gym vector env (env.unwrapped needs .task and "
                 f".set_theta_hat), got {type(base).__name__}"
@@ -65,10 +66,12 @@ class VectorOnlineLearningWrapper(VectorWrapper):
         self._x0 = np.zeros_like(self._x)
         self._done = np.zeros(n, dtype=bool)
         self._started = False
+        self._base: LearningEnv = base
+        self._theta_dtype = theta_space(self.single_observation_space).dtype
 
     @property
-    def task(self):
-        return self.env.unwrapped.task
+    def task(self) -> Task:
+        return self._base.task
 
     # ------------------------------------------------------------------ the learners
     def _reset_learners(self, rows: np.ndarray, info: dict) -> None:
@@ -103,8 +106,8 @@ class VectorOnlineLearningWrapper(VectorWrapper):
             )
 
     def _publish(self, obs: dict, info: dict) -> None:
-        self.env.unwrapped.set_theta_hat(self.theta)
-        obs["theta_hat"] = self.theta.astype(self.single_observation_space["theta_hat"].dtype)
+        self._base.set_theta_hat(self.theta)
+        obs["theta_hat"] = self.theta.astype(self._theta_dtype)
         info["theta_hat"] = self.theta.copy()
         info["_theta_hat"] = np.ones(self.num_envs, dtype=bool)
 

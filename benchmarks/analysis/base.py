@@ -12,8 +12,8 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.engine.config import BenchConfig
 
+from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.metrics import RUN_METRICS, label
 
 METRICS: tuple[str, ...] = RUN_METRICS

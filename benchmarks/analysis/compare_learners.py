@@ -25,10 +25,10 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+
 from strol_gym.benchmarks.analysis.robust import cell_rng, poi_interval
 from strol_gym.benchmarks.analysis.stats import holm, paired_test, signed_stars
 from strol_gym.benchmarks.engine.conditions import REFERENCE_LEARNER as REFERENCE
-
 from strol_gym.metrics import RUN_METRICS
 
 BASELINES = ("gradient", "one", "mof", "e2e")
@@ -75,7 +75,7 @@ def compare(runs, candidates, wanted=METRICS) -> list[str]:
             means = {
                 b: np.mean([v[metric] for v in runs[(env, cond, b)].values()]) for b in BASELINES
             }
-            best = min(means, key=means.get)
+            best = min(means, key=means.__getitem__)
             tests, pois = [], []
             for cand in candidates:
                 for other in (REFERENCE, best):

@@ -133,7 +133,7 @@ def matched_beta(task: Task, target: float, n_people: int, seed: int) -> float:
 def recovery(
     task: Task,
     human: str,
-    truth: dict[str, float],
+    truth: dict[str, Any],
     datasets: int,
     n_people: int,
     n_boot: int,
@@ -169,7 +169,7 @@ def recovery(
 
 def selection(
     task: Task,
-    scenarios: dict[str, tuple[str, dict[str, float]]],
+    scenarios: dict[str, tuple[str, dict[str, Any]]],
     datasets: int,
     n_people: int,
     candidates: Sequence[str] = CANDIDATES,
@@ -188,6 +188,7 @@ def selection(
             held = {
                 c: fit(c, data, n_boot=0, folds=folds, seed=d).heldout_loglik for c in candidates
             }
+            # heldout_loglik is None only without folds; folds are given here
             counts[max(held, key=lambda c: held[c])] += 1  # type: ignore[arg-type, return-value]
         out[label] = counts
     return out

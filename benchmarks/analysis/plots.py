@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import textwrap
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
@@ -20,10 +21,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+
 from strol_gym.benchmarks.analysis import robust, stats
 from strol_gym.benchmarks.analysis.base import METRIC_LABELS, Analysis, display
 from strol_gym.benchmarks.engine.conditions import env_preset
-
 from strol_gym.metrics import short
 
 PAPER_COLORS = {
@@ -68,7 +69,7 @@ def jitter(n: int, width: float = 0.55) -> np.ndarray:
     return ((np.arange(n) * 0.6180339887) % 1.0 - 0.5) * width
 
 
-def run_strip(ax, y: np.ndarray, learners: list[str], cells: list[dict | None]) -> None:
+def run_strip(ax, y: np.ndarray, learners: list[str], cells: Sequence[dict | None]) -> None:
     """Every run of each learner (column of ``y``) as a jittered strip, with the mean ± SEM
     (black) and the IQM with its bootstrap interval (white diamond) beside it."""
     for i, learner in enumerate(learners):
@@ -141,7 +142,7 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
             for i, learner in enumerate(learners):
                 t = a.test(env, cond, learner, metric)
                 m = stats.mark(t)
-                if m:
+                if m and t:
                     color = "black" if t["mean_diff"] < 0 else "#b00000"
                     ax.text(xs[i], 1.0, m, transform=ax.get_xaxis_transform(), ha="center",
                             va="bottom", fontsize=8, color=color)  # fmt: skip

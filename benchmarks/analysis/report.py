@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from strol_gym.benchmarks.analysis import robust, stats
 from strol_gym.benchmarks.analysis.base import (
     METRIC_LABELS,
@@ -25,7 +26,6 @@ from strol_gym.benchmarks.analysis.base import (
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
-
 from strol_gym.metrics import METRICS as METRIC_TABLE
 
 CELL_KEYS = ("mean", "std", "sem", "median", "n")
@@ -253,9 +253,14 @@ def analyse(
             )
             for j, learner in enumerate(learners):
                 summary.append(
-                    {"env": env, "condition": cond, "learner": learner, "metric": metric}
-                    | stats.describe(y[:, j])
-                    | _interval("iqm", iqm, j)
+                    {
+                        "env": env,
+                        "condition": cond,
+                        "learner": learner,
+                        "metric": metric,
+                        **stats.describe(y[:, j]),
+                        **_interval("iqm", iqm, j),
+                    }
                 )
             a = stats.rm_anova(y)
             anova.append({"env": env, "condition": cond, "metric": metric} | dataclasses.asdict(a))
@@ -341,8 +346,11 @@ def paper_verdicts(a: Analysis) -> list[dict[str, Any]]:
             cond = e.condition.name
             if e.env != env:
                 continue
-            tests = [a.test(env, cond, b, metric) for b in a.config.learners if b != ref]
-            tests = [t for t in tests if t is not None]
+            tests = [
+                t
+                for b in a.config.learners
+                if b != ref and (t := a.test(env, cond, b, metric)) is not None
+            ]
             if not tests:
                 continue
             v: dict[str, Any] = {"env": env, "condition": cond, "metric": metric}
@@ -596,7 +604,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
             for t in a.posthoc:
                 if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):
                     wil = stats.format_p(t["wilcoxon_p_holm"])
-                    poi = _ci(
+                    p_better = _ci(
                         t["prob_improvement"],
                         t["prob_improvement_ci95_low"],
                         t["prob_improvement_ci95_high"],
@@ -605,7 +613,7 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
                         f"  - {t['plain_language']}; Δ = {fmt(t['mean_diff'])} "
                         f"[{fmt(t['ci95_low'])}, {fmt(t['ci95_high'])}], "
                         f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}{_wilcoxon_mark(t)}; "
-                        f"P({display(t['learner'])} better in a run) = {poi}"
+                        f"P({display(t['learner'])} better in a run) = {p_better}"
                     )
         for pooled in a.pooled:
             if pooled["envs"] == [env]:

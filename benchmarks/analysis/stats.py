@@ -250,7 +250,7 @@ def plain_language(
 
 def compare_to_reference(
     y: np.ndarray, learners: Sequence[str], reference: str
-) -> list[dict[str, float | str | int | bool]]:
+) -> list[dict[str, Any]]:
     """Post-hoc tests of ``reference`` against every other column of ``y`` (n, k), Holm-corrected.
 
     Holm runs separately over the t-test p-values and over the Wilcoxon p-values, each across the

@@ -21,7 +21,6 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
-
 from strol_gym.learners.protocol import LearnerFailed
 
 BACKENDS = ("local", "ray", "slurm")
@@ -149,7 +148,11 @@ def _ray_unit(
 def _start_ray(jobs: int, address: str | None) -> bool:
     """Connect to ``address`` or start a local cluster; True when this call started Ray (and
     so must shut it down)."""
-    common = {"include_dashboard": False, "log_to_driver": False, "configure_logging": False}
+    common: dict[str, Any] = {
+        "include_dashboard": False,
+        "log_to_driver": False,
+        "configure_logging": False,
+    }
     if address is not None:
         import ray
 

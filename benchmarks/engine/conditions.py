@@ -15,7 +15,6 @@ from collections.abc import Callable
 from typing import Any
 
 from strol_gym.benchmarks.engine.robots import ROBOTS
-
 from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.priors import PRIORS
@@ -213,7 +212,7 @@ def _check_preset(key: str, preset: object) -> None:
         raise ValueError(f"env {key!r} must be an EnvPreset with key {key!r}, got {preset!r}")
 
 
-ENVS = Registry(
+ENVS = Registry[EnvPreset](
     "env",
     ENV_PRESETS,
     check=_check_preset,
@@ -279,7 +278,7 @@ def _check_condition(name: str, cond: object) -> None:
         )
 
 
-CONDITIONS = Registry(
+CONDITIONS = Registry[Condition | ConditionFactory](
     "condition",
     _CONDITIONS,
     check=_check_condition,

@@ -13,6 +13,8 @@ import json
 from collections.abc import Sequence
 from typing import Any
 
+import strol_gym
+import strol_gym.learners.registry  # noqa: F401
 from strol_gym.benchmarks.engine.conditions import (
     PAPER_LEARNERS,
     PAPER_TABLE_LEARNERS,
@@ -21,9 +23,6 @@ from strol_gym.benchmarks.engine.conditions import (
     env_preset,
     is_paper_condition,
 )
-
-import strol_gym
-import strol_gym.learners.registry  # noqa: F401
 from strol_gym.registry import install_specs, user_specs
 
 DEFAULT_BLOCK = 25

@@ -89,7 +89,7 @@ def run_block(
         th = np.stack([np.asarray(wrapped[i].learner.theta, dtype=np.float64) for i in idx])
         u = policy(x, th)
         action = np.clip(u / bound, -1.0, 1.0).astype(np.float32)
-        for j, i in enumerate(idx):
+        for j, i in enumerate(idx.tolist()):
             try:
                 o, _, term, trunc, info = wrapped[i].step(action[j])
             except Exception as e:

@@ -66,9 +66,10 @@ def openblas_core() -> str | None:
 def numpy_simd() -> str:
     """numpy's highest SIMD target enabled on this CPU (its dispatched loops use it)."""
     try:
-        from numpy._core import _multiarray_umath as umath
+        # private: numpy's stubs do not declare it
+        from numpy._core import _multiarray_umath as umath  # type: ignore[attr-defined]
     except ImportError:  # numpy < 2
-        from numpy.core import _multiarray_umath as umath  # type: ignore[no-redef]
+        from numpy.core import _multiarray_umath as umath
     features = umath.__cpu_features__
     enabled = [f for f in umath.__cpu_dispatch__ if features.get(f)]
     return (enabled or list(umath.__cpu_baseline__) or ["none"])[-1]

@@ -7,10 +7,10 @@ import hashlib
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig
-
 from strol_gym.learners.checkpoint import checkpoint_sha256
 from strol_gym.learners.registry import make_learner
 from strol_gym.provenance import NUMERIC_PACKAGES
+from strol_gym.wrappers.online_learning import learning_env
 
 __all__ = ["NUMERIC_PACKAGES", "check_learners", "code_fingerprint", "learner_fingerprint"]
 
@@ -76,6 +76,7 @@ def code_fingerprint() -> str:
         spec = importlib.util.find_spec(name)
         if spec is None or spec.origin is None or spec.loader is None:
             raise RuntimeError(f"cannot find the source of module {name!r} to fingerprint it")
+        # a source module's loader is a file loader, which has get_data (Loader does not say)
         source = spec.loader.get_data(spec.origin)  # type: ignore[attr-defined]
         h.update(f"module:{name}".encode() + b"\0" + source + b"\0")
     for package, suffixes in DATA_FILES.items():
@@ -113,7 +114,7 @@ def check_learners(config: BenchConfig) -> dict[str, Any]:
         exp = next(e for e in config.experiments if e.env == env_key)
         env = gym.make(exp.env_id, **exp.env_kwargs())
         try:
-            task = env.unwrapped.task
+            task = learning_env(env).task
             out[env_key] = {}
             for name in config.learners:
                 try:

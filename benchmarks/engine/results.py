@@ -30,7 +30,6 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit, diff_configs
 from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label, mixed_kernels_message
-
 from strol_gym.files import naming_file, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.provenance import git_revision, package_versions, version_changes

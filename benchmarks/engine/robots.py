@@ -16,7 +16,7 @@ from typing import Any
 from strol_gym.registry import Registry
 from strol_gym.tasks.policies import MemoPolicy, Policy, ZeroPolicy
 
-ROBOTS = Registry(
+ROBOTS = Registry[Callable[[Any], Policy]](
     "robot",
     {"task": MemoPolicy, "zeros": ZeroPolicy},
     callable_as="(task) -> policy",

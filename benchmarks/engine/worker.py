@@ -10,7 +10,6 @@ from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.episodes import run_block, score_regret
 from strol_gym.benchmarks.engine.kernels import kernel_label
 from strol_gym.benchmarks.engine.robots import robot_policy
-
 from strol_gym.learners.registry import make_learner
 from strol_gym.registry import install_specs
 
@@ -27,9 +26,9 @@ class Worker:
 
     def _prepare(self, exp_index: int, n: int) -> None:
         import gymnasium as gym
-        from strol_gym.wrappers import OnlineLearningWrapper
 
         import strol_gym  # noqa: F401
+        from strol_gym.wrappers.online_learning import OnlineLearningWrapper, learning_env
 
         if self._exp != exp_index:
             self.close()
@@ -40,7 +39,7 @@ class Worker:
                 env = gym.make(exp.env_id, **exp.env_kwargs())
                 self._envs.append(env)
                 learner = make_learner(
-                    name, task=env.unwrapped.task, **self.config.kwargs_for(name)
+                    name, task=learning_env(env).task, **self.config.kwargs_for(name)
                 )
                 wrapped.append(OnlineLearningWrapper(env, learner, regret=False))
 

@@ -16,8 +16,10 @@ from pathlib import Path
 import gymnasium as gym
 import imageio.v2 as imageio
 import numpy as np
+from numpy.typing import ArrayLike
 
 import strol_gym
+from strol_gym.wrappers.online_learning import learning_env
 
 
 def main() -> None:
@@ -36,13 +38,19 @@ def main() -> None:
         height=360,
         max_episode_steps=args.steps,
     )
-    robot = env.unwrapped
+    robot = learning_env(env)
     task = robot.task
     learner = strol_gym.make_learner(args.learner, task=task)
     obs, info = env.reset(seed=args.seed)
     theta_hat = learner.reset()
     x0, theta_star = obs["state"].astype(np.float64), info["theta_star"]
-    frames = [env.render()]
+
+    def render() -> np.ndarray:
+        frame = env.render()
+        assert isinstance(frame, np.ndarray)  # render_mode="rgb_array": one RGB frame
+        return frame
+
+    frames: list[ArrayLike] = [render()]
     done = False
     while not done:
         x = obs["state"].astype(np.float64)
@@ -51,7 +59,7 @@ def main() -> None:
         if info["is_correction"]:
             theta_hat = learner.update(x, info["correction"], info["robot_action"])
             robot.set_theta_hat(theta_hat)
-        frames.append(env.render())
+        frames.append(render())
         done = term or trunc
     env.close()
 

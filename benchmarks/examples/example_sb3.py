@@ -16,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 import torch
 from stable_baselines3 import PPO
+
 from strol_gym.wrappers import OnlineLearningWrapper
 
 

@@ -17,10 +17,11 @@ import time
 import gymnasium as gym
 import numpy as np
 from stable_baselines3 import PPO
-from strol_gym.wrappers import VectorOnlineLearningWrapper
-from strol_gym.wrappers.sb3 import SB3VecEnv
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym import checks
+from strol_gym.wrappers import VectorOnlineLearningWrapper
+from strol_gym.wrappers.sb3 import SB3VecEnv
 
 
 def make_vec_env(n: int, learner: str | None, **kwargs) -> SB3VecEnv:
@@ -65,8 +66,10 @@ def train_and_compare(n: int, steps: int, learner: str | None, seed: int = 0, **
     def trained(obs):
         return model.predict(obs, deterministic=True)[0]
 
+    shape = checks.space_shape("action_space", env.action_space)
+
     def random(obs):
-        return rng.uniform(-1, 1, size=(n, *env.action_space.shape)).astype(np.float32)
+        return rng.uniform(-1, 1, size=(n, *shape)).astype(np.float32)
 
     out = {
         "trained": mean_return(env, trained, held_out),

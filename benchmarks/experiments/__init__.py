@@ -8,9 +8,12 @@ then runs it (docs/extending.md).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from strol_gym.registry import Registry
+
+if TYPE_CHECKING:  # base imports the engine, which must not load with the registry
+    from strol_gym.benchmarks.experiments.base import BenchExperiment
 
 _EXPERIMENTS: dict[str, Any] = {
     "paper": "strol_gym.benchmarks.experiments.paper:Paper",
@@ -34,7 +37,7 @@ def _check(name: str, piece: Any) -> None:
         )
 
 
-EXPERIMENTS = Registry(
+EXPERIMENTS: Registry[type[BenchExperiment]] = Registry(
     "experiment",
     _EXPERIMENTS,
     check=_check,

@@ -62,13 +62,13 @@ class Outcome:
 class BenchExperiment:
     """A ``strol-bench`` experiment (see the module docstring). Subclasses fill the hooks."""
 
-    name: ClassVar[str] = ""
+    name: str = ""
     """The subcommand, and the stem of the table and meta files."""
     help: ClassVar[str] = ""
     """The subcommand's one-line help; by default the class docstring's first paragraph."""
     description: ClassVar[str] = ""
     """``--help``'s description; by default the rest of the class docstring."""
-    columns: ClassVar[tuple[str, ...]] = ()
+    columns: tuple[str, ...] = ()
     """The table's columns; empty when the experiment writes its own tables."""
     out_stem: ClassVar[str] = ""
     """The default results folder is ``results/<out_stem or name>-<env>``."""

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from strol_gym.benchmarks.args import (
     BASIN_CAPS,
     add_allow_large,
@@ -71,9 +72,10 @@ class Basin(BenchExperiment):
         import gymnasium as gym
 
         from strol_gym.analysis import CONVERGED_TOL, basin_map
+        from strol_gym.wrappers.online_learning import learning_env
 
         env = gym.make(env_preset(args.env).env_id)
-        task = env.unwrapped.task
+        task = learning_env(env).task
         env.close()
         t0 = time.perf_counter()
         maps = {
@@ -133,7 +135,8 @@ class Basin(BenchExperiment):
         return Outcome(out, md, rows, meta, self.wall(wall, out), state=(maps, task))
 
     def plot(self, outcome: Outcome, folder: Path) -> list[Path]:
-        return plot(*outcome.state, folder)
+        maps, task = outcome.state
+        return plot(maps, task, folder)
 
 
 def plot(maps: dict, task, out: Path) -> list[Path]:

@@ -14,6 +14,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+
 from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
 from strol_gym.benchmarks.analysis.report import (
@@ -34,7 +35,6 @@ from strol_gym.benchmarks.experiments.base import (
     primary_metric,
     small_figure,
 )
-
 from strol_gym.metrics import short
 
 DEFAULT_SIGMA = 0.25
@@ -143,7 +143,9 @@ class Changing(BenchExperiment):
                 }
             )
         exp = config.experiments[0]
-        k = exp.condition.human_kwargs["switch_after"]
+        kwargs = exp.condition.human_kwargs
+        assert kwargs is not None  # the changing human's condition always sets switch_after
+        k = kwargs["switch_after"]
         md = table_markdown(rows, metric, k, exp.corrections, exp.condition.sigma)
         meta = {
             "config": config.to_dict(),

@@ -20,12 +20,13 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import stats as sps
+
 from strol_gym.benchmarks.analysis import robust, stats
 from strol_gym.benchmarks.analysis.report import fmt, fmt_ci
 from strol_gym.benchmarks.args import nonneg_int, positive_int
@@ -191,7 +192,12 @@ def analyse(
             _, y = _matrix(records, env, cond, learners, metric)
             ys[metric] = y[np.isfinite(y).all(axis=1)]
             for j, learner in enumerate(learners):
-                row = {"env": env, "condition": cond, "learner": learner, "metric": metric}
+                row: dict[str, Any] = {
+                    "env": env,
+                    "condition": cond,
+                    "learner": learner,
+                    "metric": metric,
+                }
                 row |= stats.describe(ys[metric][:, j])
                 if metric == PRIMARY:
                     row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
@@ -210,7 +216,7 @@ def analyse(
         idx = robust.bootstrap_indices(n, int(resamples), rng) if n else np.zeros((0, 0), int)
         for metric in metrics:
             y = ys[metric]
-            block = []
+            block: list[dict[str, Any]] = []
             for b in BASELINES:
                 j = learners.index(b)
                 raw = y[:, r] - y[:, j]
@@ -271,7 +277,7 @@ def analyse(
     }
 
 
-def holm_sensitivity(prim: list[dict], key: str, keys: Sequence[str]) -> dict[str, str]:
+def holm_sensitivity(prim: list[dict], key: str, keys: Iterable[str]) -> dict[str, str]:
     """The stated sensitivity check: Holm over every primary test row in ``prim`` (written to
     ``wilcoxon_p_holm_12``, the column's name whatever the count), and the verdict per ``key``
     value (a condition, or a held-out "env/human" cell) under it."""
@@ -299,7 +305,7 @@ class Confirm(BenchExperiment):
     """
 
     name = "confirm"
-    columns = COLUMNS
+    columns: tuple[str, ...] = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
         p.add_argument(

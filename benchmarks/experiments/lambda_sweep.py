@@ -24,7 +24,6 @@ from strol_gym.benchmarks.experiments.base import (
     fmt_paper,
     small_figure,
 )
-
 from strol_gym.metrics import short
 
 DEFAULT_LAMBDAS = (0.0, 0.1, 0.5, 1.0, 2.0, 5.0, 10.0)

@@ -39,7 +39,6 @@ from strol_gym.benchmarks.engine.conditions import (
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, MAX_RUNS, BenchConfig, Experiment
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, primary_metric
 from strol_gym.benchmarks.experiments.changing import DEFAULT_SWITCH
-
 from strol_gym.metrics import short
 
 DEFAULT_RUNS = {"robot": 50, "highway": 100}
@@ -321,6 +320,7 @@ def heat_map(rows: list[dict], metric: str, stem: Path) -> list[Path]:
     """Learners × humans per σ: colour = the mean scaled within its column (0 = the column's
     lowest, 1 = its highest), text = the mean and StROL's mark."""
     import numpy as np
+
     from strol_gym.benchmarks.analysis.plots import plt, save_figure
     from strol_gym.benchmarks.analysis.report import display
 

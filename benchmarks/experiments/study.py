@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from strol_gym.benchmarks.analysis.report import (
     Analysis,
     aggregate,
@@ -38,7 +39,6 @@ from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.episodes import regret_inputs
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
-
 from strol_gym.envs.study import metrics as study_authors
 
 TASKS = (1, 2, 3)
@@ -239,6 +239,7 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from strol_gym.benchmarks.analysis.plots import jitter, learner_color, save_figure
     from strol_gym.benchmarks.analysis.stats import mark
 

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from strol_gym.benchmarks.engine.runner import run_benchmark
 from strol_gym.benchmarks.experiments.study import TASKS, study_config
 

@@ -19,11 +19,13 @@ import warnings
 
 import gymnasium as gym
 import numpy as np
-from strol_gym.wrappers.online_learning import OnlineLearningWrapper
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym import checks
 from strol_gym.humans import make_human
 from strol_gym.learners.registry import make_learner
+from strol_gym.tasks.study import StudyTask
+from strol_gym.wrappers.online_learning import OnlineLearningWrapper, learning_env
 
 MODELS = ("nominal", "boltzmann")
 V1_TASK = "strol_gym.tasks.study:StudyTask{}V1"
@@ -34,17 +36,17 @@ SEED = 930
 def corrections(task: int, seed: int, participant: str, learner: str) -> list[dict]:
     """Every correction of one episode: pose, θ̂ before it, u_H."""
     env = gym.make("StROL-Study-v1", task=V1_TASK.format(task), participant=participant, sigma=0.0)
-    online = make_learner(learner, task=env.unwrapped.task)
+    online = make_learner(learner, task=learning_env(env).task)
     env = OnlineLearningWrapper(env, online)
     env.reset(seed=seed)
-    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     out, truncated = [], False
-    theta = env.unwrapped.theta_hat.copy()
+    theta = learning_env(env).theta_hat.copy()
     while not truncated:
         _, _, _, truncated, info = env.step(zero)
         if info["is_correction"]:
             out.append({"x": info["correction_state"], "u": info["u_h"], "theta_hat": theta})
-        theta = env.unwrapped.theta_hat.copy()
+        theta = learning_env(env).theta_hat.copy()
     env.close()
     return out
 
@@ -73,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
         for s in range(SEED, SEED + args.seeds):
             rows += corrections(task, s, args.participant, args.learner)
         env = gym.make("StROL-Study-v1", task=V1_TASK.format(task), human=None)
-        t = env.unwrapped.task
+        t = learning_env(env).task
+        assert isinstance(t, StudyTask)  # V1_TASK names one
         env.close()
         rng = np.random.default_rng(0)
         a = t.action_bound

@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 
+from strol_gym.envs.study.env import StudyEnv
 from strol_gym.tasks.study import STUDY_TASKS, mat_to_rpy, rpy_to_mat, wrap_angle
 
 # Franka Panda modified-DH parameters (a, d, alpha) per joint, metres and radians (datasheet).
@@ -155,6 +156,7 @@ def cup_frames_at_homes() -> dict[int, np.ndarray]:
         try:
             env.reset(seed=0)
             base = env.unwrapped
+            assert isinstance(base, StudyEnv)  # StROL-Study-v0 is one
             site = mujoco.mj_name2id(base.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
             rot = np.array(base.data.site_xmat[site]).reshape(3, 3)
             out[number] = _homogeneous(rot, np.array(base.data.site_xpos[site]))
@@ -179,7 +181,7 @@ def fit_transform() -> FrameFit:
     cups = cup_frames_at_homes()
     rel = {n: _relative(n, c) for n, c in cups.items()}
     t = np.eye(4)
-    t[:3, :3] = _nearest_rotation(sum(r[:3, :3] for r in rel.values()))
+    t[:3, :3] = _nearest_rotation(np.asarray(sum(r[:3, :3] for r in rel.values())))
     t[:3, 3] = np.mean([r[:3, 3] for r in rel.values()], axis=0)
     res = {n: _errors(t, n, c) for n, c in cups.items()}
     loo = {n: _errors(rel[3 - n], n, c)[0] for n, c in cups.items()}

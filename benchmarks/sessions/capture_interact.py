@@ -15,6 +15,7 @@ from pathlib import Path
 
 import mujoco
 from PIL import Image, ImageGrab
+
 from strol_gym.benchmarks.sessions import interact
 
 PUSH_START, PUSH_STEPS = 20, 20
@@ -49,7 +50,9 @@ def main() -> None:
             if self.k % args.every == 0:
                 shot = ImageGrab.grab()
                 h = round(shot.height * args.width / shot.width)
-                frames.append(shot.resize((args.width, h)).convert("P", palette=Image.ADAPTIVE))
+                frames.append(
+                    shot.resize((args.width, h)).convert("P", palette=Image.Palette.ADAPTIVE)
+                )
 
     with tempfile.TemporaryDirectory() as folder:
         interact.run_interactive(

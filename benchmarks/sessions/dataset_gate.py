@@ -22,6 +22,7 @@ import json
 import math
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -110,7 +111,7 @@ def _space(where: str, value: Any, depth: int = 0) -> None:
         for key, sub in subs.items():
             _space(f"{where}[{key!r}]", sub, depth + 1)
     elif kind == "Box":
-        shape = value.get("shape")
+        shape: Any = value.get("shape")  # untrusted JSON, checked here
         ok = isinstance(shape, list) and len(shape) <= 8
         ok = ok and all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in shape)
         size = math.prod(shape) if ok else 0
@@ -122,7 +123,8 @@ def _space(where: str, value: Any, depth: int = 0) -> None:
                 "numbers, with low and high of that size"
             )
     elif kind == "Discrete":
-        n, start = value.get("n"), value.get("start", 0)
+        n: Any = value.get("n")  # untrusted JSON, checked here
+        start: Any = value.get("start", 0)
         if not all(isinstance(v, int) and not isinstance(v, bool) for v in (n, start)) or n < 1:
             raise DatasetRefused(f"{where}: a Discrete space needs integers n >= 1 and start")
     else:
@@ -174,7 +176,7 @@ def check_env_spec(where: str, text: Any) -> dict[str, Any]:
     _module_names(f"{where}: kwargs", spec.get("kwargs") or {})
     if not isinstance(spec.get("kwargs") or {}, dict):
         raise DatasetRefused(f"{where}: kwargs must be an object")
-    ours = wrappers()
+    ours: Mapping[Any, str] = wrappers()  # looked up by names from the file
     wrapper_specs = spec.get("additional_wrappers") or []
     if not isinstance(wrapper_specs, list):
         raise DatasetRefused(f"{where}: additional_wrappers must be a list")

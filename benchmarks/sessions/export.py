@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+
 from strol_gym.benchmarks.sessions.dataset_gate import (
     METADATA,
     DatasetRefused,
@@ -83,9 +84,12 @@ def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[Any, spaces.Space, spa
     finally:
         env.close()
     want = {"state": dims["s"], "correction": dims["a"], "theta_hat": dims["d"], "phi": dims["d"]}
-    ok = isinstance(obs, spaces.Dict) and isinstance(act, spaces.Box)
-    ok = ok and {k: v.shape for k, v in obs.spaces.items()} == {k: (n,) for k, n in want.items()}
-    ok = ok and act.shape == (dims["a"],)
+    ok = (
+        isinstance(obs, spaces.Dict)
+        and isinstance(act, spaces.Box)
+        and {k: v.shape for k, v in obs.spaces.items()} == {k: (n,) for k, n in want.items()}
+        and act.shape == (dims["a"],)
+    )
     return (spec, obs, act, True) if ok else (spec, *_spaces(dims), False)
 
 
@@ -179,6 +183,7 @@ def env_spec(header: dict[str, Any], dataset_id: str) -> Any:
 
     import gymnasium as gym
     from gymnasium.envs.registration import WrapperSpec
+
     from strol_gym.benchmarks.sessions.dataset_gate import check_env_spec, registered_envs
 
     if header.get("env_id") not in registered_envs():
@@ -218,14 +223,15 @@ def _open(source: str) -> tuple[Any, str]:
     else:
         where = source
         try:
-            folder = dataset_path(source) / "data"
+            found: Path | None = dataset_path(source) / "data"
         except DatasetRefused:
-            folder = None
-        if folder is None or not (folder / METADATA).is_file():
+            found = None
+        if found is None or not (found / METADATA).is_file():
             raise ValueError(
                 f"{source}: neither a session log (.jsonl) nor a Minari dataset (an id under "
                 "MINARI_DATASETS_PATH, or its folder)"
             )
+        folder = found
     check_metadata(folder)
     try:
         return minari.MinariDataset(folder), where
@@ -316,11 +322,13 @@ def export_runs(
     import tempfile
 
     import gymnasium as gym
+
     from strol_gym.benchmarks.engine.conditions import env_preset, make_condition
     from strol_gym.benchmarks.engine.config import Experiment
     from strol_gym.benchmarks.engine.episodes import run_block
     from strol_gym.benchmarks.engine.robots import robot_policy
     from strol_gym.wrappers import OnlineLearningWrapper
+    from strol_gym.wrappers.online_learning import learning_env
     from strol_gym.wrappers.session_log import SessionLogger
 
     new_dataset_path(dataset_id)  # before any work
@@ -334,7 +342,7 @@ def export_runs(
         task=task,
     )
     genv = gym.make(exp.env_id, **exp.env_kwargs())
-    policy = robot_policy(env_preset(env).robot, genv.unwrapped.task)
+    policy = robot_policy(env_preset(env).robot, learning_env(genv).task)
     extra = {
         "benchmark": {
             "env": env,

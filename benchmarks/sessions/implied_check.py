@@ -16,6 +16,7 @@ import argparse
 import sys
 
 import numpy as np
+
 from strol_gym.benchmarks.sessions.authors_rules import implied_theta0
 from strol_gym.benchmarks.sessions.import_study import read_sessions
 

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
 from strol_gym.benchmarks.sessions.authors_frame import (
     FrameFit,
     fit_transform,
@@ -39,10 +40,9 @@ from strol_gym.benchmarks.sessions.authors_frame import (
 )
 from strol_gym.benchmarks.sessions.authors_rules import AUTHORS_GAIN, RULES, implied_theta0
 from strol_gym.benchmarks.sessions.plain_pickle import load_plain_pickle
-from strol_gym.wrappers.session_log import SessionWriter
-
 from strol_gym.provenance import package_versions
 from strol_gym.tasks.study import STUDY_TASKS, StudyTask, wrap_angle
+from strol_gym.wrappers.session_log import SessionWriter
 
 ALGORITHMS = {"b1": "one", "b2": "mof", "ours": "strol"}
 """The authors' folder names and the learner each session ran."""
@@ -223,6 +223,7 @@ def correction_lines(
             "trace": None,
             "u_r_source": "unknown (0: u_H is the hand's whole logged displacement)",
         }
+        steps: list[tuple[np.ndarray, np.ndarray, int | None]]
         if authors_updates:
             steps = [
                 (states[i], AUTHORS_GAIN * state_step(task, states[i], states[i + 1]), i)

@@ -21,10 +21,12 @@ from typing import Any, Protocol
 import gymnasium as gym
 import mujoco
 import numpy as np
+
+from strol_gym import checks
+from strol_gym.envs.panda.model import PassiveViewer, has_display
+from strol_gym.envs.study.env import StudyEnv
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
-
-from strol_gym.envs.panda.model import PassiveViewer, has_display
 
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "
@@ -271,6 +273,7 @@ def run_interactive(
     base = gym.make("StROL-Study-v1", **kwargs)
     learning = OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
     study = base.unwrapped
+    assert isinstance(study, StudyEnv)  # StROL-Study-v1 is one
     site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
     viewer = viewer_factory(study.model, study.data)
     options = {"max_steps": max_steps, "realtime": realtime, "mode": "interactive"}
@@ -281,7 +284,7 @@ def run_interactive(
     try:
         _, info = env.reset(seed=seed)
         info.update(correction_active=False, corrections=0, correction_time=0.0, time=0.0)
-        action = np.zeros(env.action_space.shape, dtype=np.float32)
+        action = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
         steps, reason, ended = 0, "viewer closed", False
         last_correction: tuple[float, np.ndarray] | None = None
         drawn: tuple[int, int] | None = None

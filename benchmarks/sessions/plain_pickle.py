@@ -15,7 +15,7 @@ import io
 import math
 import pickle
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -40,7 +40,7 @@ class _DType:
         if not isinstance(spec, str) or len(spec) > 8:
             raise PickleRefused(f"dtype spec {spec!r} is not a numeric type code")
         self.spec = spec
-        self.order = "|"
+        self.order: Literal["<", ">", "|", "="] = "|"
 
     def __setstate__(self, state: Any) -> None:
         if not isinstance(state, tuple) or len(state) < 2 or state[1] not in "<>|=":

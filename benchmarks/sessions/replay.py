@@ -14,12 +14,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.sessions.export import read_any
-from strol_gym.wrappers.session_log import Session, session_task
 
+from strol_gym.benchmarks.sessions.export import read_any
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import display_name, make_learner
 from strol_gym.metrics import cos_error, error
+from strol_gym.wrappers.session_log import Session, session_task
 
 
 def replay_session(
@@ -96,6 +96,7 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from strol_gym.benchmarks.analysis.plots import learner_color
 
     names = session.header["task_describe"]["feature_names"]

@@ -25,13 +25,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.analysis.stats import compare_to_reference, describe, rm_anova
-from strol_gym.wrappers.session_log import Session, read_session, session_task
 
+from strol_gym.benchmarks.analysis.stats import compare_to_reference, describe, rm_anova
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import display_name, make_learner
 from strol_gym.metrics import cos_error, episode_regret, error
 from strol_gym.tasks.base import Task
+from strol_gym.wrappers.session_log import Session, read_session, session_task
 
 METRICS = ("error", "cos_error", "regret")
 LABELS = {"error": "error ‖θ* − θ̂‖", "cos_error": "1 − cos(θ*, θ̂)", "regret": "regret"}
@@ -107,7 +107,10 @@ def replay_group(
     """One Task's sessions through every learner: per learner, (n,) arrays of each metric."""
     built, notes = _build(names, task, kwargs)
     stars = np.array([s.episodes[-1].theta_star for s in sessions], dtype=np.float64)
-    x0 = np.tile(task.start, (len(sessions), 1))
+    start = getattr(task, "start", None)  # the Study Tasks' (and the Robot's) fixed start
+    if start is None:
+        raise ValueError(f"replay needs a Task with a fixed start state, got {task.task_id}")
+    x0 = np.tile(start, (len(sessions), 1))
     group: dict[str, Any] = {"task": task, "sessions": sessions, "notes": notes}
     group["g_hat"] = {n: g_hat_source(le) for n, le in built.items()}
 
@@ -218,11 +221,11 @@ def write_outputs(folder: Path, groups: dict[str, dict[str, Any]], reference: st
     keys = ["task", "metric", "test", "learner", "baseline", "n", "mean_diff", "p_raw"]
     keys += ["p_holm", "wilcoxon_p_holm", "effect_size", "F", "p_gg"]
     with stats.open("w", newline="", encoding="utf-8") as f:
-        w = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
-        w.writeheader()
+        dw = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
+        dw.writeheader()
         for tname, g in groups.items():
             for r in g["stats"]:
-                w.writerow({"task": tname, **r})
+                dw.writerow({"task": tname, **r})
     table = folder / "replay.md"
     table.write_text(markdown_table(groups, reference), encoding="utf-8")
     return [per, stats, table]
@@ -234,6 +237,7 @@ def plot_groups(path: Path, groups: dict[str, dict[str, Any]]) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from strol_gym.benchmarks.analysis.plots import learner_color
 
     rows = len(groups)

@@ -27,10 +27,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.sessions.replay_folder import find_logs
-from strol_gym.wrappers.session_log import read_session, session_task
 
+from strol_gym.benchmarks.sessions.replay_folder import find_logs
 from strol_gym.metrics import cos_error, error
+from strol_gym.tasks.study import StudyTask
+from strol_gym.wrappers.session_log import read_session, session_task
 
 QUANTILES = (10, 25, 50, 75, 90)
 
@@ -47,6 +48,8 @@ def collect(folder: str | Path) -> dict[str, dict[int, list[float]] | Any]:
     for path in find_logs(folder):
         session = read_session(path)
         task = session_task(session)
+        if not isinstance(task, StudyTask):
+            raise ValueError(f"{path}: a study card reads Study sessions, not {task.task_id}")
         recs = _records(path)
         ep = next(r for r in recs if r["type"] == "episode")
         number = int(session.header["extra"]["study_task"])

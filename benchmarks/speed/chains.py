@@ -26,6 +26,7 @@ import time  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
 import mujoco  # noqa: E402
+
 from strol_gym.benchmarks.speed.vector import (  # noqa: E402
     ENVS,
     HUMANS,
@@ -34,15 +35,17 @@ from strol_gym.benchmarks.speed.vector import (  # noqa: E402
     traced_bytes,
     vector_rate,
 )
-
 from strol_gym.compiled import kernels_in_use  # noqa: E402
+from strol_gym.envs.robot.env import RobotEnv  # noqa: E402
 
 
 def chain_seconds(seconds: float, repeats: int) -> float:
     """Best CPU seconds of one chain on the Robot env's own model."""
     env = gym.make("StROL-Robot-v0")
     env.reset(seed=0)
-    ik = env.unwrapped.ik
+    robot = env.unwrapped
+    assert isinstance(robot, RobotEnv)  # StROL-Robot-v0 is one
+    ik = robot.ik
     m, d, site, jp, jr = ik.model, ik.data, ik.site, ik._jp, ik._jr
     kin, com, jac = mujoco.mj_kinematics, mujoco.mj_comPos, mujoco.mj_jacSite
     best = float("inf")

@@ -24,9 +24,9 @@ from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
-from strol_gym.benchmarks.speed.timing import env_steps_per_second
 
 import strol_gym
+from strol_gym.benchmarks.speed.timing import env_steps_per_second
 from strol_gym.envs.highway.env import HighwayEnv
 
 
@@ -54,7 +54,7 @@ def main() -> None:
         learning(args.learning, args.sigma, args.bias, args.prior)
         return
     long = 10**9
-    rows = {
+    rows: dict[str, gym.Env] = {
         "default (nominal human, 10-step episodes)": gym.make("StROL-Highway-v0"),
         "nominal human correcting every step": HighwayEnv(
             n_corrections=long, max_episode_steps=long
@@ -91,13 +91,13 @@ def main() -> None:
 
 
 def learning(episodes: int, sigma: float, bias: float, prior: str) -> None:
-    from strol_gym.wrappers import OnlineLearningWrapper
+    from strol_gym.wrappers.online_learning import OnlineLearningWrapper, learning_env
 
     print(f"{episodes} episodes, sigma={sigma}, bias={bias}, prior={prior}, default robot policy")
     errors = {}
     for name in ("gradient", "one", "mof", "e2e", "strol"):
         env = gym.make("StROL-Highway-v0", sigma=sigma, bias=bias, prior=prior)
-        task = env.unwrapped.task
+        task = learning_env(env).task
         wrapped = OnlineLearningWrapper(env, strol_gym.make_learner(name, task=task))
         err, cos, crashes = [], [], 0
         for seed in range(episodes):

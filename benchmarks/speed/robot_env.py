@@ -22,12 +22,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import argparse  # noqa: E402
 import time  # noqa: E402
+from typing import Any  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
-from strol_gym.benchmarks.speed.timing import env_steps_per_second  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
+from strol_gym.benchmarks.speed.timing import env_steps_per_second  # noqa: E402
 from strol_gym.tasks.robot import RobotTask  # noqa: E402
 
 
@@ -58,7 +59,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20000)
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
-    rows = [
+    rows: list[tuple[str, dict[str, Any]]] = [
         ("default (nominal human, 5 of 10 steps)", {}),
         ("human corrects every step", {"n_corrections": 10**9}),
         ("no human (arm + IK only)", {"n_corrections": 0}),

@@ -30,6 +30,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
+from strol_gym import checks  # noqa: E402
 from strol_gym.envs.study.env import StudyEnv, StudyEnvV1  # noqa: E402
 
 SEED = 20100
@@ -40,7 +41,7 @@ def physics_ratio(
 ) -> tuple[float, float, float]:
     """(env physics steps/s, bare mj_step steps/s, ratio)."""
     env = (StudyEnvV1 if version == "v1" else StudyEnv)(task=task, human=None)
-    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     n_sub = env._n_sub
     bare_data = mujoco.MjData(env.model)
     best_env = best_bare = 0.0
@@ -76,13 +77,14 @@ def _state(env: StudyEnv) -> np.ndarray:
 def realtime_factor(task: int, repeats: int, version: str = "v0") -> tuple[float, dict]:
     """(best simulated s / wall s over ``repeats`` episodes, the last episode's summary)."""
     import torch
+
     from strol_gym.wrappers import OnlineLearningWrapper
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
         gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
     )
-    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     best, summary = 0.0, {}
     for r in range(repeats):
         env.reset(seed=SEED + r)

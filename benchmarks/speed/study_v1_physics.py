@@ -25,6 +25,7 @@ import gymnasium as gym
 import numpy as np
 
 import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym import checks
 from strol_gym.envs.study.controller import VELOCITY_LIMIT
 from strol_gym.envs.study.env import StudyEnvV1
 from strol_gym.envs.study.geometry import rotation_error
@@ -34,11 +35,13 @@ SEED = 20000
 
 
 def make(task: int) -> StudyEnvV1:
-    return gym.make("StROL-Study-v1", task=task, human=None).unwrapped
+    env = gym.make("StROL-Study-v1", task=task, human=None).unwrapped
+    assert isinstance(env, StudyEnvV1)
+    return env
 
 
 def run(env: StudyEnvV1, n: int) -> list[dict]:
-    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     return [env.step(zero)[4] for _ in range(n)]
 
 
@@ -55,7 +58,7 @@ def lag(task: int, seeds: int) -> str:
     for s in range(SEED, SEED + seeds):
         env = make(task)
         env.reset(seed=s)
-        zero = np.zeros(env.action_space.shape, dtype=np.float32)
+        zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
         for _ in range(200):
             info = env.step(zero)[4]
             everywhere.append(info["lag"])
@@ -144,7 +147,7 @@ def reflex(task: int, seed: int) -> str:
     env.reset(seed=seed)
     run(env, 20)
     env.apply_wrench((0.0, -200.0, 0.0), duration=1.0)
-    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     trip, braked, fastest, corrections = None, 0, 0.0, 0
     for k in range(60):
         info = env.step(zero)[4]

@@ -31,6 +31,7 @@ import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
+from strol_gym import checks  # noqa: E402
 
 ENVS = ("StROL-Robot-v0", "StROL-Highway-v0")
 HUMANS = {"no human": {"n_corrections": 0}, "default human": {}}
@@ -40,7 +41,9 @@ def single_rate(env_id: str, seconds: float, repeats: int, **kwargs) -> tuple[fl
     """Best (wall-clock, CPU-time) env steps/s of the single env."""
     env = gym.make(env_id, **kwargs)
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, size=(500, *env.action_space.shape)).astype(np.float32)
+    actions = rng.uniform(
+        -1, 1, size=(500, *checks.space_shape("action_space", env.action_space))
+    ).astype(np.float32)
     best = (0.0, 0.0)
     for r in range(repeats):
         env.reset(seed=r)
@@ -61,7 +64,9 @@ def vector_rate(env_id: str, n: int, seconds: float, repeats: int, **kwargs) -> 
     """Best (wall-clock, CPU-time) env steps/s of a vector env of ``n`` sub-envs."""
     env = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point", **kwargs)
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, size=(20, *env.action_space.shape)).astype(np.float32)
+    actions = rng.uniform(
+        -1, 1, size=(20, *checks.space_shape("action_space", env.action_space))
+    ).astype(np.float32)
     best = (0.0, 0.0)
     for r in range(repeats):
         env.reset(seed=1000 * r)
@@ -80,7 +85,7 @@ def traced_bytes(env_id: str, n: int) -> int:
     tracemalloc.start()
     env = gym.make_vec(env_id, n, vectorization_mode="vector_entry_point")
     env.reset(seed=0)
-    a = np.zeros(env.action_space.shape, dtype=np.float32)
+    a = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     for _ in range(3):
         env.step(a)
     gc.collect()

@@ -21,15 +21,17 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+from typing import Any  # noqa: E402
 
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
+from strol_gym import checks  # noqa: E402
 
 TOL = 1e-9
 ENV_IDS = {"robot": "StROL-Robot-v0", "highway": "StROL-Highway-v0"}
-SETTINGS = {
+SETTINGS: dict[str, dict[str, Any]] = {
     "default human": {},
     "noisy-biased (σ = ε = 0.5)": {"sigma": 0.5, "bias": 0.5},
     "no human (n_corrections=0)": {"n_corrections": 0},
@@ -50,7 +52,7 @@ def episode_differences(env_id: str, n: int, steps: int, **kwargs) -> np.ndarray
     extra = EXTRA_KEYS[env_id]
     rngs = [np.random.default_rng(10_000 + s) for s in range(n)]
     single = gym.make(env_id, **kwargs)
-    a_dim = single.action_space.shape[0]
+    a_dim = checks.space_shape("action_space", single.action_space)[0]
     actions = np.stack([r.uniform(-1, 1, size=(steps, a_dim)) for r in rngs]).astype(np.float32)
     ref = []
     for s in range(n):
@@ -64,7 +66,8 @@ def episode_differences(env_id: str, n: int, steps: int, **kwargs) -> np.ndarray
         ref.append(rows)
     single.close()
     vec = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
-    obs, info = vec.reset(seed=list(range(n)))
+    # VectorEnv.reset is typed seed: int | None; vector envs take one seed per sub-env
+    obs, info = vec.reset(seed=list(range(n)))  # type: ignore[arg-type]  # a list: see above
     worst = np.zeros(n)
     live = np.ones(n, dtype=bool)
 
@@ -78,7 +81,7 @@ def episode_differences(env_id: str, n: int, steps: int, **kwargs) -> np.ndarray
         worst[i] = np.max(np.abs(row(i, obs, zeros, zeros, zeros, info) - ref[i][0]))
     for t in range(steps):
         obs, reward, term, trunc, info = vec.step(actions[:, t])
-        for i in np.flatnonzero(live):
+        for i in np.flatnonzero(live).tolist():
             d = np.max(np.abs(row(i, obs, reward, term, trunc, info) - ref[i][t + 1]))
             worst[i] = max(worst[i], d)
         live &= ~(term | trunc)
@@ -99,6 +102,7 @@ def main() -> None:
     for name in names:
         env_id = ENV_IDS[name]
         steps = gym.spec(env_id).max_episode_steps
+        assert steps is not None  # both envs register a time limit
         for label, kwargs in SETTINGS.items():
             worst = episode_differences(env_id, args.seeds, steps, **kwargs)
             bad = worst > TOL

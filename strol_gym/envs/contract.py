@@ -52,12 +52,13 @@ from __future__ import annotations
 import inspect
 import math
 import warnings
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from strol_gym import checks
 from strol_gym.humans import Human, HumanFactory, needs_theta_hat
 from strol_gym.humans.spec import HumanSpec
 from strol_gym.priors import Prior, make_prior, sample_each
@@ -69,12 +70,11 @@ _REAL = (np.dtype(np.float32), np.dtype(np.float64))
 
 
 def int_arg(name: str, value: Any, low: int, high: int | None = None) -> int:
-    """An integer argument in [low, high], else ValueError naming it and the range."""
-    ok = isinstance(value, int | np.integer) and not isinstance(value, bool)
-    if ok and value >= low and (high is None or value <= high):
-        return int(value)
-    rng = f">= {low}" if high is None else f"in [{low}, {high}]"
-    raise ValueError(f"{name} must be an integer {rng}, got {value!r}")
+    """An integer argument in [low, high], else ValueError naming it and the range. An int
+    itself: a float (even 2.0) is refused, as a count or a size given as 2.5 would be."""
+    if isinstance(value, float | np.floating):
+        value = str(value)  # refused below with the same words as any non-integer
+    return int(checks.number(name, value, low=low, high=high, integer=True))
 
 
 def robot_actions(actions: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -150,9 +150,17 @@ class CorrectionEnv:
     steps: int
     _x: np.ndarray
     render_mode: str | None
+    if TYPE_CHECKING:  # gym.Env's, which every strol-gym env also is (never defined here)
+        np_random: np.random.Generator
+
+        def close(self) -> None: ...
+
+        def render(self) -> Any: ...
 
     env_id: ClassVar[str] = ""
-    task_cls: ClassVar[type[Task]] = Task
+    # Task is abstract: the base's placeholder lets make_task(task, of=Task) take any Task;
+    # each env names its own class, called with no arguments for the default Task.
+    task_cls: ClassVar[type[Task]] = Task  # type: ignore[type-abstract]  # see above
     default_corrections: ClassVar[int] = 5
     """``n_corrections`` when not given."""
     default_size: ClassVar[tuple[int, int]] = (480, 360)
@@ -169,12 +177,13 @@ class CorrectionEnv:
                 DeprecationWarning,
                 stacklevel=2,
             )
-            one = cls._draw_start
+            one = vars(cls)["_draw_start"]
 
-            def draw_starts(self, rngs, human_rngs=True):  # type: ignore[no-untyped-def]
+            def draw_starts(self, rngs, human_rngs=True):
                 draws = [one(self, rng) for rng in rngs]
                 return np.stack([x for x, _ in draws]), [h for _, h in draws]
 
+            # the old one-start hook serves as the batch-first one until 0.3
             cls.draw_starts = draw_starts  # type: ignore[method-assign]
 
     def __init__(
@@ -189,7 +198,7 @@ class CorrectionEnv:
         render_mode: str | None = None,
         width: int | None = None,
         height: int | None = None,
-        task: Task | str | None = None,
+        task: Any = None,
         human_kwargs: dict[str, Any] | None = None,
         **unknown: Any,
     ) -> None:
@@ -257,9 +266,9 @@ class CorrectionEnv:
 
     # ------------------------------------------------------------------ the template
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
-        gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]
+        gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]  # a mixin: self is a gym.Env too
         theta_override, x_override = self.reset_overrides(options)
-        rngs = [self.np_random]  # type: ignore[attr-defined]
+        rngs = [self.np_random]
         theta_star = self.draw_theta_stars(rngs)[0]
         x0s, human_rngs = self.draw_starts(rngs)
         x0, human_rng = x0s[0], human_rngs[0]
@@ -275,7 +284,7 @@ class CorrectionEnv:
         info = self._info(phi, zeros, zeros, False)
         info.update(self._start_info())
         if self.render_mode == "human":
-            self.render()  # type: ignore[attr-defined]
+            self.render()
         return obs, info
 
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
@@ -291,7 +300,7 @@ class CorrectionEnv:
         info = self._info(phi, u_h, u_r, is_correction)
         info.update(extra)
         if self.render_mode == "human":
-            self.render()  # type: ignore[attr-defined]
+            self.render()
         return obs, reward, terminated, truncated, info
 
     def _transition(self, u_r: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, dict[str, Any]]:
@@ -350,7 +359,10 @@ class CorrectionEnv:
 
     def _make_task(self, task: Task | str | None) -> Task:
         """The ``task`` argument as a Task of ``task_cls`` (None: the env's default Task)."""
-        return self.task_cls() if task is None else make_task(task, of=self.task_cls)
+        if task is None:
+            # every concrete Task defaults all its fields (Task itself is abstract)
+            return self.task_cls()  # type: ignore[call-arg]  # see the line above
+        return make_task(task, of=self.task_cls)
 
     # The human's arguments, read from the spec (what the humans and the vector envs use).
     @property
@@ -406,10 +418,7 @@ class CorrectionEnv:
     def set_theta_hat(self, theta_hat: np.ndarray) -> None:
         """The robot's current estimate θ̂: the nominal human teaches relative to it, and the
         next observation carries it. Reset restores the bimodal prior modes' mean."""
-        th = np.asarray(theta_hat, dtype=np.float64).reshape(-1)
-        if th.shape != (self.task.dim,) or not np.isfinite(th).all():
-            raise ValueError(f"theta_hat must be {self.task.dim} finite numbers, got {theta_hat}")
-        self.theta_hat = th.copy()
+        self.theta_hat = checks.vector("theta_hat", theta_hat, self.task.dim)
 
     def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
         # One maker per (spec, Task): a reset then costs a person, not a signature lookup.

@@ -9,7 +9,9 @@ from __future__ import annotations
 import importlib
 import sys
 import warnings
+from collections.abc import Callable
 from types import ModuleType
+from typing import Any
 
 from strol_gym.deprecation import REMOVAL, moved
 
@@ -28,7 +30,7 @@ def alias(old: str, new: str) -> ModuleType:
     return module
 
 
-def warn_split(old: str, names: dict[str, str]) -> object:
+def warn_split(old: str, names: dict[str, str]) -> Callable[[str], Any]:
     """The ``__getattr__`` of an old module split across new ones (``names``: name → its new
     module): warns on import, then each name resolves (with a warning) from its new module."""
     warnings.warn(
@@ -39,7 +41,9 @@ def warn_split(old: str, names: dict[str, str]) -> object:
     return exports(old, {}, names)
 
 
-def exports(package: str, public: dict[str, str], old: dict[str, str] | None = None):
+def exports(
+    package: str, public: dict[str, str], old: dict[str, str] | None = None
+) -> Callable[[str], Any]:
     """A package's module ``__getattr__``: ``public`` names (name → module) load their module
     on first use, so importing the package imports no simulator; ``old`` names (what the old
     module of that name held, name → its new module) warn (``strol_gym.deprecation.moved``)."""

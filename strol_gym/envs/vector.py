@@ -27,6 +27,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from strol_gym import checks
 from strol_gym.envs.contract import (
     CorrectionEnv,
     contract_info,
@@ -42,7 +43,8 @@ class VectorCorrectionEnv(VectorEnv):
     """N sub-envs of ``single_env_cls`` (a strol-gym env), batched; see the module docstring."""
 
     single_env_cls: ClassVar[type]
-    metadata: ClassVar[dict[str, Any]] = {
+    # gymnasium declares metadata per instance; a class-level dict is its own convention
+    metadata: dict[str, Any] = {  # noqa: RUF012
         "autoreset_mode": AutoresetMode.NEXT_STEP,
         "render_modes": [],
     }
@@ -115,7 +117,9 @@ class VectorCorrectionEnv(VectorEnv):
         n = self.num_envs
         if seed is None:
             seeds: list[int | None] = [None] * n
-        elif isinstance(seed, int | np.integer) and not isinstance(seed, bool):
+        elif isinstance(seed, bool):
+            raise checks.ArgumentTypeError(f"seed must be None, an int or {n} seeds, got {seed!r}")
+        elif isinstance(seed, int | np.integer):
             seeds = [int(seed) + i for i in range(n)]
         else:
             seeds = list(seed)
@@ -209,7 +213,7 @@ class VectorCorrectionEnv(VectorEnv):
             self.theta_star[act] = [h.theta_star for h in humans]
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
-        extra = {}
+        extra: dict[str, Any] = {}
         if len(rows):
             x, term, extra = self._step_rows(rows, u_h[rows], u_r[rows])
             self._x[rows] = x

@@ -62,7 +62,7 @@ class BoltzmannModel(HumanModel):
             theta_star,
             draws.candidates,
             self.beta,
-            pick,  # type: ignore[arg-type]
+            pick,
         )
 
 

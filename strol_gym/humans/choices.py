@@ -9,6 +9,8 @@ Noise and bias are fractions of the action bound a_max (docs/benchmark.md, "Cond
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 
 from strol_gym.compiled import use_fast
@@ -41,13 +43,14 @@ def optimal_correction(
     one = len(g[0]) == 1
     th_hat = theta_hat[0].tolist() if one else theta_hat[:, :, None].transpose(1, 0, 2)
     th_star = theta_star[0].tolist() if one else theta_star[:, :, None].transpose(1, 0, 2)
-    norm = None
+    norm: np.ndarray | None = None
     for j in range(len(g)):
         col = np.multiply(g[j], task.alpha)
         col += th_hat[j]
         np.subtract(th_star[j], col, out=col)
         col *= col
         norm = col if norm is None else np.add(norm, col, out=norm)
+    assert norm is not None  # g has d >= 1 rows
     best = np.argmin(norm, axis=1)
     return candidates[np.arange(len(candidates)), best]
 
@@ -59,7 +62,7 @@ def boltzmann_correction(
     theta_star: np.ndarray,
     candidates: np.ndarray,
     beta: float,
-    rng: np.random.Generator,
+    rng: UniformDraws,
 ) -> np.ndarray:
     """A Boltzmann-rational choice among candidates: P(u) ∝ exp(β θ*·g(x, u, u_R)). (B, a)."""
     g = task.g(x[:, None, :], candidates, u_r[:, None, :])
@@ -72,9 +75,23 @@ def boltzmann_correction(
     return candidates[np.arange(len(candidates)), idx]
 
 
+class NormalDraws(Protocol):
+    """What ``perturb`` draws from: a ``np.random.Generator``, or draws already made
+    (``humans.interface.Replayed``), so the batched choices can replay them."""
+
+    def standard_normal(self, size: tuple[int, ...], /) -> np.ndarray: ...
+
+
+class UniformDraws(Protocol):
+    """What the Boltzmann choice draws from: a ``np.random.Generator`` or replayed draws."""
+
+    def random(self, size: tuple[int, ...], /) -> np.ndarray: ...
+
+
 def perturb(
-    task: Task, u: np.ndarray, sigma: float, bias: float, rng: np.random.Generator
+    task: Task, u: np.ndarray, sigma: float | np.ndarray, bias: float, rng: NormalDraws
 ) -> np.ndarray:
-    """u + δ with δ ~ N(ε·a_max, (σ·a_max)²) per component. Draws even when σ = 0 (pairing)."""
+    """u + δ with δ ~ N(ε·a_max, (σ·a_max)²) per component (σ may vary per row, (n, 1)).
+    Draws even when σ = 0 (pairing)."""
     a = task.action_bound
     return u + bias * a + sigma * a * rng.standard_normal(u.shape)

@@ -179,7 +179,7 @@ class MarginNoiseModel(NominalModel):
         u = self.choose(x, u_r, pref, draws, theta_hat, k)
         m = margin(candidate_rewards(self.task, x, u_r, pref, draws.candidates))
         sigma = (self.sigma + self.kappa * (1.0 - m))[:, None]
-        u = perturb(self.task, u, sigma, self.bias, Replayed(draws.noise))  # type: ignore[arg-type]
+        u = perturb(self.task, u, sigma, self.bias, Replayed(draws.noise))
         return _silence(u, m < self.equal)
 
 

@@ -271,7 +271,7 @@ class SimulatedHuman:
         return getattr(self.model, name)
 
     @property
-    def needs_theta_hat(self) -> bool:  # type: ignore[override]
+    def needs_theta_hat(self) -> bool:
         return self.model.needs_theta_hat
 
     def begin(self) -> np.ndarray:

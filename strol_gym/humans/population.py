@@ -10,7 +10,7 @@ one ``HumanModel.corrections`` call over draws taken from each human's generator
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,8 +18,12 @@ from strol_gym.humans.interface import Human, SimulatedHuman, needs_theta_hat
 from strol_gym.humans.registry import _params, human_factory, make_human
 from strol_gym.tasks.base import Task
 
+if TYPE_CHECKING:
+    from typing_extensions import TypeIs
 
-def _one_model(humans: Sequence[Human]) -> bool:
+
+def _one_model(humans: Sequence[Human]) -> TypeIs[Sequence[SimulatedHuman]]:
+    """Whether every human is a SimulatedHuman of one model (so one batched call serves all)."""
     first = humans[0]
     if not isinstance(first, SimulatedHuman):
         return False
@@ -38,10 +42,10 @@ def batched_corrections(
     if not len(humans):
         return np.zeros((0, u_r.shape[-1]))
     if _one_model(humans):
-        model = humans[0].model  # type: ignore[attr-defined]
-        k = np.array([h.begin() for h in humans])  # type: ignore[attr-defined]
-        theta_star = np.stack([h.theta_initial for h in humans])  # type: ignore[attr-defined]
-        draws = model.draw_each([h.rng for h in humans])  # type: ignore[attr-defined]
+        model = humans[0].model
+        k = np.array([h.begin() for h in humans])
+        theta_star = np.stack([h.theta_initial for h in humans])
+        draws = model.draw_each([h.rng for h in humans])
         return model.corrections(x, u_r, theta_star, draws, theta_hat, k)
     return np.stack(
         [

@@ -5,15 +5,19 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.humans.builtin import BoltzmannModel, ChangingModel, DriverModel, NominalModel
 from strol_gym.humans.interface import Draws, Human, HumanModel, SimulatedHuman, needs_theta_hat
 from strol_gym.humans.zoo import ZOO
 from strol_gym.registry import Registry
 from strol_gym.tasks.base import Task
+
+if TYPE_CHECKING:
+    from typing_extensions import TypeIs
 
 HUMAN_MODELS: dict[str, Any] = {
     "nominal": NominalModel,
@@ -32,11 +36,11 @@ SHARED_PARAMS = ("sigma", "bias", "beta")
 those its signature declares)."""
 
 
-def _is_model(obj: Any) -> bool:
+def _is_model(obj: object) -> TypeIs[type[HumanModel]]:
     return isinstance(obj, type) and issubclass(obj, HumanModel)
 
 
-HUMANS = Registry(
+HUMANS = Registry[HumanFactory | type[HumanModel]](
     "human",
     HUMAN_MODELS,
     callable_as="(task, theta_star, rng, **params) -> Human",
@@ -114,10 +118,7 @@ def _params(factory: HumanFactory, params: dict[str, Any]) -> dict[str, Any]:
 def check_human_kwargs(human: str | HumanFactory, human_kwargs: dict[str, Any] | None) -> dict:
     """``human_kwargs`` as a dict, else ValueError: not a mapping of names the factory declares,
     or one of the shared parameters (σ, ε, β are arguments of their own)."""
-    if human_kwargs is None:
-        return {}
-    if not isinstance(human_kwargs, dict) or not all(isinstance(k, str) for k in human_kwargs):
-        raise ValueError(f"human_kwargs must be a dict of keyword arguments, got {human_kwargs!r}")
+    human_kwargs = checks.mapping("human_kwargs", human_kwargs)
     shared = sorted(set(human_kwargs) & set(SHARED_PARAMS))
     if shared:
         raise ValueError(
@@ -125,7 +126,7 @@ def check_human_kwargs(human: str | HumanFactory, human_kwargs: dict[str, Any] |
         )
     accepted = _accepted(human_factory(human))
     unknown = [] if accepted is None else sorted(set(human_kwargs) - accepted)
-    if unknown:
+    if accepted is not None and unknown:
         raise ValueError(
             f"human_kwargs {unknown} are not parameters of human {human!r}; "
             f"it takes {sorted(accepted - {'task', 'theta_star', 'rng'})}"
@@ -170,13 +171,13 @@ class PerSampleModel(HumanModel):
         self.needs_theta_hat = True  # type: ignore[misc]  # unknown: assume it does
 
     def draw(self, rng: np.random.Generator, n: int) -> Draws:
-        return Draws(np.zeros((n, 0, self.task.action_dim)), np.zeros((n, 0)), {"rng": rng})  # type: ignore[dict-item]
+        return Draws(np.zeros((n, 0, self.task.action_dim)), np.zeros((n, 0)), {"rng": rng})  # type: ignore[dict-item]  # the rows' own generator, not drawn numbers
 
     def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
         rng = draws.extra["rng"]
         out = np.empty((len(x), self.task.action_dim))
         for b in range(len(x)):
-            human = make_human(self.factory, self.task, theta_star[b], rng, **self.params)  # type: ignore[arg-type]
+            human = make_human(self.factory, self.task, theta_star[b], rng, **self.params)
             th = None if theta_hat is None else theta_hat[b]
             out[b] = human.act(x[b], u_r[b], th if needs_theta_hat(human) else None)
         return out

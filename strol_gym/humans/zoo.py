@@ -120,7 +120,7 @@ class FeatureNoiseModel(NominalModel):
         pref = self.preference(theta_star, k)
         u = self.choose(x, u_r, pref, draws, theta_hat, k)
         sigma = self.noise_scale(x, u_r, u, draws.candidates)[:, None]
-        return perturb(self.task, u, sigma, self.bias, Replayed(draws.noise))  # type: ignore[arg-type]
+        return perturb(self.task, u, sigma, self.bias, Replayed(draws.noise))
 
 
 class MyopicModel(DriverModel):

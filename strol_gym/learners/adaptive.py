@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.learners.correction import MAX_LAM, StROLLearner
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.learners.protocol import batch_inputs, check_state, checked_theta
@@ -72,22 +73,16 @@ class AdaptiveStROLLearner(StROLLearner):
         checkpoint: str | Path | None = None,
         model: CorrectionNet | None = None,
     ) -> None:
-        lam_max = 2.0 * float(lam) if lam_max is None else float(lam_max)
-        for name, value in (("gain", gain), ("prior_count", prior_count)):
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if not (np.isfinite(lam_max) and float(lam) <= lam_max <= MAX_LAM):
-            raise ValueError(
-                f"lam_max must be a number in [lam ({lam}), {MAX_LAM:g}], got {lam_max!r}"
-            )
-        for name, value, least in (
-            ("calibration_runs", calibration_runs, 1),
-            ("calibration_steps", calibration_steps, 2),
-        ):
-            if int(value) != value or value < least:
-                raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
-        if reference is not None and not (np.isfinite(reference) and -1 <= reference <= 1):
-            raise ValueError(f"reference must be a cosine in [-1, 1], got {reference!r}")
+        lam = float(checks.number("lam", lam, low=0, high=MAX_LAM, text=True))
+        if lam_max is None:
+            lam_max = 2.0 * lam
+        lam_max = float(checks.number(f"lam_max (lam = {lam:g})", lam_max, low=lam, high=MAX_LAM))
+        checks.number("gain", gain, low=0)
+        checks.number("prior_count", prior_count, low=0)
+        checks.number("calibration_runs", calibration_runs, low=1, integer=True)
+        checks.number("calibration_steps", calibration_steps, low=2, integer=True)
+        if reference is not None:
+            checks.number("reference (a cosine)", reference, low=-1, high=1)
         super().__init__(task, lam=lam, checkpoint=checkpoint, model=model)
         self.gain = float(gain)
         self.lam_max = lam_max

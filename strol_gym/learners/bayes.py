@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.learners.protocol import (
     LinearRuleLearner,
     _as_float_array,
@@ -89,29 +90,19 @@ class BayesLearner(LinearRuleLearner):
         seed: int = 0,
         candidate_seed: int = 0,
     ) -> None:
-        if isinstance(n_particles, bool) or int(n_particles) != n_particles or n_particles < 1:
-            raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")
-        betas = np.atleast_1d(np.asarray(beta, dtype=np.float64))
+        checks.number("n_particles", n_particles, low=1, integer=True)
+        betas = np.atleast_1d(checks.array("beta", beta, finite=False))
         if betas.ndim != 1 or len(betas) == 0 or not (np.isfinite(betas).all() and betas.min() > 0):
             raise ValueError(f"beta must be a finite number > 0 or a list of them, got {beta!r}")
-        if likelihood not in LIKELIHOODS:
-            raise ValueError(f"likelihood must be one of {LIKELIHOODS}, got {likelihood!r}")
-        if prior not in PRIORS:
-            raise ValueError(f"prior must be one of {PRIORS}, got {prior!r}")
-        for name, value, lo, hi in (
-            ("broad_weight", broad_weight, 0.0, 1.0),
-            ("ess_fraction", ess_fraction, 0.0, 1.0),
-        ):
-            if not (np.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f"{name} must be in [{lo}, {hi}], got {value!r}")
-        for name, value in (("mode_jitter", mode_jitter), ("bandwidth", bandwidth)):
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if int(n_candidates) < 1:
-            raise ValueError(f"n_candidates must be an integer >= 1, got {n_candidates!r}")
-        for name, value in (("seed", seed), ("candidate_seed", candidate_seed)):
-            if int(value) != value or value < 0:
-                raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
+        checks.name_in("likelihood", likelihood, LIKELIHOODS)
+        checks.name_in("prior", prior, PRIORS)
+        checks.number("broad_weight", broad_weight, low=0.0, high=1.0)
+        checks.number("ess_fraction", ess_fraction, low=0.0, high=1.0)
+        checks.number("mode_jitter", mode_jitter, low=0)
+        checks.number("bandwidth", bandwidth, low=0)
+        checks.number("n_candidates", n_candidates, low=1, integer=True)
+        checks.number("seed", seed, low=0, integer=True)
+        checks.number("candidate_seed", candidate_seed, low=0, integer=True)
         super().__init__(task)
         self.n_particles = int(n_particles)
         self.betas = betas

@@ -182,7 +182,7 @@ def sidecar_path(path: str | Path) -> Path:
     return Path(path).with_suffix(".json")
 
 
-def input_dim(task: Task, kind: str) -> int:
+def input_dim(task: Task, kind: str | None) -> int:
     """The width of ĝ's input for ``kind``: the task's network input (+ d for θ̂ kinds)."""
     return int(task.network_input_dim) + (task.dim if kind in THETA_KINDS else 0)
 

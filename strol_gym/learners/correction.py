@@ -11,7 +11,6 @@ learner loads the ĝ shipped for the task (``strol_gym/pretrained``), looked up 
 from __future__ import annotations
 
 import copy
-import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,6 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from strol_gym import checks
 from strol_gym.learners.checkpoint import (
     check_finite_weights,
     find_pretrained,
@@ -69,6 +69,9 @@ class CorrectionLearner(LinearRuleLearner):
         model: CorrectionNet | None = None,
     ) -> None:
         super().__init__(task)
+        self.checkpoint: str | None = None
+        self.checkpoint_meta: dict[str, Any] | None = None
+        """Where ĝ came from (None: a model passed in) and its sidecar."""
         if model is not None and checkpoint is not None:
             raise ValueError("pass either checkpoint or model, not both")
         if model is None:
@@ -105,8 +108,9 @@ class CorrectionLearner(LinearRuleLearner):
     def _correction_and_g(self, x, u_h, u_r, theta=None) -> tuple[np.ndarray, np.ndarray]:
         g = self.task.g(x, u_h, u_r)
         theta = self.theta if theta is None else theta
-        z = model_input(self.task, self.kind, x, u_h, u_r, theta)
-        z = torch.as_tensor(z, dtype=torch.float32)
+        z = torch.as_tensor(
+            model_input(self.task, self.kind, x, u_h, u_r, theta), dtype=torch.float32
+        )
         with torch.no_grad(), _one_thread():
             g_hat = self.model(z, torch.as_tensor(g, dtype=torch.float64))
         return g_hat.numpy(), g
@@ -156,13 +160,7 @@ class StROLLearner(CorrectionLearner):
         model: CorrectionNet | None = None,
     ) -> None:
         raw = getattr(task, "strol_lambda", 1.0) if lam is None else lam
-        try:
-            lam = math.nan if isinstance(raw, bool) else float(raw)
-        except (TypeError, ValueError):
-            lam = math.nan
-        if not (np.isfinite(lam) and 0 <= lam <= MAX_LAM):
-            raise ValueError(f"lam must be a number in [0, {MAX_LAM:g}], got {raw!r}")
-        self.lam = lam
+        self.lam = float(checks.number("lam", raw, low=0, high=MAX_LAM, text=True))
         super().__init__(task, checkpoint=checkpoint, model=model)
 
     def config(self) -> dict[str, Any]:

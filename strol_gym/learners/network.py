@@ -89,6 +89,10 @@ class CorrectionNet(nn.Module):
             "bound": self.bound,
         }
 
+    in_mean: torch.Tensor
+    in_std: torch.Tensor
+    """The input's standardisation (buffers: saved with the weights, set by training)."""
+
     def raw(self, z: torch.Tensor) -> torch.Tensor:
         """The unbounded output o(z), (..., in_dim) -> (..., out_dim)."""
         return self.mlp((z - self.in_mean) / self.in_std)

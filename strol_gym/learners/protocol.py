@@ -12,6 +12,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.tasks.base import Task
 
 
@@ -66,7 +67,7 @@ def check_state(state: Any, name: str) -> dict[str, Any]:
 
 
 def _as_float_array(name: str, value: np.ndarray, width: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
+    arr = checks.array(name, value, finite=False)
     if arr.ndim not in (1, 2) or arr.shape[-1] != width or (arr.ndim == 2 and len(arr) < 1):
         raise ValueError(
             f"{name} must have shape ({width},) or (B, {width}) with B >= 1, got {arr.shape}"

@@ -44,7 +44,7 @@ def _check_factory(name: str, factory: Any) -> None:
         raise ValueError(f"factory must be callable or a 'module:attr' string, got {factory!r}")
 
 
-LEARNERS = Registry(
+LEARNERS = Registry[Factory | OnlineRewardLearner](
     "learner",
     _REGISTRY,
     check=_check_factory,

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.learners.protocol import LinearRuleLearner
 from strol_gym.tasks.base import Task
 
@@ -78,14 +79,10 @@ class MOFLearner(LinearRuleLearner):
         seed: int = 0,
     ) -> None:
         super().__init__(task)
-        threshold = float(threshold)
-        if not (np.isfinite(threshold) and threshold <= 1.0):
-            raise ValueError(f"threshold must be a finite number <= 1, got {threshold}")
-        if int(n_candidates) < 1:
-            raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
-        if int(n_hypotheses) < 0:
-            raise ValueError(f"n_hypotheses must be >= 0, got {n_hypotheses}")
-        self.threshold = threshold
+        self.threshold = float(checks.number("threshold", threshold, high=1.0))
+        checks.number("n_candidates", n_candidates, low=1, integer=True)
+        checks.number("n_hypotheses", n_hypotheses, low=0, integer=True)
+        checks.number("seed", seed, low=0, integer=True)
         self.n_candidates = int(n_candidates)
         self.n_hypotheses = int(n_hypotheses)
         self.seed = int(seed)

@@ -34,15 +34,16 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from functools import partial
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import torch
 
+from strol_gym import checks
 from strol_gym.humans import (
     HUMANS,
     check_fraction,
@@ -91,15 +92,11 @@ class TrainConfig:
     human_kwargs: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
-        def choice(name: str, options: Sequence[str]) -> None:
-            if getattr(self, name) not in options:
-                raise ValueError(
-                    f"{name} must be one of {tuple(options)}, got {getattr(self, name)!r}"
-                )
+        def choice(name: str, options: Collection[str]) -> None:
+            checks.name_in(name, getattr(self, name), options)
 
         def positive(name: str) -> None:
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {getattr(self, name)}")
+            checks.number(name, getattr(self, name), low=1, integer=True)
 
         choice("kind", KINDS)
         HUMANS.check_name(self.human)
@@ -116,20 +113,12 @@ class TrainConfig:
         choice("prior", TRAIN_PRIORS)
         for name in ("steps", "batch", "lr_halve_every", "n_candidates", "threads"):
             positive(name)
-        if isinstance(self.unroll, bool) or int(self.unroll) != self.unroll or self.unroll < 1:
-            raise ValueError(
-                f"unroll (K, the unrolled updates) must be an integer >= 1, got {self.unroll!r}"
-            )
+        checks.number("unroll (K, the unrolled updates)", self.unroll, low=1, integer=True)
         check_fraction("sigma", self.sigma)
         check_fraction("bias", self.bias, allow_negative=True)
         for name in ("lr", "beta", "theta_jitter"):
-            v = float(getattr(self, name))
-            if not (np.isfinite(v) and v >= 0) or (name == "lr" and v == 0):
-                raise ValueError(
-                    f"{name} must be a finite number {'> 0' if name == 'lr' else '>= 0'}, got {v}"
-                )
-        if int(self.seed) < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed}")
+            checks.number(name, getattr(self, name), low=0, low_open=name == "lr")
+        checks.number("seed", self.seed, low=0, integer=True)
         object.__setattr__(self, "hidden", tuple(int(h) for h in self.hidden))
 
     def to_dict(self) -> dict[str, Any]:
@@ -210,7 +199,10 @@ REPLACING_KINDS = ("e2e", "e2e-scratch")
 """Kinds whose rule is ĝ alone (g̃ = ĝ); every other kind adds ĝ to g."""
 
 
-def modified_rule(kind: str, g: torch.Tensor, g_hat: torch.Tensor) -> torch.Tensor:
+Batch = TypeVar("Batch", torch.Tensor, np.ndarray)
+
+
+def modified_rule(kind: str, g: Batch, g_hat: Batch) -> Batch:
     """g̃ for a kind: ĝ (e2e, e2e-scratch) or g + ĝ (StROL and strol-unrolled, λ = 1)."""
     return g_hat if kind in REPLACING_KINDS else g + g_hat
 

@@ -4,7 +4,8 @@
 an env id (a Task's ``task_id``), a ``"module:attr"`` or a Task object.
 """
 
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar, overload
 
 from strol_gym.registry import Registry
 from strol_gym.tasks.base import Task
@@ -31,7 +32,9 @@ def _check(name: str, task: Any) -> None:
         )
 
 
-TASKS = Registry("task", _TASKS, check=_check, hint=" naming a Task, Task class or factory")
+TASKS = Registry[Task | Callable[[], Task]](
+    "task", _TASKS, check=_check, hint=" naming a Task, Task class or factory"
+)
 
 
 def register_task(name: str, task: Any) -> None:
@@ -40,6 +43,13 @@ def register_task(name: str, task: Any) -> None:
     TASKS.register(name, task)
 
 
+TaskT = TypeVar("TaskT", bound=Task)
+
+
+@overload
+def make_task(spec: Any, of: None = None) -> Task: ...
+@overload
+def make_task(spec: Any, of: type[TaskT]) -> TaskT: ...
 def make_task(spec: Any, of: type[Task] | None = None) -> Task:
     """The Task for ``spec``: a Task, a registered name, an env id (a Task's ``task_id``) or a
     ``"module:attr"`` naming a Task, a Task class or a factory. ``of``: the class it must be."""

@@ -16,6 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.priors import Prior
 
 
@@ -30,25 +31,15 @@ def _jsonable(value: object) -> object:
 
 def positive_field(name: str, value: object, *, integer: bool = False) -> float:
     """A Task field that must be a finite number > 0 (an integer >= 1 if ``integer``)."""
-    kind = "an integer >= 1" if integer else "a finite number > 0"
-    ok = isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
-    if ok and integer:
-        ok = float(value) == int(value)
-    if not (ok and np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be {kind}, got {value!r}")
-    return value
+    if integer:
+        return checks.number(name, value, low=1, integer=True)
+    return checks.number(name, value, low=0, low_open=True)
 
 
 def vector_arg(name: str, value: object, n: int) -> np.ndarray:
     """``n`` finite numbers (any shape holding n) as a fresh float64 vector, else ValueError
     naming the argument: for Task fields and env arguments alike."""
-    try:
-        v = np.array(value, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        v = np.full(0, np.nan)
-    if v.shape != (n,) or not np.isfinite(v).all():
-        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
-    return v
+    return checks.vector(name, value, n)
 
 
 def unique_rows(*arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -73,8 +73,8 @@ def _car_step(
     py: np.ndarray,
     v: np.ndarray,
     h: np.ndarray,
-    acc: np.ndarray,
-    steer: np.ndarray,
+    acc: np.ndarray | float,
+    steer: np.ndarray | float,
     dt: float,
     length: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -413,7 +413,7 @@ class HighwayTask(Task):
         th = np.repeat(theta_hat, m, axis=0)
         cand = np.broadcast_to(grid, (b * m, *grid.shape))
         cost = np.zeros(b * m)
-        first = None
+        first: np.ndarray | None = None
         for _ in range(POLICY_HORIZON):
             u_r = self._track(xs[:, :4], y_goal, v_goal)
             if first is None:
@@ -428,6 +428,7 @@ class HighwayTask(Task):
             cost += 1000.0 * close
             xs = nxt
         best = np.argmin(cost.reshape(b, m), axis=1)
+        assert first is not None  # POLICY_HORIZON >= 1
         return first.reshape(b, m, 2)[np.arange(b), best]
 
     def _track(self, s: np.ndarray, y_goal: np.ndarray, v_goal: np.ndarray) -> np.ndarray:

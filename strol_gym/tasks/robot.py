@@ -212,6 +212,7 @@ class RobotTask(Task):
         np.add(base.transpose(2, 0, 1), u_h.transpose(2, 0, 1), out=x_h)
         np.maximum(x_h, self._box_planes[0], out=x_h)
         np.minimum(x_h, self._box_planes[1], out=x_h)
+        phi_r: tuple[float, float] | np.ndarray
         if len(x) == 1:  # one state: φ(x_R) in plain floats, subtracted as scalars
             zero = [0.0, 0.0, 0.0]
             phi_r = self._features_one(
@@ -253,8 +254,14 @@ class RobotTask(Task):
         from strol_gym.tasks.m6_kernels import robot_m6
 
         best = np.empty(len(candidates), dtype=np.int64)
+        x, u_r, theta_hat, theta_star = (
+            np.ascontiguousarray(a, dtype=np.float64) for a in (x, u_r, theta_hat, theta_star)
+        )
         robot_m6(
-            *(np.ascontiguousarray(a, dtype=np.float64) for a in (x, u_r, theta_hat, theta_star)),
+            x,
+            u_r,
+            theta_hat,
+            theta_star,
             np.ascontiguousarray(candidates, dtype=np.float64),
             float(self.alpha),
             self.plate,

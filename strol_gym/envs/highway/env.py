@@ -132,7 +132,9 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     """
 
     # one frame per env step of task.dt = 0.5 s (2 Hz): videos play in real time
-    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=2)
+    metadata: dict[str, Any] = render_metadata(fps=2)
+    time: float
+    """Simulated seconds (highway-env starts it as the int 0)."""
 
     env_id: ClassVar[str] = "StROL-Highway-v0"
     task_cls: ClassVar[type[HighwayTask]] = HighwayTask
@@ -193,9 +195,17 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     def _start_info(self) -> dict[str, Any]:
         return {"crashed": self._is_terminated()}
 
+    def _cars(self) -> tuple[Vehicle, HumanVehicle]:
+        """The robot's car and the human's: None until the first scene is built (reset)."""
+        r, h = self.robot_vehicle, self.human_vehicle
+        if r is None or h is None:
+            raise RuntimeError("the highway scene is not built yet: call reset() first")
+        return r, h
+
     def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
-        self.human_vehicle.act({"acceleration": float(u_h[0]), "steering": float(u_h[1])})
-        self.robot_vehicle.act({"acceleration": float(u_r[0]), "steering": float(u_r[1])})
+        robot, human = self._cars()
+        human.act({"acceleration": float(u_h[0]), "steering": float(u_h[1])})
+        robot.act({"acceleration": float(u_r[0]), "steering": float(u_r[1])})
         self.road.step(self.task.dt)
         self.time += self.task.dt
         return self._read_state(), {"crashed": self._is_terminated()}
@@ -218,7 +228,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         self.robot_vehicle, self.human_vehicle = robot, human
 
     def _read_state(self) -> np.ndarray:
-        r, h = self.robot_vehicle, self.human_vehicle
+        r, h = self._cars()
         return np.array(
             [
                 r.position[0],
@@ -241,7 +251,8 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         return float(self.task.reward(self._read_state(), self.theta_star))
 
     def _is_terminated(self) -> bool:
-        return bool(self.robot_vehicle.crashed or self.human_vehicle.crashed)
+        r, h = self._cars()
+        return bool(r.crashed or h.crashed)
 
     def _is_truncated(self) -> bool:
         return self._truncated()

@@ -243,9 +243,11 @@ class BatchedPandaIK:
             prev = self._arms.take(sub)
             self._q[:, sub] = ref[retry].T
             self.forward(sub)
-            err_ref = self._solve(world[retry].T, sub, 8 * iters, tol, ref[retry].T, has_ref[retry])
-            better = err_ref < err[retry]
-            err[retry[better]] = err_ref[better]
+            errs_ref = self._solve(
+                world[retry].T, sub, 8 * iters, tol, ref[retry].T, has_ref[retry]
+            )
+            better = errs_ref < err[retry]
+            err[retry[better]] = errs_ref[better]
             if not better.all():
                 self._arms.put(sub[~better], prev.take(~better))
         return err
@@ -326,14 +328,15 @@ class BatchedPandaIK:
         ``COMPACT`` of it, a smaller copy of just those goes on (a gather, and the others'
         state written back), so that few arms don't pay for many."""
         tol2 = tol * tol
+        idx: np.ndarray | None
         if self._all_rows(rows):
             arms, idx = self._arms, None  # in place
         else:
             arms, idx = self._arms.take(rows), rows
         moving = np.ones(len(rows), dtype=bool)
         tgt = target
-        if has_ref.all():
-            has_ref = None  # every arm has a reference posture
+        # None: every arm has a reference posture
+        ref_mask: np.ndarray | None = None if has_ref.all() else has_ref
         for _ in range(iters):
             ep = tgt - arms.site
             moving &= np.einsum("ib,ib->b", ep, ep) >= tol2  # |e|², summed in order
@@ -349,10 +352,10 @@ class BatchedPandaIK:
                     idx = idx[keep]
                 arms = arms.take(keep)
                 tgt, ep, ref = tgt[:, keep], ep[:, keep], ref[:, keep]
-                if has_ref is not None:
-                    has_ref = has_ref[keep]
+                if ref_mask is not None:
+                    ref_mask = ref_mask[keep]
                 moving = np.ones(live, dtype=bool)
-            self._iterate(arms, ep, ref, has_ref, None if live == len(moving) else moving)
+            self._iterate(arms, ep, ref, ref_mask, None if live == len(moving) else moving)
         if idx is not None:
             self._arms.put(idx, arms)
         ep = target - self._arms.site[:, rows]

@@ -153,4 +153,4 @@ class MujocoRendering:
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
-        super().close()  # type: ignore[misc]
+        super().close()  # type: ignore[misc]  # a mixin: gym.Env, later in the MRO, has close

@@ -117,7 +117,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=5)
+    metadata: dict[str, Any] = render_metadata(fps=5)
 
     env_id: ClassVar[str] = "StROL-Robot-v0"
     task_cls: ClassVar[type[RobotTask]] = RobotTask

@@ -41,7 +41,7 @@ def build_seed_table(task: RobotTask, shape: tuple[int, int, int] = SEED_GRID) -
     ik.set_q(Q_HOME)
     start = np.unravel_index(np.argmin(np.linalg.norm(pts - ik.ee, axis=-1)), shape)
 
-    def neighbours(idx: tuple[int, ...]):
+    def neighbours(idx: tuple[int | np.integer, ...]):
         for ax in range(3):
             for s in (-1, 1):
                 j = list(idx)
@@ -49,7 +49,7 @@ def build_seed_table(task: RobotTask, shape: tuple[int, int, int] = SEED_GRID) -
                 if 0 <= j[ax] < shape[ax]:
                     yield tuple(j)
 
-    def attempt(idx: tuple[int, ...], q0: np.ndarray) -> None:
+    def attempt(idx: tuple[int | np.integer, ...], q0: np.ndarray) -> None:
         ik.set_q(q0)
         e = ik.solve(pts[idx], iters=60, tol=1e-5)
         if e > 1e-4:  # the gripper-down term may block the position: solve for it alone

@@ -13,7 +13,7 @@ setpoint; the env calls ``_simulate`` once per control step.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import mujoco
 import numpy as np
@@ -54,12 +54,37 @@ LAMBDA_REG = 1e-2 * np.eye(6)
 class ImpedanceController:
     """The controllers of the study env (see the module docstring)."""
 
-    if TYPE_CHECKING:
+    if TYPE_CHECKING:  # the env's views and state this mixin reads (StudyEnv sets them)
         model: Any
         data: Any
-        version: Any
+        version: ClassVar[Any]
         _k: tuple[float, float]
+        _d: tuple[float, float]
         _qpos: np.ndarray
+        _qvel: np.ndarray
+        _qpos_all: np.ndarray
+        _qvel_all: np.ndarray
+        _ctrl: np.ndarray
+        _jac: np.ndarray
+        _jacp: np.ndarray
+        _jacr: np.ndarray
+        _site: int
+        _site_xpos: np.ndarray
+        _site_xmat: np.ndarray
+        _hand_xipos: np.ndarray
+        _hand_xfrc: np.ndarray
+        _q_home: np.ndarray
+        _q_home_list: list[float]
+        _warnings: int
+        _n_sub: int
+        _warning_stats: tuple[Any, ...]
+        _sp: np.ndarray
+        _sp_R: np.ndarray
+        _time: float
+        _wrench: np.ndarray
+        _active: bool
+        _braked: bool
+        _brake_q: np.ndarray
 
     def _build_control(self) -> None:
         """The controllers' fixed terms, once the model and its views exist."""

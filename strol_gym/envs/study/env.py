@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from strol_gym import checks
 from strol_gym.envs.contract import CorrectionEnv, int_arg, render_metadata, vector_arg
 from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
 from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
@@ -129,7 +130,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
     - v0: initial version; kept unchanged for the published results (deprecated).
     """
 
-    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=20)
+    metadata: dict[str, Any] = render_metadata(fps=20)
     version: ClassVar[StudyVersion] = V0
     """What this version changes (``strol_gym.envs.study.versions``)."""
     env_id: ClassVar[str] = V0.env_id
@@ -188,7 +189,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 f"unknown argument(s) ['n_corrections']; {self.env_id}'s simulated user corrects "
                 "when it chooses"
             )
-        self.user_kwargs = dict(user_kwargs or {})
+        self.user_kwargs = checks.mapping("user_kwargs", user_kwargs)
         self.force_threshold = _positive("force_threshold", force_threshold)
         self.duration = _positive("duration", duration)
         self.stiffness = _positive("stiffness", stiffness)
@@ -337,7 +338,9 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         if self.user_enabled and self.human is not None:
             # A participant who only sees the cup is handed no θ̂.
             seen = self.theta_hat if getattr(self.human, "needs_theta_hat", True) else None
-            f, tq = self.human.wrench(self._time, self._x, seen)
+            # the study's person pushes (a Pusher: SimulatedUser, Participant), held in the
+            # env's human slot; the study never asks it to act
+            f, tq = self.human.wrench(self._time, self._x, seen)  # type: ignore[attr-defined]
             w[:3] += f
             w[3:] += tq
         if self.version.reflex:
@@ -428,7 +431,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
     def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
         if not self.user_enabled:
             return None
-        return self._new_user(theta_star, rng)
+        # a Pusher in the human slot (see _external_wrench's note)
+        return self._new_user(theta_star, rng)  # type: ignore[return-value]
 
     def _new_user(self, theta_star: np.ndarray, rng: np.random.Generator) -> SimulatedUser:
         """The simulated person who pushes: the ``participant`` "observer" (``Participant``),
@@ -614,13 +618,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
 
 
 def _positive(name: str, value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        v = float("nan")
-    if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
+    return float(checks.number(name, value, low=0, low_open=True, text=True))
 
 
 class StudyEnvV1(StudyEnv):

@@ -9,11 +9,13 @@ The simulated people's parameters are frozen dataclasses, checked once where the
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from strol_gym import checks
+from strol_gym.envs.contract import int_arg
 
 SATISFIED_REGRET = 1.0
 """Default ``satisfied_regret``: the user stops pushing once the regret of the robot's plan (from
@@ -73,11 +75,7 @@ class HeldWrench:
 
 
 def _check(name: str, value: float, low: float, strict: bool) -> float:
-    v = float(value)
-    if not (math.isfinite(v) and (v > low if strict else v >= low)):
-        rng = f"> {low:g}" if strict else f">= {low}"
-        raise ValueError(f"user_kwargs[{name!r}] must be a finite number {rng}, got {v}")
-    return v
+    return float(checks.number(f"user_kwargs[{name!r}]", value, low=low, low_open=strict))
 
 
 @dataclass(frozen=True)
@@ -131,11 +129,6 @@ class ParticipantParams(PushParams):
             ("stall", 1e-9),
         ):
             object.__setattr__(self, name, _check(name, getattr(self, name), low, strict=False))
-        threshold = float(self.threshold)
-        if not math.isfinite(threshold):
-            raise ValueError(f"user_kwargs['threshold'] must be finite, got {self.threshold!r}")
+        threshold = float(checks.number("user_kwargs['threshold']", self.threshold))
         object.__setattr__(self, "threshold", threshold)
-        p = self.patience
-        if isinstance(p, bool) or not isinstance(p, int | np.integer) or p < 1:
-            raise ValueError(f"user_kwargs['patience'] must be an integer >= 1, got {p!r}")
-        object.__setattr__(self, "patience", int(p))
+        object.__setattr__(self, "patience", int_arg("user_kwargs['patience']", self.patience, 1))

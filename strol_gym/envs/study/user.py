@@ -94,11 +94,13 @@ class SimulatedUser:
     def _released(self, t: float, x: np.ndarray) -> None:
         """Called when a push has been let go (a hook for participants that keep count)."""
 
-    def _decide(self, t: float, x: np.ndarray, theta_hat: np.ndarray) -> np.ndarray | None:
+    def _decide(self, t: float, x: np.ndarray, theta_hat: np.ndarray | None) -> np.ndarray | None:
         """While idle: the pose to push the cup to now, or None (judged every
         ``decide_every`` s: unsatisfied by the plan's regret, and a large enough correction)."""
         if t + 1e-9 < self._t_next:
             return None
+        if theta_hat is None:  # needs_theta_hat: the env hands it θ̂
+            raise ValueError("a SimulatedUser judges the robot's plan: pass theta_hat")
         self._t_next = t + self.params.decide_every
         if self.satisfied(theta_hat):
             return None
@@ -116,7 +118,7 @@ class SimulatedUser:
         return dp, rotation_error(rpy_to_mat(self.target[3:]), rpy_to_mat(x[3:]))
 
     def wrench(
-        self, t: float, x: np.ndarray, theta_hat: np.ndarray
+        self, t: float, x: np.ndarray, theta_hat: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
         """(force N, torque N m) on the hand at time ``t`` (s), the cup at pose ``x``."""
         zero = np.zeros(3)
