@@ -28,9 +28,13 @@ import numpy as np
 from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
-from numba.extending import intrinsic
+from numba.extending import intrinsic as numba_intrinsic
 
 from strol_gym.envs.panda.model import N_ARM
+
+# An @intrinsic is called without its first parameter (numba passes the typing context), which
+# numba's annotations do not say: typed as Any, the decorated calls are checked by numba alone.
+intrinsic: Any = numba_intrinsic
 
 _SYMBOLS = (
     "mj_kinematics",
