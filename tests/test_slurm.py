@@ -14,10 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.engine.config import BenchConfig
-from strol_gym.benchmarks.engine.pool import new_worker
-from strol_gym.benchmarks.engine.slurm import SLURM_DIR, _array_task
+from strol_gym.benchmarks.engine.slurm import SLURM_DIR
 
 pytest.importorskip("submitit", reason='submitit is not installed (pip install ".[slurm]")')
 
@@ -31,11 +29,15 @@ def _bytes(folder: Path) -> dict[str, bytes]:
 
 def test_slurm_array_records_equal_local_and_resume_after_the_submitter_died(tmp_path):
     local, slurm = tmp_path / "local", tmp_path / "slurm"
-    assert main([*RUN, "--jobs", "1", "--quiet", "--no-plots", "--out", str(local)]) == 0
+    # Every run in a fresh process, as a user runs it: this process's registries hold other
+    # tests' pieces (which tests ran first in this worker), which the code fingerprint sees.
+    fresh = [sys.executable, "-m", "strol_gym.benchmarks"]
+    local_run = [*fresh, *RUN, "--jobs", "1", "--quiet", "--no-plots", "--out", str(local)]
+    assert subprocess.run(local_run, cwd=tmp_path, timeout=600).returncode == 0
     assert len(_bytes(local)) == 2
 
     # The submitting process is killed once its array is submitted.
-    argv = [sys.executable, "-m", "strol_gym.benchmarks", *RUN, *SLURM, "--quiet"]
+    argv = [*fresh, *RUN, *SLURM, "--quiet"]
     proc = subprocess.Popen([*argv, "--out", str(slurm)], cwd=tmp_path)
     logs = slurm / SLURM_DIR / "logs"
     deadline = time.monotonic() + 300
@@ -51,12 +53,21 @@ def test_slurm_array_records_equal_local_and_resume_after_the_submitter_died(tmp
     config = BenchConfig.from_dict(json.loads((local / "meta.json").read_text())["config"])
     units = config.units()
     blocks = slurm / SLURM_DIR / "blocks"
-    _array_task(config.to_dict(), list(sys.path), units[0], str(blocks), new_worker)
+    task = (
+        "import json, sys\n"
+        "from strol_gym.benchmarks.engine.config import BenchConfig\n"
+        "from strol_gym.benchmarks.engine.pool import new_worker\n"
+        "from strol_gym.benchmarks.engine.slurm import _array_task\n"
+        "config = BenchConfig.from_dict(json.loads(sys.argv[1]))\n"
+        "unit = config.units()[0]\n"
+        "_array_task(config.to_dict(), list(sys.path), unit, sys.argv[2], new_worker)\n"
+    )
+    one = [sys.executable, "-c", task, json.dumps(config.to_dict()), str(blocks)]
+    assert subprocess.run(one, cwd=tmp_path, timeout=600).returncode == 0
     (blocks / f"{units[1].key}.stale.json").write_text('{"config_hash": "other"}')
     submitted = len(list(logs.glob("*_submitted.pkl")))
 
-    # the same command again, in a fresh process as a user reruns it (this process's registries
-    # hold other tests' pieces, which the code fingerprint would see)
+    # the same command again, as a user reruns it
     rerun = subprocess.run([*argv, "--no-plots", "--out", str(slurm)], cwd=tmp_path, timeout=600)
     assert rerun.returncode == 0
     assert _bytes(slurm) == _bytes(local)
