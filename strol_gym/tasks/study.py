@@ -628,6 +628,7 @@ class StudyTask2V2(StudyTaskV2, StudyTask2V1):
 
     task_id: ClassVar[str] = "StROL-Study-v2-task2"
     version: ClassVar[int] = 2
+    prior: Prior = dataclasses.field(default_factory=_prior4)  # not StudyTaskV2's (Task 1's)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -636,6 +637,7 @@ class StudyTask3V2(StudyTaskV2, StudyTask3V1):
 
     task_id: ClassVar[str] = "StROL-Study-v2-task3"
     version: ClassVar[int] = 2
+    prior: Prior = dataclasses.field(default_factory=_prior4)  # not StudyTaskV2's (Task 1's)
 
 
 STUDY_TASKS_V2: dict[int, type[StudyTask]] = {1: StudyTask1V2, 2: StudyTask2V2, 3: StudyTask3V2}
