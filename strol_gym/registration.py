@@ -7,20 +7,23 @@ import gymnasium as gym
 ENV_SPECS: dict[str, dict] = {
     # gymnasium's TimeLimit ends episodes: 10 steps unless make(..., max_episode_steps=N).
     "StROL-Robot-v0": {
-        "entry_point": "strol_gym.envs.robot:RobotEnv",
-        "vector_entry_point": "strol_gym.envs.vector_robot:VectorRobotEnv",
+        "entry_point": "strol_gym.envs.robot.env:RobotEnv",
+        "vector_entry_point": "strol_gym.envs.robot.vector:VectorRobotEnv",
         "max_episode_steps": 10,
     },
     # The study env truncates itself after 60 s of simulated time (1200 steps of 0.05 s).
     # v0 is kept for the published results; gymnasium warns on make that v1 supersedes it.
-    "StROL-Study-v0": {"entry_point": "strol_gym.envs.study:StudyEnv", "max_episode_steps": 1200},
+    "StROL-Study-v0": {
+        "entry_point": "strol_gym.envs.study.env:StudyEnv",
+        "max_episode_steps": 1200,
+    },
     "StROL-Study-v1": {
-        "entry_point": "strol_gym.envs.study_v1:StudyEnvV1",
+        "entry_point": "strol_gym.envs.study.env:StudyEnvV1",
         "max_episode_steps": 1200,
     },
     "StROL-Highway-v0": {
-        "entry_point": "strol_gym.envs.highway:HighwayEnv",
-        "vector_entry_point": "strol_gym.envs.vector_highway:VectorHighwayEnv",
+        "entry_point": "strol_gym.envs.highway.env:HighwayEnv",
+        "vector_entry_point": "strol_gym.envs.highway.vector:VectorHighwayEnv",
         "max_episode_steps": 10,
     },
 }

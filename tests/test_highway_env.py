@@ -17,7 +17,7 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import strol_gym
-from strol_gym.envs.highway import HighwayEnv, HumanVehicle
+from strol_gym.envs.highway.env import HighwayEnv, HumanVehicle
 from strol_gym.priors import FixedPrior, UniformPrior
 from strol_gym.tasks.highway import HIGHWAY_MODES
 

@@ -125,7 +125,8 @@ def test_scripted_person_sees_the_panel_the_plan_and_the_correction_cue(tmp_path
     np.testing.assert_allclose(points[0], first["cup"], atol=0.02)  # it starts at the cup
     x0 = json.loads(log.read_text().splitlines()[1])["x0"]
     # v1's robot executes its plan inside the reachable box (docs/study.md): that is drawn
-    from strol_gym.envs.study_v1 import StudyEnvV1, within_reach
+    from strol_gym.envs.study.env import StudyEnvV1
+    from strol_gym.envs.study.geometry import within_reach
 
     planned = within_reach(
         task, task.plan(ep.theta_hat0[None], np.array(x0)[None])[0], *StudyEnvV1.reach

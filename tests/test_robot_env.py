@@ -18,11 +18,11 @@ from gymnasium.utils.env_checker import check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.panda import N_ARM
-from strol_gym.envs.panda_ik import IK_TOL, PandaIK
-from strol_gym.envs.robot import RobotEnv
-from strol_gym.envs.robot_scene import TABLE_TOP, build_model
-from strol_gym.envs.robot_seeds import SEED_GRID, _grid, seed_table
+from strol_gym.envs.panda.ik import IK_TOL, PandaIK
+from strol_gym.envs.panda.model import N_ARM
+from strol_gym.envs.robot.env import RobotEnv
+from strol_gym.envs.robot.scene import TABLE_TOP, build_model
+from strol_gym.envs.robot.seeds import SEED_GRID, _grid, seed_table
 from strol_gym.humans import NominalHuman
 from strol_gym.priors import FixedPrior
 from strol_gym.tasks.robot import RobotTask
@@ -73,7 +73,7 @@ def test_state_is_the_real_end_effector():
     env = make()
     env.reset(seed=0)
     obs, *_ = env.step(np.array([0.4, -0.3, 0.2]))
-    site = env.data.site_xpos[env._ik.site] - np.array([0.0, 0.0, 0.75])
+    site = env.data.site_xpos[env.ik.site] - np.array([0.0, 0.0, 0.75])
     np.testing.assert_allclose(obs["state"], site, atol=1e-6)
     np.testing.assert_allclose(obs["phi"], env.task.features(site), atol=1e-5)
 

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 from strol_gym.benchmarks.analysis.report import pooled_matrix, pooled_tests
-from strol_gym.benchmarks.engine import study_authors as sa
+
+from strol_gym.envs.study import metrics as sa
 
 
 def _record(times, mags):

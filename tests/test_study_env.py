@@ -14,9 +14,9 @@ from env_checks import rollout, same, unexpected
 from gymnasium.utils.env_checker import check_env
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study import StudyEnv
-from strol_gym.envs.study_scene import build_model, model_q
-from strol_gym.envs.study_user import SimulatedUser
+from strol_gym.envs.study.env import StudyEnv
+from strol_gym.envs.study.scene import build_model, model_q
+from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.tasks import make_task
 from strol_gym.tasks.study import (
     MODES_4,

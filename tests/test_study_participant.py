@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study_participant import Participant
-from strol_gym.envs.study_user import SimulatedUser
+from strol_gym.envs.study.participant import Participant
+from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.tasks.study import StudyTask1
 
 SEED = 20001
@@ -113,3 +113,37 @@ def test_its_push_is_greedy_under_its_theta_star():
 def test_bad_participant_parameters_name_themselves(kwargs, name):
     with pytest.raises(ValueError, match=name):
         gym.make("StROL-Study-v1", user_kwargs=kwargs)
+
+
+def test_every_pusher_has_the_one_interface_and_frozen_checked_parameters():
+    from strol_gym.envs.study.people import (
+        HeldWrench,
+        ParticipantParams,
+        Pusher,
+        PushParams,
+        ScriptedWrench,
+    )
+
+    task = StudyTask1()
+    rng = np.random.default_rng(0)
+    people = [
+        SimulatedUser(task, task.theta_star, rng),
+        Participant(task, task.theta_star, rng),
+        ScriptedWrench(np.arange(6.0), 2),
+        HeldWrench(),
+    ]
+    for person in people:
+        assert isinstance(person, Pusher)
+        f, tq = person.wrench(
+            0.0, task.start, None if not person.needs_theta_hat else np.zeros(task.dim)
+        )
+        assert np.shape(f) == (3,) and np.shape(tq) == (3,)
+    assert isinstance(people[0].params, PushParams)
+    assert isinstance(people[1].params, ParticipantParams)
+    assert people[1].params.push_force == 60.0 and people[0].params.push_force == 40.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        people[0].params.tol = 1.0  # type: ignore[misc]
+    with pytest.raises(ValueError, match=r"user_kwargs\['ramp'\] must be a finite number > 0"):
+        PushParams(ramp=0.0)
+    with pytest.raises(ValueError, match=r"user_kwargs\['patience'\] must be an integer >= 1"):
+        ParticipantParams(patience=0)

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study_user import rotation_error
-from strol_gym.envs.study_v1 import VELOCITY_LIMIT, StudyEnvV1
+from strol_gym.envs.study.controller import VELOCITY_LIMIT
+from strol_gym.envs.study.env import StudyEnvV1
+from strol_gym.envs.study.geometry import rotation_error
 from strol_gym.tasks.study import rpy_to_mat
 
 ENV_ID = "StROL-Study-v1"
@@ -100,7 +101,7 @@ def test_the_reachable_box_makes_the_hold_target_hold_on_most_seeds():
 
 @pytest.mark.parametrize("task", [1, 2])
 def test_executed_plans_stay_in_the_reachable_box_at_the_planners_pace(task):
-    from strol_gym.envs.study_v1 import REACH_ANGLE, REACH_RADIUS, SHOULDER, within_reach
+    from strol_gym.envs.study.geometry import REACH_ANGLE, REACH_RADIUS, SHOULDER, within_reach
     from strol_gym.tasks import make_task
 
     t = make_task(f"study-task{task}")
@@ -295,3 +296,31 @@ def test_gymnasium_check_env_and_pickle(task):
     for _ in range(20):
         oa, ob = a.step(zero)[0], b.step(zero)[0]
         assert all(np.array_equal(oa[k], ob[k]) for k in oa)
+
+
+def test_versions_are_option_sets_of_one_class_not_overrides():
+    import dataclasses
+
+    from strol_gym.envs.study.env import StudyEnv
+    from strol_gym.envs.study.versions import V1
+
+    # StudyEnvV1 names its version and nothing else: no method of its own.
+    assert not [k for k, v in vars(StudyEnvV1).items() if callable(v) and not k.startswith("__")]
+
+    class StudyEnvV9(StudyEnv):  # a further version: a new option set
+        version = dataclasses.replace(V1, name="v9", env_id="StROL-Study-v9", reflex=False)
+        env_id = "StROL-Study-v9"
+
+    env = StudyEnvV9(task=2, human=None, max_episode_steps=3)
+    env.reset(seed=1)
+    _, _, _, _, info = env.step(np.zeros(env.action_space.shape))
+    assert "reflex" not in info and env.participant == "observer"
+    env.close()
+
+
+@pytest.mark.parametrize("kwargs", [{"participant": "observer"}, {"reflex_force": 50.0}])
+def test_v0_rejects_what_only_later_versions_take(kwargs):
+    from strol_gym.envs.study.env import StudyEnv
+
+    with pytest.raises(ValueError, match=next(iter(kwargs))):
+        StudyEnv(**kwargs)

@@ -137,7 +137,7 @@ def test_rectangle_test_is_highway_envs():
     from highway_env import utils
     from highway_env.vehicle.kinematics import Vehicle
 
-    from strol_gym.envs.vector_highway import rectangle_test
+    from strol_gym.envs.highway.vector import rectangle_test
 
     rng = np.random.default_rng(0)
     n = 400

@@ -13,8 +13,8 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.engine import study_authors
 
+from strol_gym.envs.study import metrics as study_authors
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.metrics import cos_error, episode_regret, error, info_metrics
 

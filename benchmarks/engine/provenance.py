@@ -13,15 +13,14 @@ from strol_gym.learners.registry import make_learner
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
-# shipped data, by data package and the suffixes setup.cfg installs. ``study_authors`` computes
-# a recorded value (the authors'-way correction time), so it counts.
+# shipped data, by data package and the suffixes setup.cfg installs. (The study's metrics the
+# authors' way, a recorded value, live in strol_gym.envs.study.metrics, so they count.)
 BENCHMARK_CODE = (
     "engine",
     "engine.config",
     "engine.conditions",
     "engine.episodes",
     "engine.robots",
-    "engine.study_authors",
     "engine.worker",
 )
 MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")

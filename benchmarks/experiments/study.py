@@ -28,12 +28,13 @@ from strol_gym.benchmarks.analysis.report import (
     pooled_tests,
 )
 from strol_gym.benchmarks.args import nonneg_int, positive_int
-from strol_gym.benchmarks.engine import study_authors
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.episodes import regret_inputs
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
+
+from strol_gym.envs.study import metrics as study_authors
 
 TASKS = (1, 2, 3)
 DEFAULT_USERS = 20

@@ -24,7 +24,7 @@ import numpy as np
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
 
-from strol_gym.envs.panda import PassiveViewer, has_display
+from strol_gym.envs.panda.model import PassiveViewer, has_display
 
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "

@@ -27,7 +27,7 @@ import numpy as np
 from strol_gym.benchmarks.speed.timing import env_steps_per_second
 
 import strol_gym
-from strol_gym.envs.highway import HighwayEnv
+from strol_gym.envs.highway.env import HighwayEnv
 
 
 def best_rate(fn: Callable[[], object], n: int, repeats: int) -> float:

@@ -30,8 +30,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
-from strol_gym.envs.study import StudyEnv  # noqa: E402
-from strol_gym.envs.study_v1 import StudyEnvV1  # noqa: E402
+from strol_gym.envs.study.env import StudyEnv, StudyEnvV1  # noqa: E402
 
 SEED = 20100
 

@@ -25,8 +25,9 @@ import gymnasium as gym
 import numpy as np
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study_user import rotation_error
-from strol_gym.envs.study_v1 import VELOCITY_LIMIT, StudyEnvV1
+from strol_gym.envs.study.controller import VELOCITY_LIMIT
+from strol_gym.envs.study.env import StudyEnvV1
+from strol_gym.envs.study.geometry import rotation_error
 from strol_gym.tasks.study import rpy_to_mat
 
 SEED = 20000

@@ -1,4 +1,11 @@
-"""Gymnasium envs: StROL-Robot-v0 (strol_gym.envs.robot) and StROL-Highway-v0 (.highway).
+"""Gymnasium envs, one subpackage per simulator, the contract they share at the root.
+
+- ``contract``: :class:`CorrectionEnv`, what every env does with the human, θ̂, actions,
+  observation and info; ``vector``: :class:`VectorCorrectionEnv`, N of one env batched.
+- ``panda``: the Franka Panda arm (MuJoCo model, IK for one arm and for N).
+- ``robot``: StROL-Robot-v0 (single and vector); ``highway``: StROL-Highway-v0 (single and
+  vector); ``study``: StROL-Study-v0 and -v1 (the user study: scene, people who push, metrics).
+- ``moved``: the old module paths (until 0.3), which warn.
 
 Modules are imported by ``gymnasium.make`` through the entry points in
 strol_gym.registration, so importing this package loads neither MuJoCo nor highway-env.

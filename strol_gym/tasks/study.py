@@ -62,7 +62,7 @@ POS_HIGH = np.array([0.80, 0.60, 0.70])
 ANG_LIMIT = 1.3
 """|roll|, |pitch| the planner may use (rad); yaw is not planned (no feature depends on it)."""
 
-# Home cup poses (FK of the home joints in strol_gym.envs.study_scene; a test checks them).
+# Home cup poses (FK of the home joints in strol_gym.envs.study.scene; a test checks them).
 START_TASK1 = np.array([0.2473, 0.4760, 0.5026])
 START_TASK2 = np.array([0.3772, 0.5631, 0.6193, 0.1258, 0.9303, -1.5862])
 

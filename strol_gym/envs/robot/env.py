@@ -9,11 +9,11 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes
-from strol_gym.envs.panda import N_ARM, Q_HOME, MujocoRendering
-from strol_gym.envs.panda_ik import IK_ITERS, PandaIK
-from strol_gym.envs.robot_scene import TABLE_TOP, build_model
-from strol_gym.envs.robot_seeds import seed_table
+from strol_gym.envs.contract import CorrectionEnv, render_metadata
+from strol_gym.envs.panda.ik import IK_ITERS, PandaIK
+from strol_gym.envs.panda.model import N_ARM, Q_HOME, MujocoRendering
+from strol_gym.envs.robot.scene import TABLE_TOP, build_model
+from strol_gym.envs.robot.seeds import seed_table
 from strol_gym.tasks.robot import RobotTask
 
 
@@ -117,10 +117,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": RenderModes(["human", "rgb_array"]),
-        "render_fps": 5,
-    }
+    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=5)
 
     env_id: ClassVar[str] = "StROL-Robot-v0"
     task_cls: ClassVar[type[RobotTask]] = RobotTask
@@ -145,41 +142,35 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._renderer: mujoco.Renderer | None = None
         self._viewer: Any = None
         self._build()
-        self._x = self._ik.ee
+        self._x = self.ik.ee
 
     # ------------------------------------------------------------------ model, θ̂
     def _build(self, qpos: np.ndarray | None = None) -> None:
         off_w, off_h = max(640, self.width), max(480, self.height)
         self.model = build_model(self.task, off_w, off_h)
         seeds = seed_table(self.task)
-        self._ik = PandaIK(
+        # The arm's IK (public: the vector env batches it, ``BatchedPandaIK(env.ik, N)``).
+        self.ik = PandaIK(
             self.model, seeds, self.task.workspace_low, self.task.workspace_high, lift=TABLE_TOP
         )
-        self.data = self._ik.data
+        self.data = self.ik.data
         if qpos is not None:
             self.data.qpos[:] = qpos
             mujoco.mj_kinematics(self.model, self.data)
-        self.data.ctrl[:N_ARM] = self._ik.q
+        self.data.ctrl[:N_ARM] = self.ik.q
 
     def move_to(self, x: np.ndarray) -> np.ndarray:
         """Put the end effector at ``x`` (task frame) from the nearest IK seed; returns the real
         position reached."""
         x = np.asarray(x, dtype=np.float64)
-        q0 = self._ik.reference(x)
-        self._ik.set_q(Q_HOME if q0 is None else q0)
-        self._ik.solve(x, iters=2 * IK_ITERS)
-        self.data.ctrl[:N_ARM] = self._ik.q
-        return self._ik.ee
+        q0 = self.ik.reference(x)
+        self.ik.set_q(Q_HOME if q0 is None else q0)
+        self.ik.solve(x, iters=2 * IK_ITERS)
+        self.data.ctrl[:N_ARM] = self.ik.q
+        return self.ik.ee
 
     # ------------------------------------------------------------------ the template's hooks
-    def _draw_starts(
-        self, rngs: list[np.random.Generator], human_rngs: bool = True
-    ) -> tuple[np.ndarray, list[np.random.Generator]]:
-        """The template's ``_draw_start`` (``task.sample_start``, the human drawing from the
-        episode's generator) for many generators at once: a vector env's resets."""
-        return self.task.sample_starts(rngs), list(rngs)
-
-    def _start_override(self, x0: np.ndarray) -> np.ndarray:
+    def start_override(self, x0: np.ndarray) -> np.ndarray:
         return np.clip(x0, self.task.workspace_low, self.task.workspace_high)
 
     def _place_start(self, x0: np.ndarray) -> np.ndarray:
@@ -190,14 +181,14 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         target = self.task.dynamics(self._x, u_h, u_r)
-        ik_error = self._ik.solve(target)
-        self.data.ctrl[:N_ARM] = self._ik.q
-        return self._ik.ee, {"target": target, "ik_error": ik_error}
+        ik_error = self.ik.solve(target)
+        self.data.ctrl[:N_ARM] = self.ik.q
+        return self.ik.ee, {"target": target, "ik_error": ik_error}
 
     # ------------------------------------------------------------------ render, close, pickle
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
-        for key in ("model", "data", "_ik", "_renderer", "_viewer"):
+        for key in ("model", "data", "ik", "_renderer", "_viewer"):
             state.pop(key, None)
         state["_qpos"] = self.data.qpos.copy()
         return state

@@ -1,4 +1,10 @@
-"""StROL-Study-v0: the paper's user study in simulation, a compliant Panda that people push."""
+"""StROL-Study: the paper's user study in simulation, a compliant Panda that people push.
+
+One env class for every version: :class:`StudyEnv` reads what its version changes from its
+``version`` (a :class:`~strol_gym.envs.study.versions.StudyVersion`); ``StudyEnv`` itself is
+v0 (as published) and :class:`StudyEnvV1` names v1. The controllers are in ``controller``, the
+pose helpers in ``geometry``, the people who push in ``user`` and ``participant``.
+"""
 
 from __future__ import annotations
 
@@ -10,10 +16,15 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes, int_arg, vector_arg
-from strol_gym.envs.panda import FINGER_OPEN, N_ARM, MujocoRendering
-from strol_gym.envs.study_scene import build_model, model_q
-from strol_gym.envs.study_user import SimulatedUser, angle_delta, rotation_error
+from strol_gym.envs.contract import CorrectionEnv, int_arg, render_metadata, vector_arg
+from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
+from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
+from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight, within_reach
+from strol_gym.envs.study.participant import Participant
+from strol_gym.envs.study.people import HeldWrench, ScriptedWrench
+from strol_gym.envs.study.scene import build_model, model_q
+from strol_gym.envs.study.user import SimulatedUser
+from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, StudyVersion
 from strol_gym.humans import Human
 from strol_gym.priors import Prior
 from strol_gym.tasks import make_task
@@ -26,28 +37,15 @@ from strol_gym.tasks.study import (
     rpy_to_mat,
 )
 
-HOLD = 5
-"""Physics steps per impedance update (the torque is held in between): 5 steps of 5 ms = 25 ms,
-i.e. 40 Hz impedance control."""
 END_HOLD = 2.0
 """Seconds the robot waits at the end of its plan before it returns home and plays it again."""
-_INSTABILITY = (
-    mujoco.mjtWarning.mjWARN_BADQACC,
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-)
 _F32_MAX = float(np.finfo(np.float32).max)
-Velocity = tuple[float, float, float, float, float, float]
-"""The setpoint's linear (m/s) and angular (rad/s) velocity, world frame."""
 _STILL: Velocity = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 TORQUE_LEVER = 0.1
 """A torque τ counts as a force ‖τ‖ / 0.1 m towards the correction threshold."""
-K_NULL, D_NULL = 0.5, 0.5
-"""A weak joint-space pull towards the home joints (N m/rad, N m s/rad): keeps the redundant
-elbow from drifting; a few N/m at the hand, small next to the Cartesian stiffness."""
 
 
-class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
+class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
     """StROL-Study-v0: a compliant Franka Panda carries a cup; a person's pushes teach it θ*.
 
     ## Description
@@ -116,7 +114,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
       ``human_kwargs``: the human model's parameters; ``user_kwargs``: the simulated user's
       (``push_force``, ``push_torque``, ``ramp``, ``max_push``, ``decide_every``, ``rest``,
       ``min_correction``, ``tol``, ``ang_tol``, ``satisfied_regret``;
-      ``strol_gym.envs.study_user``).
+      ``strol_gym.envs.study.user``).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
     - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
       ``stiffness`` (N/m, > 0, default 400), ``rot_stiffness`` (N m/rad, > 0, default 30).
@@ -125,17 +123,19 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Version History
 
-    - v1 (``strol_gym.envs.study_v1``): u_H is measured from the held setpoint, tracking that
+    - v1 (``strol_gym.envs.study.env``): u_H is measured from the held setpoint, tracking that
       makes the arm's catch-up negligible, the Panda's joint limits, a force reflex, and a
       participant who judges what it sees. Use it.
     - v0: initial version; kept unchanged for the published results (deprecated).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": RenderModes(["human", "rgb_array"]),
-        "render_fps": 20,
-    }
-    env_id: ClassVar[str] = "StROL-Study-v0"
+    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=20)
+    version: ClassVar[StudyVersion] = V0
+    """What this version changes (``strol_gym.envs.study.versions``)."""
+    env_id: ClassVar[str] = V0.env_id
+    reach: tuple[np.ndarray, np.ndarray, float] | None = V0.reach
+    """The box the executed plans stay in (``within_reach``; None: the Task's plans as they
+    are); the version's, settable per env."""
 
     task_cls: ClassVar[type[StudyTask]] = StudyTask
     default_corrections: ClassVar[int] = 0
@@ -151,8 +151,38 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         stiffness: float = 400.0,
         rot_stiffness: float = 30.0,
         user_kwargs: dict[str, Any] | None = None,
+        reflex_force: float | None = None,
+        reflex_torque: float | None = None,
+        reflex_recover: float | None = None,
+        participant: str | None = None,
         **kwargs: Any,
     ) -> None:
+        """The arguments of the env's docstring; ``reflex_*`` and ``participant`` only where
+        the version has them (None: its default)."""
+        v = self.version
+        extra = {"reflex_force": reflex_force, "reflex_torque": reflex_torque}
+        extra |= {"reflex_recover": reflex_recover}
+        given = sorted(k for k, x in extra.items() if x is not None) if not v.reflex else []
+        if participant is not None and not v.participants:
+            given.append("participant")
+        if given:
+            raise ValueError(f"unknown argument(s) {given}; {self.env_id} has none of them")
+        if v.participants:
+            participant = v.participants[0] if participant is None else participant
+            if participant not in v.participants:
+                raise ValueError(
+                    f"participant must be one of {sorted(v.participants)}, got {participant!r}"
+                )
+        self.participant = participant
+        self.reflex_force = _positive(
+            "reflex_force", 100.0 if reflex_force is None else reflex_force
+        )
+        self.reflex_torque = _positive(
+            "reflex_torque", 10.0 if reflex_torque is None else reflex_torque
+        )
+        self.reflex_recover = _positive(
+            "reflex_recover", 0.5 if reflex_recover is None else reflex_recover
+        )
         if "n_corrections" in kwargs:
             raise ValueError(
                 f"unknown argument(s) ['n_corrections']; {self.env_id}'s simulated user corrects "
@@ -231,6 +261,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         # About critical damping for ~2 kg at the hand and ~0.05 kg m² about it.
         self._d = (2.0 * math.sqrt(kp * 2.0), 2.0 * math.sqrt(kr * 0.05))
         self._n_sub = round(CONTROL_DT / m.opt.timestep)
+        self._build_control()
 
     def _reset_sim(self) -> None:
         m, d = self.model, self.data
@@ -246,8 +277,8 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._time = 0.0
         self._warnings = 0
         self._wrench = np.zeros(6)
-        self._held = np.zeros(6)
-        self._scripted: tuple[np.ndarray, int] | None = None
+        self._held = HeldWrench()
+        self._scripted: ScriptedWrench | None = None
         self._active = False
         self._corr_start_x = self._x.copy()
         self._corr_t0 = 0.0
@@ -257,6 +288,14 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._unstable = False
         self._x0 = self._x.copy()
         self._set_plan(np.array([self._x, self._x]), leg="plan")
+        self._reset_control()
+        self._braked = False
+        self._brake_q = self._qpos.copy()
+        self._release_at = math.inf
+        self._reflex = False
+        self._n_reflex = 0
+        self._pause_until = -1.0
+        self._rest_x = self._x.copy()
 
     def _read_state(self) -> np.ndarray:
         if not self._oriented:
@@ -272,32 +311,66 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         f = vector_arg("force", force, 3)
         tq = vector_arg("torque", torque, 3)
         duration = _positive("duration", duration)
-        self._scripted = (np.concatenate([f, tq]), max(1, round(duration / CONTROL_DT)))
+        self._scripted = ScriptedWrench(
+            np.concatenate([f, tq]), max(1, round(duration / CONTROL_DT))
+        )
 
     def hold_wrench(self, force: Any, torque: Any = (0.0, 0.0, 0.0)) -> None:
         """Apply ``force``/``torque`` on the hand every step until called again (zeros stop it):
         for an interactive front end that reads a person's push (e.g. the viewer's
         perturbation after ``sync()``) and hands it to the env."""
-        self._held = np.concatenate(
+        self._held.wrench6 = np.concatenate(
             [vector_arg("force", force, 3), vector_arg("torque", torque, 3)]
         )
 
     def _external_wrench(self) -> np.ndarray:
-        w = self._held.copy()
+        """The sum of every pusher's wrench this step (``people.Pusher``: the held one, a
+        script's, the simulated person's), in that order."""
+        t, x = self._time, self._x
+        w = np.concatenate(self._held.wrench(t, x, None))
         if self._scripted is not None:
-            ws, n = self._scripted
-            w += ws
-            self._scripted = (ws, n - 1) if n > 1 else None
+            f, tq = self._scripted.wrench(t, x, None)
+            w[:3] += f
+            w[3:] += tq
+            if self._scripted.done:
+                self._scripted = None
         if self.user_enabled and self.human is not None:
             # A participant who only sees the cup is handed no θ̂.
             seen = self.theta_hat if getattr(self.human, "needs_theta_hat", True) else None
             f, tq = self.human.wrench(self._time, self._x, seen)
             w[:3] += f
             w[3:] += tq
+        if self.version.reflex:
+            self._reflex_decides(w)
         return w
+
+    def _reflex_decides(self, w: np.ndarray) -> None:
+        """The reflex's decision on the summed wrench (before the physics runs)."""
+        fx, fy, fz, tx, ty, tz = w.tolist()
+        force, torque = math.hypot(fx, fy, fz), math.hypot(tx, ty, tz)
+        if force > self.reflex_force or torque > self.reflex_torque:
+            if not self._braked:
+                self._trip()
+            self._release_at = math.inf
+        elif self._braked:
+            felt = force + torque / TORQUE_LEVER
+            if felt > self.force_threshold:
+                self._release_at = math.inf
+            elif self._release_at == math.inf:
+                self._release_at = self._time + self.reflex_recover - 1e-9
+            elif self._time >= self._release_at:
+                self._release()
+
+    def pause(self, seconds: float) -> None:
+        """Hold the setpoint where it is for ``seconds`` (the robot waits, then goes on)."""
+        self._pause_until = self._time + _positive("seconds", seconds) - 1e-9
 
     # ------------------------------------------------------------------ plan and setpoint
     def _set_plan(self, waypoints: np.ndarray, leg: str) -> None:
+        """Plans for θ̂ are clipped to ``reach`` where set (``within_reach``); the way home is
+        reachable as it is."""
+        if leg == "plan" and self.reach is not None:
+            waypoints = within_reach(self.task, waypoints, *self.reach)
         plan = np.asarray(waypoints, dtype=np.float64)
         self.plan_waypoints = plan  # what the robot follows now (a viewer draws it)
         # The segments' displacements (angles wrapped) once per plan, not twice per step.
@@ -328,10 +401,12 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     def _move_setpoint(self, u_r: np.ndarray) -> tuple[np.ndarray, Velocity]:
         """Move the setpoint one step along the plan plus the residual: (its displacement, its
-        velocity in the world frame)."""
+        velocity in the world frame). Braked or paused: it stays."""
+        if self._braked or self._time < self._pause_until:
+            return self._zeros, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         end = len(self._segments) * SEGMENT_TIME
         if self._leg == "plan" and self._tau >= end + END_HOLD:
-            ret = _straight(self._sp, self.task.start, self.task.plan_pos_bound)
+            ret = straight(self._sp, self.task.start, self.task.plan_pos_bound)
             self._set_plan(ret, leg="return")
         elif self._leg == "return" and self._tau >= end:
             self._replan()
@@ -349,74 +424,6 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         dt = CONTROL_DT
         return step, (dx / dt, dy / dt, dz / dt, rx / dt, ry / dt, rz / dt)
 
-    # ------------------------------------------------------------------ physics
-    def _push_at_cup(self) -> None:
-        """Hold the person's wrench on the hand: it acts at the cup, so add its lever's torque."""
-        fx, fy, fz, tx, ty, tz = self._wrench.tolist()
-        if fx or fy or fz or tx or ty or tz:
-            lx, ly, lz = (self._site_xpos - self._hand_xipos).tolist()
-            self._hand_xfrc[:] = (
-                fx,
-                fy,
-                fz,
-                tx + (ly * fz - lz * fy),
-                ty + (lz * fx - lx * fz),
-                tz + (lx * fy - ly * fx),
-            )
-        else:
-            self._hand_xfrc[:] = 0.0
-
-    def _simulate(self, v_sp: Velocity) -> None:
-        """One control step of physics; the impedance torque is recomputed every ``HOLD`` steps.
-
-        τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints; e = setpoint − pose
-        (orientation error as the rotation vector's small-angle form). v_sp, the setpoint's
-        velocity, is a feedforward term so that the arm does not lag its plan.
-        """
-        m, d = self.model, self.data
-        self._push_at_cup()
-        jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
-        q, qd, qd_all, q_home = self._qpos, self._qvel, self._qvel_all, self._q_home_list
-        xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R
-        (spx, spy, spz), (kp, kr), (dp, dr) = self._sp[:3].tolist(), self._k, self._d
-        vx, vy, vz, wx, wy, wz = v_sp
-        for _ in range(self._n_sub // HOLD):
-            mujoco.mj_jacSite(m, d, jp, jr, site)
-            # Plain floats where numpy would pay a call per few numbers, and ndarray.dot (half
-            # the cost of @ on arrays this small). The wrench w = K e + D (v_sp − J q̇):
-            x, y, z = xpos.tolist()
-            (_, r01, r02), (r10, _, r12), (r20, r21, _) = sp_r.dot(xmat_t).tolist()
-            jvx, jvy, jvz, jwx, jwy, jwz = jac.dot(qd_all).tolist()  # J q̇
-            w = np.array(
-                (
-                    kp * (spx - x) + dp * (vx - jvx),
-                    kp * (spy - y) + dp * (vy - jvy),
-                    kp * (spz - z) + dp * (vz - jvz),
-                    kr * (r21 - r12) + dr * (wx - jwx),
-                    kr * (r02 - r20) + dr * (wy - jwy),
-                    kr * (r10 - r01) + dr * (wz - jwz),
-                )
-            )
-            # τ = Jᵀ w + K_NULL (q_home − q) − D_NULL q̇; zip stops at the arm's joints (Jᵀ w
-            # also has the fingers', which are 0).
-            joints = zip(w.dot(jac).tolist(), q_home, q.tolist(), qd.tolist(), strict=False)
-            ctrl[:] = [t + K_NULL * (h - a) - D_NULL * b for t, h, a, b in joints]
-            mujoco.mj_step(m, d, HOLD)  # nstep; by keyword, pybind11 costs a third more
-        # mj_step leaves positions one physics step old: refresh them (the state read next and
-        # the next step's first torque then depend on qpos alone, so a pickled env continues
-        # exactly).
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)  # mj_jacSite reads cdof and subtree_com
-        self._time += CONTROL_DT
-
-    def _check_stable(self) -> bool:
-        """False after a MuJoCo instability warning (it then resets the data) or NaN."""
-        qacc, qpos, qvel = self._warning_stats
-        warnings = qacc.number + qpos.number + qvel.number
-        bad = warnings > self._warnings or not all(map(math.isfinite, self._qpos_all.tolist()))
-        self._warnings = warnings
-        return not bad
-
     # ------------------------------------------------------------------ reset / step
     def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
         if not self.user_enabled:
@@ -424,19 +431,30 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         return self._new_user(theta_star, rng)
 
     def _new_user(self, theta_star: np.ndarray, rng: np.random.Generator) -> SimulatedUser:
-        """The simulated person who pushes (v0: ``SimulatedUser``, the regret-judging user)."""
+        """The simulated person who pushes: the ``participant`` "observer" (``Participant``),
+        else the regret-judging ``SimulatedUser`` (v0's; v1's "oracle")."""
+        if self.participant == "observer":
+            return Participant(
+                self.task, theta_star, rng, sigma=self.sigma, bias=self.bias, **self.user_kwargs
+            )
         return SimulatedUser(self.task, theta_star, rng, **self._user_params())
 
-    def _draw_theta_star(self, rng: np.random.Generator) -> np.ndarray:
+    def draw_theta_stars(self, rngs: list[np.random.Generator]) -> np.ndarray:
         """The Task's θ* (the study's participant wants one thing); no draw."""
-        return self.task.theta_star
+        return np.tile(self.task.theta_star, (len(rngs), 1))
 
-    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
-        """The arm starts at home; θ̂0 ~ U[−1, 1]^d, then the user's generator."""
-        self._theta_hat0 = rng.uniform(-1.0, 1.0, size=self.task.dim)
-        return self.task.start, np.random.default_rng(int(rng.integers(2**63)))
+    def draw_starts(
+        self, rngs: list[np.random.Generator], human_rngs: bool = True
+    ) -> tuple[np.ndarray, list[np.random.Generator]]:
+        """The arm starts at home; θ̂0 ~ U[−1, 1]^d, then the user's generator. One episode at
+        a time (the study has no vector env): θ̂0 is the last generator's."""
+        users = []
+        for rng in rngs:
+            self._theta_hat0 = rng.uniform(-1.0, 1.0, size=self.task.dim)
+            users.append(np.random.default_rng(int(rng.integers(2**63))))
+        return np.tile(self.task.start, (len(rngs), 1)), users
 
-    def _start_override(self, x0: np.ndarray) -> np.ndarray:
+    def start_override(self, x0: np.ndarray) -> np.ndarray:
         raise ValueError("reset option 'state' is not supported: the study starts at home")
 
     def _place_start(self, x0: np.ndarray) -> np.ndarray:
@@ -451,6 +469,7 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
     def _transition(self, u_res: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, dict]:
         """The person's push decides the step: while the felt wrench exceeds the threshold a
         correction lasts and the setpoint is held; when it ends, u_H is the pose change."""
+        self._reflex = False
         if self._unstable:
             raise RuntimeError("the episode ended unstable; call reset()")
         if not self._active and self.theta_hat.tolist() != self._plan_theta:
@@ -486,19 +505,49 @@ class StudyEnv(MujocoRendering, CorrectionEnv, gym.Env):
         else:
             self._unstable = True
             self._x = x_before
-        return u_h, u_r, is_correction, self._study_info(u_h, record)
+        info = self._study_info(u_h, record)
+        if self.version.reflex:
+            info.update(
+                reflex=self._reflex,
+                braked=self._braked,
+                reflexes=self._n_reflex,
+                lag=math.dist(self._sp[:3].tolist(), self._x[:3].tolist()),
+                gave_up=float(getattr(self.human, "gave_up", False)),
+            )
+        return u_h, u_r, is_correction, info
 
     def _truncated(self) -> bool:
         """After ``duration`` seconds, at an instability, or at ``max_episode_steps``."""
         return self._unstable or super()._truncated() or self._time >= self.duration - 1e-9
 
     def _pushing(self, felt: float) -> bool:
-        """Whether the felt wrench (N, torques at ``TORQUE_LEVER``) is a correction's."""
-        return felt > self.force_threshold
+        """Whether the felt wrench (N, torques at ``TORQUE_LEVER``) is a correction's (never
+        while braked: a shove is no correction)."""
+        return felt > self.force_threshold and not self._braked
+
+    def _trip(self) -> None:
+        self._braked, self._reflex = True, True
+        self._n_reflex += 1
+        self._brake_q = self._qpos.copy()
+        self._qvel_all[:] = 0.0
+        self._active = False  # the shove is no correction
+        self._integral = [0.0] * 6
+
+    def _release(self) -> None:
+        self._braked = False
+        self._release_at = math.inf
+        self._replan()
 
     def _correction_start(self) -> np.ndarray:
-        """The pose a correction's u_H is measured from: v0, the cup's pose when it begins."""
-        return self._x.copy()
+        """The pose a correction's u_H is measured from: the cup's pose when it begins; with
+        the version's ``rest_pose``, where the held arm would rest: its setpoint, unless the
+        cup is more than ``REST_TRUST`` from it (a setpoint beyond reach or behind an obstacle,
+        where the arm rests short of it)."""
+        if not self.version.rest_pose:
+            return self._x.copy()
+        if math.dist(self._sp[:3].tolist(), self._x[:3].tolist()) > REST_TRUST:
+            return self._x.copy()
+        return self._sp.copy()
 
     def _record(self, u_h: np.ndarray) -> dict[str, Any]:
         times = np.array([t for t, _ in self._trace])
@@ -574,12 +623,29 @@ def _positive(name: str, value: Any) -> float:
     return v
 
 
-def _straight(a: np.ndarray, b: np.ndarray, bound: float) -> np.ndarray:
-    """Waypoints from pose a to pose b, at most ``bound`` apart per axis (angles: 2 bound)."""
-    delta = angle_delta(b, a)
-    scale = np.array([1.0] * 3 + [2.0] * (len(a) - 3))
-    n = max(1, int(np.ceil(np.max(np.abs(delta) / (bound * scale)))))
-    return a + np.linspace(0.0, 1.0, n + 1)[:, None] * delta
+class StudyEnvV1(StudyEnv):
+    """StROL-Study-v1: the study env with version ``V1``: u_H = the person's
+    push, the Panda's joint limits and a Cartesian force reflex (``versions.V1``,
+    ``docs/study.md``). It only names its version: the env is ``StudyEnv``.
+
+    Extra arguments: ``participant`` ("observer", default, or "oracle"; ``PARTICIPANTS``; the
+    simulated person when ``human`` is not None), ``reflex_force`` (N, > 0, default 100),
+    ``reflex_torque`` (N m, > 0, default 10), ``reflex_recover`` (s, > 0, default 0.5).
+    Extra ``info``: ``reflex`` (the reflex tripped this step), ``braked``, ``reflexes`` (count
+    this episode), ``lag`` (the cup's distance to its setpoint, m), ``gave_up`` (1.0 once the
+    participant has given up, else 0.0). ``pause(seconds)`` holds
+    the setpoint where it is.
+
+    ## Version History
+
+    - v1: u_H measured against the held setpoint, integral and damping feedforward in the
+      impedance law, joint speed and torque limits, the force reflex, ``pause``.
+    - v0: initial version (kept, deprecated, for the published results).
+    """
+
+    version: ClassVar[StudyVersion] = V1
+    env_id: ClassVar[str] = V1.env_id
+    reach: tuple[np.ndarray, np.ndarray, float] | None = V1.reach
 
 
-__all__ = ["StudyEnv", "rotation_error"]
+__all__ = ["PARTICIPANTS", "StudyEnv", "StudyEnvV1", "rotation_error"]

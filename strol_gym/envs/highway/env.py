@@ -13,7 +13,7 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.envs.base import CorrectionEnv, RenderModes
+from strol_gym.envs.contract import CorrectionEnv, render_metadata
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
 ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
@@ -131,10 +131,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": RenderModes(["human", "rgb_array"]),
-        "render_fps": 4,
-    }
+    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=4)
 
     env_id: ClassVar[str] = "StROL-Highway-v0"
     task_cls: ClassVar[type[HighwayTask]] = HighwayTask
@@ -176,16 +173,12 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         self.action_type = None
 
     # ------------------------------------------------------------------ the template's hooks
-    def _draw_start(self, rng: np.random.Generator) -> tuple[np.ndarray, np.random.Generator]:
-        x0, human_rngs = self._draw_starts([rng])
-        return x0[0], human_rngs[0]
-
-    def _draw_starts(
+    def draw_starts(
         self, rngs: list[np.random.Generator], human_rngs: bool = True
     ) -> tuple[np.ndarray, list[Any]]:
         """Per generator, the start and then the seed of the human's own generator (None
         instead of the generator unless ``human_rngs``: a vector env whose humans never act
-        skips building them); for many generators at once, a vector env's resets."""
+        skips building them)."""
         x0 = self.task.sample_episode_starts(rngs)
         seeds = [int(rng.integers(0, 2**63 - 1)) for rng in rngs]
         return x0, [np.random.default_rng(s) if human_rngs else None for s in seeds]

@@ -1,0 +1,268 @@
+"""The study's impedance controllers, one per version's option ``controller``.
+
+- ``"v0"``: τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints, with scalar gains
+  (StROL-Study-v0, as published).
+- ``"v1"``: adds a bounded integral (frozen while a person pushes), damping critical for the
+  arm's task-space inertia Λ, Λ a_sp and the joints' damping fed forward, the home pull in the
+  null space only, and the Panda's joint speed limits (StROL-Study-v1).
+
+A mixin of ``StudyEnv`` (``strol_gym.envs.study.env``): it reads the env's MuJoCo views and
+setpoint; the env calls ``_simulate`` once per control step.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+
+from strol_gym.envs.panda.model import N_ARM
+from strol_gym.envs.study.scene import JOINT_DAMPING
+from strol_gym.tasks.study import CONTROL_DT
+
+HOLD = 5
+"""Physics steps per impedance update (the torque is held in between): 5 steps of 5 ms = 25 ms,
+i.e. 40 Hz impedance control."""
+_INSTABILITY = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+)
+Velocity = tuple[float, float, float, float, float, float]
+"""The setpoint's linear (m/s) and angular (rad/s) velocity, world frame."""
+K_NULL, D_NULL = 0.5, 0.5
+"""A weak joint-space pull towards the home joints (N m/rad, N m s/rad): keeps the redundant
+elbow from drifting; a few N/m at the hand, small next to the Cartesian stiffness."""
+VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
+"""The Panda's joint speed limits (rad/s, datasheet)."""
+TORQUE_LIMIT = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
+"""The Panda's joint torque limits (N m, datasheet)."""
+K_INTEGRAL = (10.0, 10.0)
+"""Integral gains of the impedance law, as multiples of the stiffness (1/s): position, rotation."""
+INTEGRAL_MAX = (8.0, 0.8)
+"""Bounds of the integral wrench per axis (N, N m): it can cancel a few newtons of unmodelled
+force (joint friction, the elbow's pull), never fight a person."""
+MODEL_EVERY = 4
+"""Control steps between refreshes of Λ, D and the null-space projector (0.2 s)."""
+_ZERO6 = [0.0] * 6
+LAMBDA_REG = 1e-2 * np.eye(6)
+"""Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
+
+
+class ImpedanceController:
+    """The controllers of the study env (see the module docstring)."""
+
+    if TYPE_CHECKING:
+        model: Any
+        data: Any
+        version: Any
+        _k: tuple[float, float]
+        _qpos: np.ndarray
+
+    def _build_control(self) -> None:
+        """The controllers' fixed terms, once the model and its views exist."""
+        # The actuators' control range already clips torques; make it the datasheet's (a copy
+        # of the cached model would cost more than checking it is so).
+        if not np.allclose(np.abs(self.model.actuator_ctrlrange[:N_ARM]).max(1), TORQUE_LIMIT):
+            raise RuntimeError("the Panda model's torque range is not the datasheet's")
+        self._mass = np.zeros((self.model.nv, self.model.nv))
+        self._eye7 = np.eye(N_ARM)
+        kp, kr = self._k[0], 2.0 * self._k[1]  # v0's rotation term is 2 kr' sin: kr = 2 kr'
+        self._sqrt_k = np.sqrt([kp, kp, kp, kr, kr, kr])
+        self._vlim = VELOCITY_LIMIT.tolist()
+        self._half_vlim = (0.5 * VELOCITY_LIMIT).tolist()
+
+    def _reset_control(self) -> None:
+        """v1's controller state at a reset (v0 keeps none)."""
+        self._integral = [0.0] * 6
+        self._v_prev = _ZERO6
+        self._model_age = 0
+        self._v_feed: list[float] | None = None
+
+    def _simulate(self, v_sp: Velocity) -> None:
+        """One control step of physics with the version's controller."""
+        if self.version.controller == "v1":
+            self._simulate_v1(v_sp)
+        else:
+            self._simulate_v0(v_sp)
+
+    def _push_at_cup(self) -> None:
+        """Hold the person's wrench on the hand: it acts at the cup, so add its lever's torque."""
+        fx, fy, fz, tx, ty, tz = self._wrench.tolist()
+        if fx or fy or fz or tx or ty or tz:
+            lx, ly, lz = (self._site_xpos - self._hand_xipos).tolist()
+            self._hand_xfrc[:] = (
+                fx,
+                fy,
+                fz,
+                tx + (ly * fz - lz * fy),
+                ty + (lz * fx - lx * fz),
+                tz + (lx * fy - ly * fx),
+            )
+        else:
+            self._hand_xfrc[:] = 0.0
+
+    def _simulate_v0(self, v_sp: Velocity) -> None:
+        """One control step of physics; the impedance torque is recomputed every ``HOLD`` steps.
+
+        τ = Jᵀ(K e − D (J q̇ − v_sp)) + a weak pull to the home joints; e = setpoint − pose
+        (orientation error as the rotation vector's small-angle form). v_sp, the setpoint's
+        velocity, is a feedforward term so that the arm does not lag its plan.
+        """
+        m, d = self.model, self.data
+        self._push_at_cup()
+        jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
+        q, qd, qd_all, q_home = self._qpos, self._qvel, self._qvel_all, self._q_home_list
+        xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R
+        (spx, spy, spz), (kp, kr), (dp, dr) = self._sp[:3].tolist(), self._k, self._d
+        vx, vy, vz, wx, wy, wz = v_sp
+        for _ in range(self._n_sub // HOLD):
+            mujoco.mj_jacSite(m, d, jp, jr, site)
+            # Plain floats where numpy would pay a call per few numbers, and ndarray.dot (half
+            # the cost of @ on arrays this small). The wrench w = K e + D (v_sp − J q̇):
+            x, y, z = xpos.tolist()
+            (_, r01, r02), (r10, _, r12), (r20, r21, _) = sp_r.dot(xmat_t).tolist()
+            jvx, jvy, jvz, jwx, jwy, jwz = jac.dot(qd_all).tolist()  # J q̇
+            w = np.array(
+                (
+                    kp * (spx - x) + dp * (vx - jvx),
+                    kp * (spy - y) + dp * (vy - jvy),
+                    kp * (spz - z) + dp * (vz - jvz),
+                    kr * (r21 - r12) + dr * (wx - jwx),
+                    kr * (r02 - r20) + dr * (wy - jwy),
+                    kr * (r10 - r01) + dr * (wz - jwz),
+                )
+            )
+            # τ = Jᵀ w + K_NULL (q_home − q) − D_NULL q̇; zip stops at the arm's joints (Jᵀ w
+            # also has the fingers', which are 0).
+            joints = zip(w.dot(jac).tolist(), q_home, q.tolist(), qd.tolist(), strict=False)
+            ctrl[:] = [t + K_NULL * (h - a) - D_NULL * b for t, h, a, b in joints]
+            mujoco.mj_step(m, d, HOLD)  # nstep; by keyword, pybind11 costs a third more
+        # mj_step leaves positions one physics step old: refresh them (the state read next and
+        # the next step's first torque then depend on qpos alone, so a pickled env continues
+        # exactly).
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)  # mj_jacSite reads cdof and subtree_com
+        self._time += CONTROL_DT
+
+    def _check_stable(self) -> bool:
+        """False after a MuJoCo instability warning (it then resets the data) or NaN."""
+        qacc, qpos, qvel = self._warning_stats
+        warnings = qacc.number + qpos.number + qvel.number
+        bad = warnings > self._warnings or not all(map(math.isfinite, self._qpos_all.tolist()))
+        self._warnings = warnings
+        return not bad
+
+    def _model_terms(self, v_sp: np.ndarray) -> None:
+        """The model-based terms of the control law, at the current pose: the cup's
+        task-space inertia Λ, the damping D = √K Λ^½ + Λ^½ √K (critical for the arm's real
+        inertia, which v0's scalar gains underestimate 2-5x) and the null-space projector N,
+        folded into joint-space matrices (refreshed every ``MODEL_EVERY`` control steps: the
+        pose changes little in between); and, when the setpoint's velocity changes, its
+        acceleration feedforward Λ a_sp and the torques that move along it (Jᵀ D v_sp and the
+        joints' viscous damping at J̄ v_sp, J̄ = M⁻¹ Jᵀ Λ)."""
+        refresh = self._model_age <= 0
+        if refresh:
+            self._model_age = MODEL_EVERY
+            ja = self._jac[:, :N_ARM]
+            mujoco.mj_fullM(self.model, self.data, self._mass)
+            m_inv_jt = np.linalg.solve(self._mass[:N_ARM, :N_ARM], ja.T)
+            lam = np.linalg.inv(ja.dot(m_inv_jt) + LAMBDA_REG)
+            vals, vecs = np.linalg.eigh(lam)
+            root = (vecs * np.sqrt(np.maximum(vals, 0.0))).dot(vecs.T)
+            jt_damp = ja.T.dot(root * self._sqrt_k + self._sqrt_k[:, None] * root)
+            # The elbow's pull acts in the task's null space only (N = I − Jᵀ J̄ᵀ): v0's pull,
+            # unprojected, turned the wrist off its setpoint by up to 0.05 rad.
+            null = self._eye7 - ja.T.dot(lam.dot(m_inv_jt.T))
+            # τ = Jᵀ(K e + ∫ + Λ a_sp) + c − G [q; q̇]: G = [K_n N, Jᵀ D J + D_n N].
+            self._gain = np.hstack([K_NULL * null, jt_damp.dot(ja) + D_NULL * null])
+            self._pull_home = (K_NULL * null).dot(self._q_home)
+            self._lam, self._dyn_inv, self._jt_damp = lam, m_inv_jt.dot(lam), jt_damp
+        self._model_age -= 1
+        v_list = v_sp.tolist()
+        if v_list == self._v_prev:
+            self._acc_ff = _ZERO6
+        else:
+            acc = (v_sp - np.array(self._v_prev)) * (1.0 / CONTROL_DT)
+            self._acc_ff = self._lam.dot(acc).tolist()
+            self._v_prev = v_list
+        if refresh or v_list != self._v_feed:
+            self._v_feed = v_list
+            feed = self._jt_damp.dot(v_sp) + JOINT_DAMPING * self._dyn_inv.dot(v_sp)
+            self._const = (feed + self._pull_home).tolist()
+
+    def _simulate_v1(self, v_sp: Velocity) -> None:
+        """One control step: τ = Jᵀ(K e + D (v_sp − J q̇) + Λ a_sp + ∫) + the joints' damping
+        fed forward + a weak pull to the home joints in the null space, recomputed every
+        ``HOLD`` physics steps; the integral ∫ (bounded) is frozen while a correction lasts;
+        joint speeds are held at the limits. While braked the joints stay locked (nothing
+        else in the scene moves, so no physics runs)."""
+        m, d = self.model, self.data
+        if self._braked:
+            self._qpos[:] = self._brake_q
+            self._qvel_all[:] = 0.0
+            self._hand_xfrc[:] = 0.0
+            self._v_prev = _ZERO6
+            self._model_age = 0
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            self._time += CONTROL_DT
+            return
+        self._push_at_cup()
+        jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
+        q, qd = self._qpos, self._qvel
+        xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R
+        (spx, spy, spz), kp, kr = self._sp[:3].tolist(), self._k[0], 2.0 * self._k[1]
+        vx, vy, vz, wx, wy, wz = v_sp
+        integrate = not self._active
+        dt_i = HOLD * self.model.opt.timestep
+        gp, gr = kp * K_INTEGRAL[0] * dt_i, kr * K_INTEGRAL[1] * dt_i
+        ip, ir = INTEGRAL_MAX
+        vlim, half = self._vlim, self._half_vlim
+        for i in range(self._n_sub // HOLD):
+            mujoco.mj_jacSite(m, d, jp, jr, site)
+            if i == 0:
+                self._model_terms(np.array(v_sp))
+            x, y, z = xpos.tolist()
+            (_, r01, r02), (r10, _, r12), (r20, r21, _) = sp_r.dot(xmat_t).tolist()
+            # The setpoint where it is at this chunk's start (it moves linearly over the
+            # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
+            back = CONTROL_DT - i * dt_i
+            e = (
+                spx - vx * back - x,
+                spy - vy * back - y,
+                spz - vz * back - z,
+                0.5 * (r21 - r12) - wx * back,
+                0.5 * (r02 - r20) - wy * back,
+                0.5 * (r10 - r01) - wz * back,
+            )
+            integ = self._integral
+            if integrate:
+                integ = [
+                    min(ip, max(-ip, a + gp * b)) for a, b in zip(integ[:3], e[:3], strict=False)
+                ] + [min(ir, max(-ir, a + gr * b)) for a, b in zip(integ[3:], e[3:], strict=False)]
+                self._integral = integ
+            w = np.array(
+                [
+                    k * a + b + c
+                    for k, a, b, c in zip(
+                        (kp, kp, kp, kr, kr, kr), e, integ, self._acc_ff, strict=False
+                    )
+                ]
+            )
+            rest = self._gain.dot(np.concatenate((q, qd))).tolist()
+            joints = zip(w.dot(jac).tolist(), self._const, rest, strict=False)
+            ctrl[:] = [t + c - g for t, c, g in joints]
+            if any(abs(s) > h for s, h in zip(qd.tolist(), half, strict=False)):
+                for _ in range(HOLD):  # near a speed limit: hold it every physics step
+                    mujoco.mj_step(m, d)
+                    qd[:] = np.clip(qd, -VELOCITY_LIMIT, VELOCITY_LIMIT)
+            else:
+                mujoco.mj_step(m, d, HOLD)
+                if any(abs(s) > lim for s, lim in zip(qd.tolist(), vlim, strict=False)):
+                    qd[:] = np.clip(qd, -VELOCITY_LIMIT, VELOCITY_LIMIT)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        self._time += CONTROL_DT

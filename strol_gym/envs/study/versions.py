@@ -1,0 +1,60 @@
+"""The versions of StROL-Study as option sets of one env class (``strol_gym.envs.study.env``).
+
+Each version is a frozen :class:`StudyVersion`: what it changes is a field, read by the one
+``StudyEnv``; no version subclasses another to override its internals. A new version (say
+``StROL-Study-v2``) is a new ``StudyVersion`` (its new behaviour a new field whose default
+keeps v0 and v1 as they are), a class that names it (``version = V2``) and a registration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from strol_gym.envs.study.geometry import REACH_ANGLE, REACH_HIGH, REACH_LOW
+
+PARTICIPANTS = ("observer", "oracle")
+"""``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
+ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
+(``human``, default eq. M6, the training human), satisfied by the plan's regret."""
+REST_TRUST = 0.01
+"""m: beyond this lag at a correction's start, u_H is measured from the cup's pose (v0's way)."""
+
+
+@dataclass(frozen=True, eq=False)
+class StudyVersion:
+    """The options of one StROL-Study version (docs/study.md measures each change)."""
+
+    name: str
+    env_id: str
+    controller: str = "v0"
+    """The impedance law (``strol_gym.envs.study.controller``): "v0" or "v1" (integral,
+    Λ-based damping, feedforward, null-space home pull, joint speed limits)."""
+    rest_pose: bool = False
+    """u_H from the held setpoint (where the held arm would rest, within ``REST_TRUST`` of the
+    cup) instead of the cup's pose when the push begins."""
+    reach: tuple[np.ndarray, np.ndarray, float] | None = None
+    """The box executed plans are clipped into (``geometry.within_reach``); None: the Task's."""
+    reflex: bool = False
+    """The Cartesian force reflex and brakes, ``pause``, and info ``reflex``, ``braked``,
+    ``reflexes``, ``lag``, ``gave_up``; arguments ``reflex_force``, ``reflex_torque``,
+    ``reflex_recover``."""
+    participants: tuple[str, ...] = ()
+    """The simulated people the ``participant`` argument chooses from (the first is the
+    default); empty: no such argument, the regret-judging ``SimulatedUser``."""
+
+
+V0 = StudyVersion("v0", "StROL-Study-v0")
+"""As published: kept unchanged for the published results."""
+V1 = StudyVersion(
+    "v1",
+    "StROL-Study-v1",
+    controller="v1",
+    rest_pose=True,
+    reach=(REACH_LOW, REACH_HIGH, REACH_ANGLE),
+    reflex=True,
+    participants=PARTICIPANTS,
+)
+"""u_H = the person's push, tracking, the reachable box, the Panda's limits, the reflex."""
+VERSIONS = {v.name: v for v in (V0, V1)}
