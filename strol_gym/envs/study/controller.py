@@ -49,6 +49,13 @@ JOINT_COMP = 1.0
 physics step (its share of q̇), so that the push meets the Cartesian impedance only: with it,
 the joints' damping (heavy on the wrist, seen at the cup) turned a push along x 17° towards
 −z within 1 s (Task 1) and left the cup 30 % short of F/K."""
+WATCH_FROM = 0.25
+"""v2 steps one physics step at a time (braking if need be) while a wrench pushes or any joint
+is above 0.25x its speed limit (the arm springing back after a push)."""
+SPEED_REFLEX = 1.0
+"""v2's speed reflex: when a joint would pass 0.98x its speed limit at the next physics step
+(its speed plus the last step's acceleration), the brakes lock the arm (``info["reflex"]``):
+a push that loads a joint beyond its motor's torque cannot be braked by the torques."""
 BRAKE_FROM, BRAKE_FULL = 0.9, 0.95
 """v2's joint brake: from 0.9x a joint's speed limit its torque blends towards the full
 torque limit against the motion, reached at 0.95x (saturation: the motors' torque is all there
@@ -83,6 +90,10 @@ class ImpedanceController:
         version: Any
         _k: tuple[float, float]
         _qpos: np.ndarray
+        _braked: bool
+        _rerun: bool
+
+        def _trip(self) -> None: ...
 
     def _build_control(self) -> None:
         """The controllers' fixed terms, once the model and its views exist."""
@@ -97,6 +108,9 @@ class ImpedanceController:
         self._vlim = VELOCITY_LIMIT.tolist()
         self._half_vlim = (0.5 * VELOCITY_LIMIT).tolist()
         self._brake_vlim = (BRAKE_FROM * VELOCITY_LIMIT).tolist()
+        self._watch_vlim = (WATCH_FROM * VELOCITY_LIMIT).tolist()
+        self._reflex_vlim = (SPEED_REFLEX * VELOCITY_LIMIT).tolist()
+        self._qacc = self.data.qacc[:N_ARM]
         self._tlim = TORQUE_LIMIT.tolist()
 
     def _control_state(self) -> dict[str, Any]:
@@ -292,6 +306,8 @@ class ImpedanceController:
             ctrl[:] = [t + c - g for t, c, g in joints]
             if brake:
                 self._step_braked(pushed)
+                if self._braked:  # the speed reflex tripped: the brakes hold from here
+                    break
             elif any(abs(s) > h for s, h in zip(qd.tolist(), half, strict=False)):
                 for _ in range(HOLD):  # near a speed limit: hold it every physics step
                     mujoco.mj_step(m, d)
@@ -311,7 +327,7 @@ class ImpedanceController:
         the motion from 0.9x a joint's speed limit; else the chunk at once."""
         m, d, qd, ctrl = self.model, self.data, self._qvel, self._ctrl
         if not pushed and not any(
-            abs(s) > h for s, h in zip(qd.tolist(), self._half_vlim, strict=False)
+            abs(s) > h for s, h in zip(qd.tolist(), self._watch_vlim, strict=False)
         ):
             mujoco.mj_step(m, d, HOLD)
             self._note_contact()
@@ -335,6 +351,15 @@ class ImpedanceController:
                 ctrl[:] = base
             mujoco.mj_step(m, d)
             self._note_contact()
+            # The speed reflex: a joint the torques cannot hold (the push loads it beyond its
+            # motor) would pass its limit at the next step: the brakes lock the arm now.
+            dt, acc = m.opt.timestep, self._qacc.tolist()
+            ahead = (abs(s + dt * a) for s, a in zip(qd.tolist(), acc, strict=False))
+            if not self._rerun and any(
+                v > r for v, r in zip(ahead, self._reflex_vlim, strict=False)
+            ):
+                self._trip()
+                return
 
     def _note_contact(self) -> None:
         """Whether the cup touches an object (``info["contact"]``), after a physics step."""

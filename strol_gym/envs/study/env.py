@@ -150,7 +150,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         force_threshold: float = 15.0,
         duration: float = 60.0,
         stiffness: float | None = None,
-        rot_stiffness: float = 30.0,
+        rot_stiffness: float | None = None,
         user_kwargs: dict[str, Any] | None = None,
         reflex_force: float | None = None,
         reflex_torque: float | None = None,
@@ -193,7 +193,9 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self.force_threshold = _positive("force_threshold", force_threshold)
         self.duration = _positive("duration", duration)
         self.stiffness = _positive("stiffness", v.stiffness if stiffness is None else stiffness)
-        self.rot_stiffness = _positive("rot_stiffness", rot_stiffness)
+        self.rot_stiffness = _positive(
+            "rot_stiffness", v.rot_stiffness if rot_stiffness is None else rot_stiffness
+        )
         super().__init__(task=task, prior=prior, **kwargs)
 
     def _make_task(self, task: Any) -> StudyTask:
@@ -304,6 +306,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._rest_x = self._x.copy()
         self._cf_steps = 0
         self._cf_control: dict[str, Any] = {}
+        self._rerun = False
         self._touched = False
         self._n_contact = 0
 
@@ -546,9 +549,10 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         mujoco.mj_copyData(d, m, self._cf_data)
         self._set_control_state(self._cf_control)
         self._wrench = np.zeros(6)
-        touched = self._touched
+        touched, self._rerun = self._touched, True
         for _ in range(self._cf_steps):
             self._simulate(_STILL)
+        self._rerun = False
         unpushed = self._read_state()
         mujoco.mj_copyData(d, m, self._cf_pushed)
         self._set_control_state(control)

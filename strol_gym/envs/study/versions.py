@@ -56,6 +56,8 @@ class StudyVersion:
     during the step; ``info["contacts"]`` counts such steps."""
     stiffness: float = 400.0
     """The default Cartesian stiffness (N/m; the ``stiffness`` argument overrides it)."""
+    rot_stiffness: float = 30.0
+    """The default rotational stiffness (N m/rad; the ``rot_stiffness`` argument overrides it)."""
     tasks: dict[int, type[StudyTask]] | None = None
     """The Task classes ``task=1, 2, 3`` build (None: ``STUDY_TASKS``, the published ones)."""
 
@@ -80,6 +82,7 @@ V2 = StudyVersion(
     joint_brake=True,
     contact_info=True,
     stiffness=300.0,
+    rot_stiffness=10.0,
     reflex=True,
     participants=PARTICIPANTS,
     tasks=STUDY_TASKS_V2,
