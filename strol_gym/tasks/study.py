@@ -448,7 +448,7 @@ REACH_LOW = np.array([0.25, -0.45, FLOOR])
 REACH_HIGH = np.array([0.75, 0.60, 0.60])
 REACH_SHOULDER = np.array([0.0, 0.0, 0.333])
 REACH_RADIUS = 0.75
-REACH_ANGLE = 1.0
+REACH_ANGLE = 0.8
 """The reachable set: positions in [REACH_LOW, REACH_HIGH] with the hand (``WRIST_LEVER`` up
 the cup's axis) within ``REACH_RADIUS`` of the shoulder (joint 2's axis), |roll|, |pitch| ≤
 ``REACH_ANGLE`` (rad), computed offline from the
