@@ -600,6 +600,21 @@ class StudyTaskV2(StudyTask):
         plans = super().plan(theta, x0)
         return _walk_out(plans, np.asarray(self.keep_out, dtype=np.float64), self.plan_pos_bound)
 
+    def around_hulls(self, path: np.ndarray) -> np.ndarray:
+        """A path (T+1, s) walked at the planner's step around the hulls (``_walk_out``), then
+        straight on to its last pose if the walk fell short: the robot's way home, which a
+        straight line took through the pitcher (v2's first runs: 13 of 200 seeds)."""
+        path = np.asarray(path, dtype=np.float64)
+        walked = _walk_out(
+            path[None], np.asarray(self.keep_out, dtype=np.float64), self.plan_pos_bound
+        )[0]
+        gap = path[-1, :3] - walked[-1, :3]
+        n = int(np.ceil(np.max(np.abs(gap)) / self.plan_pos_bound - 1e-9))
+        if n <= 0:
+            return walked
+        tail = walked[-1] + np.linspace(0.0, 1.0, n + 1)[1:, None] * (path[-1] - walked[-1])
+        return np.vstack([walked, tail])
+
     def outside_hulls(self, x: np.ndarray) -> np.ndarray:
         """Whether each cup position (..., ≥3) is outside every hull and above the floor."""
         x = np.asarray(x, dtype=np.float64)

@@ -420,6 +420,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         end = len(self._segments) * SEGMENT_TIME
         if self._leg == "plan" and self._tau >= end + END_HOLD:
             ret = straight(self._sp, self.task.start, self.task.plan_pos_bound)
+            if self.version.hull_return:
+                ret = self.task.around_hulls(ret)
             self._set_plan(ret, leg="return")
         elif self._leg == "return" and self._tau >= end:
             self._replan()

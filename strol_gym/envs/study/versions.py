@@ -58,6 +58,9 @@ class StudyVersion:
     """The default Cartesian stiffness (N/m; the ``stiffness`` argument overrides it)."""
     rot_stiffness: float = 30.0
     """The default rotational stiffness (N m/rad; the ``rot_stiffness`` argument overrides it)."""
+    hull_return: bool = False
+    """The way home goes around the objects' hulls (``StudyTaskV2.around_hulls``), not through
+    them in a straight line."""
     tasks: dict[int, type[StudyTask]] | None = None
     """The Task classes ``task=1, 2, 3`` build (None: ``STUDY_TASKS``, the published ones)."""
 
@@ -86,6 +89,7 @@ V2 = StudyVersion(
     reflex=True,
     participants=PARTICIPANTS,
     tasks=STUDY_TASKS_V2,
+    hull_return=True,
 )
 """u_H by counterfactual, the joint limits at every physics step, the Task's reachable set and
 hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``."""
