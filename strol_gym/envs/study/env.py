@@ -118,7 +118,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
       ``strol_gym.envs.study.user``).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
     - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
-      ``stiffness`` (N/m, > 0, default 400), ``rot_stiffness`` (N m/rad, > 0, default 30).
+      ``stiffness`` (N/m, > 0, default 400; v2: 300), ``rot_stiffness`` (N m/rad, > 0,
+      default 30; v2: 10).
     - ``max_episode_steps`` (int ≥ 1 or None), ``render_mode`` (None | "rgb_array" |
       "human"), ``width``, ``height``.
 
@@ -743,10 +744,14 @@ class StudyEnvV2(StudyEnv):
       the reachable set and out of the objects' hulls, which it carries as data; the robot
       executes its plans as they are (no clipping: ``reach`` is None), and the regret uses the
       same planner.
-    - **The Panda's limits at every physics step**, through the torques (``joint_brake``).
-      ``reflex_force`` in [20, 150] N and ``reflex_torque`` in [2, 15] N m, else ValueError.
-    - **Softer**: ``stiffness`` 300 N/m by default (v1: 400): a 30 N push for 1 s moves the
-      cup ~9 cm (the paper's participants: a median 11 cm per correction).
+    - **The Panda's limits at every physics step**, through the torques (``joint_brake``:
+      from 0.9x a joint's speed limit its torque saturates against the motion); a push that
+      loads a joint beyond its motor trips a speed reflex (the brakes lock, ``info["reflex"]``)
+      before the joint passes its limit. ``reflex_force`` in [20, 150] N and ``reflex_torque``
+      in [2, 15] N m, else ValueError.
+    - **Softer**: ``stiffness`` 300 N/m and ``rot_stiffness`` 10 N m/rad by default (v1: 400
+      and 30): a 30 N push for 1 s moves the cup 9-10.5 cm (the paper's participants: a median
+      11 cm per correction).
     - ``info["contact"]``: the cup touched the pitcher, the plate or the table this step
       (``info["contacts"]`` counts the steps).
 
