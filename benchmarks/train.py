@@ -12,7 +12,7 @@ from pathlib import Path
 
 from strol_gym.benchmarks.args import TRAIN_CAPS, add_allow_large, check_size_caps, json_object
 
-from strol_gym.learners.checkpoint import KINDS, check_weights_path, save_checkpoint
+from strol_gym.learners.checkpoint import KINDS, SAFETENSORS, check_weights_path, save_checkpoint
 from strol_gym.learners.network import BOUNDS
 from strol_gym.learners.training import (
     ROBOT_ACTIONS,
@@ -47,7 +47,8 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
         "--kind",
         choices=KINDS,
         default=d.kind,
-        help="strol: g~ = g + ĝ; e2e: g~ = ĝ; strol-unrolled: g~ = g + ĝ(x, u_H, θ̂)",
+        help="strol: g~ = g + ĝ; e2e: g~ = ĝ (‖ĝ‖ ≤ ‖g‖); e2e-scratch: g~ = ĝ unbounded "
+        "(the paper's e2e); strol-unrolled: g~ = g + ĝ(x, u_H, θ̂)",
     )
     a(
         "-K",
@@ -57,7 +58,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
         metavar="K",
         help="loss = error after K unrolled updates (K = 1: eq. M7)",
     )
-    a("--out", default=None, help="weights path (.pt); default <task>_<kind>.pt here")
+    a(
+        "--out",
+        default=None,
+        help="weights path (.safetensors, or .pt for a torch state_dict); "
+        "default <task>_<kind>.safetensors here",
+    )
     a("--steps", type=int, default=d.steps)
     a("--batch", type=int, default=d.batch)
     a("--sigma", type=float, default=d.sigma, help="human noise, fraction of a_max")
@@ -77,7 +83,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     a("--theta-sampling", choices=THETA_SAMPLING, default=d.theta_sampling)
     a("--theta-jitter", type=float, default=d.theta_jitter)
     a("--robot-action", choices=ROBOT_ACTIONS, default=d.robot_action)
-    a("--bound", choices=BOUNDS, default=d.bound)
+    a(
+        "--bound",
+        choices=BOUNDS,
+        default=None,
+        help="ĝ's bound (default: none for e2e-scratch, radial otherwise)",
+    )
     a("--threads", type=int, default=d.threads)
     a(
         "--prior",
@@ -113,7 +124,7 @@ def run_train(args: argparse.Namespace) -> Path:
         theta_sampling=args.theta_sampling,
         theta_jitter=args.theta_jitter,
         robot_action=args.robot_action,
-        bound=args.bound,
+        bound=args.bound or ("none" if args.kind == "e2e-scratch" else TrainConfig.bound),
         threads=args.threads,
         unroll=args.unroll,
         prior=args.prior,
@@ -123,7 +134,7 @@ def run_train(args: argparse.Namespace) -> Path:
         raise ValueError(f"heldout must be >= 1, got {args.heldout}")
     if out is None:
         short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
-        out = Path(f"{short}_{config.kind}.pt")
+        out = Path(f"{short}_{config.kind}{SAFETENSORS}")
         check_weights_path(out, "--out")
     model, history = train_correction(task, config, quiet=args.quiet)
     check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)

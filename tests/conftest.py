@@ -7,6 +7,9 @@ import os
 # MuJoCo picks its OpenGL backend at import; EGL renders without a display.
 os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+# Reports' bootstrap intervals: 200 resamples in tests (the benchmark's default is 2,000);
+# set here so the strol-bench subprocesses that tests start inherit it.
+os.environ.setdefault("STROL_BOOTSTRAP_RESAMPLES", "200")
 
 import pytest
 

@@ -142,6 +142,33 @@ def test_tables_and_summary(tmp_path):
     assert analyse(rd.config, rd.read_records()).summary == a.summary
 
 
+def test_heavy_tail_statistics_in_every_summary(tmp_path):
+    rd = ResultsDir.open(tmp_path / "r", _config(runs=6, learners=PAPER_LEARNERS))
+    _fill(rd)
+    a, _ = write_reports(rd, plots=False, resamples=100)
+    first = (tmp_path / "r" / "summary.csv").read_bytes()
+    with open(tmp_path / "r" / "summary.csv") as f:
+        rows = list(csv.DictReader(f))
+    grad = next(r for r in rows if r["learner"] == "gradient" and r["metric"] == "error")
+    # 6 runs: the IQM cuts one from each end -> mean(0.51, 0.52, 0.53, 0.54)
+    assert float(grad["iqm"]) == pytest.approx(0.525)
+    assert float(grad["iqm_ci95_low"]) <= 0.525 <= float(grad["iqm_ci95_high"])
+    with open(tmp_path / "r" / "stats.csv") as f:
+        stats_rows = list(csv.DictReader(f))
+    reg = [r for r in stats_rows if r["metric"] == "regret"]
+    # StROL's regret is below every baseline's in every run: P = 1 with a degenerate interval.
+    assert all(float(r["prob_improvement"]) == 1.0 for r in reg)
+    assert all(float(r["prob_improvement_ci95_low"]) == 1.0 for r in reg)
+    assert all(r["mark"] == "↓***" for r in reg)
+    md = (tmp_path / "r" / "summary.md").read_text()
+    assert "IQM [95 % CI] of regret" in md and "P(StROL better in a run) [95 % CI]" in md
+    assert "| all 4 (n = 24) |" in md and "↓ = StROL significantly lower" in md
+    # every run's matrix is kept for the figures; the bootstrap is seeded: same bytes again
+    assert a.runs[("robot", "training", "regret")].shape == (6, 5)
+    write_reports(rd, plots=False, resamples=100)
+    assert (tmp_path / "r" / "summary.csv").read_bytes() == first
+
+
 def test_no_verdicts_unless_the_config_is_the_papers(tmp_path):
     """H1/H2 speak of the paper's five learners in the paper's conditions: a subset gets
     tables and tests but no verdict lines."""
@@ -160,3 +187,52 @@ def test_changed_code_or_weights_block_resume(tmp_path):
     with pytest.raises(ResultsError, match="learner's class, settings or weights changed"):
         ResultsDir.open(tmp_path / "r", _config(), extra={"code": "aaa", "learners": {"w": 2}})
     ResultsDir.open(tmp_path / "r", _config(), extra={"code": "aaa", "learners": {"w": 1}})
+
+
+def _record_versions(path, **changed):
+    """Edit the versions a results folder says it was made with (as another install would
+    have recorded them)."""
+    meta = json.loads((path / "meta.json").read_text())
+    meta["versions"].update(changed)
+    (path / "meta.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize(
+    "package", ["numpy", "scipy", "torch", "gymnasium", "mujoco", "highway-env"]
+)
+def test_resume_under_other_versions_warns_and_is_refused_until_forced(tmp_path, capsys, package):
+    rd = ResultsDir.open(tmp_path / "r", _config())
+    _fill(rd)
+    assert rd.meta["versions"][package]  # the folder records what it ran with
+    _record_versions(tmp_path / "r", **{package: "0.0.1"})
+    with pytest.raises(ResultsError, match=rf"other package versions \({package} 0\.0\.1 -> "):
+        ResultsDir.open(tmp_path / "r", _config())
+    assert f"warning: {tmp_path / 'r'} was made under other package versions" in (
+        capsys.readouterr().err
+    )
+    assert len(rd.read_records()) == 4 * 4 * 2  # untouched
+    fresh = ResultsDir.open(tmp_path / "r", _config(), force=True)
+    assert len(fresh.missing_units()) == 8 and fresh.meta["versions"][package] != "0.0.1"
+
+
+def test_versions_that_do_not_shape_records_do_not_block_a_resume(tmp_path, capsys):
+    rd = ResultsDir.open(tmp_path / "r", _config())
+    _fill(rd)
+    _record_versions(tmp_path / "r", matplotlib="0.0.1", **{"stable-baselines3": "0.0.1"})
+    assert not ResultsDir.open(tmp_path / "r", _config()).missing_units()
+    assert "package versions" not in capsys.readouterr().err
+
+
+def test_cli_resume_under_other_versions_exits_2_until_forced(tmp_path, capsys):
+    from cli_checks import cli_error
+    from strol_gym.benchmarks import cli
+
+    out = tmp_path / "r"
+    argv = ["run", "--env", "robot", "--runs", "1", "--corrections", "1", "--quiet"]
+    argv += ["--no-plots", "--learners", "gradient", "--jobs", "1", "--out", str(out)]
+    assert cli.main(argv) in (0, None)
+    _record_versions(out, mujoco="0.0.1")
+    line = cli_error(argv, capsys)
+    assert "mujoco 0.0.1 -> " in line and "--force" in line
+    assert cli.main([*argv, "--force"]) in (0, None)
+    assert json.loads((out / "meta.json").read_text())["versions"]["mujoco"] != "0.0.1"

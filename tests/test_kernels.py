@@ -120,3 +120,49 @@ def test_a_real_run_stamps_its_records_and_a_resume_under_an_edited_kernel_warns
     run_benchmark(cfg, out, jobs=1, quiet=True)
     err = capsys.readouterr().err
     assert f"1 unit(s) under [{OTHER}] ({key})" in err
+
+
+def _stats_csv(folder, rows):
+    from strol_gym.benchmarks.engine.results import write_csv
+
+    folder.mkdir(parents=True)
+    cols = ("env", "condition", "metric", "learner", "baseline", "p_holm", "mean_diff",
+            "wilcoxon_p_holm", "hodges_lehmann", "prob_improvement")  # fmt: skip
+    write_csv(folder / "stats.csv", rows, cols)
+
+
+def test_cross_kernel_lists_every_test_and_names_the_cpu_dependent_verdicts(tmp_path):
+    from strol_gym.benchmarks.experiments.cross_kernel import compare, tests, tests_table
+
+    base = {"env": "robot", "condition": "noisy-biased", "metric": "regret", "learner": "strol"}
+    a = [{**base, "baseline": "e2e", "p_holm": 0.2, "mean_diff": -0.1, "wilcoxon_p_holm": 0.049,
+          "hodges_lehmann": -0.01, "prob_improvement": 0.46}]  # fmt: skip
+    b = [{**a[0], "wilcoxon_p_holm": 0.101, "prob_improvement": 0.45}]
+    _stats_csv(tmp_path / "avx512", a)
+    _stats_csv(tmp_path / "avx2", b)
+    got = tests(tmp_path / "avx512")
+    key = ("robot", "noisy-biased", "regret", "strol", "e2e")
+    assert got[("wilcoxon", *key)] == (0.049, "lower") and got[("t", *key)] == (0.2, "n.s.")
+    table = tests_table({"avx512": tmp_path / "avx512", "avx2": tmp_path / "avx2"})
+    assert len(table) == 2 + 2  # header, rule, one row per test
+    wil = next(line for line in table if "| wilcoxon |" in line)
+    assert "| 0.049 (lower) | avx2: 0.101 (n.s.) | **depends on the CPU** |" in wil
+    assert next(line for line in table if "| t |" in line).endswith("| 0.2 (n.s.) | same | no |")
+    (tmp_path / "avx512" / "summary.csv").write_text("env,condition,learner,metric,mean\n")
+    (tmp_path / "avx2" / "summary.csv").write_text("env,condition,learner,metric,mean\n")
+    _, _, changed, poi = compare(tmp_path / "avx512", tmp_path / "avx2")
+    assert changed == ["wilcoxon/robot/noisy-biased/regret/strol/e2e: lower -> n.s."]
+    assert poi == pytest.approx(0.01)
+
+
+def test_cross_kernel_settings():
+    from strol_gym.benchmarks.experiments.cross_kernel import setting_env
+
+    assert setting_env("native") == {}
+    assert setting_env("Prescott:avx2") == {
+        "OPENBLAS_CORETYPE": "Prescott",
+        "ATEN_CPU_CAPABILITY": "avx2",
+    }
+    assert setting_env("avx2-cpu")["MKL_ENABLE_INSTRUCTIONS"] == "AVX2"
+    with pytest.raises(ValueError, match="--settings"):
+        setting_env("Haswell")

@@ -60,8 +60,8 @@ def test_default_config_is_every_human_at_two_noise_levels():
 
 def test_mark_reads_the_holm_corrected_paired_test():
     base = {"mean_diff": -0.2, "hodges_lehmann": -0.1, "wilcoxon_p_holm": 0.5}
-    assert robustness.mark({**base, "p_holm": 0.004}) == "▲**"  # StROL lower: baseline worse
-    assert robustness.mark({**base, "mean_diff": 0.2, "p_holm": 0.03}) == "▼*"
+    assert robustness.mark({**base, "p_holm": 0.004}) == "↓**"  # StROL lower: baseline worse
+    assert robustness.mark({**base, "mean_diff": 0.2, "p_holm": 0.03}) == "↑*"
     assert robustness.mark({**base, "p_holm": 0.2}) == ""
     assert robustness.mark(None) == ""
 

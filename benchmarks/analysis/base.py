@@ -41,6 +41,14 @@ class Analysis:
     pooled: list[dict[str, Any]] = dataclasses.field(default_factory=list)
     """Per env with several conditions: the whole-experiment test on its primary metric
     (``pooled_tests`` over the conditions; the paper's "across all trials and conditions")."""
+    runs: dict[tuple[str, str, str], np.ndarray] = dataclasses.field(default_factory=dict)
+    """(env, condition, metric) -> the (runs, learners) matrix the tests used (paired rows in
+    seed order, learners in the config's order): what the figures show run by run."""
+    aggregates: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    """Per env × metric with several conditions: IQM and P(improvement) over all of them,
+    bootstrapped within each condition (``report.aggregate``)."""
+    resamples: int = 0
+    """Bootstrap resamples behind the intervals (0: none computed)."""
 
     def cell(self, env: str, cond: str, learner: str, metric: str) -> dict[str, Any] | None:
         for r in self.summary:

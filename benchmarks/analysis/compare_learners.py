@@ -9,7 +9,11 @@ markdown table: for each candidate learner and metric (regret where the env has 
 against StROL and against the *best baseline* of that condition (the paper baseline — Gradient,
 One, MOF, e2e — with the lowest mean of that metric), with the paired t-test and the Wilcoxon
 signed-rank test. Holm runs per env × condition × metric over the 2 × (number of candidates)
-comparisons, separately for each test. Stars: * p < 0.05, ** < 0.01, *** < 0.001 (Holm).
+comparisons, separately for each test. Marks (``stats.signed_stars``): ↓ the candidate
+significantly lower than the other, ↑ higher (the t-test's by the mean difference, the
+Wilcoxon test's by the Hodges–Lehmann estimate); * p < 0.05, ** < 0.01, *** < 0.001 (Holm).
+P(better): the probability that the candidate beats the other in a paired run (ties ½), with
+its 95 % bootstrap interval over run seeds (``analysis.robust``).
 """
 
 from __future__ import annotations
@@ -21,7 +25,8 @@ from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
-from strol_gym.benchmarks.analysis.stats import holm, paired_test, stars
+from strol_gym.benchmarks.analysis.robust import cell_rng, poi_interval
+from strol_gym.benchmarks.analysis.stats import holm, paired_test, signed_stars
 from strol_gym.benchmarks.engine.conditions import REFERENCE_LEARNER as REFERENCE
 
 from strol_gym.metrics import RUN_METRICS
@@ -62,18 +67,22 @@ def compare(runs, candidates, wanted=METRICS) -> list[str]:
             f"**{env} / {cond}** (Δ = candidate − other, mean of paired differences; "
             "t / W = Holm-adjusted p of the paired t and Wilcoxon tests)",
             "",
-            "| learner | metric | mean ± sd | vs StROL: Δ | t | W | best baseline | Δ | t | W |",
-            "|---|---|---|---|---|---|---|---|---|---|",
+            "| learner | metric | mean ± sd | vs StROL: Δ | t | W | P(better) | best baseline | Δ "
+            "| t | W | P(better) |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for metric in metrics:
             means = {
                 b: np.mean([v[metric] for v in runs[(env, cond, b)].values()]) for b in BASELINES
             }
             best = min(means, key=means.get)
-            tests = []
+            tests, pois = [], []
             for cand in candidates:
                 for other in (REFERENCE, best):
-                    tests.append(paired_test(*_paired(runs, env, cond, cand, other, metric)))
+                    x, y = _paired(runs, env, cond, cand, other, metric)
+                    tests.append(paired_test(x, y))
+                    rng = cell_rng(env, cond, metric, cand, other)
+                    pois.append(poi_interval(np.column_stack([x, y]), 0, rng=rng))
             p_t = holm([t.p_t for t in tests])
             p_w = holm([t.p_wilcoxon for t in tests])
             for i, cand in enumerate(candidates):
@@ -83,10 +92,12 @@ def compare(runs, candidates, wanted=METRICS) -> list[str]:
                     t = tests[j]
                     if name is not None:
                         cells.append(f"{name} ({means[best]:.3g})")
+                    poi = pois[j]
                     cells += [
                         f"{t.mean_diff:+.3g}",
-                        f"{p_t[j]:.2g}{stars(p_t[j])}",
-                        f"{p_w[j]:.2g}{stars(p_w[j])}",
+                        f"{p_t[j]:.2g}{signed_stars(t.mean_diff, p_t[j])}",
+                        f"{p_w[j]:.2g}{signed_stars(t.hl_diff, p_w[j])}",
+                        f"{poi.estimate[1]:.2f} [{poi.low[1]:.2f}, {poi.high[1]:.2f}]",
                     ]
                 lines.append("| " + " | ".join(cells) + " |")
         lines.append("")

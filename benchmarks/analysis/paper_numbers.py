@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.base import Analysis, display
 
 PAPER: dict[tuple[str, str], dict[str, dict[str, tuple[float, float]]]] = {
@@ -100,7 +101,8 @@ designer's (bimodal) prior and the uniform prior, read off that figure (approxim
 
 
 def side_by_side(a: Analysis, env: str, metric: str, learners: Sequence[str]) -> list[str]:
-    """Markdown: rows condition × source (ours / paper), columns learners, mean ± std."""
+    """Markdown: rows condition × source (ours / paper), columns learners, mean ± std (ours
+    with the reference's directional marks, ``stats.mark``)."""
     paper = PAPER.get((env, metric), {})
     lines = [
         "| condition | source | " + " | ".join(display(learner) for learner in learners) + " |"
@@ -110,9 +112,8 @@ def side_by_side(a: Analysis, env: str, metric: str, learners: Sequence[str]) ->
         ours = []
         for learner in learners:
             c = a.cell(env, cond, learner, metric)
-            t = a.test(env, cond, learner, metric)
-            star = ("*" if t["significant"] else "") if t else ""
-            ours.append("n/a" if c is None else f"{c['mean']:.3f} ± {c['std']:.3f}{star}")
+            mark = stats.mark(a.test(env, cond, learner, metric))
+            ours.append("n/a" if c is None else f"{c['mean']:.3f} ± {c['std']:.3f}{mark}")
         lines.append(f"| {cond} | ours | " + " | ".join(ours) + " |")
         if cond in paper:
             ref = [paper[cond].get(learner) for learner in learners]

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from strol_gym.benchmarks.analysis import stats
+from strol_gym.benchmarks.analysis import robust, stats
 from strol_gym.benchmarks.analysis.base import (
     METRIC_LABELS,
     METRICS,
@@ -26,6 +26,14 @@ from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEA
 from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 
+from strol_gym.metrics import METRICS as METRIC_TABLE
+
+CELL_KEYS = ("mean", "std", "sem", "median", "n")
+"""The descriptives an experiment's own table copies from a summary cell."""
+IQM_KEYS = ("iqm", "iqm_ci95_low", "iqm_ci95_high")
+"""A learner's IQM and its 95 % bootstrap interval (summary.csv's columns)."""
+POI_KEYS = ("prob_improvement", "prob_improvement_ci95_low", "prob_improvement_ci95_high")
+"""P(reference better in a run) and its 95 % bootstrap interval (stats.csv's columns)."""
 SUMMARY_COLUMNS = (
     "env",
     "condition",
@@ -38,6 +46,7 @@ SUMMARY_COLUMNS = (
     "median",
     "q1",
     "q3",
+    *IQM_KEYS,
 )
 STATS_COLUMNS = (
     "env",
@@ -62,6 +71,8 @@ STATS_COLUMNS = (
     "hodges_lehmann",
     "significant",
     "plain_language",
+    *POI_KEYS,
+    "mark",
 )
 ANOVA_COLUMNS = (
     "env",
@@ -162,12 +173,70 @@ def pooled_lines(result: dict[str, Any]) -> list[str]:
     return out
 
 
+def lower_is_better(metric: str) -> bool:
+    """The metric's direction (metrics a user's env reports unregistered: lower is better)."""
+    m = METRIC_TABLE.get(metric)
+    return True if m is None else m.lower_is_better
+
+
+def robust_cell(
+    y: np.ndarray,
+    learners: Sequence[str],
+    reference: str,
+    key: Sequence[str],
+    resamples: int,
+    strata: Sequence[object] | None = None,
+) -> tuple[robust.Interval, robust.Interval | None]:
+    """IQM of every learner and P(reference better in a run) against each, with stratified
+    bootstrap intervals over the paired runs of ``y`` (runs × learners), seeded by ``key``."""
+    rng = robust.cell_rng(*key)
+    iqm = robust.iqm_interval(y, rng=rng, resamples=resamples, strata=strata)
+    if reference not in learners or len(learners) < 2:
+        return iqm, None
+    poi = robust.poi_interval(
+        y,
+        list(learners).index(reference),
+        rng=rng,
+        resamples=resamples,
+        strata=strata,
+        lower_is_better=lower_is_better(key[-1]),
+    )
+    return iqm, poi
+
+
+def aggregate(
+    a: Analysis, cells: Sequence[tuple[str, str]], metric: str, resamples: int
+) -> dict[str, Any] | None:
+    """IQM and P(improvement) over every run of the (env, condition) ``cells``, bootstrapped
+    within each cell (stratified, rliable's aggregate over tasks); None with fewer than two."""
+    ys = [(k, a.runs[(*k, metric)]) for k in cells if (*k, metric) in a.runs]
+    ys = [(k, y) for k, y in ys if len(y)]
+    if len(ys) < 2:
+        return None
+    y = np.concatenate([y for _, y in ys])
+    strata = ["/".join(k) for k, m in ys for _ in range(len(m))]
+    learners = list(a.config.learners)
+    key = ("+".join("/".join(k) for k, _ in ys), metric)
+    iqm, poi = robust_cell(y, learners, a.config.reference, key, resamples, strata)
+    envs = list(dict.fromkeys(e for e, _ in cells))
+    return {"env": envs[0] if len(envs) == 1 else envs, "metric": metric, "n": len(y),
+            "conditions": len(ys), "iqm": iqm, "poi": poi}  # fmt: skip
+
+
 def analyse(
-    config: BenchConfig, records: Sequence[dict], metrics: Sequence[str] = METRICS
+    config: BenchConfig,
+    records: Sequence[dict],
+    metrics: Sequence[str] = METRICS,
+    *,
+    resamples: int | None = None,
 ) -> Analysis:
-    """Descriptives, RM-ANOVA and post-hoc tests per env × condition × metric; learning curves."""
+    """Descriptives, IQM and probability of improvement (bootstrap intervals, ``resamples``;
+    None: ``robust.default_resamples()``), RM-ANOVA and post-hoc tests per env × condition ×
+    metric; learning curves."""
+    resamples = robust.default_resamples() if resamples is None else int(resamples)
     learners = list(config.learners)
     summary, posthoc, anova = [], [], []
+    runs: dict[tuple[str, str, str], np.ndarray] = {}
     curves: dict[tuple[str, str, str], dict[str, np.ndarray]] = {}
     for exp in config.experiments:
         env, cond = exp.env, exp.condition.name
@@ -176,10 +245,17 @@ def analyse(
             if y.size == 0 or not np.isfinite(y).any():
                 continue
             y = y[np.isfinite(y).all(axis=1)]  # listwise: paired tests need every learner's value
+            runs[(env, cond, metric)] = y
+            iqm, poi = (
+                robust_cell(y, learners, config.reference, (env, cond, metric), resamples)
+                if len(y)
+                else (None, None)
+            )
             for j, learner in enumerate(learners):
                 summary.append(
                     {"env": env, "condition": cond, "learner": learner, "metric": metric}
                     | stats.describe(y[:, j])
+                    | _interval("iqm", iqm, j)
                 )
             a = stats.rm_anova(y)
             anova.append({"env": env, "condition": cond, "metric": metric} | dataclasses.asdict(a))
@@ -192,6 +268,8 @@ def analyse(
                         row["mean_diff"],
                         row["p_holm"],
                     )
+                    row |= _interval("prob_improvement", poi, learners.index(row["baseline"]))
+                    row["mark"] = stats.mark(row)
                     posthoc.append(row)
         for learner in learners:
             errs = [
@@ -215,14 +293,32 @@ def analyse(
                 "sem": sd / np.sqrt(np.maximum(n, 1)),
                 "n": n,
             }
-    analysis = Analysis(config, summary, posthoc, anova, curves, [])
+    analysis = Analysis(config, summary, posthoc, anova, curves, [], runs=runs)
+    analysis.resamples = resamples
     for env in dict.fromkeys(e.env for e in config.experiments):
         n_cond = sum(e.env == env for e in config.experiments)
         primary = env_preset(env).primary_metric
         if n_cond > 1 and len(learners) > 1 and primary in metrics:
             analysis.pooled.append(pooled_tests(records, [env], learners, primary))
     analysis.verdicts = paper_verdicts(analysis)
+    for env in dict.fromkeys(e.env for e in config.experiments):
+        for metric in analysis.metrics_for(env):
+            conds = [(env, e.condition.name) for e in config.experiments if e.env == env]
+            agg = aggregate(analysis, conds, metric, resamples)
+            if agg is not None:
+                analysis.aggregates.append(agg)
     return analysis
+
+
+def _interval(name: str, iv: robust.Interval | None, j: int) -> dict[str, float]:
+    """``name``, ``name_ci95_low``, ``name_ci95_high`` of column ``j`` (NaN without data)."""
+    if iv is None:
+        return {name: math.nan, f"{name}_ci95_low": math.nan, f"{name}_ci95_high": math.nan}
+    return {
+        name: float(iv.estimate[j]),
+        f"{name}_ci95_low": float(iv.low[j]),
+        f"{name}_ci95_high": float(iv.high[j]),
+    }
 
 
 def paper_verdicts(a: Analysis) -> list[dict[str, Any]]:
@@ -283,6 +379,13 @@ def fmt(x: float | None, digits: int = 3) -> str:
     return f"{x:.{digits}f}" if abs(x) >= 10**-digits or x == 0 else f"{x:.1e}"
 
 
+def fmt_ci(v: float | None, low: float | None, high: float | None, digits: int = 3) -> str:
+    """'v [low, high]' with ``fmt``'s digits; '—' when there is no estimate."""
+    if v is None:
+        return "—"
+    return f"{fmt(v, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"
+
+
 def median_table(a: Analysis, env: str, metric: str) -> list[str]:
     """Markdown table of medians [Q1, Q3] (heavy-tailed metrics such as regret)."""
     learners = list(a.config.learners)
@@ -300,8 +403,97 @@ def median_table(a: Analysis, env: str, metric: str) -> list[str]:
     return lines
 
 
+def _ci(x: float, lo: float, hi: float) -> str:
+    return f"{fmt(x)} [{fmt(lo)}, {fmt(hi)}]"
+
+
+def _conditions(a: Analysis, env: str) -> list[tuple[str, str, str]]:
+    return [(e.condition.name, env, e.condition.name) for e in a.config.experiments if e.env == env]
+
+
+def iqm_table(
+    a: Analysis,
+    env: str,
+    metric: str,
+    rows: Sequence[tuple[str, str, str]] | None = None,
+    agg: dict[str, Any] | None = None,
+) -> list[str]:
+    """Markdown table: rows conditions (or ``rows``: (label, env, condition)) and all of them
+    (``agg``, by default the env's stratified aggregate), columns learners, 'IQM [95 % bootstrap
+    CI]' with the reference's marks from the Wilcoxon signed-rank test (which, like the IQM,
+    speaks of the typical run; the mean table's marks are the t-test's)."""
+    learners = list(a.config.learners)
+
+    def cell(e: str, cond: str, learner: str) -> str:
+        c = a.cell(e, cond, learner, metric)
+        if c is None or "iqm" not in c:
+            return "n/a"
+        mark = stats.mark(a.test(e, cond, learner, metric), "wilcoxon")
+        return _ci(c["iqm"], c["iqm_ci95_low"], c["iqm_ci95_high"]) + mark
+
+    head = [display(learner) for learner in learners]
+    return _robust_table(a, env, metric, rows, agg, learners, head, cell, "iqm")
+
+
+def poi_table(
+    a: Analysis,
+    env: str,
+    metric: str,
+    rows: Sequence[tuple[str, str, str]] | None = None,
+    agg: dict[str, Any] | None = None,
+) -> list[str]:
+    """Markdown table: rows conditions (or ``rows``) and all of them, columns baselines,
+    P(reference better than that baseline in a run) [95 % bootstrap CI]; [] without a
+    reference to compare."""
+    ref = a.config.reference
+    bases = [learner for learner in a.config.learners if learner != ref]
+    if not bases or ref not in a.config.learners:
+        return []
+
+    def cell(e: str, cond: str, b: str) -> str:
+        t = a.test(e, cond, b, metric)
+        if t is None or "prob_improvement" not in t:
+            return "n/a"
+        return _ci(*(t[k] for k in POI_KEYS))
+
+    head = [f"vs {display(b)}" for b in bases]
+    return _robust_table(a, env, metric, rows, agg, bases, head, cell, "poi")
+
+
+def _robust_table(a, env, metric, rows, agg, columns, head, cell, key) -> list[str]:
+    """The rows of ``iqm_table`` / ``poi_table``: one per (label, env, condition), then the
+    aggregate's ``key`` interval for each of ``columns`` (learners)."""
+    lines = ["| condition | " + " | ".join(head) + " |", "|---|" + "---|" * len(columns)]
+    for label, e, cond in _conditions(a, env) if rows is None else rows:
+        lines.append(f"| {label} | " + " | ".join(cell(e, cond, c) for c in columns) + " |")
+    agg = _aggregate(a, env, metric) if agg is None and rows is None else agg
+    if agg is not None and agg[key] is not None:
+        iv, learners = agg[key], list(a.config.learners)
+        cells = [_ci(iv.estimate[j], iv.low[j], iv.high[j]) for j in map(learners.index, columns)]
+        lines.append(f"| all {agg['conditions']} (n = {agg['n']}) | " + " | ".join(cells) + " |")
+    return lines
+
+
+def _aggregate(a: Analysis, env: str, metric: str) -> dict[str, Any] | None:
+    return next((g for g in a.aggregates if (g["env"], g["metric"]) == (env, metric)), None)
+
+
+def robust_legend(reference: str, resamples: int | None = None, pooled: bool = True) -> str:
+    """What the IQM and P(improvement) tables show, in one sentence (``pooled``: the tables
+    have an 'all' row)."""
+    boot = f"{resamples:,} resamples, " if resamples else ""
+    strata = "; the 'all' row resamples within each condition" if pooled else ""
+    return (
+        "IQM = interquartile mean (the mean of the middle 50 % of the runs); P(improvement) = "
+        f"the probability that {reference} is better than that learner in a run (paired runs, "
+        "ties ½; 0.5 = neither is better in the typical run); [95 % CI]: percentile bootstrap "
+        f"over run seeds ({boot}paired rows resampled together{strata})."
+    )
+
+
 def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
-    """Markdown table: rows conditions, columns learners, 'mean ± std' with stars vs StROL."""
+    """Markdown table: rows conditions, columns learners, 'mean ± std' with the reference's
+    directional marks (``stats.mark``)."""
     learners = list(a.config.learners)
     conds = [e.condition.name for e in a.config.experiments if e.env == env]
     head = "| condition | " + " | ".join(display(learner) for learner in learners) + " |"
@@ -313,9 +505,8 @@ def metric_table(a: Analysis, env: str, metric: str) -> list[str]:
             if c is None:
                 cells.append("n/a")
                 continue
-            t = a.test(env, cond, learner, metric)
-            star = stats.stars(t["p_holm"]) if t else ""
-            cells.append(f"{fmt(c['mean'])} ± {fmt(c['std'])}{star}")
+            mark = stats.mark(a.test(env, cond, learner, metric))
+            cells.append(f"{fmt(c['mean'])} ± {fmt(c['std'])}{mark}")
         lines.append(f"| {cond} | " + " | ".join(cells) + " |")
     return lines
 
@@ -331,9 +522,11 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
         f"- config hash `{meta.get('config_hash')}`, git `{git.get('commit', 'n/a')}`"
         f"{' (uncommitted edits)' if git.get('dirty') else ''}, wall time "
         f"{fmt(meta.get('wall_time_s', math.nan), 1)} s",
-        f"- cells: mean ± std over runs; stars: {display(cfg.reference)} vs that learner, "
-        "paired t-test, "
-        "Holm-corrected across baselines (* p<0.05, ** p<0.01, *** p<0.001). Lower is better.",
+        "- cells: mean ± std over runs, or IQM [95 % CI]. Marks: "
+        + stats.mark_legend(display(cfg.reference))
+        + "; in the IQM tables the same marks come from the Wilcoxon signed-rank test (Holm). "
+        "Lower is better.",
+        f"- {robust_legend(display(cfg.reference), a.resamples)}",
         "",
     ]
     if a.verdicts:
@@ -364,6 +557,11 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
             out += [f"### {METRIC_LABELS[metric]}{tag}", ""]
             out += metric_table(a, env, metric)
             out.append("")
+            out += [f"IQM [95 % CI] of {metric}:", "", *iqm_table(a, env, metric), ""]
+            poi = poi_table(a, env, metric)
+            if poi:
+                ref = display(cfg.reference)
+                out += [f"P({ref} better in a run) [95 % CI] on {metric}:", "", *poi, ""]
             if metric == primary:
                 out += [f"Median [Q1, Q3] of {metric}:", ""]
                 out += median_table(a, env, metric)
@@ -398,10 +596,16 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
             for t in a.posthoc:
                 if (t["env"], t["condition"], t["metric"]) == (env, cond, primary):
                     wil = stats.format_p(t["wilcoxon_p_holm"])
+                    poi = _ci(
+                        t["prob_improvement"],
+                        t["prob_improvement_ci95_low"],
+                        t["prob_improvement_ci95_high"],
+                    )
                     out.append(
                         f"  - {t['plain_language']}; Δ = {fmt(t['mean_diff'])} "
                         f"[{fmt(t['ci95_low'])}, {fmt(t['ci95_high'])}], "
-                        f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}"
+                        f"d_z = {t['effect_size']:.2f}, Wilcoxon {wil}{_wilcoxon_mark(t)}; "
+                        f"P({display(t['learner'])} better in a run) = {poi}"
                     )
         for pooled in a.pooled:
             if pooled["envs"] == [env]:
@@ -420,13 +624,20 @@ def summary_markdown(a: Analysis, meta: dict[str, Any], plots: Sequence[Path] = 
     return "\n".join(out)
 
 
-def write_reports(rd: ResultsDir, *, plots: bool = True) -> tuple[Analysis, list[Path]]:
+def _wilcoxon_mark(t: dict[str, Any]) -> str:
+    m = stats.mark(t, "wilcoxon")
+    return f" ({m})" if m else ""
+
+
+def write_reports(
+    rd: ResultsDir, *, plots: bool = True, resamples: int | None = None
+) -> tuple[Analysis, list[Path]]:
     """Read the records of ``rd`` and (re)write every table, summary.md and the plots."""
     records = rd.read_records()
     if not records:
         raise ValueError(f"{rd.path} holds no finished runs yet")
     rd.write_run_tables(records)
-    a = analyse(rd.config, records)
+    a = analyse(rd.config, records, resamples=resamples)
     write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
     write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
@@ -450,11 +661,14 @@ def console_summary(a: Analysis) -> str:
         primary = env_preset(env).primary_metric
         primary = primary if primary in metrics else metrics[0]
         ref = display(a.config.reference)
-        out += [
-            f"{env_preset(env).env_id}: {METRIC_LABELS[primary]} (mean ± std, * = {ref} vs that "
-            "learner, paired t, Holm p<0.05)"
-        ]
+        out += [f"{env_preset(env).env_id}: {METRIC_LABELS[primary]} (mean ± std)"]
         out += [*metric_table(a, env, primary), ""]
+        out += [f"IQM [95 % CI] of {primary}:", *iqm_table(a, env, primary), ""]
+        out += [f"P({ref} better in a run) [95 % CI]:", *poi_table(a, env, primary), ""]
+    if a.config.reference in a.config.learners:
+        ref = display(a.config.reference)
+        out += [f"Marks beside means: {stats.mark_legend(ref)}; beside IQMs: the same from the "
+                "Wilcoxon signed-rank test.", ""]  # fmt: skip
     for v in a.verdicts:
         out.append(
             f"{v['hypothesis']} {v['env']}/{v['condition']} ({v['metric']}): "

@@ -311,3 +311,39 @@ def stars(p: float) -> str:
     if not math.isfinite(p):
         return ""
     return "***" if p < 0.001 else "**" if p < 0.01 else "*" if p < 0.05 else ""
+
+
+LOWER, HIGHER = "↓", "↑"
+"""The direction of a significant difference, always read as the reference learner (StROL)
+against the learner whose cell carries the mark: ↓ reference lower, ↑ reference higher."""
+MARK_LEGEND = (
+    f"{LOWER} = {{ref}} significantly lower than that learner, {HIGHER} = {{ref}} significantly "
+    "higher ({test}, Holm across the baselines; * p < 0.05, ** p < 0.01, *** p < 0.001); "
+    "no mark: not significant"
+)
+"""The one convention every table and figure states (``mark_legend``)."""
+TEST_NAMES = {"t": "paired t", "wilcoxon": "Wilcoxon signed-rank"}
+
+
+def mark(row: dict | None, test: str = "t", alpha: float = ALPHA) -> str:
+    """'↓***' / '↑*' for a post-hoc row (``compare_to_reference``) whose test is significant:
+    the arrow is the reference's direction against that baseline, the stars its Holm p; ''
+    otherwise (and for no row)."""
+    if not row:
+        return ""
+    if test == "t":
+        return signed_stars(row["mean_diff"], row["p_holm"], alpha)
+    return signed_stars(row["hodges_lehmann"], row["wilcoxon_p_holm"], alpha)
+
+
+def signed_stars(estimate: float, p: float, alpha: float = ALPHA) -> str:
+    """'↓**' when ``p`` < ``alpha`` and the estimated difference (first minus second) is
+    negative, '↑**' when positive, '' when not significant or no direction."""
+    if not (math.isfinite(p) and p < alpha and math.isfinite(estimate)) or estimate == 0:
+        return ""
+    return (LOWER if estimate < 0 else HIGHER) + stars(p)
+
+
+def mark_legend(reference: str, test: str = "t") -> str:
+    """The marks' legend with the reference learner's name and the test behind the marks."""
+    return MARK_LEGEND.format(ref=reference, test=TEST_NAMES[test])

@@ -13,8 +13,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+from strol_gym.benchmarks.analysis import stats
 from strol_gym.benchmarks.analysis.paper_numbers import PAPER_CHANGING
-from strol_gym.benchmarks.analysis.report import fmt
+from strol_gym.benchmarks.analysis.report import (
+    CELL_KEYS,
+    IQM_KEYS,
+    POI_KEYS,
+    fmt,
+    fmt_ci,
+    robust_legend,
+)
 from strol_gym.benchmarks.args import finite, nonneg_int, positive_int, run_options
 from strol_gym.benchmarks.engine.conditions import PAPER_ENVS, PAPER_LEARNERS, Condition, env_preset
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
@@ -35,16 +44,15 @@ COLUMNS = (
     "env",
     "learner",
     "metric",
-    "mean",
-    "std",
-    "sem",
-    "median",
-    "n",
+    *CELL_KEYS,
     "error_mean",
     "cos_error_mean",
     "p_t_holm",
     "p_wilcoxon_holm",
     "paper_mean",
+    *IQM_KEYS,
+    *POI_KEYS,
+    "mark",
 )
 
 
@@ -123,12 +131,15 @@ class Changing(BenchExperiment):
                     "env": env,
                     "learner": learner,
                     "metric": metric,
-                    **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                    **{k: c.get(k) for k in CELL_KEYS},
                     "error_mean": err.get("mean"),
                     "cos_error_mean": cos.get("mean"),
                     "p_t_holm": t.get("p_holm"),
                     "p_wilcoxon_holm": t.get("wilcoxon_p_holm"),
                     "paper_mean": paper.get(learner),
+                    **{k: c.get(k) for k in IQM_KEYS},
+                    **{k: t.get(k) for k in POI_KEYS},
+                    "mark": stats.mark(t),
                 }
             )
         exp = config.experiments[0]
@@ -141,10 +152,13 @@ class Changing(BenchExperiment):
             "seeds": [exp.seeds.start, exp.seeds.stop - 1],
             "wall_time_s": wall,
         }
-        return Outcome(rd.path, md, rows, meta, self.wall(wall, rd.path), state=metric)
+        runs = a.runs.get((env, "changing", metric))
+        state = (metric, runs)
+        return Outcome(rd.path, md, rows, meta, self.wall(wall, rd.path), state=state)
 
     def plot(self, outcome: Outcome, folder: Path) -> list[Path]:
-        return plot(outcome.rows, outcome.state, folder / "changing")
+        metric, runs = outcome.state
+        return plot(outcome.rows, metric, folder / "changing", runs)
 
 
 def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) -> list[str]:
@@ -152,43 +166,51 @@ def table_markdown(rows: list[dict], metric: str, k: int, n: int, sigma: float) 
 
     lines = [
         f"Changing preferences: θ* for {k} corrections, then −θ* for {n - k}; σ = {sigma:g}; "
-        f"scored against the final preference. {metric} (mean ± std, SEM, median); p: StROL vs "
-        "that learner, Holm over the four baselines.",
+        f"scored against the final preference. {metric} (mean ± std with marks, SEM, median, "
+        "IQM [95 % CI]); p: StROL vs that learner, Holm over the four baselines; P(StROL "
+        "better) [95 % CI]: in a run. Marks: " + stats.mark_legend("StROL") + ".",
+        robust_legend("StROL", pooled=False),
         "",
-        f"| learner | {metric} ours | SEM | median | paper | error | 1 − cos | p (t) | "
-        "p (Wilcoxon) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        f"| learner | {metric} ours | SEM | median | IQM [95 % CI] | paper | error | 1 − cos | "
+        "p (t) | p (Wilcoxon) | P(StROL better) [95 % CI] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         paper = fmt_paper(r["paper_mean"])
+        iqm = fmt_ci(*(r[k] for k in IQM_KEYS))
+        poi = fmt_ci(*(r[k] for k in POI_KEYS))
         lines.append(
-            f"| {display(r['learner'])} | {fmt(r['mean'])} ± {fmt(r['std'])} | {fmt(r['sem'])} | "
-            f"{fmt(r['median'])} | {paper} | {fmt(r['error_mean'])} | "
-            f"{fmt(r['cos_error_mean'])} | {fmt(r['p_t_holm'])} | {fmt(r['p_wilcoxon_holm'])} |"
+            f"| {display(r['learner'])} | {fmt(r['mean'])} ± {fmt(r['std'])}{r['mark']} | "
+            f"{fmt(r['sem'])} | {fmt(r['median'])} | {iqm} | {paper} | {fmt(r['error_mean'])} | "
+            f"{fmt(r['cos_error_mean'])} | {fmt(r['p_t_holm'])} | {fmt(r['p_wilcoxon_holm'])} | "
+            f"{poi} |"
         )
     return lines
 
 
-def plot(rows: list[dict], metric: str, stem: Path) -> list[Path]:
-    """Bars: mean ± SEM per learner; the paper's values as black diamonds."""
-    from strol_gym.benchmarks.analysis.plots import learner_color, save_figure
+def plot(rows: list[dict], metric: str, stem: Path, runs: np.ndarray | None = None) -> list[Path]:
+    """Every run per learner (dots), the mean ± SEM (black) and IQM [95 % CI] (white diamond),
+    StROL's directional marks; the paper's values as black diamonds."""
+    from strol_gym.benchmarks.analysis.plots import SYMLOG_METRICS, run_strip, save_figure
     from strol_gym.benchmarks.analysis.report import display
 
     fig, ax = small_figure(stem)
     xs = range(len(rows))
-    ax.bar(
-        xs,
-        [r["mean"] for r in rows],
-        yerr=[r["sem"] for r in rows],
-        color=[learner_color(r["learner"]) for r in rows],
-        capsize=3,
-        label="ours (mean ± SEM)",
-    )
+    learners = [r["learner"] for r in rows]
+    y = np.empty((0, len(rows))) if runs is None else runs
+    run_strip(ax, y, learners, rows)
+    if metric in SYMLOG_METRICS:
+        ax.set_yscale("symlog", linthresh=SYMLOG_METRICS[metric], linscale=0.5)
+    for i, r in enumerate(rows):
+        if r["mark"]:
+            ax.text(i, 1.0, r["mark"], transform=ax.get_xaxis_transform(), ha="center",
+                    va="bottom", fontsize=8)  # fmt: skip
     paper = [(i, r["paper_mean"]) for i, r in enumerate(rows) if r["paper_mean"] is not None]
     if paper:
-        ax.scatter(*zip(*paper, strict=True), marker="D", color="k", zorder=3, label="paper")
+        ax.scatter(*zip(*paper, strict=True), marker="D", color="k", s=14, zorder=5,
+                   label="paper (mean)")  # fmt: skip
     ax.set_xticks(list(xs), [display(r["learner"]) for r in rows])
     ax.set_ylabel(short(metric))
-    ax.set_title("Changing preferences")
+    ax.set_title("Changing preferences: runs, mean ± SEM, IQM [95 % CI]", fontsize=9, pad=12)
     ax.legend(fontsize=8)
     return save_figure(fig, stem.parent, stem.name)

@@ -21,7 +21,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from strol_gym.benchmarks.analysis.report import fmt
+from strol_gym.benchmarks.analysis.report import CELL_KEYS, IQM_KEYS, POI_KEYS, fmt
 from strol_gym.benchmarks.args import (
     check_learner_names,
     float_list,
@@ -52,18 +52,17 @@ COLUMNS = (
     "sigma",
     "learner",
     "metric",
-    "mean",
-    "std",
-    "sem",
-    "median",
-    "n",
+    *CELL_KEYS,
     "mean_diff_vs_strol",
     "p_t_holm",
     "p_wilcoxon_holm",
     "mark",
+    *IQM_KEYS,
+    *POI_KEYS,
 )
-WORSE, BETTER = "▲", "▼"
-"""Marks in a baseline's cell: StROL is significantly lower (the baseline worse) / higher."""
+WORSE, BETTER = "↓", "↑"
+"""Marks in a baseline's cell (``stats.LOWER`` / ``HIGHER``): StROL is significantly lower
+(the baseline worse) / higher."""
 
 
 def default_humans() -> list[str]:
@@ -211,16 +210,11 @@ class Robustness(BenchExperiment):
 
 
 def mark(test: dict[str, Any] | None) -> str:
-    """▲ / ▼ with stars when StROL's paired t-test (Holm) against this learner is significant:
-    ▲ the learner is worse (StROL lower), ▼ better; '' otherwise."""
-    from strol_gym.benchmarks.analysis.stats import direction, stars
+    """``stats.mark``: ↓ / ↑ with stars when StROL's paired t-test (Holm) against this learner
+    is significant: ↓ StROL lower (the learner worse), ↑ higher; '' otherwise."""
+    from strol_gym.benchmarks.analysis.stats import mark as stats_mark
 
-    if not test:
-        return ""
-    d = direction(test)
-    if d == 0:
-        return ""
-    return (WORSE if d < 0 else BETTER) + stars(test["p_holm"])
+    return stats_mark(test)
 
 
 def collect_rows(a: Any, config: BenchConfig, env: str, metric: str) -> list[dict[str, Any]]:
@@ -238,12 +232,14 @@ def collect_rows(a: Any, config: BenchConfig, env: str, metric: str) -> list[dic
                     "sigma": cond.sigma,
                     "learner": learner,
                     "metric": metric,
-                    **{k: c.get(k) for k in ("mean", "std", "sem", "median", "n")},
+                    **{k: c.get(k) for k in CELL_KEYS},
                     # the test's difference is StROL minus the learner
                     "mean_diff_vs_strol": None if t is None else t.get("mean_diff"),
                     "p_t_holm": None if t is None else t.get("p_holm"),
                     "p_wilcoxon_holm": None if t is None else t.get("wilcoxon_p_holm"),
                     "mark": mark(t),
+                    **{k: c.get(k) for k in IQM_KEYS},
+                    **{k: None if t is None else t.get(k) for k in POI_KEYS},
                 }
             )
     return rows
@@ -297,7 +293,17 @@ def table_markdown(rows: list[dict], config: BenchConfig, metric: str) -> list[s
             "(significantly lower / higher): "
             + "; ".join(f"{display(learner)} {w}/{b}" for learner, (w, b) in wins.items())
             + ".",
+            "",
+            f"P(StROL better than that learner in a run) at σ = {sigma:g} (paired runs, ties ½; "
+            "95 % bootstrap intervals in robustness.csv):",
+            "",
+            "| learner | " + " | ".join(humans) + " |",
+            "|---" * (len(humans) + 1) + "|",
         ]
+        for learner in learners:
+            if learner != config.reference:
+                poi = [fmt(_float(cell[(learner, h)]["prob_improvement"]), 2) for h in humans]
+                lines.append(f"| {display(learner)} | " + " | ".join(poi) + " |")
     return lines
 
 

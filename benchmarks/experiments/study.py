@@ -22,11 +22,16 @@ from typing import Any
 import numpy as np
 from strol_gym.benchmarks.analysis.report import (
     Analysis,
+    aggregate,
     analyse,
     display,
+    iqm_table,
+    poi_table,
     pooled_lines,
     pooled_tests,
+    robust_legend,
 )
+from strol_gym.benchmarks.analysis.stats import mark_legend
 from strol_gym.benchmarks.args import nonneg_int, positive_int
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
@@ -227,14 +232,15 @@ def table_markdown(rows: Sequence[dict[str, Any]], tasks: Sequence[int]) -> list
 
 
 def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
-    """Fig. 6 style: regret and correction time per Task and learner (mean ± SEM, a star where
-    StROL differs from that learner, Holm-corrected t-test), and regret against correction time
-    per run."""
+    """Fig. 6 style: regret and correction time per Task and learner (mean ± SEM bars, every
+    simulated user as a dot, StROL's directional mark against that learner: ↓ StROL lower, ↑
+    higher, Holm-corrected t-test), and regret against correction time per run."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from strol_gym.benchmarks.analysis.plots import learner_color, save_figure
+    from strol_gym.benchmarks.analysis.plots import jitter, learner_color, save_figure
+    from strol_gym.benchmarks.analysis.stats import mark
 
     out.mkdir(parents=True, exist_ok=True)
     envs = [e.env for e in a.config.experiments]
@@ -250,9 +256,16 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
                 x = i + (j - (len(learners) - 1) / 2) * width
                 ax.bar(x, c["mean"], width, yerr=c["sem"], color=learner_color(learner), capsize=2,
                        label=display(learner) if i == 0 else None)  # fmt: skip
-                t = a.test(env, USERS.name, learner, metric)
-                if t is not None and t["significant"]:
-                    ax.text(x, c["mean"] + (c["sem"] or 0), "*", ha="center", va="bottom")
+                y = a.runs.get((env, USERS.name, metric))
+                if y is not None and len(y):
+                    ax.scatter(x + jitter(len(y), 0.6 * width), y[:, j], s=5, color="black",
+                               alpha=0.5, linewidths=0, zorder=3)  # fmt: skip
+                m = mark(a.test(env, USERS.name, learner, metric))
+                if m:
+                    top = c["mean"] + (c["sem"] or 0)
+                    if y is not None and len(y):
+                        top = max(top, float(np.nanmax(y[:, j])))
+                    ax.text(x, top, m, ha="center", va="bottom", fontsize=7)
         ax.set_xticks(range(len(envs)), [f"Task {_task_of(e)}" for e in envs])
         ax.set_ylabel(LABELS[metric])
     axes[0].legend(fontsize=7)
@@ -265,6 +278,27 @@ def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
     ax.set_ylabel(LABELS["regret"])
     ax.set_title("per simulated user", fontsize=9)
     return save_figure(fig, out, "study")
+
+
+def robust_markdown(a: Analysis, envs: Sequence[str]) -> list[str]:
+    """Per H3 metric: IQM [95 % CI] per Task and learner, and P(StROL better in a run) against
+    each learner, per Task and over the Tasks (bootstrap stratified by Task)."""
+    ref = display(a.config.reference)
+    rows = [(f"Task {_task_of(e)}", e, USERS.name) for e in envs]
+    out = [
+        f"Heavy-tail statistics: {robust_legend(ref, a.resamples)} Marks beside IQMs: "
+        f"{mark_legend(ref, 'wilcoxon')}.",
+    ]
+    for metric in H3_METRICS:
+        if not any((e, USERS.name, metric) in a.runs for e in envs):
+            continue
+        agg = aggregate(a, [(e, USERS.name) for e in envs], metric, a.resamples)
+        out += ["", f"IQM [95 % CI] of {LABELS[metric]}:", ""]
+        out += iqm_table(a, envs[0], metric, rows, agg)
+        poi = poi_table(a, envs[0], metric, rows, agg)
+        if poi:
+            out += ["", f"P({ref} better in a run) [95 % CI] on {LABELS[metric]}:", "", *poi]
+    return out
 
 
 def _anova_text(r: dict[str, Any]) -> str:
@@ -322,6 +356,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
         md.append(f"- **Task {v['task']}: {v['verdict']}**")
         md += [f"  - {d}" for d in v["details"]]
     envs = [e.env for e in rd.config.experiments]
+    md += ["", *robust_markdown(a, envs)]
     pooled = [
         pooled_tests(records, envs, POOLED_LEARNERS, m)
         for m in POOLED_METRICS
