@@ -32,6 +32,10 @@ FeatureFn = Callable[[np.ndarray], np.ndarray]
 """φ: (..., s) -> (..., d)."""
 JacobianFn = Callable[[np.ndarray], np.ndarray]
 """∂φ/∂x: (..., s) -> (..., d, s)."""
+WalkFn = Callable[[np.ndarray, float], None]
+"""A further constraint (keep-out zones, a reachable set), applied after the box: rewrites the
+waypoints ``pos`` (..., T+1, s), row 0 = x0, in place, one step after the other, each within the
+step bound of the one before it."""
 
 PLANNER_SEED = 20240417
 """Seed of the random starts: fixed, so that planning is a deterministic function."""
@@ -67,8 +71,10 @@ class _Buffers:
         hi: np.ndarray,
         n_starts: int,
         steps: int,
+        walk: WalkFn | None = None,
     ):
         b, s = x0.shape
+        self.walk = walk
         self.pos = np.empty((b, n_starts, steps + 1, s))
         self.pos[..., 0, :] = x0[:, None, :]
         shape = (b, n_starts, steps, s)
@@ -90,6 +96,8 @@ class _Buffers:
         np.cumsum(np.clip(delta, -bound, bound, out=delta), axis=-2, out=way)
         way += self.start
         np.clip(way, self.lo, self.hi, out=way)
+        if self.walk is not None:
+            self.walk(pos, bound)
         return np.subtract(way, pos[..., :-1, :], out=delta)
 
     def ascent(self, jac: np.ndarray) -> np.ndarray:
@@ -125,6 +133,7 @@ def plan_linear_reward(
     lr: float = 0.5,
     prune_after: int = 20,
     keep: int = 4,
+    walk: WalkFn | None = None,
 ) -> np.ndarray:
     """Plans maximising Σ_{t=1..T} θ·φ(x_t) from x0: theta (B, d), x0 (B, s) -> (B, T+1, s).
 
@@ -134,7 +143,8 @@ def plan_linear_reward(
     ``lr`` is the first Adam step as a fraction of ``step_bound``. After ``prune_after``
     iterations only the ``keep`` best starts per row go on. Row 0 of each plan is x0.
     A start outside the box is allowed: the box is widened per row to contain it, so that the
-    plan's steps stay bounded.
+    plan's steps stay bounded. ``walk`` (``WalkFn``), if given, is applied after the box on every
+    iterate (keep-out zones, a reachable set: constraints a box cannot say).
     """
     theta = np.atleast_2d(np.asarray(theta, dtype=np.float64))
     x0 = np.atleast_2d(np.asarray(x0, dtype=np.float64))
@@ -166,7 +176,7 @@ def plan_linear_reward(
     def value_of(way: np.ndarray) -> np.ndarray:
         return np.sum(features(way) * th_row, axis=(-2, -1))  # (B, S)
 
-    buffers = _Buffers(theta, x0, lo, hi, delta.shape[1], steps)
+    buffers = _Buffers(theta, x0, lo, hi, delta.shape[1], steps, walk)
     pos = buffers.pos
     delta = buffers.project(delta, step_bound)
     initial = pos.copy()  # ascent is not monotone: a start can beat its own end point
@@ -181,7 +191,7 @@ def plan_linear_reward(
             rows = np.arange(b)[:, None]
             delta, m, v = delta[rows, best], m[rows, best], v[rows, best]
             initial, initial_value = initial[rows, best], initial_value[rows, best]
-            buffers = _Buffers(theta, x0, lo, hi, keep, steps)
+            buffers = _Buffers(theta, x0, lo, hi, keep, steps, walk)
             pos = buffers.pos
             delta = buffers.project(delta, step_bound)
         # The Adam step in place: at these sizes allocating temporaries costs as much as the

@@ -12,13 +12,18 @@ ENV_SPECS: dict[str, dict] = {
         "max_episode_steps": 10,
     },
     # The study env truncates itself after 60 s of simulated time (1200 steps of 0.05 s).
-    # v0 is kept for the published results; gymnasium warns on make that v1 supersedes it.
+    # v0 and v1 are kept for the published results; gymnasium warns on make that v2
+    # supersedes them.
     "StROL-Study-v0": {
         "entry_point": "strol_gym.envs.study.env:StudyEnv",
         "max_episode_steps": 1200,
     },
     "StROL-Study-v1": {
         "entry_point": "strol_gym.envs.study.env:StudyEnvV1",
+        "max_episode_steps": 1200,
+    },
+    "StROL-Study-v2": {
+        "entry_point": "strol_gym.envs.study.env:StudyEnvV2",
         "max_episode_steps": 1200,
     },
     "StROL-Highway-v0": {

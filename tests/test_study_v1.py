@@ -244,14 +244,15 @@ def test_pause_is_validated():
         env.pause(0.0)
 
 
-def test_v0_is_deprecated_on_make_and_v1_is_not():
+def test_v0_and_v1_are_deprecated_on_make_and_v2_is_not():
+    for env_id in ("StROL-Study-v0", ENV_ID):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            gym.make(env_id, human=None).close()
+        assert any("out of date" in str(w.message) for w in caught), env_id
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        gym.make("StROL-Study-v0", human=None).close()
-    assert any("out of date" in str(w.message) for w in caught)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        gym.make(ENV_ID, human=None).close()
+        gym.make("StROL-Study-v2", human=None).close()
     assert not any("out of date" in str(w.message) for w in caught)
 
 

@@ -1,6 +1,10 @@
-"""Speed of StROL-Study-v0/v1: physics overhead and a full simulated-user episode with StROL.
+"""Speed of StROL-Study-v0/v1/v2: physics overhead and a full simulated-user episode with StROL.
 
     .venv/bin/python benchmarks/speed/study_env.py [--task 1] [--repeats 3] [--version v1]
+    .venv/bin/python benchmarks/speed/study_env.py --episode [--task 1] [--repeats 1]
+
+``--episode``: v2's figure, the physics over whole 60 s episodes with the default person,
+v1 and v2 alternately in one process (``episode_physics``).
 
 1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
    feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics
@@ -18,6 +22,7 @@ One core (BLAS and torch threads pinned to 1). Seeds from the study range (20000
 from __future__ import annotations
 
 import os
+from typing import Any
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")  # one core: before numpy loads its BLAS
@@ -31,7 +36,7 @@ import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
 from strol_gym import checks  # noqa: E402
-from strol_gym.envs.study.env import StudyEnv, StudyEnvV1  # noqa: E402
+from strol_gym.envs.study.env import StudyEnv, StudyEnvV1, StudyEnvV2  # noqa: E402
 
 SEED = 20100
 
@@ -40,7 +45,7 @@ def physics_ratio(
     task: int, repeats: int, env_steps: int = 200, version: str = "v0"
 ) -> tuple[float, float, float]:
     """(env physics steps/s, bare mj_step steps/s, ratio)."""
-    env = (StudyEnvV1 if version == "v1" else StudyEnv)(task=task, human=None)
+    env = _ENVS[version](task=task, human=None)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     n_sub = env._n_sub
     bare_data = mujoco.MjData(env.model)
@@ -65,6 +70,55 @@ def physics_ratio(
         best_bare = max(best_bare, env_steps * n_sub / (time.perf_counter() - start))
     env.close()
     return best_env, best_bare, best_env / best_bare
+
+
+_ENVS = {"v0": StudyEnv, "v1": StudyEnvV1, "v2": StudyEnvV2}
+
+
+def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, float, float, dict]:
+    """Physics over a whole 60 s episode with the version's default simulated person (pushes,
+    reflexes and, on v2, the counterfactual reruns included) and StROL: (env physics steps/s
+    counting only the time inside the env's physics, bare ``mj_step`` steps/s on the same model
+    from the episode's last state, ratio, summary). The planner and the person's own Python are
+    not physics and not counted."""
+    import torch
+
+    from strol_gym.wrappers import OnlineLearningWrapper
+
+    torch.set_num_threads(1)
+    env = OnlineLearningWrapper(
+        gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
+    )
+    inner: Any = env.unwrapped  # the study env itself: its physics step is timed in place
+    spent = [0.0]
+    simulate = inner._simulate
+
+    def timed(v_sp: Any) -> None:
+        t0 = time.perf_counter()
+        simulate(v_sp)
+        spent[0] += time.perf_counter() - t0
+
+    inner._simulate = timed
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
+    env.reset(seed=seed)
+    truncated = False
+    while not truncated:
+        _, _, _, truncated, info = env.step(zero)
+    steps = round(info["time"] / inner.model.opt.timestep)
+    bare = mujoco.MjData(inner.model)
+    mujoco.mj_setState(inner.model, bare, _state(inner), mujoco.mjtState.mjSTATE_INTEGRATION)
+    t0 = time.perf_counter()
+    for _ in range(steps // inner._n_sub):
+        mujoco.mj_step(inner.model, bare, nstep=inner._n_sub)
+    bare_rate = steps / (time.perf_counter() - t0)
+    env_rate = steps / spent[0]
+    summary = {
+        "corrections": info["corrections"],
+        "correction_time_s": round(info["correction_time"], 2),
+        "reflexes": info.get("reflexes"),
+    }
+    env.close()
+    return env_rate, bare_rate, env_rate / bare_rate, summary
 
 
 def _state(env: StudyEnv) -> np.ndarray:
@@ -110,8 +164,25 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--task", type=int, default=1, choices=(1, 2, 3))
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--version", default="v1", choices=("v0", "v1"), help="the env version")
+    p.add_argument("--version", default="v1", choices=("v0", "v1", "v2"), help="the env version")
+    p.add_argument(
+        "--episode",
+        action="store_true",
+        help="the physics ratio over a whole 60 s episode with the default person, v1 and v2 "
+        "alternately in this process (StROL-Study-v2's figure)",
+    )
     args = p.parse_args()
+    if args.episode:
+        print(f"task {args.task}; load average before: {os.getloadavg()[0]:.2f}")
+        for r in range(args.repeats):
+            for version in ("v1", "v2"):
+                env_rate, bare_rate, ratio, summary = episode_physics(args.task, version, SEED + r)
+                print(
+                    f"{version} seed {SEED + r}: physics {env_rate:,.0f} steps/s, bare mj_step "
+                    f"{bare_rate:,.0f}/s, ratio {ratio:.2f} (target >= 0.50); {summary}"
+                )
+        print(f"load average after: {os.getloadavg()[0]:.2f}")
+        return
     load = os.getloadavg()
     print(f"StROL-Study-{args.version} task {args.task}; load average before: {load[0]:.2f}")
     env_rate, bare_rate, ratio = physics_ratio(args.task, args.repeats, version=args.version)

@@ -75,9 +75,14 @@ class CorrectionLearner(LinearRuleLearner):
         if model is not None and checkpoint is not None:
             raise ValueError("pass either checkpoint or model, not both")
         if model is None:
-            path = Path(checkpoint) if checkpoint is not None else find_pretrained(task, self.kind)
+            # The shipped ĝ of the Task's setting (``Task.ghat_task``: itself, or a version's
+            # predecessor); a checkpoint given explicitly must fit the Task itself.
+            source = task if checkpoint is not None else task.ghat_task
+            path = (
+                Path(checkpoint) if checkpoint is not None else find_pretrained(source, self.kind)
+            )
             try:
-                model, meta = load_checkpoint(path, task, kind=self.kind)
+                model, meta = load_checkpoint(path, source, kind=self.kind)
             except ValueError as e:
                 if checkpoint is not None:
                     raise

@@ -230,6 +230,12 @@ class Task(ABC):
         return np.concatenate([x, u_h / self.action_bound], axis=-1)
 
     @property
+    def ghat_task(self) -> Task:
+        """The Task whose shipped ĝ this Task uses (itself; a new version of a setting may use
+        its predecessor's until its own are trained: same features, states and corrections)."""
+        return self
+
+    @property
     def network_input_dim(self) -> int:
         """k, the width of ``network_input``."""
         z = np.zeros

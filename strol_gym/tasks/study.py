@@ -21,6 +21,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Callable
 from typing import ClassVar
 
 import numpy as np
@@ -332,6 +333,7 @@ class StudyTask(Task):
             n_random=8,
             n_iters=60,
             keep=4,
+            walk=self._plan_walk(x0),
         )
         plans = plans * scale
         if tail.shape[1]:
@@ -340,6 +342,10 @@ class StudyTask(Task):
                 axis=-1,
             )
         return plans
+
+    def _plan_walk(self, x0: np.ndarray) -> Callable[[np.ndarray, float], None] | None:
+        """A constraint beyond the box for the planner (``planning.WalkFn``); v0-v1: none."""
+        return None
 
     @functools.cached_property
     def _plan_targets(self) -> np.ndarray:
@@ -418,3 +424,235 @@ class StudyTask3V1(StudyTask3):
 
 
 STUDY_TASKS_V1: dict[int, type[StudyTask]] = {1: StudyTask1V1, 2: StudyTask2V1, 3: StudyTask3V1}
+
+
+# ---------------------------------------------------------------------- StROL-Study-v2's Tasks
+CUP_CLEARANCE = 0.08
+"""m kept between the cup's centre (the state) and an object: the cup's bounding sphere
+(r 4 cm, 10 cm tall: 0.064 m) and 1.6 cm to spare."""
+KEEP_OUT = np.array(
+    [
+        [PITCHER[0], PITCHER[1], 0.07 + CUP_CLEARANCE, 0.24 + CUP_CLEARANCE],
+        [PLATE[0], PLATE[1], 0.115 + CUP_CLEARANCE, 0.105 + CUP_CLEARANCE],
+    ]
+)
+"""The objects' hulls the cup's centre stays out of, already widened by ``CUP_CLEARANCE``:
+vertical cylinders standing on the table, rows (x, y, radius, top) in m. The pitcher (r 7 cm,
+24 cm tall); the plate (r 10 cm, its top 10.5 cm up) on its riser (a 16 cm square, whose
+corners reach 11.3 cm from the axis: hence 11.5 cm). The table is the floor below."""
+FLOOR = CUP_CLEARANCE
+"""The lowest the cup's centre goes (m above the table top)."""
+WRIST_LEVER = 0.26
+"""m from the cup's centre up its axis to the hand (link 7's origin)."""
+REACH_LOW = np.array([0.25, -0.45, FLOOR])
+REACH_HIGH = np.array([0.75, 0.60, 0.60])
+REACH_SHOULDER = np.array([0.0, 0.0, 0.333])
+REACH_RADIUS = 0.75
+REACH_ANGLE = 0.8
+"""The reachable set: positions in [REACH_LOW, REACH_HIGH] with the hand (``WRIST_LEVER`` up
+the cup's axis) within ``REACH_RADIUS`` of the shoulder (joint 2's axis), |roll|, |pitch| ≤
+``REACH_ANGLE`` (rad), computed offline from the
+arm model by ``benchmarks/study_reach.py`` (IK with every joint 0.05 rad inside its limits, the
+cup at the home yaw; docs/study.md gives the coverage it measured)."""
+
+
+def _keep_out_walk(
+    hulls: np.ndarray,
+    shoulder: np.ndarray,
+    radius: float,
+    lever: float,
+    angle_scale: float,
+    yaw: np.ndarray | None,
+    low: np.ndarray,
+    high: np.ndarray,
+) -> Callable[[np.ndarray, float], None]:
+    """The planner's constraint beyond its box (``strol_gym.planning.WalkFn``) for the
+    reachable set and the keep-out cylinders. Positions are the first three coordinates
+    (unscaled in the planner's frame), roll and pitch the next two (times ``angle_scale``),
+    yaw (B,) held.
+
+    Each waypoint after x0, all at once: the hand (``lever`` m up the cup's axis) is pulled
+    back into the ball of ``radius`` around ``shoulder`` (or of x0's distance, if x0 is
+    further out); a cup inside a hull leaves it by the shorter way (out to its side, or up
+    over its top); back into the box ``low``-``high``; a cup the box put back into a hull is
+    lifted over it; then the plans are walked at the step bound (``_walk_out``: the lift can
+    lengthen a step at a hull's edge). Walking only the planner's result, not every iterate,
+    is 4x cheaper and loses most of θ*'s return in Task 1 (0.35 against 0.99): the ascent must
+    see the robot's pace near a hull."""
+    cx, cy, rad, top = (hulls[:, i : i + 1] for i in range(4))  # (k, 1): against (…, T)
+    lo3, hi3 = low[:3], high[:3]
+
+    def axis(p: np.ndarray) -> np.ndarray | float:
+        """lever × the cup's axis (R e_z) for waypoints p (B, S, T, s)."""
+        if yaw is None:
+            return np.array([0.0, 0.0, lever])
+        r, q = p[..., 3] * angle_scale, p[..., 4] * angle_scale
+        y = yaw[:, None, None]
+        cr, sr, cq, sq, cyw, syw = np.cos(r), np.sin(r), np.cos(q), np.sin(q), np.cos(y), np.sin(y)
+        return lever * np.stack(
+            [cyw * sq * cr + syw * sr, syw * sq * cr - cyw * sr, cq * cr], axis=-1
+        )
+
+    def walk(pos: np.ndarray, bound: float) -> None:
+        way = pos[..., 1:, :]
+        p = way[..., :3]
+        off = axis(way)
+        w0 = pos[..., :1, :3] + axis(pos[..., :1, :]) - shoulder
+        lim = np.maximum(np.linalg.norm(w0, axis=-1, keepdims=True), radius)
+        arm = p + off - shoulder
+        far = np.linalg.norm(arm, axis=-1, keepdims=True)
+        p[:] = shoulder - off + arm * np.minimum(1.0, lim / np.maximum(far, 1e-12))
+        x, y, z = p[..., 0], p[..., 1], p[..., 2]
+        for k in range(len(rad)):
+            dx, dy = x - cx[k], y - cy[k]
+            rho = np.maximum(np.hypot(dx, dy), 1e-12)
+            side, lift = rad[k] - rho, top[k] - z  # how far out, how far up
+            inside = (side > 0) & (lift > 0)
+            if not inside.any():
+                continue
+            sideways = inside & (side < lift)
+            grow = np.where(sideways, rad[k] / rho, 1.0)
+            x[:] = cx[k] + dx * grow
+            y[:] = cy[k] + dy * grow
+            z[:] = np.where(inside & ~sideways, top[k], z)
+        np.clip(p, lo3, hi3, out=p)
+        for k in range(len(rad)):
+            inside = (np.hypot(x - cx[k], y - cy[k]) < rad[k]) & (z < top[k])
+            z[:] = np.where(inside, top[k], z)
+        pos[...] = _walk_out(pos, hulls, bound)  # at the robot's pace
+
+    return walk
+
+
+def _walk_out(plans: np.ndarray, hulls: np.ndarray, bound: float) -> np.ndarray:
+    """Plans (B, T+1, s) walked step by step at the step ``bound`` per position axis: each
+    step goes towards the planned waypoint, and towards a hull by at most the clearance the
+    previous waypoint had (the supporting half-space at its nearest hull point: the hull is
+    convex, so the waypoint stays outside; a step cut to the bound stays in the half-space).
+    The planner's per-waypoint projection can lengthen a step at a hull's edge; this pass
+    keeps the plan at the robot's pace and out of the hulls."""
+    out = plans.copy()
+    p = out[..., :3]
+    cx, cy, rad, top = (hulls[:, i] for i in range(4))
+    for t in range(1, out.shape[-2]):
+        prev = p[..., t - 1, :]
+        step = np.clip(plans[..., t, :3] - prev, -bound, bound)
+        for k in range(len(rad)):
+            dx, dy = prev[..., 0] - cx[k], prev[..., 1] - cy[k]
+            rho = np.maximum(np.hypot(dx, dy), 1e-12)
+            dr, dz = rho - rad[k], prev[..., 2] - top[k]
+            outside = (dr > 0) | (dz > 0)
+            clear = np.where(
+                outside, np.hypot(np.maximum(dr, 0.0), np.maximum(dz, 0.0)), np.maximum(dr, dz)
+            )
+            side = np.where(outside, np.maximum(dr, 0.0), (dr > dz).astype(float))
+            up = np.where(outside, np.maximum(dz, 0.0), (dr <= dz).astype(float))
+            norm = np.maximum(np.hypot(side, up), 1e-12)
+            n = np.stack([side * dx / rho, side * dy / rho, up], axis=-1) / norm[..., None]
+            short = np.minimum(-clear, bound) - np.einsum("...i,...i->...", step, n)
+            step = step + np.maximum(short, 0.0)[..., None] * n
+        scale = np.minimum(1.0, bound / np.maximum(np.abs(step).max(-1, keepdims=True), 1e-12))
+        p[..., t, :] = prev + step * scale
+    return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTaskV2(StudyTask):
+    """A study Task as StROL-Study-v2 plans it: the same features, θ*, prior and bounds, and a
+    planner that keeps the cup where the arm reaches it (``reach_*``) and out of the objects'
+    hulls (``keep_out``, ``floor``). Plain data: the Task knows no simulator; the numbers were
+    computed from the arm model offline (``benchmarks/study_reach.py``)."""
+
+    keep_out: np.ndarray = dataclasses.field(default_factory=KEEP_OUT.copy)
+    floor: float = FLOOR
+    reach_low: np.ndarray = dataclasses.field(default_factory=REACH_LOW.copy)
+    reach_high: np.ndarray = dataclasses.field(default_factory=REACH_HIGH.copy)
+    reach_shoulder: np.ndarray = dataclasses.field(default_factory=REACH_SHOULDER.copy)
+    reach_radius: float = REACH_RADIUS
+    reach_angle: float = REACH_ANGLE
+
+    @property
+    def low(self) -> np.ndarray:
+        """The reachable box's lower corner, above the floor (yaw unbounded)."""
+        pos = np.maximum(self.reach_low, [-np.inf, -np.inf, self.floor])
+        ang = [-self.reach_angle, -self.reach_angle, -np.inf][: self.state_dim - 3]
+        return np.concatenate([pos, ang])
+
+    @property
+    def high(self) -> np.ndarray:
+        ang = [self.reach_angle, self.reach_angle, np.inf][: self.state_dim - 3]
+        return np.concatenate([self.reach_high, ang])
+
+    def _plan_walk(self, x0: np.ndarray) -> Callable[[np.ndarray, float], None]:
+        return _keep_out_walk(
+            np.asarray(self.keep_out, dtype=np.float64),
+            np.asarray(self.reach_shoulder, dtype=np.float64),
+            float(self.reach_radius),
+            WRIST_LEVER,
+            float(self._plan_scale[-1]),
+            x0[:, 5] if self.oriented else None,
+            self.low,
+            self.high,
+        )
+
+    def plan(self, theta: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """``StudyTask.plan`` within the reachable set and out of the hulls (see the class)."""
+        plans = super().plan(theta, x0)
+        return _walk_out(plans, np.asarray(self.keep_out, dtype=np.float64), self.plan_pos_bound)
+
+    def around_hulls(self, path: np.ndarray) -> np.ndarray:
+        """A path (T+1, s) walked at the planner's step around the hulls (``_walk_out``), then
+        straight on to its last pose if the walk fell short: the robot's way home, which a
+        straight line took through the pitcher (v2's first runs: 13 of 200 seeds)."""
+        path = np.asarray(path, dtype=np.float64)
+        walked = _walk_out(
+            path[None], np.asarray(self.keep_out, dtype=np.float64), self.plan_pos_bound
+        )[0]
+        gap = path[-1, :3] - walked[-1, :3]
+        n = int(np.ceil(np.max(np.abs(gap)) / self.plan_pos_bound - 1e-9))
+        if n <= 0:
+            return walked
+        tail = walked[-1] + np.linspace(0.0, 1.0, n + 1)[1:, None] * (path[-1] - walked[-1])
+        return np.vstack([walked, tail])
+
+    def outside_hulls(self, x: np.ndarray) -> np.ndarray:
+        """Whether each cup position (..., ≥3) is outside every hull and above the floor."""
+        x = np.asarray(x, dtype=np.float64)
+        h = np.asarray(self.keep_out)
+        rho = np.hypot(x[..., None, 0] - h[:, 0], x[..., None, 1] - h[:, 1])
+        inside = (rho < h[:, 2]) & (x[..., None, 2] < h[:, 3])
+        return ~inside.any(-1) & (x[..., 2] >= self.floor)
+
+    @property
+    def ghat_task(self) -> StudyTask:
+        """StROL-Study-v2 uses v1's ĝ until its own are trained (docs/study.md)."""
+        return STUDY_TASKS_V1[self.number]()
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask1V2(StudyTaskV2, StudyTask1V1):
+    """Task 1 as StROL-Study-v2 plans it (``StudyTaskV2``)."""
+
+    task_id: ClassVar[str] = "StROL-Study-v2-task1"
+    version: ClassVar[int] = 2
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask2V2(StudyTaskV2, StudyTask2V1):
+    """Task 2 as StROL-Study-v2 plans it (``StudyTaskV2``)."""
+
+    task_id: ClassVar[str] = "StROL-Study-v2-task2"
+    version: ClassVar[int] = 2
+    prior: Prior = dataclasses.field(default_factory=_prior4)  # not StudyTaskV2's (Task 1's)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask3V2(StudyTaskV2, StudyTask3V1):
+    """Task 3 as StROL-Study-v2 plans it (``StudyTaskV2``)."""
+
+    task_id: ClassVar[str] = "StROL-Study-v2-task3"
+    version: ClassVar[int] = 2
+    prior: Prior = dataclasses.field(default_factory=_prior4)  # not StudyTaskV2's (Task 1's)
+
+
+STUDY_TASKS_V2: dict[int, type[StudyTaskV2]] = {1: StudyTask1V2, 2: StudyTask2V2, 3: StudyTask3V2}

@@ -1,8 +1,8 @@
-"""StROL-Study-v0 and -v1: the paper's user study, a person pushing a compliant Panda arm
+"""StROL-Study-v0, -v1 and -v2: the paper's user study, a person pushing a compliant Panda arm
 that carries a cup, in MuJoCo.
 
 - ``env``: ``StudyEnv``, one class for every version; ``StudyEnv`` is v0 (as published),
-  ``StudyEnvV1`` names v1.
+  ``StudyEnvV1`` names v1, ``StudyEnvV2`` v2.
 - ``versions``: what each version changes, a frozen ``StudyVersion`` of options (``V0``,
   ``V1``); a new version is a new option set.
 - ``controller``: the impedance controllers (v0's, v1's); ``geometry``: pose helpers and the
@@ -18,13 +18,14 @@ from strol_gym.envs.moved import exports
 
 _ENV = "strol_gym.envs.study.env"
 _CONTROLLER = "strol_gym.envs.study.controller"
-__all__ = ["V0", "V1", "StudyEnv", "StudyEnvV1", "StudyVersion"]
+__all__ = ["V0", "V1", "V2", "StudyEnv", "StudyEnvV1", "StudyEnvV2", "StudyVersion"]
 __getattr__ = exports(
     __name__,
     {
         "StudyEnv": _ENV,
         "StudyEnvV1": _ENV,
-        **dict.fromkeys(("V0", "V1", "StudyVersion"), "strol_gym.envs.study.versions"),
+        "StudyEnvV2": _ENV,
+        **dict.fromkeys(("V0", "V1", "V2", "StudyVersion"), "strol_gym.envs.study.versions"),
     },
     # what strol_gym.envs.study (one module until 0.2) also held
     {

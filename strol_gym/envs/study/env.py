@@ -8,8 +8,9 @@ pose helpers in ``geometry``, the people who push in ``user`` and ``participant`
 
 from __future__ import annotations
 
+import functools
 import math
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import gymnasium as gym
 import mujoco
@@ -25,7 +26,7 @@ from strol_gym.envs.study.participant import Participant
 from strol_gym.envs.study.people import HeldWrench, ScriptedWrench
 from strol_gym.envs.study.scene import build_model, model_q
 from strol_gym.envs.study.user import SimulatedUser
-from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, StudyVersion
+from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, V2, StudyVersion
 from strol_gym.humans import Human
 from strol_gym.priors import Prior
 from strol_gym.tasks import make_task
@@ -34,6 +35,7 @@ from strol_gym.tasks.study import (
     SEGMENT_TIME,
     STUDY_TASKS,
     StudyTask,
+    StudyTaskV2,
     mat_to_rpy,
     rpy_to_mat,
 )
@@ -118,7 +120,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
       ``strol_gym.envs.study.user``).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
     - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
-      ``stiffness`` (N/m, > 0, default 400), ``rot_stiffness`` (N m/rad, > 0, default 30).
+      ``stiffness`` (N/m, > 0, default 400; v2: 300), ``rot_stiffness`` (N m/rad, > 0,
+      default 30; v2: 10).
     - ``max_episode_steps`` (int ≥ 1 or None), ``render_mode`` (None | "rgb_array" |
       "human"), ``width``, ``height``.
 
@@ -149,8 +152,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         prior: str | Prior | Any | None = None,
         force_threshold: float = 15.0,
         duration: float = 60.0,
-        stiffness: float = 400.0,
-        rot_stiffness: float = 30.0,
+        stiffness: float | None = None,
+        rot_stiffness: float | None = None,
         user_kwargs: dict[str, Any] | None = None,
         reflex_force: float | None = None,
         reflex_torque: float | None = None,
@@ -175,11 +178,11 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                     f"participant must be one of {sorted(v.participants)}, got {participant!r}"
                 )
         self.participant = participant
-        self.reflex_force = _positive(
-            "reflex_force", 100.0 if reflex_force is None else reflex_force
+        self.reflex_force = _within(
+            "reflex_force", 100.0 if reflex_force is None else reflex_force, REFLEX_FORCE_RANGE
         )
-        self.reflex_torque = _positive(
-            "reflex_torque", 10.0 if reflex_torque is None else reflex_torque
+        self.reflex_torque = _within(
+            "reflex_torque", 10.0 if reflex_torque is None else reflex_torque, REFLEX_TORQUE_RANGE
         )
         self.reflex_recover = _positive(
             "reflex_recover", 0.5 if reflex_recover is None else reflex_recover
@@ -192,14 +195,16 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self.user_kwargs = checks.mapping("user_kwargs", user_kwargs)
         self.force_threshold = _positive("force_threshold", force_threshold)
         self.duration = _positive("duration", duration)
-        self.stiffness = _positive("stiffness", stiffness)
-        self.rot_stiffness = _positive("rot_stiffness", rot_stiffness)
+        self.stiffness = _positive("stiffness", v.stiffness if stiffness is None else stiffness)
+        self.rot_stiffness = _positive(
+            "rot_stiffness", v.rot_stiffness if rot_stiffness is None else rot_stiffness
+        )
         super().__init__(task=task, prior=prior, **kwargs)
 
     def _make_task(self, task: Any) -> StudyTask:
         """1, 2 or 3 (the paper's Tasks), a ``StudyTask`` or its registered name."""
         if isinstance(task, int | np.integer) and not isinstance(task, bool):
-            return STUDY_TASKS[int_arg("task", task, 1, 3)]()
+            return (self.version.tasks or STUDY_TASKS)[int_arg("task", task, 1, 3)]()
         if not isinstance(task, StudyTask | str):
             raise ValueError(f"task must be 1, 2 or 3 (or a StudyTask), got {task!r}")
         return make_task(task, of=StudyTask)
@@ -263,6 +268,11 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._d = (2.0 * math.sqrt(kp * 2.0), 2.0 * math.sqrt(kr * 0.05))
         self._n_sub = round(CONTROL_DT / m.opt.timestep)
         self._build_control()
+        # The counterfactual's copies of the simulation (when the push began; the pushed one).
+        self._cf_data, self._cf_pushed = mujoco.MjData(m), mujoco.MjData(m)
+        geom = functools.partial(mujoco.mj_name2id, m, mujoco.mjtObj.mjOBJ_GEOM)
+        self._cup_geom = geom("cup")
+        self._object_geoms = frozenset(geom(n) for n in ("pitcher", "plate", "riser", "table"))
 
     def _reset_sim(self) -> None:
         m, d = self.model, self.data
@@ -297,6 +307,11 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._n_reflex = 0
         self._pause_until = -1.0
         self._rest_x = self._x.copy()
+        self._cf_steps = 0
+        self._cf_control: dict[str, Any] = {}
+        self._rerun = False
+        self._touched = False
+        self._n_contact = 0
 
     def _read_state(self) -> np.ndarray:
         if not self._oriented:
@@ -410,6 +425,9 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         end = len(self._segments) * SEGMENT_TIME
         if self._leg == "plan" and self._tau >= end + END_HOLD:
             ret = straight(self._sp, self.task.start, self.task.plan_pos_bound)
+            if self.version.hull_return:
+                # hull_return is set on versions whose Tasks carry the hulls (StudyTaskV2)
+                ret = cast("StudyTaskV2", self.task).around_hulls(ret)
             self._set_plan(ret, leg="return")
         elif self._leg == "return" and self._tau >= end:
             self._replan()
@@ -487,7 +505,12 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
             self._active, self._corr_t0 = True, self._time
             self._corr_start_x = self._correction_start()
             self._trace = []
+            if self.version.counterfactual:
+                mujoco.mj_copyData(self._cf_data, self.model, self.data)
+                self._cf_control, self._cf_steps = self._control_state(), 0
         elif not pushing and self._active:
+            if self.version.counterfactual:
+                self._corr_start_x = self._counterfactual()
             self._active = False
             is_correction = True
             u_h = angle_delta(self._x, self._corr_start_x)[: self.task.action_dim]
@@ -498,9 +521,11 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         else:
             u_r, v_sp = self._move_setpoint(u_res)
         x_before = self._x
+        self._touched = False
         self._simulate(v_sp)
         self.steps += 1
         if self._active:
+            self._cf_steps += 1
             self._corr_time += CONTROL_DT
             self._trace.append((self._time, self._wrench.copy()))
         stable = self._check_stable()
@@ -518,7 +543,30 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 lag=math.dist(self._sp[:3].tolist(), self._x[:3].tolist()),
                 gave_up=float(getattr(self.human, "gave_up", False)),
             )
+        if self.version.contact_info:
+            self._n_contact += self._touched
+            info.update(contact=self._touched, contacts=self._n_contact)
         return u_h, u_r, is_correction, info
+
+    def _counterfactual(self) -> np.ndarray:
+        """The pose the held arm reaches without the push: the simulation as it was when the
+        push began, run again over the same steps with no external wrench (the setpoint held,
+        the integral frozen, as during the push); then the pushed simulation is put back."""
+        m, d = self.model, self.data
+        mujoco.mj_copyData(self._cf_pushed, m, d)
+        control, wrench, time = self._control_state(), self._wrench, self._time
+        mujoco.mj_copyData(d, m, self._cf_data)
+        self._set_control_state(self._cf_control)
+        self._wrench = np.zeros(6)
+        touched, self._rerun = self._touched, True
+        for _ in range(self._cf_steps):
+            self._simulate(_STILL)
+        self._rerun = False
+        unpushed = self._read_state()
+        mujoco.mj_copyData(d, m, self._cf_pushed)
+        self._set_control_state(control)
+        self._wrench, self._time, self._touched = wrench, time, touched
+        return unpushed
 
     def _truncated(self) -> bool:
         """After ``duration`` seconds, at an instability, or at ``max_episode_steps``."""
@@ -600,14 +648,20 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         # _build remakes the MjData views; MuJoCo's warning records do not pickle.
         for key in ("model", "data", "_renderer", "_viewer", "_warning_stats"):
             state.pop(key, None)
+        for key in ("_cf_data", "_cf_pushed", "_object_geoms"):
+            state.pop(key, None)
         spec = mujoco.mjtState.mjSTATE_INTEGRATION
         sim = np.empty(mujoco.mj_stateSize(self.model, spec))
         mujoco.mj_getState(self.model, self.data, sim, spec)
         state["_sim"] = sim
+        cf = np.empty_like(sim)
+        mujoco.mj_getState(self.model, self._cf_data, cf, spec)
+        state["_cf_sim"] = cf
         return state
 
     def __setstate__(self, state: dict) -> None:
         sim = state.pop("_sim")
+        cf = state.pop("_cf_sim", None)
         self.__dict__.update(state)
         self._renderer = None
         self._viewer = None
@@ -615,6 +669,30 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         mujoco.mj_setState(self.model, self.data, sim, mujoco.mjtState.mjSTATE_INTEGRATION)
         mujoco.mj_kinematics(self.model, self.data)
         mujoco.mj_comPos(self.model, self.data)
+        if cf is not None:  # a push under way: its counterfactual starts from here
+            mujoco.mj_setState(self.model, self._cf_data, cf, mujoco.mjtState.mjSTATE_INTEGRATION)
+            mujoco.mj_forward(self.model, self._cf_data)
+
+
+REFLEX_FORCE_RANGE = (20.0, 150.0)
+"""``reflex_force`` (N) accepted: above the 15 N threshold (a push must be able to correct) and
+at most 150 N, where v2's joint brakes still hold every joint under its speed limit for any
+push below the reflex (docs/study.md)."""
+REFLEX_TORQUE_RANGE = (2.0, 15.0)
+"""``reflex_torque`` (N m) accepted: at least the 15 N threshold's torque at the 0.1 m lever
+(1.5 N m, rounded up) and at most 15 N m (docs/study.md)."""
+
+
+def _within(name: str, value: Any, bounds: tuple[float, float]) -> float:
+    """A finite number in [low, high], else a ValueError naming ``name`` and the range."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = float("nan")
+    low, high = bounds
+    if not (math.isfinite(v) and low <= v <= high):
+        raise ValueError(f"{name} must be a finite number in [{low:g}, {high:g}], got {value!r}")
+    return v
 
 
 def _positive(name: str, value: Any) -> float:
@@ -646,4 +724,51 @@ class StudyEnvV1(StudyEnv):
     reach: tuple[np.ndarray, np.ndarray, float] | None = V1.reach
 
 
-__all__ = ["PARTICIPANTS", "StudyEnv", "StudyEnvV1", "rotation_error"]
+class StudyEnvV2(StudyEnv):
+    """StROL-Study-v2: the study env with version ``V2`` (``versions.V2``, ``docs/study.md``).
+
+    What v1 got wrong, measured on pushes no test tuned on, and what v2 does instead:
+
+    - **u_H is the displacement the person caused, on any push.** When a push begins the
+      simulation is copied (``mj_copyData``); when it ends the copy is run over the same
+      steps with the setpoint held and no external wrench (what the held arm would have done),
+      and u_H = the pushed pose − that unpushed pose, whatever the arm's lag.
+      ``info["correction_state"]`` = the unpushed pose x, the pose u_H is added to. u_H's
+      position part is the difference of the cup's positions (m, world frame); its rotation
+      part (Tasks 2-3) is the difference of the Euler angles (roll, pitch, yaw: the Task's
+      convention R = Rz Ry Rx, wrapped to [−π, π)), so x + u_H is the pushed pose; the
+      world-frame rotation R(x + u_H) R(x)⁻¹ is the turn the push produced, about the torque's
+      axis for a pure torque. A wrench acts at the cup frame's origin (the cup's centre, the
+      state's position).
+    - **The arm reaches where it is sent:** the Task (``StudyTask{1,2,3}V2``) plans within
+      the reachable set and out of the objects' hulls, which it carries as data; the robot
+      executes its plans as they are (no clipping: ``reach`` is None), and the regret uses the
+      same planner.
+    - **The Panda's limits at every physics step**, through the torques (``joint_brake``:
+      from 0.9x a joint's speed limit its torque saturates against the motion); a push that
+      loads a joint beyond its motor trips a speed reflex (the brakes lock, ``info["reflex"]``)
+      before the joint passes its limit. ``reflex_force`` in [20, 150] N and ``reflex_torque``
+      in [2, 15] N m, else ValueError.
+    - **Softer**: ``stiffness`` 300 N/m and ``rot_stiffness`` 10 N m/rad by default (v1: 400
+      and 30): a 30 N push for 1 s moves the cup 9-10.5 cm (the paper's participants: a median
+      11 cm per correction).
+    - ``info["contact"]``: the cup touched the pitcher, the plate or the table this step
+      (``info["contacts"]`` counts the steps).
+
+    The participant is v1's (``participant="observer"``); the ĝ are v1's
+    (``StudyTaskV2.ghat_task``) until v2's are trained.
+
+    ## Version History
+
+    - v2: u_H by counterfactual, the Task's reachable set and hulls, joint limits at every
+      physics step, a softer arm, ``info["contact"]``.
+    - v1: u_H measured against the held setpoint (deprecated).
+    - v0: initial version (deprecated).
+    """
+
+    version: ClassVar[StudyVersion] = V2
+    env_id: ClassVar[str] = V2.env_id
+    reach: tuple[np.ndarray, np.ndarray, float] | None = V2.reach
+
+
+__all__ = ["PARTICIPANTS", "StudyEnv", "StudyEnvV1", "StudyEnvV2", "rotation_error"]

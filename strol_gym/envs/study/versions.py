@@ -8,11 +8,13 @@ keeps v0 and v1 as they are), a class that names it (``version = V2``) and a reg
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from strol_gym.envs.study.geometry import REACH_ANGLE, REACH_HIGH, REACH_LOW
+from strol_gym.tasks.study import STUDY_TASKS_V2, StudyTask
 
 PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
@@ -43,6 +45,25 @@ class StudyVersion:
     participants: tuple[str, ...] = ()
     """The simulated people the ``participant`` argument chooses from (the first is the
     default); empty: no such argument, the regret-judging ``SimulatedUser``."""
+    counterfactual: bool = False
+    """u_H = the pushed pose − the pose the held arm reaches without the push over the same
+    interval (the simulation copied when the push begins, ``mj_copyData``, and run again
+    without it); ``info["correction_state"]`` is that unpushed pose."""
+    joint_brake: bool = False
+    """The joint speed limits at every physics step through the torques (saturating against
+    the motion from 0.9x the limit) instead of clipping ``qvel`` after a chunk of steps."""
+    contact_info: bool = False
+    """``info["contact"]``: the cup touched the pitcher, the plate (or its riser) or the table
+    during the step; ``info["contacts"]`` counts such steps."""
+    stiffness: float = 400.0
+    """The default Cartesian stiffness (N/m; the ``stiffness`` argument overrides it)."""
+    rot_stiffness: float = 30.0
+    """The default rotational stiffness (N m/rad; the ``rot_stiffness`` argument overrides it)."""
+    hull_return: bool = False
+    """The way home goes around the objects' hulls (``StudyTaskV2.around_hulls``), not through
+    them in a straight line."""
+    tasks: Mapping[int, type[StudyTask]] | None = None
+    """The Task classes ``task=1, 2, 3`` build (None: ``STUDY_TASKS``, the published ones)."""
 
 
 V0 = StudyVersion("v0", "StROL-Study-v0")
@@ -57,4 +78,20 @@ V1 = StudyVersion(
     participants=PARTICIPANTS,
 )
 """u_H = the person's push, tracking, the reachable box, the Panda's limits, the reflex."""
-VERSIONS = {v.name: v for v in (V0, V1)}
+V2 = StudyVersion(
+    "v2",
+    "StROL-Study-v2",
+    controller="v1",
+    counterfactual=True,
+    joint_brake=True,
+    contact_info=True,
+    stiffness=300.0,
+    rot_stiffness=10.0,
+    reflex=True,
+    participants=PARTICIPANTS,
+    tasks=STUDY_TASKS_V2,
+    hull_return=True,
+)
+"""u_H by counterfactual, the joint limits at every physics step, the Task's reachable set and
+hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``."""
+VERSIONS = {v.name: v for v in (V0, V1, V2)}

@@ -1,0 +1,176 @@
+"""StROL-Study-v2 from outside (``human=None``, pushes through the public push API): u_H reads
+random pushes at seeds the test draws itself, the arm reaches its setpoint, the cup touches
+nothing by itself and the contact is reported when pushed, joint speeds at every physics step,
+bounded reflex settings."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+import pytest
+
+import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.envs.study.controller import VELOCITY_LIMIT
+from strol_gym.envs.study.env import StudyEnvV2
+from strol_gym.envs.study.geometry import rotation_error
+from strol_gym.tasks.study import STUDY_TASKS_V2, rpy_to_mat
+
+ENV_ID = "StROL-Study-v2"
+ENTROPY = np.random.SeedSequence().entropy
+"""The random cases' seed, new every run (printed in a failure's message to rerun it)."""
+
+
+def make(**kw) -> StudyEnvV2:
+    kw.setdefault("human", None)
+    return gym.make(ENV_ID, **kw).unwrapped
+
+
+def run(env: StudyEnvV2, n: int) -> list[dict]:
+    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    return [env.step(zero)[4] for _ in range(n)]
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return math.degrees(math.acos(min(1.0, max(-1.0, c))))
+
+
+def unit(rng: np.random.Generator) -> np.ndarray:
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)
+
+
+def test_random_pushes_read_as_pushed():
+    """30 held-out pushes (10 per Task): a random study seed, 1-3 s into the episode, 20-60 N
+    in a random direction, on Tasks 2-3 with 1-3 N m about a random axis, for 1 s. The bounds
+    are what v2 reaches (benchmarks/speed/study_v2_pushes.py over 200 per Task; docs/study.md),
+    not all of issue 33's targets."""
+    rng = np.random.default_rng(ENTROPY)
+    trans, rot, lost = [], [], 0
+    for task in (1, 2, 3):
+        for _ in range(10):
+            env = make(task=task)
+            seed, start = int(rng.integers(20000, 30000)), int(rng.integers(20, 60))
+            force = unit(rng) * rng.uniform(20.0, 60.0)
+            torque = unit(rng) * rng.uniform(1.0, 3.0) if task > 1 else np.zeros(3)
+            env.reset(seed=seed)
+            run(env, start)
+            env.apply_wrench(force, torque, duration=1.0)
+            ends = [i for i in run(env, 24) if i["is_correction"]]
+            if not ends:  # the speed reflex stopped the shove: no u_H (counted below)
+                lost += 1
+                continue
+            u, x = ends[0]["u_h"], ends[0]["correction_state"]
+            trans.append(angle_deg(u[:3], force))
+            if task > 1:
+                turn = rotation_error(rpy_to_mat(x[3:] + u[3:]), rpy_to_mat(x[3:]))
+                rot.append(angle_deg(turn, torque))
+    msg = f"entropy {ENTROPY}: translation {np.round(trans, 1)}, rotation {np.round(rot, 1)}"
+    # Over 200 pushes per Task: 15-20 % stopped by the speed reflex, translation within 15° in
+    # 88-96 % (never beyond 90°), rotation within 30° in 74-77 % (beyond 90° in 4-6 %). The
+    # bounds leave room for 30 draws' spread (about 3 standard deviations).
+    assert lost <= 12, msg
+    assert max(trans) <= 90.0, msg
+    assert np.mean(np.array(trans) <= 15.0) >= 0.75, msg
+    assert np.mean(np.array(rot) <= 30.0) >= 0.4, msg
+
+
+def test_a_30_newton_push_moves_the_cup_at_least_5_cm():
+    env = make(task=1)
+    env.reset(seed=20001)
+    run(env, 60)
+    env.apply_wrench((0.0, 30.0, 0.0), duration=1.0)
+    end = next(i for i in run(env, 30) if i["is_correction"])
+    assert np.linalg.norm(end["u_h"]) >= 0.05
+    assert angle_deg(end["u_h"], np.array([0.0, 1.0, 0.0])) < 15.0
+
+
+@pytest.mark.parametrize("task", [1, 2, 3])
+def test_the_arm_reaches_its_setpoint_and_touches_nothing(task):
+    """After 2 s held, the cup near its setpoint (study seed 20001); following the plan,
+    waiting and going home, the cup never touches the pitcher, the plate or the table.
+    Issue 33's target is 2 mm and 0.01 rad on 95 % of seeds; v2 reaches it on 64-71 % of 200
+    random seeds per Task (docs/study.md), and on this seed in Task 1 only (Tasks 2-3: 2.9 mm
+    and 0.023 rad), so Tasks 2-3 are held to 5 mm and 0.05 rad here: a guard against losing
+    what v2 has, not the target."""
+    env = make(task=task)
+    env.reset(seed=20001)
+    infos = run(env, 60)
+    env.pause(2.0)
+    infos += run(env, 40)
+    assert np.linalg.norm(env._sp[:3] - env._x[:3]) < (0.002 if task == 1 else 0.005)
+    turn = np.linalg.norm(rotation_error(env._sp_R, env._site_xmat))
+    assert turn < (0.01 if task == 1 else 0.05)
+    infos += run(env, 300)
+    assert not any(i["contact"] for i in infos)
+    assert infos[-1]["contacts"] == 0
+
+
+@pytest.mark.parametrize("seed", [20553, 28273])
+def test_the_way_home_goes_around_the_pitcher(seed):
+    """Two Task 1 seeds whose way home, a straight line, went through the pitcher."""
+    env = make(task=1)
+    env.reset(seed=seed)
+    assert not any(i["contact"] for i in run(env, 400))
+
+
+def test_contact_is_reported_when_a_person_pushes_the_cup_into_an_object():
+    env = make(task=1)
+    env.reset(seed=20001)
+    env.theta_hat = env.task.theta_star  # the plan to the plate, beside it
+    infos = run(env, 200)
+    assert not any(i["contact"] for i in infos)
+    env.apply_wrench((0.0, 0.0, -45.0), duration=1.0)
+    infos = run(env, 25)
+    assert any(i["contact"] for i in infos)
+    assert infos[-1]["contacts"] >= 1
+
+
+def test_every_object_stays_collidable():
+    env = make(task=1)
+    for name in ("pitcher", "plate", "riser", "table"):
+        g = mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_GEOM, name)
+        assert env.model.geom_contype[g] and env.model.geom_conaffinity[g], name
+
+
+def test_joint_speeds_stay_within_the_limits_at_every_physics_step():
+    """Shoves below the reflex (60-99 N, up to 9.9 N m): at every mj_step no joint above its
+    speed limit (the torques brake from 0.9x; the speed reflex locks what they cannot)."""
+    rng = np.random.default_rng([ENTROPY, 7])
+    peak = [0.0]
+
+    def watch(m, d):  # MuJoCo calls it inside every mj_step
+        peak[0] = max(peak[0], float(np.max(np.abs(d.qvel[:7]) / VELOCITY_LIMIT)))
+
+    for task in (1, 2):
+        env = make(task=task)
+        env.reset(seed=int(rng.integers(20000, 30000)))
+        run(env, int(rng.integers(10, 60)))
+        env.apply_wrench(unit(rng) * rng.uniform(60, 99), unit(rng) * rng.uniform(0, 9.9))
+        mujoco.set_mjcb_control(watch)
+        try:
+            run(env, 30)
+        finally:
+            mujoco.set_mjcb_control(None)
+    assert peak[0] <= 1.0, (ENTROPY, peak[0])
+
+
+@pytest.mark.parametrize("name", ["reflex_force", "reflex_torque"])
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), 0.0, -5.0, 1e300, 1000.0])
+def test_reflex_settings_are_bounded(name, value):
+    with pytest.raises(ValueError, match=name):
+        make(**{name: value})
+
+
+def test_v2_uses_its_tasks_planner_and_v1s_ghat():
+    env = make(task=2)
+    assert isinstance(env.task, STUDY_TASKS_V2[2])
+    assert env.task.ghat_task.task_id == "StROL-Study-v1-task2"
+    plans = env.task.plan(
+        np.random.default_rng(0).uniform(-1, 1, (8, 4)), np.tile(env.task.start, (8, 1))
+    )
+    assert env.task.outside_hulls(plans).all()
+    assert np.abs(np.diff(plans[..., :3], axis=1)).max() <= env.task.plan_pos_bound + 1e-12
