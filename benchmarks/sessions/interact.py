@@ -215,17 +215,25 @@ FEATURE_WORDS = {
 distances, the cup's height and its tilt)."""
 
 
-def teach_words(feature_names: Any, theta_star: np.ndarray) -> str:
-    """θ* in words, strongest weight first; weights below 0.1 in size are left out."""
+def teach_words(
+    feature_names: Any,
+    theta_star: np.ndarray,
+    phrases: dict[str, tuple[str, str]] | None = None,
+    lead: str = "carry the cup ",
+) -> str:
+    """θ* in words, strongest weight first; weights below 0.1 in size are left out.
+    ``phrases``: per feature, what a positive and a negative weight ask (the study's cup by
+    default)."""
+    phrases = FEATURE_WORDS if phrases is None else phrases
     order = np.argsort(-np.abs(theta_star))
     words = []
     for i in order:
         if abs(theta_star[i]) < 0.1:
             continue
         name = feature_names[i]
-        pos, neg = FEATURE_WORDS.get(name, (f"more {name}", f"less {name}"))
+        pos, neg = phrases.get(name, (f"more {name}", f"less {name}"))
         words.append(pos if theta_star[i] > 0 else neg)
-    return "carry the cup " + ", ".join(words) if words else "anything goes (θ* is about 0)"
+    return lead + ", ".join(words) if words else "anything goes (θ* is about 0)"
 
 
 INSTRUCTIONS = (
@@ -523,7 +531,13 @@ def add_parser(sub: Any) -> None:
         "plan for theta*; F9: hide or show the panel. The session is logged for strol-bench "
         "replay. Without a display: xvfb-run -a strol-bench interact.",
     )
-    p.add_argument("--task", default="1", help="study Task: 1, 2 or 3 (default 1)")
+    p.add_argument(
+        "--env",
+        default="robot",
+        help="robot (push the study arm in MuJoCo's viewer, default) or highway (drive the "
+        "human car with the arrow keys in highway-env's window)",
+    )
+    p.add_argument("--task", default="1", help="study Task: 1, 2 or 3 (default 1; robot only)")
     p.add_argument("--learner", default="strol", help="registered name or module:attr (strol)")
     p.add_argument("--learner-kwargs", default=None, help="JSON, e.g. '{\"lam\": 0.5}'")
     p.add_argument("--seed", type=int, default=20000, help="θ̂0's seed (default 20000)")
@@ -544,7 +558,6 @@ def add_parser(sub: Any) -> None:
 def command(args: Any, parser: Any) -> int:
     import json
     import math
-    import sys
 
     from strol_gym.benchmarks.args import check_learner_names
 
@@ -565,6 +578,24 @@ def command(args: Any, parser: Any) -> int:
         raise ValueError(f"--duration must be in (0, 86400] simulated seconds, got {args.duration}")
     if args.log is not None and Path(args.log).exists():
         raise ValueError(f"--log {args.log} exists; sessions are never overwritten")
+    if args.env not in ("robot", "highway"):
+        raise ValueError(f"--env must be robot or highway, got {args.env!r}")
+    if args.env == "highway":
+        from strol_gym.benchmarks.sessions.drive import NO_DISPLAY_HIGHWAY, run_drive
+
+        if not has_display():
+            raise ValueError(NO_DISPLAY_HIGHWAY)
+        duration = args.duration if args.max_steps is None else args.max_steps * 0.5
+        path, info = run_drive(
+            learner=args.learner,
+            learner_kwargs=kwargs,
+            seed=args.seed,
+            log=args.log,
+            duration=duration,
+            realtime=not args.fast,
+            blind=args.blind,
+        )
+        return _summary(path, info)
     if not has_display():  # after the arguments, before anything is built
         raise ValueError(NO_DISPLAY)
     path, info = run_interactive(
@@ -578,10 +609,21 @@ def command(args: Any, parser: Any) -> int:
         realtime=not args.fast,
         blind=args.blind,
     )
+    return _summary(path, info)
+
+
+def _summary(path: Path, info: dict[str, Any]) -> int:
+    """The session's last lines on the terminal; 130 after Ctrl-C."""
+    import sys
+
     print(f"real-time factor {info['real_time_factor']:.2f} (simulated s per wall-clock s)")
     if "theta_hat" in info:
         theta = ", ".join(f"{t:+.3f}" for t in info["theta_hat"])
-        print(f"{info['corrections']} correction(s), {info['correction_time']:.2f} s of pushing")
+        pushing = info.get("correction_time")
+        print(
+            f"{info['corrections']} correction(s)"
+            + ("" if pushing is None else f", {pushing:.2f} s of pushing")
+        )
         print(f"final θ̂ = ({theta}); session log: {path}")
     print(f"replay it: strol-bench replay {path} --learners strol,gradient")
     if info.get("interrupted"):
