@@ -262,6 +262,7 @@ def test_a_person_meets_the_task_and_g_hat_of_strol_bench_study(task):
     import torch
     from strol_gym.benchmarks.experiments.study import study_config
     from strol_gym.benchmarks.sessions.interact import session_env
+
     from strol_gym.learners.registry import make_learner
 
     (exp,) = study_config(tasks=(task,), users=1).experiments
@@ -333,7 +334,7 @@ def test_blind_by_default_and_the_panel_toggles(tmp_path):
         return viewer
 
     run_interactive(task=1, log=path, max_steps=3, realtime=False, viewer_factory=hidden)
-    assert [t[2] for t in viewers[0].texts][0] == PANEL_HIDDEN
+    assert viewers[0].texts[0][2] == PANEL_HIDDEN
 
 
 def test_our_keys_are_free_in_the_viewer():

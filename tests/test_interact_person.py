@@ -8,7 +8,6 @@ import os
 import shutil
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -90,7 +89,7 @@ def test_key_presses_become_corrections_the_learner_sees(tmp_path):
     assert info["corrections"] == 3 and not np.allclose(info["theta_hat"], ep.theta_hat0)
     assert all("theta_hat" not in line for p in panels for line in p)
     assert any("CORRECTION RECORDED" in line for line in panels[0])
-    path2, _ = run_drive(
+    run_drive(
         log=tmp_path / "e.jsonl",
         duration=1.0,
         realtime=False,
