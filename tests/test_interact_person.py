@@ -115,3 +115,71 @@ def test_no_display_exits_2_with_one_line(monkeypatch, capsys):
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
     assert len(err) == 1 and "display and a keyboard" in err[0]
     assert cli(["interact", "--env", "boat"]) == 2
+
+
+ARM_DRIVER = """
+import sys
+from pathlib import Path
+
+import mujoco
+from strol_gym.benchmarks.cli import main
+from strol_gym.benchmarks.sessions import interact
+
+ready = Path(sys.argv[1])
+
+
+class Selected(interact._Passive):
+    # The real viewer with link 7 selected, as a person's double-click on it leaves it.
+
+    def __init__(self, model, data):
+        super().__init__(model, data)
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
+        with self.handle.lock():
+            self.handle.perturb.select = body
+        ready.write_text("selected")
+
+
+interact.passive_viewer = Selected
+sys.exit(main(sys.argv[2:]))
+"""
+
+DRAG = """
+ready="$1"; shift
+"$@" &
+pid=$!
+for i in $(seq 1 1200); do [ -f "$ready" ] && break; sleep 0.1; done
+sleep 1.5
+# Ctrl + right-drag from the window's centre: the viewer's force on the selected body
+xdotool mousemove 512 384 keydown ctrl mousedown 3
+for i in $(seq 1 20); do xdotool mousemove_relative -- 4 -3; sleep 0.05; done
+sleep 1.0
+xdotool mouseup 3 keyup ctrl
+wait $pid
+"""
+
+
+@needs_x
+def test_a_person_drags_the_arm_with_the_mouse_under_xvfb(tmp_path):
+    """Ctrl + right-drag on the selected link, sent as X events: the log has the push, as a
+    correction (above 15 N) or as a reflex event (above 100 N) with its force."""
+    log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
+    (tmp_path / "driver.py").write_text(ARM_DRIVER)
+    (tmp_path / "drag.sh").write_text(DRAG)
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    run = [sys.executable, str(tmp_path / "driver.py"), str(ready), "interact", "--task", "1"]
+    run += ["--max-steps", "140", "--log", str(log)]
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "bash", str(tmp_path / "drag.sh")]
+    done = subprocess.run(
+        [*cmd, str(ready), *run], capture_output=True, text=True, timeout=240, env=env
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = [json.loads(t) for t in log.read_text().splitlines()]
+    corrections = [r for r in lines if r["type"] == "correction"]
+    reflexes = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
+    assert corrections or reflexes, "the drag left no trace in the log"
+    for r in corrections:
+        assert np.linalg.norm(np.array(r["trace"]["force"]), axis=1).max() > 15.0
+        assert np.linalg.norm(r["u_h"]) > 0.0
+    for r in reflexes:
+        assert np.linalg.norm(r["force"]) > 100.0
+    read_session(log)
