@@ -56,7 +56,7 @@ class Viewer(Protocol):
 ViewerFactory = Callable[[mujoco.MjModel, mujoco.MjData], Viewer]
 
 
-LOOKAT = (0.4, 0.0, 0.35)
+LOOKAT = (0.35, 0.05, 0.62)
 """Where the viewer's camera looks first (m, robot base frame): the pitcher, plate and arm."""
 
 
@@ -286,9 +286,9 @@ def overlay(
                 labels.append(f"{name}: theta_hat / phi")
                 values.append(f"{t:+.3f} / {p:+.3f}")
         how = "\n".join(INSTRUCTIONS).format(threshold=threshold, reflex=reflex_force)
-        labels += ["", *how.split("\n"), "TEACH: " + teach]
-        values += [""] * (len(labels) - len(values))
-        texts.append((font, grid.mjGRID_TOPLEFT, "\n".join(labels), "\n".join(values)))
+        state = [f"{k}: {v}" for k, v in zip(labels, values, strict=True)]
+        lines = [*state, "", *how.split("\n"), "TEACH: " + teach]
+        texts.append((font, grid.mjGRID_TOPLEFT, "\n".join(lines), ""))
     else:
         texts.append((font, grid.mjGRID_TOPLEFT, PANEL_HIDDEN, ""))
     cues = []
