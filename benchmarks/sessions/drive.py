@@ -42,6 +42,7 @@ KEY_HELP = (
     "Holding a key for the whole 0.5 s step = the full a_max; no key = no correction.",
     "F9: hide this panel. Close the window to end.",
 )
+PANEL_HIDDEN = "F9: show the panel"
 HIGHWAY_WORDS = {
     "gap": ("stay close behind the robot car (10 m)", "keep away from the robot car"),
     "speed": ("drive fast", "drive slowly"),
@@ -144,12 +145,7 @@ def run_drive(
     (with ``real_time_factor``). ``keys`` defaults to the window's arrow keys; ``window``
     false runs without one (tests); ``on_step(info, panel)`` sees each step's panel."""
     from strol_gym.benchmarks.engine.robots import robot_policy
-    from strol_gym.benchmarks.sessions.interact import (
-        PANEL_HIDDEN,
-        Pace,
-        default_log_path,
-        teach_words,
-    )
+    from strol_gym.benchmarks.sessions.person import Pace, default_log_path
 
     if not (np.isfinite(duration) and 0 < duration <= 86_400):
         raise ValueError(f"duration must be in (0, 86400] seconds, got {duration}")
@@ -189,7 +185,7 @@ def run_drive(
         obs, info = env.reset(seed=seed)
         if poll is None:
             poll = PygameKeys()
-        teach = teach_words(task.feature_names, hw.theta_star, HIGHWAY_WORDS, "drive: ")
+        teach = _words(task.feature_names, hw.theta_star)
         n_corr, cue, t, ended = 0, "", 0.0, False
         pace = Pace(dt, realtime)
         while True:
@@ -234,6 +230,18 @@ def run_drive(
     finally:
         env.close()
     return path, {**info, "corrections": n_corr, "real_time_factor": pace.factor}
+
+
+def _words(names: Any, theta_star: np.ndarray) -> str:
+    """θ* in words, strongest weight first (weights below 0.1 in size left out)."""
+    words = [
+        HIGHWAY_WORDS.get(names[i], ("more " + names[i], "less " + names[i]))[
+            int(theta_star[i] < 0)
+        ]
+        for i in np.argsort(-np.abs(theta_star))
+        if abs(theta_star[i]) >= 0.1
+    ]
+    return "drive: " + ", ".join(words) if words else "anything goes (theta* is about 0)"
 
 
 def _draw_panel(lines: list[str]) -> None:

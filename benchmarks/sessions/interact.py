@@ -12,7 +12,6 @@ tests inject a fake that writes a wrench the way the real one does.
 
 from __future__ import annotations
 
-import datetime as dt
 import math
 import os
 import threading
@@ -24,6 +23,7 @@ from typing import Any, Protocol
 import gymnasium as gym
 import mujoco
 import numpy as np
+from strol_gym.benchmarks.sessions.person import Pace, default_log_path
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
 
@@ -326,11 +326,6 @@ class RealTimeFactor:
         return None if len(self.marks) < 3 or w1 <= w0 else (s1 - s0) / (w1 - w0)
 
 
-def default_log_path() -> Path:
-    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
-    return Path("sessions") / f"session-{stamp}.jsonl"
-
-
 def session_env(
     task: int,
     learner: str | Any = "strol",
@@ -340,55 +335,13 @@ def session_env(
     """The env and learner a person meets: ``strol-bench study``'s own (its default version's
     env id and Task, hence its ĝ), with no simulated person (``human=None``)."""
     from strol_gym.benchmarks.engine.conditions import env_preset
-    from strol_gym.benchmarks.experiments.study import study_env
 
-    preset = env_preset(study_env(task))
+    # strol-bench study's default preset (experiments.study.study_env(task), which this layer
+    # may not import); tests/test_interact.py checks the two agree
+    preset = env_preset(f"study{task}-v1")
     kwargs = {**(preset.make_kwargs or {}), "human": None, **(env_kwargs or {})}
     base = gym.make(preset.env_id, **kwargs)
     return OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
-
-
-class Pace:
-    """Physics at wall-clock time whatever the viewer costs: the env steps on a schedule of
-    one control step per ``CONTROL_DT``; the viewer is synced (the person's push read, the
-    scene copied for drawing) only when the physics is not behind, and at least every
-    ``max_skip`` steps. The whole session's real-time factor is ``factor``."""
-
-    max_lag = 1.0
-    """s behind the schedule beyond which it restarts from now (no fast-forward after it)."""
-
-    def __init__(self, dt: float, realtime: bool, max_skip: int = 4) -> None:
-        self.dt, self.realtime, self.max_skip = dt, realtime, max_skip
-        self.start = self.t0 = time.perf_counter()
-        self.skipped = 0
-        self.steps = 0
-        self.scheduled = 0  # steps since ``t0``, the schedule's origin
-
-    def sync_now(self) -> bool:
-        """Whether to sync the viewer before this step (always when not paced)."""
-        behind = time.perf_counter() - self.t0 - self.scheduled * self.dt > self.dt
-        if self.realtime and behind and self.skipped < self.max_skip:
-            self.skipped += 1
-            return False
-        self.skipped = 0
-        return True
-
-    def wait(self) -> None:
-        """After a step: sleep until its end on the wall clock (paced only)."""
-        self.steps += 1
-        self.scheduled += 1
-        if not self.realtime:
-            return
-        lag = time.perf_counter() - self.t0 - self.scheduled * self.dt
-        if lag > self.max_lag:  # a stall (the machine, a dragged window): no burst to catch up
-            self.t0, self.scheduled = time.perf_counter(), 0
-        else:
-            time.sleep(max(0.0, -lag))
-
-    @property
-    def factor(self) -> float:
-        wall = time.perf_counter() - self.start
-        return self.steps * self.dt / wall if wall > 0 else float("nan")
 
 
 def run_interactive(
