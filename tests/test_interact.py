@@ -36,7 +36,8 @@ class FakeViewer:
         self.history = []
         self.plans = []
         self.targets = []
-        self.show_target = False  # the T key
+        self.show_target = False  # the F8 key
+        self.show_panel = True  # the F9 key
         self.closed = False
 
     def sync(self) -> None:
@@ -96,7 +97,7 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     assert info["corrections"] == 1
     assert info["correction_time"] == pytest.approx(1.0, abs=0.051)
     s = read_session(log)
-    assert s.header["learner"] == "strol" and s.header["task"] == "study-task1"
+    assert s.header["learner"] == "strol" and s.header["task"] == "study-task1-v1"
     assert s.header["env_kwargs"]["human"] is None
     (ep,) = s.episodes
     (c,) = ep.corrections
@@ -110,9 +111,10 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     np.testing.assert_allclose(rec["theta_hat_before"], ep.theta_hat0)
     np.testing.assert_allclose(info["theta_hat"], rec["theta_hat_after"])
     assert lines[-1]["type"] == "end" and lines[-1]["reason"] == "max_steps"
-    # the overlay shows θ̂, the correction time and the features
+    # the overlay shows the correction time; blind (the default), no θ̂ or φ
     text = viewer.texts[0]
-    assert "correction time" in text[2] and "pitcher" in text[2] and "1.00 s" in text[3]
+    assert "correction time: 1.00 s" in text[2]
+    assert "theta_hat" not in text[2] and "pitcher:" not in text[2]
     assert lines[-1]["interrupted"] is False
 
 
@@ -121,14 +123,17 @@ def test_panel_tells_how_to_push_what_to_teach_and_cues_the_correction(session):
     from strol_gym.tasks.study import StudyTask1
 
     log, _, viewer = session
-    how = viewer.texts[1][2]
+    how = viewer.texts[0][2]
     task = StudyTask1()
-    assert "Ctrl + right-drag" in how and "15 N" in how
+    assert "Ctrl + right-drag" in how and "15 N" in how and "100 N the arm brakes" in how
     assert how.endswith("TEACH: " + teach_words(task.feature_names, task.theta_star))
+    # the panel stays in the top corners: the table, pitcher and plate below stay in view
+    grids = {t[1] for texts in viewer.history for t in texts}
+    assert grids <= {mujoco.mjtGridPos.mjGRID_TOPLEFT, mujoco.mjtGridPos.mjGRID_TOPRIGHT}
     assert teach_words(("pitcher", "table"), np.array([-1.0, 0.5])) == (
         "carry the cup away from the pitcher, low, near the table"
     )
-    cues = ["\n".join(t[2] for t in texts[2:]) for texts in viewer.history]
+    cues = ["\n".join(t[2] for t in texts[1:]) for texts in viewer.history]
     pushing = [k for k, c in enumerate(cues) if "PUSH COUNTS: 30 N > 15 N" in c]
     assert pushing == list(range(PUSH_START, PUSH_START + PUSH_STEPS))
     (c,) = read_session(log).episodes[0].corrections
@@ -247,3 +252,96 @@ def test_t_key_shows_the_plan_for_theta_star(tmp_path):
     planned = task.plan(task.theta_star[None], start[None])[0]
     np.testing.assert_allclose(viewer.targets[0], planned, atol=1e-9)
     assert not np.allclose(viewer.plans[0][-1], viewer.targets[0][-1])  # θ̂0 ≠ θ*
+
+
+@pytest.mark.parametrize("task", [1, 2])
+def test_a_person_meets_the_task_and_g_hat_of_strol_bench_study(task):
+    """interact's env, Task and StROL's ĝ are those `strol-bench study` builds (its worker's
+    own construction), not v0's."""
+    import gymnasium as gym
+    import torch
+
+    from strol_gym.benchmarks.experiments.study import study_config
+    from strol_gym.benchmarks.sessions.interact import session_env
+    from strol_gym.learners.registry import make_learner
+
+    (exp,) = study_config(tasks=(task,), users=1).experiments
+    env = gym.make(exp.env_id, **exp.env_kwargs())
+    study_learner = make_learner("strol", task=env.unwrapped.task)
+    person = session_env(task, "strol")
+    assert person.unwrapped.spec.id == exp.env_id
+    assert type(person.unwrapped.task) is type(env.unwrapped.task)
+    assert person.unwrapped.task.version == env.unwrapped.task.version >= 1
+    assert person.unwrapped.human is None  # no simulated person pushes
+    ours, theirs = person.learner.model.state_dict(), study_learner.model.state_dict()
+    assert ours.keys() == theirs.keys()
+    for k in ours:
+        assert torch.equal(ours[k], theirs[k]), k
+    assert person.learner.checkpoint == study_learner.checkpoint
+    env.close()
+    person.close()
+
+
+def _run(tmp_path, name, **kwargs):
+    viewers = []
+
+    def factory(model, data):
+        viewers.append(FakeViewer(model, data, **kwargs))
+        return viewers[-1]
+
+    return viewers, factory, tmp_path / f"{name}.jsonl"
+
+
+def test_a_shove_above_the_reflex_shows_on_the_panel_and_is_logged(tmp_path):
+    viewers, factory, path = _run(tmp_path, "shove", force=(0.0, 250.0, 0.0), steps=6)
+    _, info = run_interactive(
+        task=1, log=path, max_steps=30, realtime=False, viewer_factory=factory
+    )
+    (viewer,) = viewers
+    assert info["corrections"] == 0 and info["reflexes"] == 1
+    lines = [json.loads(t) for t in path.read_text().splitlines()]
+    (event,) = [r for r in lines if r["type"] == "event"]
+    assert event["kind"] == "reflex" and event["reflex_force"] == 100.0
+    np.testing.assert_allclose(event["force"], [0.0, 250.0, 0.0])
+    assert event["step"] == PUSH_START
+    assert not any(r["type"] == "correction" for r in lines)
+    read_session(path)  # the reader takes event lines
+    cues = ["\n".join(t[2] for t in texts[1:]) for texts in viewer.history]
+    too_hard = [k for k, c in enumerate(cues) if "TOO HARD: the arm braked, no correction" in c]
+    assert too_hard[0] == PUSH_START and "(250 N > 100 N)" in cues[PUSH_START]
+    assert not any("PUSH COUNTS" in c for c in cues)
+
+
+def test_blind_by_default_and_the_panel_toggles(tmp_path):
+    """--blind (default) hides θ̂ and φ, --no-blind shows them; the log keeps θ̂ either way;
+    with the panel key's flag off only a one-line hint stays."""
+    from strol_gym.benchmarks.sessions.interact import PANEL_HIDDEN
+
+    for blind in (True, False):
+        viewers, factory, path = _run(tmp_path, f"b{blind}", steps=0)
+        run_interactive(
+            task=1, log=path, max_steps=3, realtime=False, viewer_factory=factory, blind=blind
+        )
+        panel = viewers[0].texts[0][2]
+        assert ("theta_hat / phi" in panel) is (not blind)
+        assert read_session(path).episodes[0].theta_hat0 is not None
+        assert json.loads(path.read_text().splitlines()[0])["extra"]["interact"]["blind"] is blind
+    viewers, factory, path = _run(tmp_path, "hidden", steps=0)
+
+    def hidden(model, data):
+        viewer = factory(model, data)
+        viewer.show_panel = False
+        return viewer
+
+    run_interactive(task=1, log=path, max_steps=3, realtime=False, viewer_factory=hidden)
+    assert viewers[0].texts[0][2] == PANEL_HIDDEN
+
+
+def test_our_keys_are_free_in_the_viewer():
+    """F8 and F9 are none of MuJoCo's viewer's keys (every letter is a visual flag)."""
+    from strol_gym.benchmarks.sessions.interact import PANEL_KEY, TARGET_KEY
+
+    letters = {row[2] for row in (*mujoco.mjVISSTRING, *mujoco.mjRNDSTRING) if row[2]}
+    assert set("ABCDEFGHIJKLMNOPQRSTUVWXYZ") <= letters  # no letter is free
+    glfw_f1 = 290
+    assert {TARGET_KEY - glfw_f1 + 1, PANEL_KEY - glfw_f1 + 1} == {8, 9}  # F8, F9 (F1-F7 used)

@@ -106,10 +106,10 @@ def test_scripted_person_sees_the_panel_the_plan_and_the_correction_cue(tmp_path
     (c,) = ep.corrections
 
     task = StudyTask1()
-    how = seen["texts"][0][1]
+    how = seen["texts"][0][0]
     assert "Ctrl + right-drag" in how
     assert how.endswith("TEACH: " + teach_words(task.feature_names, task.theta_star))
-    cues = ["\n".join(t[2:]) for t in seen["texts"]]
+    cues = ["\n".join(t[1:]) for t in seen["texts"]]
     assert [k for k, t in enumerate(cues) if "PUSH COUNTS: 30 N" in t] == list(
         range(PUSH_START, PUSH_START + PUSH_STEPS)
     )

@@ -15,6 +15,9 @@ Format (JSON Lines, UTF-8, one object per line, ``"type"`` says which):
   ``correction_time`` (s; null for envs whose corrections are single steps), ``step``, and
   ``trace`` = {``t``, ``force``, ``torque``} (the external wrench per control step; null when
   the env reports none).
+- ``event`` (optional, any number): ``kind`` (e.g. "reflex": a push above the arm's force
+  reflex, which braked it and made no correction), ``time``, ``step``, and what the kind
+  carries (a reflex: ``force``, ``torque``, ``reflex_force``). Readers of corrections skip them.
 - ``end`` (optional): ``steps``, ``corrections``, ``theta_hat``, ``error``, ``cos_error``,
   ``regret``, ``reason``, ``interrupted`` (true when the person stopped it with Ctrl-C).
 
@@ -81,6 +84,11 @@ class SessionWriter:
 
     def correction(self, **record: Any) -> None:
         self._line("correction", record)
+
+    def event(self, **record: Any) -> None:
+        """Something the person did that is no correction (``kind``, e.g. "reflex": a push
+        above the arm's reflex, with its ``force``), at ``time``."""
+        self._line("event", record)
 
     def end(self, **record: Any) -> None:
         self._line("end", record)
@@ -345,6 +353,9 @@ def read_session(path: str | Path) -> Session:
             episodes[-1].corrections.append(c)
         elif kind == "header":
             raise SessionLogError(f"{where}: a second header")
+        elif kind == "event":
+            if not isinstance(rec.get("kind"), str):
+                raise SessionLogError(f"{where}: an 'event' line needs a string 'kind'")
         elif kind != "end":
             raise SessionLogError(f"{where}: unknown line type {kind!r}")
     if header is None:

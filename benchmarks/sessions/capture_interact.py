@@ -44,7 +44,8 @@ def main() -> None:
 
         def set_texts(self, texts):
             super().set_texts(texts)
-            super().sync()  # show this step's panel before the grab
+            self.handle.set_texts(texts)  # this step's panel drawn before the grab
+            super().sync()
             if self.k == PUSH_START + PUSH_STEPS + 4:
                 ImageGrab.grab().save(out / "interactive_panel.png")
             if self.k % args.every == 0:
@@ -59,6 +60,7 @@ def main() -> None:
             task=1,
             log=Path(folder) / "s.jsonl",
             max_steps=PUSH_START + PUSH_STEPS + 40,
+            realtime=False,  # grabbing the screen is slow; every step is synced and drawn
             viewer_factory=ScriptedPerson,
         )
     frames[0].save(

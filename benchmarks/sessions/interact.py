@@ -12,7 +12,9 @@ tests inject a fake that writes a wrench the way the real one does.
 
 from __future__ import annotations
 
-import datetime as dt
+import math
+import os
+import threading
 import time
 import warnings
 from collections.abc import Callable
@@ -24,6 +26,7 @@ import mujoco
 import numpy as np
 
 from strol_gym import checks
+from strol_gym.benchmarks.sessions.person import Pace, default_log_path
 from strol_gym.envs.panda.model import PassiveViewer, has_display
 from strol_gym.envs.study.env import StudyEnv
 from strol_gym.wrappers import OnlineLearningWrapper
@@ -56,16 +59,44 @@ class Viewer(Protocol):
 ViewerFactory = Callable[[mujoco.MjModel, mujoco.MjData], Viewer]
 
 
-LOOKAT = (0.4, 0.0, 0.35)
+LOOKAT = (0.35, 0.05, 0.62)
 """Where the viewer's camera looks first (m, robot base frame): the pitcher, plate and arm."""
+
+
+RENDER_NICE = 10
+"""The niceness of the viewer's drawing threads: on one core the physics comes first."""
+
+
+def yield_to_physics() -> None:
+    """Lower the priority of every thread of this process but the caller's (the viewer's
+    render thread and software rendering's workers, started with the viewer): where they share
+    a core with the physics, the physics gets it when it wakes. Linux only (nice is per thread
+    there); elsewhere, or without the right, nothing changes."""
+    me = threading.get_native_id()
+    try:
+        tids = [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        return
+    for tid in tids:
+        if tid != me:
+            try:
+                os.setpriority(os.PRIO_PROCESS, tid, RENDER_NICE)
+            except OSError:
+                pass
 
 
 class _Passive(PassiveViewer):
     """The passive viewer (its ``close`` waits for the viewer's thread), UI panels hidden, the
-    camera on the person's side of the table."""
+    camera on the person's side of the table.
+
+    The panel goes to the viewer from a thread of its own: ``handle.set_texts`` waits for the
+    viewer's next frame (0.56 s a call measured under Xvfb with software rendering, one core
+    at load ~16), which in the physics loop held the arm at 0.09x real time. The physics only
+    leaves the latest panel; the thread shows it when the viewer can."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self.show_target = False
+        self.show_panel = True
         super().__init__(
             model, data, show_left_ui=False, show_right_ui=False, key_callback=self._key
         )
@@ -73,14 +104,37 @@ class _Passive(PassiveViewer):
             cam = self.handle.cam
             cam.lookat[:] = LOOKAT
             cam.distance, cam.azimuth, cam.elevation = 2.2, 150.0, -20.0
+        yield_to_physics()
+        self._latest: Any = None
+        self._fresh = threading.Event()
+        self._stop = False
+        self._panel = threading.Thread(target=self._show_panels, daemon=True)
+        self._panel.start()
 
     def set_texts(self, texts: Any) -> None:
         self.texts = texts  # the panel as last shown (the viewer has no getter)
-        self.handle.set_texts(texts)
+        self._latest = texts
+        self._fresh.set()
+
+    def _show_panels(self) -> None:
+        while not self._stop:
+            if self._fresh.wait(0.1):
+                self._fresh.clear()
+                if self._stop:
+                    break
+                self.handle.set_texts(self._latest)
+
+    def close(self, timeout: float = 10.0) -> None:
+        self._stop = True
+        self._fresh.set()
+        self._panel.join(timeout=timeout)
+        super().close(timeout)
 
     def _key(self, keycode: int) -> None:  # the viewer's thread: only flip a flag
         if keycode == TARGET_KEY:
             self.show_target = not self.show_target
+        elif keycode == PANEL_KEY:
+            self.show_panel = not self.show_panel
 
     def draw_plan(self, points: np.ndarray, target: np.ndarray | None = None) -> None:
         """The plan's waypoints (cup positions, m) as small spheres in the user scene, and the
@@ -89,8 +143,19 @@ class _Passive(PassiveViewer):
             draw_plan(self.handle.user_scn, points, target)
 
 
-TARGET_KEY = ord("T")
-"""The key that shows or hides the plan for θ* (GLFW key codes of letters are upper case)."""
+VIEWER_KEYS = (
+    "every letter A-Z, ` \\ ; ' , / (visual and rendering flags), 0-5 and Shift+0-5 (groups), "
+    "Space, + - =, Left/Right, Tab/Shift+Tab, [ ], Esc, Page Up, Backspace, F1-F7, "
+    "Ctrl+A/C/D/L/M/P/Q, Alt+letter (the panels' sections)"
+)
+"""MuJoCo's passive viewer's own keys (MuJoCo 3.x: ``mujoco.mjVISSTRING`` and
+``mujoco.mjRNDSTRING`` bind every letter; the rest is simulate's help and UI shortcuts): ours
+are function keys it leaves free."""
+TARGET_KEY = 297
+"""F8 (GLFW key code): show or hide the plan for θ* (T, our old key, also toggled MuJoCo's
+transparency)."""
+PANEL_KEY = 298
+"""F9 (GLFW key code): show or hide the panel (the scene is never hidden by it)."""
 PLAN_RGBA = np.array([0.1, 0.55, 1.0, 0.7], dtype=np.float32)
 TARGET_RGBA = np.array([0.1, 0.8, 0.2, 0.7], dtype=np.float32)
 PLAN_RADIUS = 0.012
@@ -153,28 +218,39 @@ FEATURE_WORDS = {
 distances, the cup's height and its tilt)."""
 
 
-def teach_words(feature_names: Any, theta_star: np.ndarray) -> str:
-    """θ* in words, strongest weight first; weights below 0.1 in size are left out."""
+def teach_words(
+    feature_names: Any,
+    theta_star: np.ndarray,
+    phrases: dict[str, tuple[str, str]] | None = None,
+    lead: str = "carry the cup ",
+) -> str:
+    """θ* in words, strongest weight first; weights below 0.1 in size are left out.
+    ``phrases``: per feature, what a positive and a negative weight ask (the study's cup by
+    default)."""
+    phrases = FEATURE_WORDS if phrases is None else phrases
     order = np.argsort(-np.abs(theta_star))
     words = []
     for i in order:
         if abs(theta_star[i]) < 0.1:
             continue
         name = feature_names[i]
-        pos, neg = FEATURE_WORDS.get(name, (f"more {name}", f"less {name}"))
+        pos, neg = phrases.get(name, (f"more {name}", f"less {name}"))
         words.append(pos if theta_star[i] > 0 else neg)
-    return "carry the cup " + ", ".join(words) if words else "anything goes (θ* is about 0)"
+    return lead + ", ".join(words) if words else "anything goes (θ* is about 0)"
 
 
 INSTRUCTIONS = (
     "HOW: double-click a link of the arm to select it,",
     "then Ctrl + right-drag to push it.",
-    "A push above {threshold:.0f} N is a correction.",
-    "Blue dots: the robot's plan; T: the plan for what you teach (green).",
+    "A push above {threshold:.0f} N is a correction; above {reflex:.0f} N the arm brakes",
+    "(too hard: no correction). Blue dots: the robot's plan;",
+    "F8: the plan for what you teach (green). F9: hide this panel.",
     "Close the window to end.",
 )
 CUE_SECONDS = 2.0
-"""How long (simulated s) the panel shows a recorded correction."""
+"""How long (simulated s) the panel shows a recorded correction or a reflex."""
+TOO_HARD = "TOO HARD: the arm braked, no correction"
+PANEL_HIDDEN = "F9: show the panel"
 
 
 def overlay(
@@ -184,32 +260,48 @@ def overlay(
     *,
     teach: str = "",
     threshold: float = 15.0,
+    reflex_force: float = 100.0,
     last_correction: tuple[float, np.ndarray] | None = None,
+    last_reflex: tuple[float, float] | None = None,
     rtf: float | None = None,
+    blind: bool = True,
+    panel: bool = True,
 ) -> list[tuple]:
-    """Viewer text (ASCII: the viewer's font has no θ or φ): state top left, what to do and
-    what to teach bottom left, cues and the real-time factor top right."""
-    theta = np.asarray(info["theta_hat"])
-    phi = np.asarray(info["phi"])
-    labels = ["time", "pushing", "corrections", "correction time"]
-    values = [
-        f"{info['time']:.1f} s",
-        f"{felt:.1f} N" + (" (correcting)" if info["correction_active"] else ""),
-        str(info["corrections"]),
-        f"{info['correction_time']:.2f} s",
-    ]
-    for name, t, p in zip(task.feature_names, theta, phi, strict=True):
-        labels.append(f"{name}: theta_hat / phi")
-        values.append(f"{t:+.3f} / {p:+.3f}")
-    font = mujoco.mjtFontScale.mjFONTSCALE_150
+    """Viewer text (ASCII: the viewer's font has no θ or φ) in the top corners only, so the
+    table, the pitcher and the plate stay in view: state, how to push and what to teach top
+    left (``panel`` false: one line saying how to show it), cues and the real-time factor top
+    right. ``blind`` (a participant's view) leaves θ̂ and φ out; the log keeps them."""
+    font = mujoco.mjtFontScale.mjFONTSCALE_100
     grid = mujoco.mjtGridPos
-    how = "\n".join(INSTRUCTIONS).format(threshold=threshold)
-    texts = [
-        (font, grid.mjGRID_TOPLEFT, "\n".join(labels), "\n".join(values)),
-        (font, grid.mjGRID_BOTTOMLEFT, how + "\nTEACH: " + teach, ""),
-    ]
+    texts: list[tuple] = []
+    if panel:
+        labels = ["time", "pushing", "corrections", "correction time"]
+        values = [
+            f"{info['time']:.1f} s",
+            f"{felt:.1f} N" + (" (correcting)" if info["correction_active"] else ""),
+            str(info["corrections"]),
+            f"{info['correction_time']:.2f} s",
+        ]
+        if not blind:
+            theta = np.asarray(info["theta_hat"])
+            phi = np.asarray(info["phi"])
+            for name, t, p in zip(task.feature_names, theta, phi, strict=True):
+                labels.append(f"{name}: theta_hat / phi")
+                values.append(f"{t:+.3f} / {p:+.3f}")
+        how = "\n".join(INSTRUCTIONS).format(threshold=threshold, reflex=reflex_force)
+        state = [f"{k}: {v}" for k, v in zip(labels, values, strict=True)]
+        lines = [*state, "", *how.split("\n"), "TEACH: " + teach]
+        texts.append((font, grid.mjGRID_TOPLEFT, "\n".join(lines), ""))
+    else:
+        texts.append((font, grid.mjGRID_TOPLEFT, PANEL_HIDDEN, ""))
     cues = []
-    if felt > threshold:
+    if last_reflex is not None and info["time"] - last_reflex[0] <= CUE_SECONDS:
+        cues.append(f"{TOO_HARD} ({last_reflex[1]:.0f} N > {reflex_force:.0f} N)")
+    elif felt > reflex_force:
+        cues.append(f"{TOO_HARD} ({felt:.0f} N > {reflex_force:.0f} N)")
+    elif info.get("braked", False):
+        cues.append("BRAKED: let go; the arm recovers once you stop pushing")
+    elif felt > threshold:
         cues.append(f"PUSH COUNTS: {felt:.0f} N > {threshold:.0f} N")
     if last_correction is not None and info["time"] - last_correction[0] <= CUE_SECONDS:
         u_h = ", ".join(f"{v:+.3f}" for v in last_correction[1])
@@ -237,9 +329,26 @@ class RealTimeFactor:
         return None if len(self.marks) < 3 or w1 <= w0 else (s1 - s0) / (w1 - w0)
 
 
-def default_log_path() -> Path:
-    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
-    return Path("sessions") / f"session-{stamp}.jsonl"
+def session_env(
+    task: int,
+    learner: str | Any = "strol",
+    learner_kwargs: dict[str, Any] | None = None,
+    env_kwargs: dict[str, Any] | None = None,
+) -> OnlineLearningWrapper:
+    """The env and learner a person meets: ``strol-bench study``'s own (its default version's
+    env id and Task, hence its ĝ), with no simulated person (``human=None``)."""
+    from strol_gym.benchmarks.engine.conditions import env_preset
+
+    # strol-bench study's default preset (experiments.study.study_env(task), which this layer
+    # may not import); tests/test_interact.py checks the two agree
+    preset = env_preset(f"study{task}-v1")
+    kwargs = {**(preset.make_kwargs or {}), "human": None, **(env_kwargs or {})}
+    with warnings.catch_warnings():
+        # v1 on purpose (v2's default person and ĝ are not ready: docs/study.md): gymnasium's
+        # "out of date" notice would be a second line where the session promises one.
+        warnings.filterwarnings("ignore", message=".*StROL-Study-v1 is out of date")
+        base = gym.make(preset.env_id, **kwargs)
+    return OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
 
 
 def run_interactive(
@@ -253,11 +362,14 @@ def run_interactive(
     realtime: bool = True,
     viewer_factory: ViewerFactory | None = None,
     env_kwargs: dict[str, Any] | None = None,
+    blind: bool = True,
 ) -> tuple[Path, dict[str, Any]]:
-    """Run one interactive session; returns the log's path and the last step's ``info``.
+    """Run one interactive session; returns the log's path and the last step's ``info``
+    (with ``real_time_factor``: simulated over wall-clock seconds for the whole session).
 
     Stops when the viewer closes, after ``duration`` s of simulated time, or after
-    ``max_steps`` control steps. ``realtime`` paces steps to wall-clock time.
+    ``max_steps`` control steps. ``realtime`` paces steps to wall-clock time. ``blind`` hides
+    θ̂ and φ from the panel (the log keeps them).
     """
     if isinstance(task, bool) or task not in (1, 2, 3):
         raise ValueError(f"task must be 1, 2 or 3, got {task!r}")
@@ -270,75 +382,88 @@ def run_interactive(
     path = Path(log) if log is not None else default_log_path()
     if path.exists():
         raise ValueError(f"log {path} exists; sessions are never overwritten")
-    kwargs = {"task": task, "human": None, "duration": duration, **(env_kwargs or {})}
-    with warnings.catch_warnings():
-        # v1 on purpose (v2's default person and ĝ are not ready: docs/study.md): gymnasium's
-        # "out of date" notice would be a second line where the session promises one.
-        warnings.filterwarnings("ignore", message=".*StROL-Study-v1 is out of date")
-        base = gym.make("StROL-Study-v1", **kwargs)
-    learning = OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
-    study = base.unwrapped
-    assert isinstance(study, StudyEnv)  # StROL-Study-v1 is one
+    learning = session_env(
+        task, learner, learner_kwargs, {"duration": duration, **(env_kwargs or {})}
+    )
+    study = learning.unwrapped
+    assert isinstance(study, StudyEnv)  # the study's preset is a StudyEnv
     site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
     viewer = viewer_factory(study.model, study.data)
-    options = {"max_steps": max_steps, "realtime": realtime, "mode": "interactive"}
+    options = {"max_steps": max_steps, "realtime": realtime, "mode": "interactive", "blind": blind}
     env = SessionLogger(learning, path, extra={"interact": options})
     teach = teach_words(study.task.feature_names, study.task.theta_star)
     threshold = float(study.force_threshold)
+    reflex_force = float(getattr(study, "reflex_force", math.inf))
     info: dict[str, Any] = {}
+    pace = Pace(CONTROL_DT, realtime)
     try:
         _, info = env.reset(seed=seed)
         info.update(correction_active=False, corrections=0, correction_time=0.0, time=0.0)
         action = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
-        steps, reason, ended = 0, "viewer closed", False
+        reason, ended = "viewer closed", False
         last_correction: tuple[float, np.ndarray] | None = None
+        last_reflex: tuple[float, float] | None = None
         drawn: tuple[int, int] | None = None
         target: np.ndarray | None = None
         rtf = RealTimeFactor()
-        t_next = time.perf_counter()
+        pace = Pace(CONTROL_DT, realtime)
         try:
             while viewer.is_running():
-                if max_steps is not None and steps >= max_steps:
+                if max_steps is not None and pace.steps >= max_steps:
                     reason = "max_steps"
                     break
-                study.data.xfrc_applied[:] = 0.0  # what is left there is the env's own push
-                viewer.sync()  # zeroes xfrc_applied, then writes the mouse's perturbation
-                force, torque = read_perturbation(
-                    study.model, study.data, site, study.task.oriented
-                )
-                study.hold_wrench(force, torque)
+                synced = pace.sync_now()
+                if synced:
+                    study.data.xfrc_applied[:] = 0.0  # what is left there is the env's own push
+                    viewer.sync()  # zeroes xfrc_applied, then writes the mouse's perturbation
+                    force, torque = read_perturbation(
+                        study.model, study.data, site, study.task.oriented
+                    )
+                    study.hold_wrench(force, torque)  # held until the next sync
                 obs, _, terminated, truncated, info = env.step(action)
-                steps += 1
+                felt = float(np.linalg.norm(info["wrench"][:3]))
+                if info.get("reflex", False):  # the person's push tripped the arm's brakes
+                    last_reflex = (info["time"], felt)
+                    env.writer.event(
+                        kind="reflex",
+                        time=info["time"],
+                        step=pace.steps,
+                        force=np.asarray(info["wrench"][:3]),
+                        torque=np.asarray(info["wrench"][3:]),
+                        reflex_force=reflex_force,
+                    )
                 if info["is_correction"]:
                     last_correction = (info["time"], np.asarray(info["correction"]))
-                want = bool(getattr(viewer, "show_target", False))
-                if want and target is None:  # θ*'s plan from where the cup is now
-                    start = np.asarray(obs["state"], dtype=np.float64)[None]
-                    target = study.task.plan(study.task.theta_star[None], start)[0][:, :3]
-                elif not want:
-                    target = None
-                key = (id(study.plan_waypoints), id(target))
-                if key != drawn:  # a new plan (or leg), or θ*'s plan shown or hidden
-                    drawn = key
-                    viewer.draw_plan(study.plan_waypoints[:, :3], target)
-                felt = float(np.linalg.norm(info["wrench"][:3]))
                 factor = rtf.update(info["time"])
-                texts = overlay(
-                    study.task,
-                    info,
-                    felt,
-                    teach=teach,
-                    threshold=threshold,
-                    last_correction=last_correction,
-                    rtf=factor,
-                )
-                viewer.set_texts(texts)
+                if synced:
+                    want = bool(getattr(viewer, "show_target", False))
+                    if want and target is None:  # θ*'s plan from where the cup is now
+                        start = np.asarray(obs["state"], dtype=np.float64)[None]
+                        target = study.task.plan(study.task.theta_star[None], start)[0][:, :3]
+                    elif not want:
+                        target = None
+                    key = (id(study.plan_waypoints), id(target))
+                    if key != drawn:  # a new plan (or leg), or θ*'s plan shown or hidden
+                        drawn = key
+                        viewer.draw_plan(study.plan_waypoints[:, :3], target)
+                    texts = overlay(
+                        study.task,
+                        info,
+                        felt,
+                        teach=teach,
+                        threshold=threshold,
+                        reflex_force=reflex_force,
+                        last_correction=last_correction,
+                        last_reflex=last_reflex,
+                        rtf=factor,
+                        blind=blind,
+                        panel=bool(getattr(viewer, "show_panel", True)),
+                    )
+                    viewer.set_texts(texts)
                 if terminated or truncated:  # SessionLogger wrote the end line
                     ended = True
                     break
-                if realtime:
-                    t_next += CONTROL_DT
-                    time.sleep(max(0.0, t_next - time.perf_counter()))
+                pace.wait()
         except KeyboardInterrupt:
             env.end_session("interrupted", info, interrupted=True)
             info = {**info, "interrupted": True}
@@ -348,22 +473,32 @@ def run_interactive(
     finally:
         viewer.close()
         env.close()
-    return path, info
+    return path, {**info, "real_time_factor": pace.factor}
 
 
 # ---------------------------------------------------------------------- CLI (strol-bench interact)
 def add_parser(sub: Any) -> None:
+    import argparse
+
     from strol_gym.benchmarks.args import plugin_option
 
     p = sub.add_parser(
         "interact",
         help="push the study arm yourself in MuJoCo's viewer; the robot learns (needs a display)",
-        description="Open MuJoCo's passive viewer on StROL-Study-v1 (no simulated user). Push "
-        "the arm with Ctrl + right-drag (double-click a link first to select it): a push above "
-        "15 N is a correction; the learner updates and the robot replans. The session is "
-        "logged for strol-bench replay. Without a display: xvfb-run -a strol-bench interact.",
+        description="Open MuJoCo's passive viewer on the study env strol-bench study runs (its "
+        "Task and learner, no simulated user). Push the arm with Ctrl + right-drag (double-click "
+        "a link first to select it): a push above 15 N is a correction (above the 100 N reflex "
+        "the arm brakes and nothing counts); the learner updates and the robot replans. F8: the "
+        "plan for theta*; F9: hide or show the panel. The session is logged for strol-bench "
+        "replay. Without a display: xvfb-run -a strol-bench interact.",
     )
-    p.add_argument("--task", default="1", help="study Task: 1, 2 or 3 (default 1)")
+    p.add_argument(
+        "--env",
+        default="robot",
+        help="robot (push the study arm in MuJoCo's viewer, default) or highway (drive the "
+        "human car with the arrow keys in highway-env's window)",
+    )
+    p.add_argument("--task", default="1", help="study Task: 1, 2 or 3 (default 1; robot only)")
     p.add_argument("--learner", default="strol", help="registered name or module:attr (strol)")
     p.add_argument("--learner-kwargs", default=None, help="JSON, e.g. '{\"lam\": 0.5}'")
     p.add_argument("--seed", type=int, default=20000, help="θ̂0's seed (default 20000)")
@@ -371,13 +506,19 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--duration", type=float, default=120.0, help="simulated seconds (120)")
     p.add_argument("--max-steps", type=int, default=None, help="stop after N control steps")
     p.add_argument("--fast", action="store_true", help="do not pace the steps to wall-clock time")
+    p.add_argument(
+        "--blind",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="hide theta_hat and phi from the panel (default: a participant never sees them; "
+        "the log keeps them); --no-blind for the experimenter",
+    )
     plugin_option(p)
 
 
 def command(args: Any, parser: Any) -> int:
     import json
     import math
-    import sys
 
     from strol_gym.benchmarks.args import check_learner_names
 
@@ -398,6 +539,24 @@ def command(args: Any, parser: Any) -> int:
         raise ValueError(f"--duration must be in (0, 86400] simulated seconds, got {args.duration}")
     if args.log is not None and Path(args.log).exists():
         raise ValueError(f"--log {args.log} exists; sessions are never overwritten")
+    if args.env not in ("robot", "highway"):
+        raise ValueError(f"--env must be robot or highway, got {args.env!r}")
+    if args.env == "highway":
+        from strol_gym.benchmarks.sessions.drive import NO_DISPLAY_HIGHWAY, run_drive
+
+        if not has_display():
+            raise ValueError(NO_DISPLAY_HIGHWAY)
+        duration = args.duration if args.max_steps is None else args.max_steps * 0.5
+        path, info = run_drive(
+            learner=args.learner,
+            learner_kwargs=kwargs,
+            seed=args.seed,
+            log=args.log,
+            duration=duration,
+            realtime=not args.fast,
+            blind=args.blind,
+        )
+        return _summary(path, info)
     if not has_display():  # after the arguments, before anything is built
         raise ValueError(NO_DISPLAY)
     path, info = run_interactive(
@@ -409,10 +568,23 @@ def command(args: Any, parser: Any) -> int:
         duration=args.duration,
         max_steps=args.max_steps,
         realtime=not args.fast,
+        blind=args.blind,
     )
+    return _summary(path, info)
+
+
+def _summary(path: Path, info: dict[str, Any]) -> int:
+    """The session's last lines on the terminal; 130 after Ctrl-C."""
+    import sys
+
+    print(f"real-time factor {info['real_time_factor']:.2f} (simulated s per wall-clock s)")
     if "theta_hat" in info:
         theta = ", ".join(f"{t:+.3f}" for t in info["theta_hat"])
-        print(f"{info['corrections']} correction(s), {info['correction_time']:.2f} s of pushing")
+        pushing = info.get("correction_time")
+        print(
+            f"{info['corrections']} correction(s)"
+            + ("" if pushing is None else f", {pushing:.2f} s of pushing")
+        )
         print(f"final θ̂ = ({theta}); session log: {path}")
     print(f"replay it: strol-bench replay {path} --learners strol,gradient")
     if info.get("interrupted"):
@@ -423,11 +595,13 @@ def command(args: Any, parser: Any) -> int:
 
 __all__ = [
     "NO_DISPLAY",
+    "Pace",
     "Viewer",
     "draw_plan",
     "overlay",
     "passive_viewer",
     "read_perturbation",
     "run_interactive",
+    "session_env",
     "teach_words",
 ]

@@ -1,0 +1,271 @@
+"""``strol-bench interact --env highway``: a person drives the human car; the robot car learns.
+
+The person drives the blue (human) car with the arrow keys in highway-env's own window
+(pygame). Each env step (0.5 s, the Highway Task's ``dt``) the keys are read every
+``POLL_SECONDS`` and averaged: u_H = a_max ⊙ (mean(up − down), mean(right − left)), a_max =
+``task.action_bound`` (5 m/s², 0.02 rad). Holding Up for the whole step is +a_max acceleration,
+for half of it +a_max / 2; Right steers towards the right lane (highway-env's y grows to the
+driver's right). A step with no key pressed is no correction: the car holds its speed and
+heading and the learner sees nothing. A step with a key is one correction, handed to the
+learner exactly as the simulated humans' are (``OnlineLearningWrapper``); the robot car (green)
+then acts by the benchmark's Highway robot policy for the new θ̂ (``robots.robot_policy``).
+The session is logged in the format of every session (``SessionLogger``), so ``replay``,
+``export`` and ``fit-human`` read it.
+
+The keys sit behind a ``KeySource`` (``poll() -> (accel, steer)`` in [−1, 1]²) so tests drive
+the same loop without a window.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from strol_gym.envs.panda.model import has_display
+from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.session_log import SessionLogger
+
+NO_DISPLAY_HIGHWAY = (
+    "interact --env highway needs a display and a keyboard (DISPLAY is not set): run it on a "
+    "virtual one with `xvfb-run -a strol-bench interact --env highway ...` (and send keys with "
+    'xdotool), or use the simulated humans, gymnasium.make("StROL-Highway-v0")'
+)
+POLL_SECONDS = 0.02
+"""How often the keys are read within a step (s)."""
+KEY_HELP = (
+    "KEYS: Up / Down accelerate / brake, Left / Right steer (the blue car is yours).",
+    "Holding a key for the whole 0.5 s step = the full a_max; no key = no correction.",
+    "F9: hide this panel. Close the window to end.",
+)
+PANEL_HIDDEN = "F9: show the panel"
+HIGHWAY_WORDS = {
+    "gap": ("stay close behind the robot car (10 m)", "keep away from the robot car"),
+    "speed": ("drive fast", "drive slowly"),
+    "lane_change": ("move to the right lane", "stay in the left lane"),
+}
+"""Per Highway feature: what a positive and a negative weight ask of the human car."""
+
+KeySource = Callable[[], tuple[float, float]]
+
+
+class KeyboardHuman:
+    """The human car's driver as a strol-gym ``Human``: the env asks it for u_H and gets
+    what the front end set from the keys this step. It never sees θ̂."""
+
+    needs_theta_hat = False
+
+    def __init__(self, theta_star: np.ndarray) -> None:
+        self.theta_star = np.asarray(theta_star, dtype=np.float64)
+        self.u = np.zeros(2)
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray | None) -> np.ndarray:
+        return self.u.copy()
+
+
+class PersonCorrections(gym.Wrapper):
+    """A step whose u_H is zero (no key) is no correction: the learner and the log skip it."""
+
+    def step(self, action: Any) -> Any:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if info.get("is_correction") and not np.any(info["correction"]):
+            info = {**info, "is_correction": False}
+        return obs, reward, terminated, truncated, info
+
+
+class PygameKeys:
+    """The arrow keys of highway-env's window, read from pygame's keyboard state; F9 (pressed,
+    not held) flips ``show_panel``."""
+
+    def __init__(self) -> None:
+        self.show_panel = True
+        self._f9 = False
+
+    def __call__(self) -> tuple[float, float]:
+        import pygame
+
+        pygame.event.pump()
+        k = pygame.key.get_pressed()
+        if k[pygame.K_F9] and not self._f9:
+            self.show_panel = not self.show_panel
+        self._f9 = bool(k[pygame.K_F9])
+        return (
+            float(k[pygame.K_UP]) - float(k[pygame.K_DOWN]),
+            float(k[pygame.K_RIGHT]) - float(k[pygame.K_LEFT]),
+        )
+
+
+class PersonAtTheKeys:
+    """The env's human factory: one ``KeyboardHuman`` per episode (``humans[-1]`` is this
+    episode's). Its ``repr`` is what the session log's header records."""
+
+    def __init__(self) -> None:
+        self.humans: list[KeyboardHuman] = []
+
+    def __call__(self, task: Any, theta_star: np.ndarray, rng: Any) -> KeyboardHuman:
+        self.humans.append(KeyboardHuman(theta_star))
+        return self.humans[-1]
+
+    def __repr__(self) -> str:
+        return "a person at the keyboard (strol-bench interact --env highway)"
+
+
+def drive_panel(
+    task: Any, info: dict[str, Any], n_corr: int, teach: str, *, blind: bool, cue: str
+) -> list[str]:
+    """The guidance panel's lines (top left of the window): state, keys, what to teach, and
+    θ̂ and φ unless ``blind``."""
+    lines = [f"time {info.get('time', 0.0):.1f} s   corrections {n_corr}", *KEY_HELP]
+    lines.append("TEACH: " + teach)
+    if not blind:
+        for name, t, p in zip(task.feature_names, info["theta_hat"], info["phi"], strict=True):
+            lines.append(f"{name}: theta_hat {t:+.3f} / phi {p:+.3f}")
+    if cue:
+        lines.append(cue)
+    return lines
+
+
+def run_drive(
+    learner: str = "strol",
+    learner_kwargs: dict[str, Any] | None = None,
+    seed: int = 20000,
+    log: str | Path | None = None,
+    duration: float = 30.0,
+    realtime: bool = True,
+    blind: bool = True,
+    keys: KeySource | None = None,
+    window: bool = True,
+    on_step: Callable[[dict[str, Any], list[str]], None] | None = None,
+) -> tuple[Path, dict[str, Any]]:
+    """One Highway session driven by a person; returns the log's path and the last ``info``
+    (with ``real_time_factor``). ``keys`` defaults to the window's arrow keys; ``window``
+    false runs without one (tests); ``on_step(info, panel)`` sees each step's panel."""
+    from strol_gym.benchmarks.engine.robots import robot_policy
+    from strol_gym.benchmarks.sessions.person import Pace, default_log_path
+
+    if not (np.isfinite(duration) and 0 < duration <= 86_400):
+        raise ValueError(f"duration must be in (0, 86400] seconds, got {duration}")
+    if window and not has_display():
+        raise ValueError(NO_DISPLAY_HIGHWAY)
+    path = Path(log) if log is not None else default_log_path()
+    if path.exists():
+        raise ValueError(f"log {path} exists; sessions are never overwritten")
+    person = PersonAtTheKeys()
+    from strol_gym.tasks import make_task
+    from strol_gym.tasks.highway import HighwayTask
+
+    dt = float(make_task("highway", of=HighwayTask).dt)
+    steps = max(1, round(duration / dt))
+    base = gym.make(
+        "StROL-Highway-v0",
+        human=person,
+        n_corrections=steps,
+        max_episode_steps=steps,
+        render_mode="human" if window else None,
+        width=900,
+        height=300,
+    )
+    learning = OnlineLearningWrapper(
+        PersonCorrections(base), learner, learner_kwargs=learner_kwargs
+    )
+    hw: Any = learning.unwrapped  # the Highway env (its Task, θ*, highway-env's viewer)
+    task = hw.task
+    options = {"mode": "interactive-highway", "realtime": realtime, "blind": blind}
+    env = SessionLogger(learning, path, extra={"interact": options})
+    policy = robot_policy("task", task)
+    bound = np.asarray(task.robot_action_bound, dtype=np.float64)
+    a_max = np.asarray(task.action_bound, dtype=np.float64)
+    poll = keys
+    info: dict[str, Any] = {}
+    pace = Pace(dt, realtime)
+    try:
+        obs, info = env.reset(seed=seed)
+        if poll is None:
+            poll = PygameKeys()
+        teach = _words(task.feature_names, hw.theta_star)
+        n_corr, cue, t, ended = 0, "", 0.0, False
+        pace = Pace(dt, realtime)
+        while True:
+            # the keys over the step: polled until its end on the wall clock (or once)
+            samples = [poll()]
+            while realtime and time.perf_counter() < pace.t0 + (pace.scheduled + 1) * dt:
+                if window:
+                    shown = drive_panel(
+                        task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue
+                    )
+                    _draw_panel(shown if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
+                time.sleep(POLL_SECONDS)
+                samples.append(poll())
+            person.humans[-1].u = a_max * np.clip(np.mean(samples, axis=0), -1.0, 1.0)
+            x = np.asarray(obs["state"], dtype=np.float64)[None]
+            u_r = policy(x, np.asarray(learning.learner.theta, dtype=np.float64)[None])[0]
+            action = np.clip(u_r / bound, -1.0, 1.0).astype(np.float32)
+            obs, _, terminated, truncated, info = env.step(action)
+            t += dt
+            if info["is_correction"]:
+                n_corr += 1
+                u = ", ".join(f"{v:+.3f}" for v in info["correction"])
+                cue = f"CORRECTION RECORDED: u_H = ({u}); the robot car replans"
+            else:
+                cue = ""
+            panel = drive_panel(task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue)
+            if on_step is not None:
+                on_step(info, panel)
+            if window:
+                _draw_panel(panel if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
+            pace.wait()
+            if terminated or truncated:
+                ended = True
+                break
+            if window and hw.viewer is None:  # the person closed the window
+                break
+        if not ended:
+            env.end_session("window closed", info)
+    except KeyboardInterrupt:
+        env.end_session("interrupted", info, interrupted=True)
+        info = {**info, "interrupted": True}
+    finally:
+        env.close()
+    return path, {**info, "corrections": n_corr, "real_time_factor": pace.factor}
+
+
+def _words(names: Any, theta_star: np.ndarray) -> str:
+    """θ* in words, strongest weight first (weights below 0.1 in size left out)."""
+    words = [
+        HIGHWAY_WORDS.get(names[i], ("more " + names[i], "less " + names[i]))[
+            int(theta_star[i] < 0)
+        ]
+        for i in np.argsort(-np.abs(theta_star))
+        if abs(theta_star[i]) >= 0.1
+    ]
+    return "drive: " + ", ".join(words) if words else "anything goes (theta* is about 0)"
+
+
+def _draw_panel(lines: list[str]) -> None:
+    """The panel in the window's top-left corner, over highway-env's last frame (the road and
+    both cars stay in view below it: the window is 300 px tall, the panel 9 short lines)."""
+    import pygame
+
+    surface = pygame.display.get_surface()
+    if surface is None:
+        return
+    font = pygame.font.Font(None, 16)
+    y = 2
+    for line in lines:
+        surface.blit(font.render(line, True, (0, 0, 0), (235, 235, 235)), (4, y))
+        y += 13
+    pygame.display.flip()
+
+
+__all__ = [
+    "KeyboardHuman",
+    "PersonAtTheKeys",
+    "PersonCorrections",
+    "PygameKeys",
+    "drive_panel",
+    "run_drive",
+]
