@@ -37,6 +37,10 @@ ENV_ARGS: dict[str, list[str]] = {
         *("reflex_force", "reflex_torque", "reflex_recover", "force_threshold", "duration"),
         "user_kwargs",
     ],
+    "StROL-Study-v2": [
+        *("reflex_force", "reflex_torque", "reflex_recover", "force_threshold", "duration"),
+        "user_kwargs",
+    ],
 }
 LEARNER_ARGS: dict[str, list[str]] = {
     "mof": ["threshold", "n_candidates", "n_hypotheses", "seed"],
