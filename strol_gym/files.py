@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import socket
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -28,12 +29,25 @@ def naming_file(path: Path) -> Iterator[None]:
         raise OSError(e.errno, f"cannot write it: {e.strerror}", str(path)) from None
 
 
+def host() -> str:
+    """This machine's name as locks and temporary names record it."""
+    return socket.gethostname().replace("/", "_") or "localhost"
+
+
+def temp_tag() -> str:
+    """``host-pid``: the part of a temporary file's name that says who wrote it, so that the
+    next holder of a folder can tell a dead writer's leftovers from a live writer's file."""
+    return f"{host()}-{os.getpid()}"
+
+
 def temp_beside(path: Path, write: Callable[[Path], object]) -> Path:
     """``write(tmp)`` into a temporary file beside ``path``, fsync'ed; returns the temporary
     (the caller renames it, with others if files must appear together). On any error the
     temporary is removed and the OSError names ``path``."""
     path = Path(path)
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, name = tempfile.mkstemp(
+        dir=path.parent, prefix=f".{path.name}.{temp_tag()}.", suffix=".tmp"
+    )
     os.close(fd)
     tmp = Path(name)
     try:

@@ -30,6 +30,14 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit, diff_configs
 from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label, mixed_kernels_message
+from strol_gym.benchmarks.engine.lock import (
+    BREAK,
+    LOCK,
+    LockError,
+    clean_leftovers,
+    hold_folder,
+    release_folder,
+)
 
 from strol_gym.files import naming_file, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
@@ -37,9 +45,6 @@ from strol_gym.provenance import git_revision, package_versions
 
 META = "meta.json"
 RECORDS = "records"
-LOCK = ".lock"
-"""Holds the pid of the process running into the folder; a second run is refused while that
-process lives. A lock whose process is gone (killed, crashed) is taken over with a note."""
 RUN_FIELDS = ("error", "cos_error", "regret")
 """The column order of the run metrics in runs.csv (a file format: it stays as it is); the
 metrics themselves are ``strol_gym.metrics.RUN_METRICS``."""
@@ -118,8 +123,10 @@ class ResultsDir:
                 )
             if force:
                 cls._check_ours(path)
-                _acquire_lock(path)  # never delete a folder another live run is writing
-                shutil.rmtree(path)
+                _acquire_lock(path, force=True)  # never delete a folder a live run is writing
+                for p in path.iterdir():  # everything but the lock we hold
+                    if p.name != LOCK:
+                        shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
             else:
                 meta = cls._read_meta(path)
                 if meta.get("config_hash") != chash:
@@ -189,8 +196,12 @@ class ResultsDir:
     def _check_ours(path: Path) -> None:
         """Refuse to delete a folder holding anything but our own outputs."""
         ours = {META, RECORDS, "plots", "runs.csv", "curves.csv", "summary.csv", "stats.csv"}
-        ours |= {"anova.csv", "summary.md", LOCK}
-        foreign = [p.name for p in path.iterdir() if p.name not in ours]
+        ours |= {"anova.csv", "summary.md", LOCK, BREAK}
+        foreign = [
+            p.name
+            for p in path.iterdir()
+            if p.name not in ours and not (p.name.startswith(".") and p.name.endswith(".tmp"))
+        ]
         if foreign:
             raise ResultsError(
                 f"--force refused: {path} holds files strol-bench did not write: {foreign[:5]}"
@@ -355,57 +366,19 @@ class ResultsDir:
         return runs_path, curves_path
 
 
-def _pid_alive(pid: int) -> bool:
+def _acquire_lock(path: Path, force: bool = False) -> None:
+    """Hold ``path``'s lock (see ``engine.lock``) and clean what dead writers left behind."""
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # alive, owned by someone else
-        return True
-    return True
-
-
-def _acquire_lock(path: Path) -> None:
-    """Create ``path/LOCK`` holding our pid, or ResultsError if a live process holds it.
-
-    A lock left by a process that no longer runs is taken over (with a note on stderr); our
-    own pid in it means an earlier run of this process ended without releasing it.
-    """
-    lock = path / LOCK
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text().strip() or "0")
-            except (OSError, ValueError):
-                pid = 0
-            if pid > 0 and pid != os.getpid() and _pid_alive(pid):
-                raise ResultsError(
-                    f"{path} is in use by another strol-bench run (pid {pid}, lock file {lock}); "
-                    "wait for it to finish or use another --out"
-                ) from None
-            if pid != os.getpid():
-                print(
-                    f"note: taking over {lock}: the run that held it (pid {pid}) is gone",
-                    file=sys.stderr,
-                )
-            lock.unlink(missing_ok=True)
-            continue
-        with os.fdopen(fd, "w") as f:
-            f.write(f"{os.getpid()}\n")
-        return
-    raise ResultsError(f"{path}: could not take the lock file {lock} (another run took it)")
+        hold_folder(path, force=force)
+    except LockError as e:
+        raise ResultsError(str(e)) from None
+    clean_leftovers(path)
+    clean_leftovers(path / RECORDS)
 
 
 def _release_lock(path: Path) -> None:
-    """Remove ``path/LOCK`` if this process holds it."""
-    lock = path / LOCK
-    try:
-        if int(lock.read_text().strip() or "0") == os.getpid():
-            lock.unlink()
-    except (OSError, ValueError):
-        pass
+    """Remove ``path``'s lock if this process holds it."""
+    release_folder(path)
 
 
 def _fmt(x: Any) -> str:
