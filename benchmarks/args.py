@@ -7,12 +7,13 @@ message naming it and its valid range before any work starts.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from typing import Any
 
 from strol_gym.benchmarks.engine.backends import add_backend_options
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK
+
+from strol_gym.files import loads_json
 
 
 def positive_int(name: str, high: int | None = None, *, low: int = 1):
@@ -82,10 +83,7 @@ def learner_kwargs(text: str | None) -> dict[str, dict[str, Any]]:
     ValueError naming the option otherwise."""
     if not text:
         return {}
-    try:
-        kwargs = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise ValueError(f"--learner-kwargs must be JSON ({e})") from None
+    kwargs = loads_json(text, "--learner-kwargs")
     if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
         raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {...}}')
     return kwargs
@@ -135,9 +133,9 @@ def json_object(name: str):
 
     def parse(text: str) -> dict[str, Any]:
         try:
-            value = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise argparse.ArgumentTypeError(f"{name} must be a JSON object ({e})") from None
+            value = loads_json(text, name)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(f"{e}; it must be a JSON object") from None
         if not isinstance(value, dict):
             raise argparse.ArgumentTypeError(f"{name} must be a JSON object, got {text!r}")
         return value

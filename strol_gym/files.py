@@ -77,3 +77,28 @@ def write_json_atomic(path: Path, obj: Any) -> Path:
     """``obj`` as JSON (indent 1, NaN allowed) written all or nothing."""
     data = json.dumps(obj, indent=1, allow_nan=True).encode()
     return write_atomic(path, lambda tmp: tmp.write_bytes(data))
+
+
+MAX_JSON_DEPTH = 64
+"""The deepest nesting of arrays and objects a JSON input may have (a cap, not a limit of
+ours: every file and option this project writes nests fewer than 10 levels)."""
+
+
+def loads_json(text: str | bytes, what: str, max_depth: int = MAX_JSON_DEPTH) -> Any:
+    """``json.loads`` for input from outside, with every failure a ValueError naming ``what``:
+    bad JSON, bytes that are not UTF-8, huge integers, and nesting deeper than ``max_depth``
+    (refused whether or not the parser's recursion would have coped)."""
+    try:
+        value = json.loads(text)
+    except RecursionError:
+        raise ValueError(f"{what}: JSON nested deeper than {max_depth} levels") from None
+    except ValueError as e:  # JSONDecodeError, UnicodeDecodeError, an integer with 5000 digits
+        raise ValueError(f"{what}: not valid JSON ({' '.join(str(e).split())[:200]})") from None
+    stack: list[tuple[Any, int]] = [(value, 1)]
+    while stack:
+        v, depth = stack.pop()
+        if isinstance(v, dict | list):
+            if depth > max_depth:
+                raise ValueError(f"{what}: JSON nested deeper than {max_depth} levels")
+            stack.extend((c, depth + 1) for c in (v.values() if isinstance(v, dict) else v))
+    return value

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
-import json
 import math
 import os
 import shutil
@@ -28,6 +27,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit, diff_configs
 from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label, mixed_kernels_message
 from strol_gym.benchmarks.engine.lock import (
@@ -39,7 +39,7 @@ from strol_gym.benchmarks.engine.lock import (
     release_folder,
 )
 
-from strol_gym.files import naming_file, write_json_atomic
+from strol_gym.files import loads_json, naming_file, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.provenance import git_revision, package_versions
 
@@ -171,8 +171,8 @@ class ResultsDir:
     @staticmethod
     def _read_meta(path: Path) -> dict:
         try:
-            meta = json.loads((path / META).read_bytes().decode("utf-8"))
-        except (OSError, ValueError) as e:  # ValueError: bad JSON or bytes that are not UTF-8
+            meta = loads_json((path / META).read_bytes(), str(path / META))
+        except (OSError, ValueError) as e:  # ValueError: bad JSON, not UTF-8, nested too deep
             raise ResultsError(
                 f"{path / META} is unreadable or corrupt ({type(e).__name__}: {e}). Use another "
                 "--out, or --force to delete this folder's results and start over."
@@ -220,6 +220,13 @@ class ResultsDir:
             raise ResultsError(
                 f"{path / META} has an invalid config ({type(e).__name__}: {e})"
             ) from None
+        extra = meta.get("extra", {})
+        if not isinstance(extra, dict) or config.hash(extra) != meta["config_hash"]:
+            raise ResultsError(
+                f"{path / META}: its config does not match its config_hash (the file was "
+                "edited?); the tables would describe settings the runs did not use. Rerun the "
+                "benchmark, or restore meta.json"
+            )
         return cls(path, config, meta["config_hash"], meta)
 
     # ------------------------------------------------------------------ records
@@ -257,7 +264,7 @@ class ResultsDir:
             if p.name.startswith("."):
                 continue
             try:
-                label = json.loads(p.read_text()).get("kernels") or "unrecorded"
+                label = loads_json(p.read_bytes(), str(p)).get("kernels") or "unrecorded"
             except (OSError, ValueError, AttributeError):
                 label = "unreadable"
             out.setdefault(str(label), []).append(p.stem)
@@ -282,7 +289,7 @@ class ResultsDir:
             if unit is None:
                 raise ResultsError(f"{p} does not belong to this config's units: corrupt folder")
             try:
-                payload = json.loads(p.read_text())
+                payload = loads_json(p.read_bytes(), str(p))
                 ok = payload["config_hash"] == self.config_hash
                 recs = payload["records"]
                 seeds = tuple(payload["unit"]["seeds"])
@@ -291,6 +298,15 @@ class ResultsDir:
             if not ok:
                 raise ResultsError(f"{p} was written by another config (hash differs)")
             expected = {(s, learner) for s in unit.seeds for learner in self.config.learners}
+            if (
+                not isinstance(recs, list)
+                or not all(isinstance(r, dict) for r in recs)
+                or not all(isinstance(s, int) for s in seeds)
+            ):
+                raise ResultsError(f"{p} is corrupt (records must be a list of objects)")
+            exp = self.config.experiments[unit.experiment]
+            for r in recs:
+                _check_record(p, r, exp.env, exp.condition.name, exp.corrections)
             got = [(r.get("seed"), r.get("learner")) for r in recs]
             if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
                 raise ResultsError(f"{p} does not hold exactly its unit's runs; delete it to rerun")
@@ -366,6 +382,38 @@ class ResultsDir:
         return runs_path, curves_path
 
 
+def _check_record(p: Path, r: dict, env: str, condition: str, corrections: int) -> None:
+    """One run's record as the runner writes it, or ResultsError naming the file, the run and
+    the field: a missing or non-finite value is named, never dropped from the tables."""
+    who = f"{p}: run seed {r.get('seed')!r}, learner {r.get('learner')!r}"
+    rerun = "; delete the file to rerun its unit"
+    for key in ("env", "condition", "learner", "seed", "steps", "terminated", "errors"):
+        if key not in r:
+            raise ResultsError(f"{who}: {key!r} is missing{rerun}")
+    if r["env"] != env or r["condition"] != condition:
+        raise ResultsError(
+            f"{who}: env/condition {r['env']!r}/{r['condition']!r} is not its unit's "
+            f"{env!r}/{condition!r}{rerun}"
+        )
+    steps = r["steps"]
+    if type(steps) is not int or not 0 <= steps <= corrections:
+        raise ResultsError(
+            f"{who}: 'steps' must be an integer in [0, {corrections}], got {steps!r}"
+        )
+    for key in RUN_FIELDS:
+        v = r.get(key)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            raise ResultsError(f"{who}: {key!r} must be a finite number, got {v!r}{rerun}")
+    for key in ("errors", "cos_errors"):
+        seq = r.get(key)
+        if not isinstance(seq, list) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in seq
+        ):
+            raise ResultsError(f"{who}: {key!r} must be a list of finite numbers{rerun}")
+    if len(r["cos_errors"]) != len(r["errors"]):
+        raise ResultsError(f"{who}: 'errors' and 'cos_errors' differ in length{rerun}")
+
+
 def _acquire_lock(path: Path, force: bool = False) -> None:
     """Hold ``path``'s lock (see ``engine.lock``) and clean what dead writers left behind."""
     try:
@@ -399,6 +447,10 @@ def write_csv(path: Path, rows: Iterable[dict], columns: Sequence[str]) -> Path:
 
 
 def _cell(v: Any) -> str:
+    """A CSV cell: numpy scalars as the Python numbers they hold (numpy 2's repr would write
+    ``np.float64(2.2)``), floats at full precision, booleans lower-case, None empty."""
+    if isinstance(v, np.generic):
+        v = v.item()
     if isinstance(v, bool):
         return str(v).lower()
     if isinstance(v, float):

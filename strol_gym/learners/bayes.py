@@ -17,6 +17,7 @@ from strol_gym.learners.protocol import (
     _as_float_array,
     batch_inputs,
     check_state,
+    checked_theta,
 )
 from strol_gym.priors import HedgedPrior
 from strol_gym.tasks.base import Task
@@ -206,12 +207,42 @@ class BayesLearner(LinearRuleLearner):
 
     def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:
         x2, uh2, ur2, th2, single = batch_inputs(self.task, x, u_h, u_r, self.theta)
+        saved = (self._particles, self._beta_idx, self._logw, self._updates)
+        try:
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                theta = self._update(x2, uh2, ur2, th2)
+            if not (
+                np.isfinite(theta).all()
+                and np.isfinite(self._particles).all()
+                and np.isfinite(self._logw).all()
+            ):
+                checked_theta(np.full_like(theta, np.nan))  # the same refusal as other learners
+        except BaseException:  # a refused update changes nothing
+            self._particles, self._beta_idx, self._logw, self._updates = saved
+            raise
+        self.theta = theta[0] if single else theta
+        return self.theta.copy()
+
+    def _update(
+        self, x2: np.ndarray, uh2: np.ndarray, ur2: np.ndarray, th2: np.ndarray
+    ) -> np.ndarray:
+        """One Bayes step on fresh copies of the posterior (``update`` restores the old one if
+        the result is not finite); returns the posterior means, (B, d)."""
         b, n = len(x2), self.n_particles
-        if self._particles.ndim == 2:  # one shared prior sample: give each row its own copy
-            self._particles = np.broadcast_to(self._particles, (b, n, self.task.dim)).copy()
-            self._beta_idx = np.broadcast_to(self._beta_idx, (b, n)).copy()
-            self._logw = np.broadcast_to(self._logw, (b, n)).copy()
-        logw = self._logw + self.log_likelihood(x2, uh2, ur2, th2)
+        rows = 1 if self._particles.ndim == 2 else len(self._logw)
+        if rows not in (1, b):
+            raise ValueError(
+                f"x, u_h and u_r hold a batch of {b} but the posterior holds {rows} rows; "
+                "reset() to start another batch"
+            )
+        shape = (b, n)
+        self._particles = np.broadcast_to(self._particles, (*shape, self.task.dim)).copy()
+        self._beta_idx = np.broadcast_to(self._beta_idx, shape).copy()
+        self._logw = np.broadcast_to(self._logw, shape).copy()
+        ll = self.log_likelihood(x2, uh2, ur2, th2)
+        if not np.isfinite(ll).all():
+            checked_theta(np.full(self.task.dim, np.nan))  # u_h or θ̂ overflow the likelihood
+        logw = self._logw + ll
         self._updates += 1
         logw -= logw.max(axis=1, keepdims=True)
         w = np.exp(logw)
@@ -222,9 +253,7 @@ class BayesLearner(LinearRuleLearner):
         if len(low):
             self._resample(low, w[low])
             w[low] = 1.0 / n
-        theta = np.einsum("bn,bnd->bd", w, self._particles)
-        self.theta = theta[0] if single else theta
-        return self.theta.copy()
+        return np.einsum("bn,bnd->bd", w, self._particles)
 
     def _resample(self, rows: np.ndarray, w: np.ndarray) -> None:
         """Systematic resampling of ``rows`` (weights w, (R, N)), then a Gaussian jitter."""

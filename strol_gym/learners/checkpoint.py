@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from strol_gym.files import temp_beside
+from strol_gym.files import loads_json, temp_beside
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.provenance import package_versions
 from strol_gym.tasks.base import Task
@@ -200,10 +200,7 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     side = sidecar_path(path)
     if not side.is_file():
         raise FileNotFoundError(f"checkpoint sidecar {side} is missing (needed beside {path})")
-    try:
-        meta = json.loads(side.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise ValueError(f"checkpoint sidecar {side} is not valid JSON ({e})") from None
+    meta = loads_json(side.read_bytes(), f"checkpoint sidecar {side}")
     if not isinstance(meta, dict):
         raise ValueError(f"checkpoint sidecar {side} must hold a JSON object")
     return meta
@@ -309,8 +306,10 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
     found = []
     for side in sorted(directory.glob("*.json")):
         try:
-            meta = json.loads(side.read_text())
-        except (OSError, json.JSONDecodeError):
+            meta = loads_json(side.read_bytes(), str(side))
+        except (OSError, ValueError):
+            continue
+        if not isinstance(meta, dict) or not isinstance(meta.get("task"), dict):
             continue
         if meta.get("kind") == kind and meta.get("task", {}).get("task_id") == task.task_id:
             weights = side.with_suffix(".pt")
