@@ -56,6 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
     p.add_argument("--no-plots", action="store_true")
+    plugin_option(p)  # the run's own pieces: a user learner keeps its display name
     return parser
 
 

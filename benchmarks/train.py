@@ -12,7 +12,7 @@ from pathlib import Path
 
 from strol_gym.benchmarks.args import TRAIN_CAPS, add_allow_large, check_size_caps, json_object
 
-from strol_gym.learners.checkpoint import KINDS, check_weights_path, save_checkpoint
+from strol_gym.learners.checkpoint import KINDS, SAFETENSORS, check_weights_path, save_checkpoint
 from strol_gym.learners.network import BOUNDS
 from strol_gym.learners.training import (
     ROBOT_ACTIONS,
@@ -57,7 +57,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
         metavar="K",
         help="loss = error after K unrolled updates (K = 1: eq. M7)",
     )
-    a("--out", default=None, help="weights path (.pt); default <task>_<kind>.pt here")
+    a(
+        "--out",
+        default=None,
+        help="weights path (.safetensors, or .pt for a torch state_dict); "
+        "default <task>_<kind>.safetensors here",
+    )
     a("--steps", type=int, default=d.steps)
     a("--batch", type=int, default=d.batch)
     a("--sigma", type=float, default=d.sigma, help="human noise, fraction of a_max")
@@ -123,7 +128,7 @@ def run_train(args: argparse.Namespace) -> Path:
         raise ValueError(f"heldout must be >= 1, got {args.heldout}")
     if out is None:
         short = task.task_id.split("-")[1].lower() if task.task_id.count("-") >= 2 else task.task_id
-        out = Path(f"{short}_{config.kind}.pt")
+        out = Path(f"{short}_{config.kind}{SAFETENSORS}")
         check_weights_path(out, "--out")
     model, history = train_correction(task, config, quiet=args.quiet)
     check = heldout_lyapunov(task, model, config, seed=config.seed + 1, n=args.heldout)

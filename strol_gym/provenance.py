@@ -21,8 +21,15 @@ PACKAGES = (
     "mujoco",
     "highway-env",
     "gymnasium-robotics",
+    "stable-baselines3",
+    "safetensors",
     "matplotlib",
 )
+NUMERIC_PACKAGES = ("numpy", "scipy", "torch", "gymnasium", "mujoco", "highway-env")
+"""The packages whose version can change a record's bytes (their arithmetic, or the simulation
+an env runs on them): within setup.cfg's ranges a result's means and verdicts hold, its bytes
+only under the lock (docs/reproducibility.md), so a results folder is resumed only under the
+versions it was made with."""
 
 
 def package_versions() -> dict[str, str | None]:
@@ -36,6 +43,18 @@ def package_versions() -> dict[str, str | None]:
             out[name] = None
     out["python"] = platform.python_version()
     return out
+
+
+def version_changes(recorded: dict[str, Any], now: dict[str, Any] | None = None) -> list[str]:
+    """``"torch 2.13.0 -> 2.14.1"`` for each of ``NUMERIC_PACKAGES`` whose version in ``now``
+    (default: installed) differs from ``recorded``; a package the record lacks counts as
+    changed, since nothing says it was the same."""
+    now = package_versions() if now is None else now
+    return [
+        f"{name} {recorded.get(name, 'unrecorded')} -> {now.get(name)}"
+        for name in NUMERIC_PACKAGES
+        if recorded.get(name, "unrecorded") != now.get(name)
+    ]
 
 
 def git_revision() -> dict[str, Any] | None:

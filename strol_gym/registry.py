@@ -27,6 +27,7 @@ __all__ = [
     "load_installed_plugins",
     "plugin_argument",
     "plugin_modules",
+    "registered_name",
     "registries",
     "resolve",
     "resolve_logged",
@@ -196,6 +197,14 @@ class Registry:
             f"or 'module:attr'{self.hint}"
         )
 
+    def name_of(self, piece: Any) -> str | None:
+        """The registered name whose entry is ``piece`` (or lazily names it), else None;
+        imports nothing new."""
+        for name, entry in self.table.items():
+            if entry is piece or _names(entry, piece):
+                return name
+        return None
+
     def check_name(self, spec: str) -> str:
         """``spec`` if ``get`` would find it (imports a ``module:attr``), else ValueError."""
         self.get(spec)
@@ -217,6 +226,15 @@ def resolve(kind: str, spec: str) -> Any:
     if kind not in _KINDS:
         raise ValueError(f"kind must be one of {list(_KINDS)}, got {kind!r}")
     return _KINDS[kind].get(spec)
+
+
+def registered_name(obj: Any) -> str | None:
+    """The registered name of ``obj`` in any registry (what files name pieces by), else None."""
+    for reg in _KINDS.values():
+        name = reg.name_of(obj)
+        if name is not None:
+            return name
+    return None
 
 
 def user_specs(
@@ -243,14 +261,18 @@ def user_specs(
     return specs, stuck
 
 
-def install_specs(specs: dict[str, dict[str, Any]]) -> None:
+def install_specs(specs: dict[str, dict[str, Any]], code: bool = True) -> None:
     """Register ``user_specs`` output in this process (a worker). A name this process already
-    has is left as it is: a worker starts without them, and the parent keeps its own."""
+    has is left as it is: a worker starts without them, and the parent keeps its own.
+    ``code=False`` (specs read from a file): only the plain-data kinds (env presets); a
+    ``module:attr`` is never registered, so nothing the file names can be imported later."""
     regs = registries()
     for kind, entries in specs.items():
         if kind not in regs:
             raise ValueError(f"unknown kind of piece {kind!r}; known: {list(regs)}")
         reg = regs[kind]
+        if not code and reg.decode is None:
+            continue
         for name, spec in entries.items():
             if name not in reg.table:
                 reg.register(name, spec if reg.decode is None else reg.decode(spec))

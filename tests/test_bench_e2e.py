@@ -21,7 +21,7 @@ def test_fast_paper_preset_end_to_end(tmp_path, capsys):
     meta = json.loads((out / "meta.json").read_text())
     assert meta["status"] == "complete" and meta["git"] is not None
     assert set(meta["extra"]["learners"]["robot"]) == {"gradient", "one", "mof", "e2e", "strol"}
-    assert "weights_sha256" in meta["extra"]["learners"]["highway"]["strol"]
+    assert "checkpoint_sha256" in meta["extra"]["learners"]["highway"]["strol"]
     assert meta["kernels"] == float_kernels()
     for unit in (out / "records").glob("*.json"):
         assert json.loads(unit.read_text())["kernels"] == kernel_label()

@@ -187,3 +187,52 @@ def test_changed_code_or_weights_block_resume(tmp_path):
     with pytest.raises(ResultsError, match="learner's class, settings or weights changed"):
         ResultsDir.open(tmp_path / "r", _config(), extra={"code": "aaa", "learners": {"w": 2}})
     ResultsDir.open(tmp_path / "r", _config(), extra={"code": "aaa", "learners": {"w": 1}})
+
+
+def _record_versions(path, **changed):
+    """Edit the versions a results folder says it was made with (as another install would
+    have recorded them)."""
+    meta = json.loads((path / "meta.json").read_text())
+    meta["versions"].update(changed)
+    (path / "meta.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize(
+    "package", ["numpy", "scipy", "torch", "gymnasium", "mujoco", "highway-env"]
+)
+def test_resume_under_other_versions_warns_and_is_refused_until_forced(tmp_path, capsys, package):
+    rd = ResultsDir.open(tmp_path / "r", _config())
+    _fill(rd)
+    assert rd.meta["versions"][package]  # the folder records what it ran with
+    _record_versions(tmp_path / "r", **{package: "0.0.1"})
+    with pytest.raises(ResultsError, match=rf"other package versions \({package} 0\.0\.1 -> "):
+        ResultsDir.open(tmp_path / "r", _config())
+    assert f"warning: {tmp_path / 'r'} was made under other package versions" in (
+        capsys.readouterr().err
+    )
+    assert len(rd.read_records()) == 4 * 4 * 2  # untouched
+    fresh = ResultsDir.open(tmp_path / "r", _config(), force=True)
+    assert len(fresh.missing_units()) == 8 and fresh.meta["versions"][package] != "0.0.1"
+
+
+def test_versions_that_do_not_shape_records_do_not_block_a_resume(tmp_path, capsys):
+    rd = ResultsDir.open(tmp_path / "r", _config())
+    _fill(rd)
+    _record_versions(tmp_path / "r", matplotlib="0.0.1", **{"stable-baselines3": "0.0.1"})
+    assert not ResultsDir.open(tmp_path / "r", _config()).missing_units()
+    assert "package versions" not in capsys.readouterr().err
+
+
+def test_cli_resume_under_other_versions_exits_2_until_forced(tmp_path, capsys):
+    from cli_checks import cli_error
+    from strol_gym.benchmarks import cli
+
+    out = tmp_path / "r"
+    argv = ["run", "--env", "robot", "--runs", "1", "--corrections", "1", "--quiet"]
+    argv += ["--no-plots", "--learners", "gradient", "--jobs", "1", "--out", str(out)]
+    assert cli.main(argv) in (0, None)
+    _record_versions(out, mujoco="0.0.1")
+    line = cli_error(argv, capsys)
+    assert "mujoco 0.0.1 -> " in line and "--force" in line
+    assert cli.main([*argv, "--force"]) in (0, None)
+    assert json.loads((out / "meta.json").read_text())["versions"]["mujoco"] != "0.0.1"

@@ -54,7 +54,8 @@ def test_study_defaults_to_v1_with_the_held_out_participant():
             v1 = make_learner(kind, task=make_task(task)).checkpoint
             v0 = make_learner(kind, task=make_task(f"study-task{k}")).checkpoint
             assert make_task(task).task_id == f"StROL-Study-v1-task{k}"
-            assert v1.endswith(f"study{k}-v1_{kind}.pt") and v0.endswith(f"study{k}_{kind}.pt")
+            assert v1.endswith(f"study{k}-v1_{kind}.safetensors")
+            assert v0.endswith(f"study{k}_{kind}.safetensors")
 
 
 def test_study_two_users_writes_table_meta_plot_and_resumes(tmp_path, capsys):

@@ -236,7 +236,7 @@ def test_allow_large_lifts_the_caps():
 # ---------------------------------------------------------------------- 4. sidecar vs weights
 def test_an_edited_sidecar_cannot_make_loading_build_a_large_network(tmp_path, monkeypatch):
     src = ckpt.find_pretrained(ROBOT, "strol")
-    shutil.copy(src, tmp_path / "w.pt")
+    shutil.copy(src, tmp_path / "w.safetensors")
     meta = json.loads(src.with_suffix(".json").read_text())
     meta["network"]["hidden"] = [300_000]  # the probe used 10⁹; small enough to be harmless here
     (tmp_path / "w.json").write_text(json.dumps(meta))
@@ -248,9 +248,9 @@ def test_an_edited_sidecar_cannot_make_loading_build_a_large_network(tmp_path, m
 
     monkeypatch.setattr(ckpt, "CorrectionNet", only_on_meta)
     with pytest.raises(ValueError, match=r"sidecar's network does not match the weights.*300000"):
-        ckpt.load_checkpoint(tmp_path / "w.pt", ROBOT, "strol")
+        ckpt.load_checkpoint(tmp_path / "w.safetensors", ROBOT, "strol")
     with pytest.raises(ValueError, match="does not match the weights"):
-        make_learner("strol", task=ROBOT, checkpoint=tmp_path / "w.pt")
+        make_learner("strol", task=ROBOT, checkpoint=tmp_path / "w.safetensors")
 
 
 # ---------------------------------------------------------------------- 5. learner state
@@ -460,7 +460,7 @@ def _alive(pid: int) -> bool:
 def test_empty_out_is_refused(capsys):
     assert "--out must name a path" in cli_error(["paper", "--out", ""], capsys)
     parser = add_train_arguments(argparse.ArgumentParser())
-    with pytest.raises(ValueError, match=r"--out must be a file ending in \.pt"):
+    with pytest.raises(ValueError, match=r"--out must be a file ending in \.safetensors"):
         run_train(parser.parse_args(["--out", ""]))
 
 

@@ -190,7 +190,7 @@ def test_shipped_correction_terms_load_and_match_the_training_condition(kind):
 
     learner = strol_gym.make_learner(kind, task=TASK)
     meta = learner.checkpoint_meta
-    assert learner.checkpoint.endswith(f"highway_{kind}.pt")
+    assert learner.checkpoint.endswith(f"highway_{kind}.safetensors")
     assert meta["task"]["task_id"] == "StROL-Highway-v0"
     training = meta["training"]
     assert (training["sigma"], training["bias"], training["steps"], training["batch"]) == (

@@ -201,7 +201,7 @@ def test_make_learner_all_names_with_shipped_weights():
         np.testing.assert_array_equal(learner.theta, task.prior_modes.mean(0))
         theta = learner.update(np.array([0.2, 0.2, 0.6]), np.array([0.1, -0.1, 0.0]))
         assert theta.shape == (2,) and np.isfinite(theta).all()
-    assert strol_gym.make_learner("strol", task=task).checkpoint.endswith("robot_strol.pt")
+    assert strol_gym.make_learner("strol", task=task).checkpoint.endswith("robot_strol.safetensors")
 
 
 def test_registry_errors_and_user_learners():

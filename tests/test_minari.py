@@ -32,7 +32,11 @@ def cli(argv: list[str]) -> int:
 def log(tmp_path, monkeypatch):
     """Two Robot episodes of StROL under noisy corrections, logged; Minari writes into tmp."""
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
-    path = tmp_path / "s.jsonl"
+    return robot_session(tmp_path / "s.jsonl")
+
+
+def robot_session(path):
+    """Log two Robot episodes (seeds 3, 4) of StROL under noisy corrections into ``path``."""
     env = SessionLogger(
         OnlineLearningWrapper(gym.make("StROL-Robot-v0", sigma=0.25, bias=0.1), "strol"), path
     )

@@ -68,7 +68,7 @@ def test_own_task_train_then_benchmark_strol_with_its_checkpoint(tmp_path):
     assert printed[:plugin] + printed[plugin + 1 :] == train[:plugin] + train[plugin + 1 :]
     trained = _call(printed + TINY["train"], tmp_path)
     assert trained.returncode == 0, trained.stderr[-2000:]
-    assert (tmp_path / "near-cup_strol.pt").is_file()
+    assert (tmp_path / "near-cup_strol.safetensors").is_file()
 
     done = _call(run + TINY["run"] + ["--out", "results"], tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]

@@ -41,10 +41,10 @@ def _setuptools_can_build_offline() -> str | None:
     except ImportError:
         return "setuptools is not installed"
     major, minor = (int(x) for x in setuptools.__version__.split(".")[:2])
-    if (major, minor) < (70, 1):
+    if (major, minor) < (77, 0):
         found = setuptools.__version__
         return (
-            f"the offline wheel build needs setuptools>=70.1 (.ci/setup installs it), not {found}"
+            f"the offline wheel build needs setuptools>=77.0.3 (.ci/setup installs it), not {found}"
         )
     return None
 
@@ -120,6 +120,27 @@ def test_the_wheel_carries_the_assets_and_the_pretrained_weights(wheel_install):
     )
 
 
+def test_the_wheel_carries_licence_citation_changelog_and_no_pickled_weights(wheel_install):
+    wheel = zipfile.ZipFile(wheel_install["wheel"])
+    names = wheel.namelist()
+    info = next(n.split("/")[0] for n in names if n.endswith(".dist-info/METADATA"))
+    data = info.replace(".dist-info", ".data")
+    assert f"{info}/licenses/LICENSE" in names
+    for doc in ("CITATION.cff", "CHANGELOG.md"):
+        assert f"{data}/data/share/doc/strol-gym/{doc}" in names, doc
+        assert wheel.read(f"{data}/data/share/doc/strol-gym/{doc}") == (ROOT / doc).read_bytes()
+    assert not [n for n in names if n.endswith((".pt", ".pth", ".pkl"))]
+    weights = [n for n in names if n.startswith("strol_gym/pretrained/")]
+    assert len([n for n in weights if n.endswith(".safetensors")]) >= 6
+    assert {n.rsplit(".", 1)[1] for n in weights} == {"safetensors", "json"}
+    metadata = wheel.read(f"{info}/METADATA").decode().splitlines()
+    assert "License-Expression: MIT" in metadata and "License-File: LICENSE" in metadata
+    assert not [ln for ln in metadata if ln.startswith(("License:", "Classifier: License"))]
+    assert "Requires-Dist: safetensors>=0.8.0" in metadata
+    core = [ln for ln in metadata if ln.startswith("Requires-Dist:") and "extra ==" not in ln]
+    assert core and not [ln for ln in core if "==" in ln]  # ranges, not pins
+
+
 def test_editable_and_wheel_installs_have_one_code_fingerprint(wheel_install):
     python = wheel_install["venv"] / "bin" / "python"
     probe = subprocess.run(
@@ -152,8 +173,9 @@ def test_the_installed_wheel_runs_the_paper_preset(wheel_install):
 
 
 def test_the_test_extra_carries_setuptools_with_the_bound_the_build_needs():
-    """This file imports setuptools (>= 70.1 for the offline build): ``pip install .[test]``
-    must bring it, at the bound pyproject.toml's build requirement and the skip check use."""
+    """This file imports setuptools (>= 77.0.3 for the PEP 639 license expression):
+    ``pip install .[test]`` must bring it, at the bound pyproject.toml's build requirement and
+    the skip check use."""
     import configparser
     import tomllib
 
@@ -161,5 +183,5 @@ def test_the_test_extra_carries_setuptools_with_the_bound_the_build_needs():
     cfg.read(ROOT / "setup.cfg")
     test_extra = cfg["options.extras_require"]["test"].split()
     build_requires = tomllib.loads((ROOT / "pyproject.toml").read_text())["build-system"]
-    assert "setuptools>=70.1" in build_requires["requires"]
-    assert "setuptools>=70.1" in test_extra
+    assert "setuptools>=77.0.3" in build_requires["requires"]
+    assert "setuptools>=77.0.3" in test_extra

@@ -215,7 +215,7 @@ def test_replay_folder(tree, tmp_path, capsys):
     argv = ["replay", str(logs), "--learners", "gradient,one,strol,registry_pieces:HalfGradient"]
     assert cli.main([*argv, "--plugin", "registry_pieces", "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "study1_strol.pt (StROL-Study-v0-task1)" in text and "RM-ANOVA" in text
+    assert "study1_strol.safetensors (StROL-Study-v0-task1)" in text and "RM-ANOVA" in text
     assert "(θ̂0: no update)" in text
     with open(out / "replay_sessions.csv", encoding="utf-8") as f:
         rows = list(csv.DictReader(f))
@@ -233,7 +233,7 @@ def test_replay_folder(tree, tmp_path, capsys):
     assert cli.main([*argv, "--task-version", "1", "--out", str(tmp_path / "v1")]) == 0
     text = capsys.readouterr().out
     assert "strol-unrolled left out: no pretrained" in text
-    assert "study1-v1_strol.pt (StROL-Study-v1-task1)" in text
+    assert "study1-v1_strol.safetensors (StROL-Study-v1-task1)" in text
     # bad input: a reference that is not replayed, a log that is not one
     bad = ["replay", str(logs), "--learners", "gradient,one", "--out", str(tmp_path / "bad")]
     assert "--reference 'strol' must be one of" in cli_error(bad, capsys)

@@ -9,6 +9,7 @@ import sys
 
 import numpy as np
 import pytest
+import safetensors.torch
 import torch
 from strol_gym.benchmarks.train import add_train_arguments, main
 
@@ -107,11 +108,16 @@ def test_config_validation(field, value, match):
 
 
 # ------------------------------------------------------------------ checkpoints
-def test_checkpoint_round_trip_and_sidecar(short_run, tmp_path):
+@pytest.mark.parametrize("suffix", [".safetensors", ".pt"])
+def test_checkpoint_round_trip_and_sidecar(short_run, tmp_path, suffix):
+    """Both formats round-trip: safetensors (the default) and a user's own torch .pt."""
     model, _history = short_run
     cfg = TrainConfig(**SHORT)
-    path = save_checkpoint(tmp_path / "r.pt", model, TASK, "strol", cfg.to_dict(), {"x": 1})
-    weights = torch.load(path, weights_only=True)  # plain tensors, no pickled objects
+    path = save_checkpoint(tmp_path / f"r{suffix}", model, TASK, "strol", cfg.to_dict(), {"x": 1})
+    if suffix == ".pt":
+        weights = torch.load(path, weights_only=True)  # plain tensors, no pickled objects
+    else:
+        weights = safetensors.torch.load_file(path)  # no unpickler involved at all
     assert all(isinstance(v, torch.Tensor) for v in weights.values())
     meta = read_sidecar(path)
     assert meta["task"]["task_id"] == "StROL-Robot-v0" and meta["task"]["version"] == 0
@@ -130,7 +136,7 @@ def test_checkpoint_round_trip_and_sidecar(short_run, tmp_path):
 
 def test_checkpoint_mismatch_says_what_differs(short_run, tmp_path):
     model, _ = short_run
-    path = save_checkpoint(tmp_path / "r.pt", model, TASK, "strol")
+    path = save_checkpoint(tmp_path / "r.safetensors", model, TASK, "strol")
     with pytest.raises(ValueError, match=r"alpha: checkpoint has 2\.0, task has 1\.0"):
         load_checkpoint(path, RobotTask(alpha=1.0))
     with pytest.raises(ValueError, match="kind: checkpoint has 'strol', expected 'e2e'"):
@@ -150,7 +156,7 @@ def test_checkpoint_mismatch_says_what_differs(short_run, tmp_path):
 
 # ------------------------------------------------------------------ CLI
 def test_cli_trains_and_saves(tmp_path, capsys):
-    out = tmp_path / "cli.pt"
+    out = tmp_path / "cli.safetensors"
     main(
         [
             "--task",
@@ -203,7 +209,7 @@ def test_module_entry_point_help():
 def test_shipped_weights_match_training_condition(kind):
     path = find_pretrained(TASK, kind)
     meta = read_sidecar(path)
-    assert path.name == f"robot_{kind}.pt"
+    assert path.name == f"robot_{kind}.safetensors"
     assert meta["training"]["sigma"] == 0.25 and meta["training"]["bias"] == 0.0
     assert meta["training"]["seed"] >= 10_000  # disjoint from evaluation seeds 0, 1, ...
     assert meta["prior"]["name"] == "bimodal"

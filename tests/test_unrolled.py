@@ -93,16 +93,18 @@ def test_shipped_weights_load_and_beat_gradient_after_k_updates(task):
 
 
 def test_weights_of_another_kind_or_task_are_refused_naming_the_file(tmp_path):
-    strol_weights = PRETRAINED_DIR / "robot_strol.pt"
-    with pytest.raises(ValueError, match=r"robot_strol\.pt.*kind: checkpoint has 'strol'"):
+    strol_weights = PRETRAINED_DIR / "robot_strol.safetensors"
+    with pytest.raises(ValueError, match=r"robot_strol\.safetensors.*kind: checkpoint has 'strol'"):
         UnrolledStROLLearner(RobotTask(), checkpoint=strol_weights)
-    for ext in (".pt", ".json"):
+    for ext in (".safetensors", ".json"):
         shutil.copy(PRETRAINED_DIR / f"highway_strol-unrolled{ext}", tmp_path / f"w{ext}")
-    with pytest.raises(ValueError, match=r"w\.pt.*task_id"):
-        UnrolledStROLLearner(RobotTask(), checkpoint=tmp_path / "w.pt")
-    with pytest.raises(ValueError, match=r"robot_strol-unrolled\.pt.*kind"):
+    with pytest.raises(ValueError, match=r"w\.safetensors.*task_id"):
+        UnrolledStROLLearner(RobotTask(), checkpoint=tmp_path / "w.safetensors")
+    with pytest.raises(ValueError, match=r"robot_strol-unrolled\.safetensors.*kind"):
         strol_gym.make_learner(
-            "strol", task=RobotTask(), checkpoint=PRETRAINED_DIR / "robot_strol-unrolled.pt"
+            "strol",
+            task=RobotTask(),
+            checkpoint=PRETRAINED_DIR / "robot_strol-unrolled.safetensors",
         )
 
 
@@ -110,7 +112,7 @@ def test_training_cli_rejects_k_below_one_with_status_2(capsys):
     from strol_gym.benchmarks import train as training
 
     with pytest.raises(SystemExit) as e:
-        training.main(["--kind", "strol-unrolled", "-K", "0", "--out", "never.pt"])
+        training.main(["--kind", "strol-unrolled", "-K", "0", "--out", "never.safetensors"])
     assert e.value.code == 2
     err = capsys.readouterr().err.strip()
     assert "unroll" in err and "Traceback" not in err and len(err.splitlines()) == 1

@@ -20,6 +20,7 @@ SIZES = {
     "StROL-Robot-v0": {"width": 96, "height": 64},
     "StROL-Highway-v0": {"width": 120, "height": 60},
     "StROL-Study-v0": {"width": 96, "height": 64},
+    "StROL-Study-v1": {"width": 96, "height": 64},
 }
 
 
@@ -43,5 +44,7 @@ def test_record_video_writes_an_mp4(tmp_path, env_id):
 
     with VideoFileClip(str(videos[0])) as clip:
         assert clip.size == [SIZES[env_id]["width"], SIZES[env_id]["height"]]
+        if env_id == "StROL-Highway-v0":  # a 2 Hz env: one frame per step plays in real time
+            assert clip.fps == 1 / env.unwrapped.task.dt == 2
         frames = list(clip.iter_frames())
     assert len(frames) == 5  # the reset's frame and one per step

@@ -39,7 +39,7 @@ import gymnasium as gym
 import numpy as np
 
 from strol_gym.provenance import package_versions
-from strol_gym.registry import spec_of
+from strol_gym.registry import registered_name, spec_of
 from strol_gym.tasks import Task, task_name
 from strol_gym.tasks.base import _jsonable
 
@@ -57,7 +57,7 @@ def _json(value: Any) -> Any:
         return None
     if value is None or isinstance(value, bool | int | float | str):
         return value
-    return spec_of(value) or repr(value)
+    return registered_name(value) or spec_of(value) or repr(value)
 
 
 class SessionWriter:
@@ -120,7 +120,9 @@ class SessionLogger(gym.Wrapper):
             "env_kwargs": dict(spec.kwargs) if spec is not None else {},
             "task": task_name(task),
             "task_describe": task.describe(),
-            "learner": learner if isinstance(learner, str) else spec_of(learner),
+            "learner": learner
+            if isinstance(learner, str)
+            else registered_name(learner) or spec_of(learner),
             "learner_kwargs": saved.get("learner_kwargs") or {},
             "packages": package_versions(),
             "extra": extra or {},
@@ -342,14 +344,30 @@ def read_session(path: str | Path) -> Session:
     return Session(path, header, episodes)
 
 
+LEGACY_TASKS: dict[str, str] = {
+    "strol_gym.tasks.robot:RobotTask": "robot",
+    "strol_gym.tasks.highway:HighwayTask": "highway",
+    "strol_gym.tasks.study:StudyTask1": "study-task1",
+    "strol_gym.tasks.study:StudyTask2": "study-task2",
+    "strol_gym.tasks.study:StudyTask3": "study-task3",
+    "strol_gym.tasks.study:StudyTask1V1": "study-task1-v1",
+    "strol_gym.tasks.study:StudyTask2V1": "study-task2-v1",
+    "strol_gym.tasks.study:StudyTask3V1": "study-task3-v1",
+}
+"""Module paths older headers named strol-gym's own Tasks by -> their registered names. Fixed:
+headers now name registered pieces, and these paths are never imported (code moves)."""
+
+
 def session_task(session: Session) -> Task:
-    """The header's Task: a registered name, or a ``module:attr`` in a module the user loaded
-    with ``--plugin`` (never imported from the log); it must match the logged dimensions."""
+    """The header's Task: a registered name (an old header's module path of one of ours is read
+    through :data:`LEGACY_TASKS`), or a ``module:attr`` in a module the user loaded with
+    ``--plugin`` (never imported from the log); it must match the logged dimensions."""
     from strol_gym.registry import resolve_logged
     from strol_gym.tasks import make_task
 
     where = f"{session.path}:1"
     name = session.header["task"]
+    name = LEGACY_TASKS.get(name, name)
     try:
         task = make_task(resolve_logged("task", name))
     except ValueError as e:
@@ -365,6 +383,7 @@ def session_task(session: Session) -> Task:
 
 
 __all__ = [
+    "LEGACY_TASKS",
     "Episode",
     "Session",
     "SessionLogError",

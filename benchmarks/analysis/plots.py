@@ -12,6 +12,7 @@ Performance profiles: the fraction of runs with a score ≤ τ per learner. Curv
 from __future__ import annotations
 
 import hashlib
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -151,12 +152,12 @@ def bar_grid(a: Analysis, metric_for_env: dict[str, str], out: Path, stem: str) 
             if c == 0:
                 ax.set_ylabel(f"{env_preset(env).env_id}\n{short(metric)}", fontsize=9)
     ref = display(a.config.reference)
-    fig.suptitle(
-        f"dots: every run; black bar: mean ± SEM; diamond: IQM [95 % bootstrap CI]\n"
+    title = (
+        "dots: every run; black bar: mean ± SEM; diamond: IQM [95 % bootstrap CI]. "
         f"↓ {ref} significantly lower than that learner, ↑ higher (paired t, Holm; "
-        "* p<0.05, ** p<0.01, *** p<0.001)",
-        fontsize=9,
-    )
+        "* p<0.05, ** p<0.01, *** p<0.001)"
+    )  # wrapped to the figure's width (~13 characters an inch at 9 pt), so one column reads
+    fig.suptitle(textwrap.fill(title, int(13 * fig.get_figwidth())), fontsize=9)
     fig.tight_layout()
     return save_figure(fig, out, stem)
 
@@ -235,9 +236,13 @@ def make_plots(a: Analysis, out: Path) -> list[Path]:
     """Fig. 4 (each env's primary metric), one bar grid per metric, learning curves."""
     out.mkdir(parents=True, exist_ok=True)
     envs = list(dict.fromkeys(e.env for e in a.config.experiments))
-    paths = bar_grid(a, {e: env_preset(e).primary_metric for e in envs}, out, "fig4")
+    primary = {e: env_preset(e).primary_metric for e in envs}
+    paths = bar_grid(a, primary, out, "fig4")
+    shown = {e: m for e, m in primary.items() if m in a.metrics_for(e)}
     for metric in METRIC_LABELS:
-        paths += bar_grid(a, dict.fromkeys(envs, metric), out, f"bars_{metric}")
+        grid = {e: metric for e in envs if metric in a.metrics_for(e)}
+        if grid != shown:  # the same grid as fig4 is fig4: one figure, not two copies
+            paths += bar_grid(a, grid, out, f"bars_{metric}")
     paths += curve_grid(a, out)
     paths += profile_grid(a, {e: env_preset(e).primary_metric for e in envs}, out, "profiles")
     return paths

@@ -1,10 +1,12 @@
-"""Where a benchmark's units of work run: ``local`` processes (the default) or a Ray cluster.
+"""Where a benchmark's units of work run: ``local`` processes (the default), a Ray cluster, or a
+Slurm job array (``strol_gym.benchmarks.engine.slurm``, through submitit).
 
 Both backends run the same units (blocks of run seeds × every learner) through the same worker
 (``strol_gym.benchmarks.engine.pool.new_worker``, one intra-op thread per process), so the
 records are identical whichever computed them, and a folder started on one backend resumes on
 the other.
 Ray is optional (``pip install "strol-gym[ray]"``); a local cluster listens on 127.0.0.1 only.
+submitit likewise (``pip install "strol-gym[slurm]"``).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 
 from strol_gym.learners.protocol import LearnerFailed
 
-BACKENDS = ("local", "ray")
+BACKENDS = ("local", "ray", "slurm")
 LOOPBACK = "127.0.0.1"
 RAY_SINGLE_MACHINE = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
 RAY_MISSING = "--backend ray needs Ray: pip install 'strol-gym[ray]'"
@@ -35,8 +37,21 @@ def add_backend_options(p: argparse.ArgumentParser) -> None:
         "--backend",
         choices=BACKENDS,
         default="local",
-        help="where units of work run: local processes (default) or Ray tasks; "
-        "results are identical",
+        help="where units of work run: local processes (default), Ray tasks or a Slurm job "
+        "array (submitit); results are identical",
+    )
+    p.add_argument(
+        "--slurm-executor",
+        choices=("slurm", "local"),
+        default="slurm",
+        help="with --backend slurm: sbatch (default) or submitit's local executor (no cluster)",
+    )
+    p.add_argument("--slurm-partition", default=None, help="with --backend slurm: a partition")
+    p.add_argument(
+        "--slurm-time",
+        type=_minutes,
+        default=60,
+        help="with --backend slurm: minutes per array task (default 60)",
     )
     p.add_argument(
         "--ray-address",
@@ -46,9 +61,26 @@ def add_backend_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _minutes(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 100_000:
+        raise argparse.ArgumentTypeError(f"must be whole minutes in [1, 100000], got {text!r}")
+    return value
+
+
 def backend_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     """The ``run_benchmark`` keyword arguments chosen by :func:`add_backend_options`' options."""
-    return {"backend": args.backend, "ray_address": args.ray_address}
+    kw: dict[str, Any] = {"backend": args.backend, "ray_address": args.ray_address}
+    if args.backend == "slurm":
+        kw["slurm"] = {
+            "executor": args.slurm_executor,
+            "partition": args.slurm_partition,
+            "time_min": args.slurm_time,
+        }
+    return kw
 
 
 def check_backend(backend: str, ray_address: str | None) -> None:
@@ -61,6 +93,8 @@ def check_backend(backend: str, ray_address: str | None) -> None:
         raise ValueError(f"ray_address must be a non-empty address string, got {ray_address!r}")
     if backend == "ray" and importlib.util.find_spec("ray") is None:
         raise ValueError(RAY_MISSING)
+    if backend == "slurm" and importlib.util.find_spec("submitit") is None:
+        raise ValueError("--backend slurm needs submitit: pip install 'strol-gym[slurm]'")
     if ray_address is not None:
         check_reachable(ray_address)  # before any work: Ray itself retries for minutes
 

@@ -192,9 +192,9 @@ for _k in (1, 2, 3):  # the user study's Tasks (``strol-bench study``), not part
             ENV_PRESETS[f"study{_k}"],
             key=_key,
             env_id="StROL-Study-v1",
-            # v1's Tasks (their own ids, so learners find v1's ĝ), by module:attr: not in the
-            # Task registry, whose every Task must have a ĝ for every ĝ learner.
-            make_kwargs={"task": f"strol_gym.tasks.study:StudyTask{_k}V1", "participant": _who},
+            # v1's Tasks (their own ids, so learners find v1's ĝ), by registered name, so
+            # logs and datasets name them without a module path.
+            make_kwargs={"task": f"study-task{_k}-v1", "participant": _who},
         )
 
 

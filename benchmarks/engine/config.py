@@ -227,12 +227,15 @@ class BenchConfig:
         }
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> BenchConfig:
+    def from_dict(cls, d: dict[str, Any], trusted: bool = True) -> BenchConfig:
+        """The config of ``to_dict`` output. ``trusted``: its user pieces (``plugins``) are
+        registered (a worker, sent its parent's config); False for a file read from disk,
+        whose ``module:attr`` pieces are never registered (reading data imports nothing)."""
         if d.get("schema") != SCHEMA_VERSION:
             raise ValueError(
                 f"unknown results schema {d.get('schema')!r}, expected {SCHEMA_VERSION}"
             )
-        install_specs(d.get("plugins", {}))  # a worker learns the user's names first
+        install_specs(d.get("plugins", {}), code=trusted)  # a worker learns the user's names
         return cls(
             experiments=tuple(Experiment.from_dict(e) for e in d["experiments"]),
             learners=tuple(d["learners"]),

@@ -87,7 +87,19 @@ def iter_results(
     jobs: int,
     backend: str = "local",
     ray_address: str | None = None,
+    out: os.PathLike | None = None,
+    slurm: dict | None = None,
 ) -> Iterator[tuple[Unit, list[dict]]]:
+    """``(unit, records)`` as each unit finishes; ``out`` (the results folder) and ``slurm``
+    (``iter_slurm``'s options) for the Slurm backend, whose array tasks write block files."""
+    if backend == "slurm":
+        from pathlib import Path
+
+        from strol_gym.benchmarks.engine.slurm import iter_slurm
+
+        assert out is not None, "the Slurm backend collects block files in the results folder"
+        yield from iter_slurm(config, units, jobs, Path(out), new_worker, **(slurm or {}))
+        return
     if backend == "ray":
         from strol_gym.benchmarks.engine.backends import iter_ray
 

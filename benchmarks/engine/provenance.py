@@ -4,12 +4,15 @@ the learners' weights, fingerprinted so that a results folder is never resumed w
 from __future__ import annotations
 
 import hashlib
-from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig
 
+from strol_gym.learners.checkpoint import checkpoint_sha256
 from strol_gym.learners.registry import make_learner
+from strol_gym.provenance import NUMERIC_PACKAGES
+
+__all__ = ["NUMERIC_PACKAGES", "check_learners", "code_fingerprint", "learner_fingerprint"]
 
 # What a record depends on besides the run's config: every module of the strol_gym package
 # except the benchmark's report-only modules (tables, plots, statistics, the CLI), plus the
@@ -24,7 +27,10 @@ BENCHMARK_CODE = (
     "engine.worker",
 )
 MAPPED_PACKAGES = ("strol_gym.wrappers", "strol_gym.benchmarks")
-DATA_FILES = {"strol_gym.assets": (".xml", ".npz"), "strol_gym.pretrained": (".pt", ".json")}
+DATA_FILES = {
+    "strol_gym.assets": (".xml", ".npz"),
+    "strol_gym.pretrained": (".safetensors", ".json"),
+}
 
 
 def _code_modules(package: str = "strol_gym") -> list[str]:
@@ -80,18 +86,16 @@ def code_fingerprint() -> str:
     return h.hexdigest()[:16]
 
 
-NUMERIC_PACKAGES = ("numpy", "scipy", "torch", "gymnasium", "mujoco", "highway-env")
-
-
 def learner_fingerprint(learner: Any) -> dict[str, Any]:
-    """What identifies a learner's behaviour: class, config and a hash of its weights file."""
+    """What identifies a learner's behaviour: class, config and a hash of its checkpoint (the
+    weights file and its sidecar together: the sidecar's network and bound matter as much)."""
     fp: dict[str, Any] = {"class": f"{type(learner).__module__}.{type(learner).__qualname__}"}
     config = getattr(learner, "config", None)
     if callable(config):
         fp["config"] = config()
     ckpt = getattr(learner, "checkpoint", None)
     if ckpt:
-        fp["weights_sha256"] = hashlib.sha256(Path(ckpt).read_bytes()).hexdigest()[:16]
+        fp["checkpoint_sha256"] = checkpoint_sha256(ckpt)[:16]
     return fp
 
 

@@ -41,7 +41,7 @@ from strol_gym.benchmarks.engine.lock import (
 
 from strol_gym.files import loads_json, naming_file, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
-from strol_gym.provenance import git_revision, package_versions
+from strol_gym.provenance import git_revision, package_versions, version_changes
 
 META = "meta.json"
 RECORDS = "records"
@@ -129,6 +129,7 @@ class ResultsDir:
                         shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
             else:
                 meta = cls._read_meta(path)
+                cls._check_versions(path, meta)  # first: the plainest reason a hash differs
                 if meta.get("config_hash") != chash:
                     diffs = diff_configs(meta.get("config", {}), config.to_dict())
                     diffs += diff_configs(meta.get("extra", {}), extra or {}, "extra")
@@ -193,10 +194,32 @@ class ResultsDir:
         return meta
 
     @staticmethod
+    def _check_versions(path: Path, meta: dict) -> None:
+        """Warn (stderr) and refuse to resume a folder made under other versions of the packages
+        that shape a record's bytes: its records and the new ones would not be one run's.
+        ``--force`` (which starts the folder over) is the way past it."""
+        recorded = meta.get("versions")
+        changed = version_changes(recorded if isinstance(recorded, dict) else {})
+        if not changed:
+            return
+        print(
+            f"warning: {path} was made under other package versions ({'; '.join(changed)}); "
+            "its means and verdicts would hold under these, its bytes only under the same "
+            "versions (docs/reproducibility.md)",
+            file=sys.stderr,
+        )
+        raise ResultsError(
+            f"{path} was made under other package versions ({'; '.join(changed)}), so resuming "
+            "it would mix records of two installs. Reinstall those versions (pip install -c "
+            ".ci/constraints.txt ... for the lock), use another --out, or --force to delete its "
+            "results and start over under these versions."
+        )
+
+    @staticmethod
     def _check_ours(path: Path) -> None:
         """Refuse to delete a folder holding anything but our own outputs."""
         ours = {META, RECORDS, "plots", "runs.csv", "curves.csv", "summary.csv", "stats.csv"}
-        ours |= {"anova.csv", "summary.md", LOCK, BREAK}
+        ours |= {"anova.csv", "summary.md", LOCK, BREAK, ".slurm"}
         foreign = [
             p.name
             for p in path.iterdir()
@@ -215,7 +238,7 @@ class ResultsDir:
             raise ResultsError(f"{path} has no {META}: not a strol-bench results folder")
         meta = cls._read_meta(path)
         try:
-            config = BenchConfig.from_dict(meta["config"])
+            config = BenchConfig.from_dict(meta["config"], trusted=False)
         except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise ResultsError(
                 f"{path / META} has an invalid config ({type(e).__name__}: {e})"
@@ -308,8 +331,11 @@ class ResultsDir:
             for r in recs:
                 _check_record(p, r, exp.env, exp.condition.name, exp.corrections)
             got = [(r.get("seed"), r.get("learner")) for r in recs]
+            where = {(r.get("env"), r.get("condition")) for r in recs}
             if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
                 raise ResultsError(f"{p} does not hold exactly its unit's runs; delete it to rerun")
+            if where != {(exp.env, exp.condition.name)}:
+                raise ResultsError(f"{p} holds runs of another env or condition than its unit's")
             out.extend(recs)
         order = {learner: i for i, learner in enumerate(self.config.learners)}
         exp_index = {(e.env, e.condition.name): i for i, e in enumerate(self.config.experiments)}

@@ -50,13 +50,15 @@ def run_benchmark(
     on_unit: Callable[[Unit, int], None] | None = None,
     backend: str = "local",
     ray_address: str | None = None,
+    slurm: dict | None = None,
 ) -> ResultsDir:
     """Run (or resume) ``config`` into the folder ``out``; returns the folder when all is done.
 
     ``on_unit(unit, n_done)`` is called after each unit is stored (tests use it to simulate an
     interruption). Learners are built once up front, so a bad learner fails before any work.
     ``backend`` is ``"local"`` (``jobs`` processes) or ``"ray"`` (Ray tasks on the cluster at
-    ``ray_address``, or on a local one with ``jobs`` CPUs); records do not depend on it.
+    ``ray_address``, or on a local one with ``jobs`` CPUs) or ``"slurm"`` (a job array,
+    ``slurm`` = ``iter_slurm``'s options); records do not depend on it.
     """
     if int(jobs) < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
@@ -92,7 +94,8 @@ def run_benchmark(
         )
     n = 0
     try:
-        for unit, records in iter_results(config, todo, int(jobs), backend, ray_address):
+        units = iter_results(config, todo, int(jobs), backend, ray_address, rd.path, slurm)
+        for unit, records in units:
             rd.write_unit(unit, records)
             n += 1
             if bar is not None:

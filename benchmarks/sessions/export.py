@@ -2,11 +2,17 @@
 
 Minari is the Gymnasium ecosystem's format for recorded episodes (``minari.load_dataset``).
 One Minari step is one correction: the observation is what the learner saw (``state`` = x,
-``correction`` = u_H, ``theta_hat`` = θ̂ before the update), the action is the robot's u_R, and
-the last observation carries the final θ̂. Observations are float32 (Minari's spaces), so the
-exact float64 x, u_H, u_R, θ̂ and θ* travel in the episode's infos, and replaying a dataset gives
-the θ̂ of replaying the log, to the bit. The log's header rides in the dataset's metadata and
-is checked like a log's: reading a dataset never runs code.
+``correction`` = u_H, ``theta_hat`` = θ̂ before the update, ``phi`` = φ(x)), the action is the
+robot's u_R scaled to the env's action space (u_R / ``robot_action_bound``), and the last
+observation carries the final θ̂; the spaces are the env's own. Where the env observes more than
+a log keeps (the study envs' wrench), the dataset keeps its own spaces (no φ, the action u_R).
+Observations are float32 (Minari's spaces), so the exact float64 x, u_H, u_R, θ̂ and θ* travel
+in the episode's infos, and replaying a dataset gives the θ̂ of replaying the log, to the bit.
+The log's header rides in the dataset's metadata and is checked like a log's, and the folder's
+metadata passes :mod:`dataset_gate` before Minari reads it: reading a dataset never runs code.
+The dataset's ``env_spec`` (when the session names only registered pieces) is the logged env
+wrapped in the logged learner, so Minari's ``recover_environment()`` rebuilds it;
+``algorithm_name`` is the learner's name.
 
 Datasets are written under ``MINARI_DATASETS_PATH`` (default ``~/.minari/datasets``). Needs the
 ``[data]`` extra (``pip install ".[data]"``).
@@ -15,18 +21,27 @@ Datasets are written under ``MINARI_DATASETS_PATH`` (default ``~/.minari/dataset
 from __future__ import annotations
 
 import json
+import shutil
 import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from strol_gym.benchmarks.sessions.dataset_gate import (
+    METADATA,
+    DatasetRefused,
+    check_metadata,
+    dataset_path,
+    wrappers,
+)
 from strol_gym.wrappers.session_log import (
     Episode,
     Session,
     SessionLogError,
     check_header,
     read_session,
+    session_task,
 )
 
 HEADER_KEY = "strol_session_header"
@@ -50,7 +65,33 @@ def _spaces(dims: dict[str, int]) -> tuple[spaces.Dict, spaces.Box]:
     return obs, box(dims["a"])
 
 
-def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None) -> Any:
+def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[Any, spaces.Space, spaces.Space, bool]:
+    """``spec`` (None if no env can be made from it) and the spaces of the env it makes when
+    the dataset fills them (its observation is exactly state, correction, θ̂ and φ; its action
+    the scaled u_R), and True; else the dataset's own spaces (state, correction, θ̂; u_R) and
+    False (e.g. the study envs' wrench, which a session log does not keep per step)."""
+    if spec is None:
+        return (None, *_spaces(dims), False)
+    import gymnasium as gym
+
+    try:
+        env = gym.make(spec)
+    except Exception:  # logged kwargs this version cannot make an env from: no env_spec
+        return (None, *_spaces(dims), False)
+    try:
+        obs, act = env.observation_space, env.action_space
+    finally:
+        env.close()
+    want = {"state": dims["s"], "correction": dims["a"], "theta_hat": dims["d"], "phi": dims["d"]}
+    ok = isinstance(obs, spaces.Dict) and isinstance(act, spaces.Box)
+    ok = ok and {k: v.shape for k, v in obs.spaces.items()} == {k: (n,) for k, n in want.items()}
+    ok = ok and act.shape == (dims["a"],)
+    return (spec, obs, act, True) if ok else (spec, *_spaces(dims), False)
+
+
+def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None, task: Any = None) -> Any:
+    """One episode as Minari's buffer. With ``task`` (the env's own spaces), the observation
+    adds φ(x) and the action is u_R scaled to the env's action space (u_R / robot_action_bound)."""
     from minari.data_collector import EpisodeBuffer
 
     n, nan = len(ep.corrections), np.nan
@@ -66,14 +107,19 @@ def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None) -> Any:
         x[n] = x[n - 1]  # the last observation: where the last correction began, final θ̂
     star = np.full(dims["d"], nan) if ep.theta_star is None else ep.theta_star
     ctime = [nan if c["correction_time"] is None else c["correction_time"] for c in ep.corrections]
+    observations = {
+        "state": x.astype(np.float32),
+        "correction": u_h.astype(np.float32),
+        "theta_hat": theta.astype(np.float32),
+    }
+    actions = u_r[:n]
+    if task is not None:
+        observations["phi"] = np.asarray(task.features(x), dtype=np.float32).reshape(n + 1, -1)
+        actions = actions / np.asarray(task.robot_action_bound, dtype=np.float64)
     return EpisodeBuffer(
         seed=seed,
-        observations={
-            "state": x.astype(np.float32),
-            "correction": u_h.astype(np.float32),
-            "theta_hat": theta.astype(np.float32),
-        },
-        actions=u_r[:n].astype(np.float32),
+        observations=observations,
+        actions=actions.astype(np.float32),
         rewards=[0.0] * n,  # the person's reward is hidden (θ* in the infos is what they taught)
         terminations=[False] * n,
         truncations=[False] * (n - 1) + [True] if n else [],
@@ -90,45 +136,99 @@ def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None) -> Any:
 
 
 def export_session(log: str | Path, dataset_id: str) -> Any:
-    """Write session log ``log`` as Minari dataset ``dataset_id``; the MinariDataset."""
+    """Write session log ``log`` as Minari dataset ``dataset_id``; the MinariDataset.
+
+    The id is checked before anything is created (:func:`dataset_gate.dataset_path`), and a
+    failed export removes the folder it began."""
+    folder = new_dataset_path(dataset_id)
     minari = _minari()
     session = read_session(log)
     _, dims = check_header(f"{session.path}:1", session.header)
-    obs_space, act_space = _spaces(dims)
-    buffers = [_episode_buffer(ep, dims, ep.seed) for ep in session.episodes]
-    # Minari nags for provenance a session log does not have (author, code permalink, env spec)
+    task = session_task(session)  # a registered Task (or a --plugin's): never imported here
+    spec, obs_space, act_space, own = _env_spaces(env_spec(session.header, dataset_id), dims)
+    buffers = [_episode_buffer(ep, dims, ep.seed, task if own else None) for ep in session.episodes]
+    # Minari nags for provenance a session log does not have (author, code permalink)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
         try:
             dataset = minari.create_dataset_from_buffers(
                 dataset_id,
                 buffers,
+                env=spec,
                 observation_space=obs_space,
                 action_space=act_space,
                 algorithm_name=str(session.header.get("learner")),
                 description=f"strol-gym session {session.path.name}: corrections on "
                 f"{session.header['env_id']}, task {session.header['task']}",
             )
-        except ValueError as e:  # an existing id, a malformed id
-            raise ValueError(f"dataset_id {dataset_id!r}: {e}") from None
+        except BaseException as e:
+            shutil.rmtree(folder, ignore_errors=True)  # it did not exist: nothing of ours is left
+            if isinstance(e, ValueError):
+                raise ValueError(f"dataset_id {dataset_id!r}: {e}") from None
+            raise
     dataset.storage.update_metadata({HEADER_KEY: json.dumps(session.header)})
     return dataset
 
 
+def env_spec(header: dict[str, Any], dataset_id: str) -> Any:
+    """The env a session ran in, as an ``EnvSpec`` Minari's ``recover_environment()`` makes:
+    the registered env id with the logged kwargs, wrapped in the logged learner. None (no
+    env_spec) unless it passes the gate readers apply, i.e. names only our env, our wrapper
+    and registered pieces (a plugin's ``module:attr`` learner or Task cannot be recovered)."""
+    import dataclasses
+
+    import gymnasium as gym
+    from gymnasium.envs.registration import WrapperSpec
+    from strol_gym.benchmarks.sessions.dataset_gate import check_env_spec, registered_envs
+
+    if header.get("env_id") not in registered_envs():
+        return None
+    spec = dataclasses.replace(gym.spec(header["env_id"]), kwargs=dict(header["env_kwargs"]))
+    if header.get("learner") is not None:
+        kwargs = {"learner": header["learner"], "learner_kwargs": header["learner_kwargs"] or None}
+        name, entry = next(iter(wrappers().items()))
+        spec.additional_wrappers = (WrapperSpec(name, entry, kwargs),)
+    try:
+        check_env_spec(f"dataset {dataset_id}: env_spec", spec.to_json())
+    except (DatasetRefused, ValueError):
+        return None
+    return spec
+
+
+def new_dataset_path(dataset_id: str) -> Path:
+    """The folder a new dataset ``dataset_id`` goes to: a valid id, not taken (creates nothing)."""
+    folder = dataset_path(dataset_id)
+    if folder.exists():
+        raise ValueError(
+            f"dataset_id {dataset_id!r}: a dataset with this id already exists in {folder.parent}"
+        )
+    return folder
+
+
 def _open(source: str) -> tuple[Any, str]:
+    """The dataset at ``source`` (its folder, its ``data`` folder or an id), once its metadata
+    has passed :func:`dataset_gate.check_metadata`: Minari never sees a folder we have not read."""
     minari = _minari()
     path = Path(source)
+    where = str(path)
+    if (path / "data" / METADATA).is_file():
+        folder = path / "data"
+    elif (path / METADATA).is_file():
+        folder = path
+    else:
+        where = source
+        try:
+            folder = dataset_path(source) / "data"
+        except DatasetRefused:
+            folder = None
+        if folder is None or not (folder / METADATA).is_file():
+            raise ValueError(
+                f"{source}: neither a session log (.jsonl) nor a Minari dataset (an id under "
+                "MINARI_DATASETS_PATH, or its folder)"
+            )
+    check_metadata(folder)
     try:
-        if (path / "data" / "metadata.json").is_file():
-            return minari.MinariDataset(path / "data"), str(path)
-        if (path / "metadata.json").is_file():
-            return minari.MinariDataset(path), str(path)
-        return minari.load_dataset(source), source
-    except FileNotFoundError:
-        raise ValueError(
-            f"{source}: neither a session log (.jsonl) nor a Minari dataset (an id under "
-            "MINARI_DATASETS_PATH, or its folder)"
-        ) from None
+        return minari.MinariDataset(folder), where
     except Exception as e:  # minari raises many kinds on a broken folder
         raise SessionLogError(f"{source}: cannot read the Minari dataset ({e})") from None
 
@@ -223,9 +323,8 @@ def export_runs(
     from strol_gym.wrappers import OnlineLearningWrapper
     from strol_gym.wrappers.session_log import SessionLogger
 
-    from strol_gym.learners.registry import make_learner
-
-    _minari()  # before any work
+    new_dataset_path(dataset_id)  # before any work
+    _minari()
     exp = Experiment(
         env,
         make_condition(env, condition),
@@ -235,7 +334,6 @@ def export_runs(
         task=task,
     )
     genv = gym.make(exp.env_id, **exp.env_kwargs())
-    model = make_learner(learner, task=genv.unwrapped.task, **(learner_kwargs or {}))
     policy = robot_policy(env_preset(env).robot, genv.unwrapped.task)
     extra = {
         "benchmark": {
@@ -246,7 +344,9 @@ def export_runs(
     }
     with tempfile.TemporaryDirectory() as folder:
         logged = SessionLogger(
-            OnlineLearningWrapper(genv, model, regret=False), Path(folder) / "runs.jsonl", extra
+            OnlineLearningWrapper(genv, learner, learner_kwargs or None, regret=False),
+            Path(folder) / "runs.jsonl",
+            extra,
         )
         try:
             for run_seed in exp.seeds:

@@ -1,10 +1,16 @@
-"""Checkpoints of ĝ: weights as a torch state_dict (plain tensors, loaded with
-``weights_only=True``, never a pickled object) plus a JSON sidecar that says what they are for.
+"""Checkpoints of ĝ: weights as a safetensors file (plain tensors behind a JSON header: reading
+it runs no code and needs no unpickler) plus a JSON sidecar that says what they are for.
 
-The sidecar (``<name>.json`` next to ``<name>.pt``) records the task (id, version, feature names,
-dims, α, action bound), the network input width and architecture, the kind ("strol" | "e2e"),
-the training config and seed, package versions, the final loss and the held-out Lyapunov
-check. Loading compares it with the Task and raises ValueError naming every difference.
+A torch state_dict in a ``.pt`` file still loads (with ``weights_only=True``, never a pickled
+object) and can be written on request, so users' own checkpoints keep working; the shipped
+weights and ``strol-bench train``'s default are safetensors. ``--convert`` turns a ``.pt`` into
+a ``.safetensors`` with the same tensors, bit for bit, through the same writer training uses.
+
+The sidecar (``<name>.json`` next to ``<name>.safetensors``) records the task (id, version,
+feature names, dims, α, action bound), the network input width and architecture, the kind
+("strol" | "e2e"), the training config and seed, package versions, the SHA-256 of the weights
+file, the final loss and the held-out Lyapunov check. Loading compares it with the Task and
+raises ValueError naming every difference.
 """
 
 from __future__ import annotations
@@ -17,6 +23,8 @@ from typing import Any
 
 import numpy as np
 import torch
+from safetensors.torch import load as load_safetensors
+from safetensors.torch import save as save_safetensors
 
 from strol_gym.files import loads_json, temp_beside
 from strol_gym.learners.network import CorrectionNet
@@ -47,6 +55,9 @@ def register_kind(name: str, *, sees_theta_hat: bool = False) -> None:
 for _kind, _sees in (("strol", False), ("e2e", False), ("strol-unrolled", True)):
     register_kind(_kind, sees_theta_hat=_sees)
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
+SAFETENSORS, TORCH_PT = ".safetensors", ".pt"
+WEIGHTS_SUFFIXES = (SAFETENSORS, TORCH_PT)
+"""The weights formats, the default (what ships, what training writes) first."""
 
 
 def weights_sha256(path: str | Path) -> str:
@@ -87,16 +98,31 @@ def check_shapes(weights: Any, net: Any, where: str) -> None:
         raise ValueError(f"{where}: the sidecar's network does not match the weights ({detail})")
 
 
+def checkpoint_sha256(path: str | Path) -> str:
+    """SHA-256 over a checkpoint's weights file and its sidecar, each preceded by its length:
+    what identifies a ĝ in a results folder, since the sidecar (network, bound) shapes the
+    learner's behaviour as much as the weights do."""
+    h = hashlib.sha256()
+    for part in (Path(path), sidecar_path(path)):
+        data = part.read_bytes()
+        h.update(len(data).to_bytes(8, "little") + data)
+    return h.hexdigest()
+
+
 def check_weights_path(path: str | Path, name: str = "path") -> Path:
-    """Where a checkpoint will be written: a ``.pt`` file in a folder we can create and write.
+    """Where a checkpoint will be written: a ``.safetensors`` (or ``.pt``) file in a folder we
+    can create and write.
 
     Training calls it first, so a bad ``--out`` fails at once rather than after the work.
     """
     path = Path(path)
-    if path.suffix != ".pt":
-        raise ValueError(f"{name} must be a file ending in .pt, got {path}")
+    if path.suffix not in WEIGHTS_SUFFIXES:
+        raise ValueError(
+            f"{name} must be a file ending in .safetensors (or .pt for a torch state_dict), "
+            f"got {path}"
+        )
     if path.is_dir():
-        raise ValueError(f"{name} {path} is a folder; give a file name ending in .pt")
+        raise ValueError(f"{name} {path} is a folder; give a file name ending in .safetensors")
     folder = path.parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
@@ -121,6 +147,29 @@ def probe_writable(folder: Path, what: str) -> None:
             pass
     except OSError as e:
         raise ValueError(f"{what}: cannot write in {folder} ({e.strerror or e})") from None
+
+
+def write_weights(dest: Path, weights: dict[str, torch.Tensor], suffix: str) -> None:
+    """Write ``weights`` to ``dest`` in the format ``suffix`` names: safetensors (the same
+    tensors always give the same bytes) or, for ``.pt``, a torch state_dict."""
+    if suffix == TORCH_PT:
+        torch.save(weights, dest)
+    else:
+        dest.write_bytes(save_safetensors(weights))
+
+
+def read_weights(path: Path) -> dict[str, torch.Tensor]:
+    """The tensors of a weights file, without an unpickler for safetensors; a ``.pt`` goes
+    through ``torch.load(weights_only=True)``, which refuses anything but tensors and
+    containers. ValueError naming the file if it cannot be read."""
+    try:
+        if path.suffix == TORCH_PT:
+            return torch.load(path, map_location="cpu", weights_only=True)
+        # safetensors checks that its header fits the file and that every tensor's byte range
+        # lies inside it, so a damaged or edited file cannot ask for more memory than it has.
+        return load_safetensors(path.read_bytes())
+    except Exception as e:  # a damaged file fails in either reader in many ways
+        raise ValueError(f"{path}: cannot read these weights ({e})") from None
 
 
 def sidecar_path(path: str | Path) -> Path:
@@ -173,8 +222,8 @@ def save_checkpoint(
     weights = {k: v.detach().cpu().contiguous().clone() for k, v in model.state_dict().items()}
     check_finite_weights(weights, "model")
     # Both files go to temporaries first and are renamed, sidecar first: a failure (a full
-    # disk) leaves no partial .pt, and never a .pt without its sidecar.
-    tmp_pt = temp_beside(path, lambda tmp: torch.save(weights, tmp))
+    # disk) leaves no partial weights file, and never weights without their sidecar.
+    tmp_pt = temp_beside(path, lambda tmp: write_weights(tmp, weights, path.suffix))
     meta = {
         "format_version": FORMAT_VERSION,
         "kind": kind,
@@ -185,15 +234,22 @@ def save_checkpoint(
         "versions": package_versions(),
         **(extra or {}),
     }
+    _commit(path, tmp_pt, meta)
+    return path
+
+
+def _commit(path: Path, tmp_weights: Path, meta: dict[str, Any]) -> None:
+    """Write ``meta`` as ``path``'s sidecar and move the written ``tmp_weights`` to ``path``:
+    sidecar first, so a failure never leaves weights without their sidecar. The temporary is
+    gone afterwards either way."""
     text = json.dumps(meta, indent=2, sort_keys=True) + "\n"
     side = sidecar_path(path)
     try:
         tmp_json = temp_beside(side, lambda tmp: tmp.write_text(text))
         os.replace(tmp_json, side)
-        os.replace(tmp_pt, path)
+        os.replace(tmp_weights, path)
     finally:
-        tmp_pt.unlink(missing_ok=True)
-    return path
+        tmp_weights.unlink(missing_ok=True)
 
 
 def read_sidecar(path: str | Path) -> dict[str, Any]:
@@ -279,10 +335,7 @@ def load_checkpoint(
         raise ValueError(f"{path}: {e}") from None
     check_weights_hash(path, meta)
     net = meta["network"]
-    try:
-        weights = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:  # a damaged file can fail in torch's reader in many ways
-        raise ValueError(f"{path}: cannot read these weights ({e})") from None
+    weights = read_weights(path)
     check_shapes(weights, net, str(path))  # before the network is built: nothing large
     model = CorrectionNet(net["in_dim"], net["out_dim"], net["hidden"], net["bound"])
     try:
@@ -300,7 +353,8 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
     """The shipped checkpoint whose sidecar names ``task.task_id`` and ``kind``.
 
     Files are looked up by their sidecars, not by name; the convention for names is
-    ``<short task name>_<kind>.pt`` (``robot_strol.pt``).
+    ``<short task name>_<kind>.safetensors`` (``robot_strol.safetensors``). A sidecar with
+    weights in both formats beside it counts once, the safetensors file.
     """
     directory = Path(directory)
     found = []
@@ -312,9 +366,8 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
         if not isinstance(meta, dict) or not isinstance(meta.get("task"), dict):
             continue
         if meta.get("kind") == kind and meta.get("task", {}).get("task_id") == task.task_id:
-            weights = side.with_suffix(".pt")
-            if weights.is_file():
-                found.append(weights)
+            weights = [side.with_suffix(s) for s in WEIGHTS_SUFFIXES]
+            found += [w for w in weights if w.is_file()][:1]
     if not found:
         raise FileNotFoundError(
             f"no pretrained {kind} ĝ for {task.task_id} in {directory}; {train_hint(task, kind)}"
@@ -337,7 +390,7 @@ def train_hint(task: Task, kind: str) -> str:
     except ValueError:  # a Task defined where no other process can import it
         name = task.task_id
     stem = name if ":" not in name else type(task).__name__
-    out = f"{stem}_{kind}.pt"
+    out = f"{stem}_{kind}{SAFETENSORS}"
     plugin = plugin_argument(type(task))
     train = ["strol-bench", "train", *(["--plugin", plugin] if plugin else [])]
     train += ["--task", name, "--kind", kind, "--out", out]
@@ -349,18 +402,63 @@ def train_hint(task: Task, kind: str) -> str:
     )
 
 
+def convert_to_safetensors(path: str | Path) -> Path:
+    """Write ``<name>.safetensors`` and its sidecar ``<name>.json`` from the checkpoint
+    ``<name>.pt``: the same tensors bit for bit (checked by reading the new file back), through
+    the writer ``save_checkpoint`` uses, so converted and newly trained weights are alike. The
+    sidecar changes only in ``weights_sha256``. The ``.pt`` is kept; delete it yourself.
+
+    The ``.pt`` must match its sidecar's hash first: only weights the sidecar vouches for are
+    converted.
+    """
+    path = Path(path)
+    if path.suffix != TORCH_PT:
+        raise ValueError(f"--convert takes a .pt checkpoint, got {path}")
+    meta = read_sidecar(path)
+    check_weights_hash(path, meta)
+    weights = read_weights(path)
+    check_shapes(weights, meta.get("network"), str(path))
+    check_finite_weights(weights, str(path))
+    out = path.with_suffix(SAFETENSORS)
+    tmp = temp_beside(out, lambda t: write_weights(t, weights, SAFETENSORS))
+    try:
+        back = read_weights(tmp)  # not .pt: read as safetensors
+        same = back.keys() == weights.keys() and all(
+            back[k].dtype == v.dtype
+            and back[k].shape == v.shape
+            and back[k].numpy().tobytes() == v.contiguous().numpy().tobytes()
+            for k, v in weights.items()
+        )
+        if not same:
+            raise ValueError(f"{path}: the safetensors copy does not hold the same tensors")
+        meta["weights_sha256"] = weights_sha256(tmp)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    _commit(out, tmp, meta)
+    return out
+
+
 def main(argv: list[str] | None = None) -> None:
-    """``python -m strol_gym.learners.checkpoint --rehash FILE.pt ...``: record weights hashes."""
+    """``python -m strol_gym.learners.checkpoint --rehash FILE ...`` records weights hashes;
+    ``--convert FILE.pt ...`` writes safetensors copies of torch checkpoints."""
     import argparse
 
     parser = argparse.ArgumentParser(
         prog="python -m strol_gym.learners.checkpoint",
-        description="Record the SHA-256 of trusted weights files in their JSON sidecars.",
+        description="Record the SHA-256 of trusted weights files in their JSON sidecars, or "
+        "convert .pt checkpoints to .safetensors (same tensors, sidecar hash updated).",
     )
-    parser.add_argument("--rehash", nargs="+", metavar="FILE.pt", required=True)
-    for path in parser.parse_args(argv).rehash:
+    todo = parser.add_mutually_exclusive_group(required=True)
+    todo.add_argument("--rehash", nargs="+", metavar="FILE")
+    todo.add_argument("--convert", nargs="+", metavar="FILE.pt")
+    args = parser.parse_args(argv)
+    for path in args.rehash or args.convert:
         try:
-            print(f"{path}: weights_sha256 {rehash_sidecar(path)}")
+            if args.rehash:
+                print(f"{path}: weights_sha256 {rehash_sidecar(path)}")
+            else:
+                print(f"{path} -> {convert_to_safetensors(path)}")
         except (OSError, ValueError) as e:
             parser.exit(2, f"error: {e}\n")
 

@@ -17,6 +17,9 @@ _TASKS: dict[str, Any] = {
     "study-task1": "strol_gym.tasks.study:StudyTask1",
     "study-task2": "strol_gym.tasks.study:StudyTask2",
     "study-task3": "strol_gym.tasks.study:StudyTask3",
+    "study-task1-v1": "strol_gym.tasks.study:StudyTask1V1",
+    "study-task2-v1": "strol_gym.tasks.study:StudyTask2V1",
+    "study-task3-v1": "strol_gym.tasks.study:StudyTask3V1",
 }
 
 

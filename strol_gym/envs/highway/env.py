@@ -131,7 +131,8 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     - v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=4)
+    # one frame per env step of task.dt = 0.5 s (2 Hz): videos play in real time
+    metadata: ClassVar[dict[str, Any]] = render_metadata(fps=2)
 
     env_id: ClassVar[str] = "StROL-Highway-v0"
     task_cls: ClassVar[type[HighwayTask]] = HighwayTask
