@@ -19,7 +19,7 @@ from strol_gym.benchmarks.engine.robots import ROBOTS
 from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.priors import PRIORS
-from strol_gym.registry import Registry
+from strol_gym.registry import Registry, call_piece
 
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
 """The paper's five rules, in the order its figures use."""
@@ -283,7 +283,7 @@ def make_condition(env: str, spec: str) -> Condition:
     """The condition named ``spec`` (registered or "module:attr") for ``env``."""
     preset = env_preset(env)
     obj = CONDITIONS.get(spec)
-    cond = obj if isinstance(obj, Condition) else obj(preset)
+    cond = obj if isinstance(obj, Condition) else call_piece("condition", spec, obj, preset)
     if not isinstance(cond, Condition):
         raise ValueError(f"condition {spec!r} gave {type(cond).__name__}, not a Condition")
     if cond.name in CONDITION_NAMES and spec != cond.name:

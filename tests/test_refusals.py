@@ -1,0 +1,175 @@
+"""Hardening, third round: inputs that gave NaN, numpy reprs, tracebacks or silently dropped
+values now give a fix or one clear refusal (issue 31, items 2, 3, 7, 8)."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from cli_checks import cli_error
+from strol_gym.benchmarks.engine.config import paper_config
+from strol_gym.benchmarks.engine.results import META, ResultsDir, ResultsError, write_csv
+
+from strol_gym.files import MAX_JSON_DEPTH, loads_json
+from strol_gym.learners import checkpoint as ckpt
+from strol_gym.learners.registry import make_learner
+from strol_gym.tasks import make_task
+
+DEEP = "[" * 5000 + "]" * 5000
+DEEPISH = '{"a": ' * (MAX_JSON_DEPTH + 1) + "1" + "}" * (MAX_JSON_DEPTH + 1)
+
+
+# ---------------------------------------------------------------------- 2. CSV cells
+def test_numpy_scalars_are_written_as_plain_numbers(tmp_path):
+    rows = [{"a": np.float64(2.239766140212501), "b": np.int64(3), "c": np.bool_(True)}]
+    path = write_csv(tmp_path / "t.csv", rows, ["a", "b", "c"])
+    got = list(csv.reader(path.open()))[1]
+    assert got == ["2.239766140212501", "3", "true"]
+    assert float(got[0]) == 2.239766140212501  # round-trips exactly
+
+
+# ---------------------------------------------------------------------- 3. bayes and NaN
+@pytest.mark.parametrize("name", ["bayes", "bayes-teacher"])
+def test_bayes_refuses_an_overflowing_update_and_stays_finite(name):
+    task = make_task("highway")
+    learner = make_learner(name, task, n_particles=64)
+    x = np.zeros(task.state_dim)
+    before = learner.theta.copy()
+    with pytest.raises(ValueError, match="non-finite θ̂"):
+        learner.update(x, np.full(task.action_dim, 1e308))
+    np.testing.assert_array_equal(learner.theta, before)  # a refused update changes nothing
+    after = learner.update(x, np.full(task.action_dim, 0.1))
+    assert np.isfinite(after).all()
+
+
+def test_bayes_teacher_batch_update_after_a_single_one():
+    task = make_task("highway")
+    learner = make_learner("bayes-teacher", task, n_particles=32)
+    learner.update(np.zeros(task.state_dim), np.full(task.action_dim, 0.1))
+    out = learner.update(np.zeros((4, task.state_dim)), np.full((4, task.action_dim), 0.1))
+    assert out.shape == (4, task.dim) and np.isfinite(out).all()
+    with pytest.raises(ValueError, match="batch sizes of x, u_h, u_r and theta disagree"):
+        learner.update(np.zeros((3, task.state_dim)), np.full((3, task.action_dim), 0.1))
+
+
+# ---------------------------------------------------------------------- 7. deep JSON, os:system
+def test_deep_json_is_a_named_value_error():
+    for text in (DEEP, DEEPISH):
+        with pytest.raises(ValueError, match=rf"^--x: JSON nested deeper than {MAX_JSON_DEPTH}"):
+            loads_json(text, "--x")
+    assert loads_json('{"a": [1, {"b": 2}]}', "--x") == {"a": [1, {"b": 2}]}
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "--env", "robot", "--human-kwargs", DEEP],
+        ["run", "--env", "robot", "--learner-kwargs", DEEP],
+        ["train", "--task", "robot", "--human-kwargs", DEEP],
+        ["run", "--env", "robot", "--condition", "os:system", "--runs", "1"],
+        ["run", "--env", "robot", "--task", "os:system", "--runs", "1"],
+        ["train", "--task", "os:system", "--steps", "1"],
+        ["train", "--task", "robot", "--human", "os:system", "--steps", "1"],
+    ],
+    ids=[
+        "run-human-kwargs",
+        "run-learner-kwargs",
+        "train-human-kwargs",
+        "condition",
+        "task",
+        "train-task",
+        "train-human",
+    ],
+)
+def test_cli_refuses_deep_json_and_non_pieces_in_one_line(argv, tmp_path, capsys):
+    out = ["--out", str(tmp_path / ("x.pt" if argv[0] == "train" else "res"))]
+    line = cli_error([*argv, *out], capsys)
+    assert "nested deeper" in line or "strol-gym can build" in line
+
+
+def test_deep_sidecar_is_named(tmp_path):
+    pt = tmp_path / "w.pt"
+    pt.write_bytes(b"")
+    ckpt.sidecar_path(pt).write_text(DEEP)
+    with pytest.raises(ValueError, match=r"checkpoint sidecar .*w\.json: JSON nested deeper"):
+        ckpt.read_sidecar(pt)
+
+
+# ---------------------------------------------------------------------- 7, 8. records and meta
+def _folder(tmp_path):
+    cfg = paper_config(["robot"], runs=2, learners=("gradient", "strol"), block=2)
+    rd = ResultsDir.open(tmp_path / "r", cfg)
+    for unit in cfg.units():
+        exp = cfg.experiments[unit.experiment]
+        recs = [
+            {
+                "env": exp.env,
+                "condition": exp.condition.name,
+                "learner": learner,
+                "seed": s,
+                "error": 0.5,
+                "cos_error": 0.1,
+                "regret": 0.2,
+                "errors": [0.9, 0.5],
+                "cos_errors": [0.3, 0.1],
+                "steps": 2,
+                "terminated": False,
+            }
+            for s in unit.seeds
+            for learner in cfg.learners
+        ]
+        rd.write_unit(unit, recs)
+    rd.finish_session("t", 1.0, 0, 1)
+    return rd, cfg
+
+
+def _edit_first_record(rd, cfg, edit):
+    p = rd.record_path(cfg.units()[0])
+    payload = json.loads(p.read_text())
+    edit(payload)
+    p.write_text(json.dumps(payload))
+    return p
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (lambda d: d["records"][0].update(regret=float("nan")), r"'regret' must be a finite"),
+        (lambda d: d["records"][0].update(regret=None), r"'regret' must be a finite"),
+        (lambda d: d["records"][0]["errors"].append(float("inf")), r"'errors' must be a list"),
+        (lambda d: d["records"][0].pop("errors"), r"'errors' is missing"),
+        (lambda d: d["records"][0].update(steps=-3), r"'steps' must be an integer in \[0, 5\]"),
+        (lambda d: d["records"][0].update(condition="clean"), r"is not its unit's"),
+        (lambda d: d.update(records={"a": 1}), r"records must be a list of objects"),
+    ],
+    ids=["nan", "null", "inf-curve", "errors-missing", "steps", "condition", "records-dict"],
+)
+def test_hand_edited_records_are_named_not_dropped(tmp_path, edit, match):
+    rd, cfg = _folder(tmp_path)
+    assert len(ResultsDir.load(rd.path).read_records()) == 8 * 2
+    p = _edit_first_record(rd, cfg, edit)
+    with pytest.raises(ResultsError, match=rf"{p}.*{match}"):
+        ResultsDir.load(rd.path).read_records()
+
+
+def test_report_recomputes_the_config_hash(tmp_path, capsys):
+    rd, _ = _folder(tmp_path)
+    meta = json.loads((rd.path / META).read_text())
+    meta["config"]["experiments"][0]["condition"]["sigma"] = 0.5  # hash kept
+    (rd.path / META).write_text(json.dumps(meta))
+    with pytest.raises(ResultsError, match="does not match its config_hash"):
+        ResultsDir.load(rd.path)
+    assert "does not match" in cli_error(["report", str(rd.path)], capsys)
+
+
+def test_deep_meta_and_record_files_are_named(tmp_path):
+    rd, cfg = _folder(tmp_path)
+    p = rd.record_path(cfg.units()[0])
+    p.write_text(DEEP)
+    with pytest.raises(ResultsError, match=rf"{p} is corrupt .*nested deeper"):
+        rd.read_records()
+    (rd.path / META).write_text(DEEP)
+    with pytest.raises(ResultsError, match="nested deeper"):
+        ResultsDir.load(rd.path)
