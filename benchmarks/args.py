@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from typing import Any
 
 from strol_gym.benchmarks.engine.backends import add_backend_options
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK
 
 from strol_gym.files import loads_json
+from strol_gym.limits import CAPS, lift
 
 
 def positive_int(name: str, high: int | None = None, *, low: int = 1):
@@ -156,8 +158,10 @@ def plugin_option(p: argparse.ArgumentParser) -> None:
 
 
 def run_options(p: argparse.ArgumentParser) -> None:
-    """The options of every command that runs a config through the runner."""
+    """The options of every command that runs a config through the runner (their sizes are
+    checked against ``RUNNER_CAPS`` by the CLI, with ``--allow-large``)."""
     plugin_option(p)
+    add_allow_large(p)
     p.add_argument("--out", default=None, help="results folder (default results/<preset>)")
     p.add_argument(
         "--jobs",
@@ -197,13 +201,22 @@ TRAIN_CAPS = {
     "candidates": 1_024,
     "heldout": 50_000,
     "unroll": 100,
+    "threads": CAPS["threads"],
 }
 """``train``: 100x the paper's batch of 100, a million Adam steps, 1,024 candidate actions,
 50,000 held-out samples, K = 100 unrolled updates."""
 BASIN_CAPS = {"grid": 201, "steps": 10_000}
 """``basin``: a 201 x 201 grid of θ̂0, 10,000 corrections."""
-RUN_CAPS = {"corrections": 10_000}
+RUN_CAPS = {"corrections": CAPS["corrections"]}
 """``run``: 10,000 corrections per episode (the paper's envs use 5 and 10)."""
+JOBS_PER_CPU = 4
+RUNNER_CAPS = {
+    "block": CAPS["block"],
+    "jobs": min(CAPS["jobs"], JOBS_PER_CPU * (os.cpu_count() or 1)),
+    "lambdas": CAPS["lambdas"],
+}
+"""Every command that runs the runner: run seeds per unit, worker processes (at most 4 per CPU
+of this machine and 1,024), values in a ``--lambdas`` list (a list's length is checked)."""
 
 
 def add_allow_large(parser: argparse.ArgumentParser) -> None:
@@ -216,11 +229,16 @@ def add_allow_large(parser: argparse.ArgumentParser) -> None:
 
 
 def check_size_caps(args: argparse.Namespace, caps: dict[str, int]) -> None:
-    """ValueError naming the option and its cap for a size above it, unless --allow-large."""
+    """ValueError naming the option and its cap for a size above it, unless --allow-large
+    (which also lifts the caps of ``strol_gym.limits`` for the whole command: learner and human
+    kwargs, env sizes)."""
     if getattr(args, "allow_large", False):
+        lift(True)
         return
     for dest, cap in caps.items():
         value = getattr(args, dest, None)
+        if isinstance(value, list | tuple):
+            value = len(value)
         if value is not None and value > cap:
             flag = "--" + dest.replace("_", "-")
             raise ValueError(

@@ -17,7 +17,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
-from strol_gym.benchmarks.args import plugin_option
+from strol_gym.benchmarks.args import RUNNER_CAPS, check_size_caps, plugin_option
 from strol_gym.benchmarks.engine.conditions import ENV_PRESETS, make_condition
 from strol_gym.benchmarks.engine.results import ResultsError
 from strol_gym.benchmarks.experiments import EXPERIMENTS, make_experiment
@@ -234,6 +234,8 @@ def _main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "out", None) == "":  # would silently mean the default folder
         parser.error("--out must name a path, got an empty string")
     try:
+        if hasattr(args, "block") and hasattr(args, "jobs"):  # a command that runs the runner
+            check_size_caps(args, RUNNER_CAPS)
         command = COMMANDS.get(args.command) or make_experiment(args.command)
         return command(args, parser)
     except (ResultsError, LearnerFailed) as e:

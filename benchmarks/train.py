@@ -10,7 +10,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from strol_gym.benchmarks.args import TRAIN_CAPS, add_allow_large, check_size_caps, json_object
+from strol_gym.benchmarks.args import (
+    TRAIN_CAPS,
+    add_allow_large,
+    check_size_caps,
+    json_object,
+    positive_int,
+)
 
 from strol_gym.learners.checkpoint import KINDS, SAFETENSORS, check_weights_path, save_checkpoint
 from strol_gym.learners.network import BOUNDS
@@ -83,7 +89,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     a("--theta-jitter", type=float, default=d.theta_jitter)
     a("--robot-action", choices=ROBOT_ACTIONS, default=d.robot_action)
     a("--bound", choices=BOUNDS, default=d.bound)
-    a("--threads", type=int, default=d.threads)
+    a("--threads", type=positive_int("--threads"), default=d.threads)
     a(
         "--prior",
         choices=TRAIN_PRIORS,

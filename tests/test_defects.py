@@ -275,7 +275,14 @@ def _config():
 def _records(config, unit):
     exp = config.experiments[unit.experiment]
     return [
-        {"env": exp.env, "condition": exp.condition.name, "learner": learner, "seed": s}
+        {
+            "env": exp.env,
+            "condition": exp.condition.name,
+            "learner": learner,
+            "seed": s,
+            **{"error": 0.5, "cos_error": 0.1, "regret": 0.2, "steps": 1, "terminated": False},
+            **{"errors": [0.5], "cos_errors": [0.1]},
+        }
         for learner in config.learners
         for s in unit.seeds
     ]

@@ -17,6 +17,7 @@ from typing import Any
 from strol_gym.benchmarks.engine.robots import ROBOTS
 
 from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
+from strol_gym.limits import check_size
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.priors import PRIORS
 from strol_gym.registry import Registry, call_piece
@@ -61,6 +62,9 @@ class Condition:
             )
         if self.human_kwargs is not None and not isinstance(self.human_kwargs, dict):
             raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
+        for key in ("n_candidates",):  # sizes: refused here, before a worker allocates them
+            if self.human_kwargs and key in self.human_kwargs:
+                check_size(f"human_kwargs[{key!r}]", self.human_kwargs[key], key)
 
     def human_spec(self) -> HumanSpec:
         """The condition's human as the envs take it (the env's default model when unset);

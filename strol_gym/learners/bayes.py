@@ -19,6 +19,7 @@ from strol_gym.learners.protocol import (
     check_state,
     checked_theta,
 )
+from strol_gym.limits import check_size
 from strol_gym.priors import HedgedPrior
 from strol_gym.tasks.base import Task
 
@@ -90,8 +91,7 @@ class BayesLearner(LinearRuleLearner):
         seed: int = 0,
         candidate_seed: int = 0,
     ) -> None:
-        if isinstance(n_particles, bool) or int(n_particles) != n_particles or n_particles < 1:
-            raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")
+        n_particles = check_size("n_particles", n_particles)
         betas = np.atleast_1d(np.asarray(beta, dtype=np.float64))
         if betas.ndim != 1 or len(betas) == 0 or not (np.isfinite(betas).all() and betas.min() > 0):
             raise ValueError(f"beta must be a finite number > 0 or a list of them, got {beta!r}")
@@ -108,8 +108,7 @@ class BayesLearner(LinearRuleLearner):
         for name, value in (("mode_jitter", mode_jitter), ("bandwidth", bandwidth)):
             if not (np.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if int(n_candidates) < 1:
-            raise ValueError(f"n_candidates must be an integer >= 1, got {n_candidates!r}")
+        n_candidates = check_size("n_candidates", n_candidates)
         for name, value in (("seed", seed), ("candidate_seed", candidate_seed)):
             if int(value) != value or value < 0:
                 raise ValueError(f"{name} must be an integer >= 0, got {value!r}")

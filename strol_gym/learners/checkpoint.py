@@ -63,7 +63,22 @@ WEIGHTS_SUFFIXES = (SAFETENSORS, TORCH_PT)
 def weights_sha256(path: str | Path) -> str:
     """SHA-256 of a weights file's bytes: the sidecar's ``weights_sha256``, so a sidecar only
     vouches for the exact file it was written for."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    h = hashlib.sha256()
+    _hash_file(h, Path(path))
+    return h.hexdigest()
+
+
+HASH_CHUNK = 1 << 20
+
+
+def _hash_file(h: Any, path: Path, prefix_length: bool = False) -> None:
+    """Feed ``path``'s bytes to ``h`` in 1 MiB chunks (a 1 GB file costs 1 MiB of memory),
+    preceded by its length (8 bytes, little-endian) if ``prefix_length``."""
+    with open(path, "rb") as f:
+        if prefix_length:
+            h.update(os.fstat(f.fileno()).st_size.to_bytes(8, "little"))
+        while chunk := f.read(HASH_CHUNK):
+            h.update(chunk)
 
 
 def check_finite_weights(weights: dict[str, Any], where: str) -> None:
@@ -104,8 +119,7 @@ def checkpoint_sha256(path: str | Path) -> str:
     learner's behaviour as much as the weights do."""
     h = hashlib.sha256()
     for part in (Path(path), sidecar_path(path)):
-        data = part.read_bytes()
-        h.update(len(data).to_bytes(8, "little") + data)
+        _hash_file(h, part, prefix_length=True)
     return h.hexdigest()
 
 

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from strol_gym.learners.protocol import LinearRuleLearner
+from strol_gym.limits import check_size
 from strol_gym.tasks.base import Task
 
 
@@ -81,10 +82,8 @@ class MOFLearner(LinearRuleLearner):
         threshold = float(threshold)
         if not (np.isfinite(threshold) and threshold <= 1.0):
             raise ValueError(f"threshold must be a finite number <= 1, got {threshold}")
-        if int(n_candidates) < 1:
-            raise ValueError(f"n_candidates must be >= 1, got {n_candidates}")
-        if int(n_hypotheses) < 0:
-            raise ValueError(f"n_hypotheses must be >= 0, got {n_hypotheses}")
+        n_candidates = check_size("n_candidates", n_candidates)
+        n_hypotheses = check_size("n_hypotheses", n_hypotheses, low=0)
         self.threshold = threshold
         self.n_candidates = int(n_candidates)
         self.n_hypotheses = int(n_hypotheses)
