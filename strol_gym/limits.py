@@ -15,7 +15,7 @@ import contextlib
 import os
 from collections.abc import Iterator
 
-__all__ = ["CAPS", "check_size", "lift", "lifted", "lifted_now"]
+__all__ = ["CAPS", "SizeTypeError", "check_size", "lift", "lifted", "lifted_now"]
 
 CAPS: dict[str, int] = {
     "n_candidates": 8_192,  # candidate actions per state (shipped: 64-512)
@@ -36,6 +36,13 @@ CAPS: dict[str, int] = {
 
 ENV_VAR = "STROL_GYM_ALLOW_LARGE"
 """Set to "1" by :func:`lift` so that worker processes (spawned, Ray, Slurm) inherit it."""
+
+
+class SizeTypeError(TypeError, ValueError):
+    """A size that is not an integer; a ValueError too, as every bad argument is (the CLI and
+    the learner registry pass ValueErrors through as they are)."""
+
+
 _LIFTED = [os.environ.get(ENV_VAR) == "1"]
 
 
@@ -73,7 +80,7 @@ def check_size(name: str, value: object, cap: str | None = None, low: int = 1) -
     if isinstance(value, bool) or (
         not hasattr(value, "__index__") and not isinstance(value, float)
     ):
-        raise TypeError(f"{name} must be {valid}, got {value!r}")
+        raise SizeTypeError(f"{name} must be {valid}, got {value!r}")
     try:
         as_int = int(value)  # type: ignore[call-overload]
     except (OverflowError, ValueError):  # inf, nan
