@@ -3,7 +3,8 @@
 Why fixed caps: a size that is only bounded by the machine's memory fails after minutes (or
 takes the machine down); a typo (``n_particles=1e9``) should fail at once with a message naming
 the argument and its cap. Every cap lies well above every shipped configuration and benchmark
-(N = 1,024 sub-envs × 513 candidate actions included). ``docs/limits.md`` lists them.
+(N = 1,024 sub-envs × 513 candidate actions included). ``docs/benchmark.md`` lists them
+("Limits, failures and interrupts").
 
 Lift them from Python with ``with strol_gym.limits.lifted(): ...`` (or ``lift(True)``), and from
 the command line with ``--allow-large``; memory is then yours to watch.
