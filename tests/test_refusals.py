@@ -173,3 +173,99 @@ def test_deep_meta_and_record_files_are_named(tmp_path):
     (rd.path / META).write_text(DEEP)
     with pytest.raises(ResultsError, match="nested deeper"):
         ResultsDir.load(rd.path)
+
+
+# ---------------------------------------------------------------------- 9. learner states
+def _bayes_state(**edit):
+    task = make_task("highway")
+    learner = make_learner("bayes", task, n_particles=32)
+    learner.update(np.zeros(task.state_dim), np.full(task.action_dim, 0.1))
+    state = learner.state_dict()
+    state.update(edit)
+    return make_learner("bayes", task, n_particles=32), state
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        ({"beta_idx": np.full((1, 32), -1)}, r"beta_idx'\] must hold integers in \[0, "),
+        ({"beta_idx": np.full((1, 32), 99)}, r"beta_idx'\] must hold integers"),
+        ({"beta_idx": np.full((1, 32), 0.5)}, r"beta_idx'\] must hold integers"),
+        ({"beta_idx": np.array([["a"] * 32])}, r"beta_idx'\] must hold integers"),
+        ({"updates": -5}, r"updates'\] must be an integer >= 0"),
+        ({"updates": 2.7}, r"updates'\] must be an integer >= 0"),
+        ({"theta": np.zeros((4, 3))}, r"theta'\] \(4, 3\) does not match the posterior's 1 row"),
+    ],
+    ids=[
+        "beta-neg",
+        "beta-high",
+        "beta-float",
+        "beta-str",
+        "updates-neg",
+        "updates-float",
+        "batches",
+    ],
+)
+def test_bayes_state_is_checked_completely_and_changes_nothing(edit, match):
+    learner, state = _bayes_state(**edit)
+    before = learner.state_dict()
+    with pytest.raises(ValueError, match=match):
+        learner.load_state_dict(state)
+    np.testing.assert_array_equal(learner.state_dict()["particles"], before["particles"])
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        ({"stat_sum": np.float64("nan")}, r"stat_sum'\] must be finite"),
+        ({"stat_count": np.float64(-2)}, r"stat_count'\] must hold integers >= 0"),
+        ({"stat_count": np.float64(1.5)}, r"stat_count'\] must hold integers >= 0"),
+    ],
+    ids=["sum-nan", "count-neg", "count-frac"],
+)
+def test_strol_adaptive_state_is_checked(edit, match):
+    task = make_task("robot")
+    learner = make_learner("strol-adaptive", task)
+    state = {**learner.state_dict(), **edit}
+    with pytest.raises(ValueError, match=match):
+        make_learner("strol-adaptive", task).load_state_dict(state)
+
+
+@pytest.mark.parametrize(
+    ("cast", "match"),
+    [("int64", "must be a torch.float32 tensor"), ("huge", r"holds a weight beyond ±1e\+06")],
+)
+def test_ghat_state_weights_are_checked_at_load(cast, match):
+    import torch
+
+    task = make_task("robot")
+    learner = make_learner("strol", task)
+    state = learner.state_dict()
+    key = next(iter(state["model"]))
+    w = state["model"][key]
+    state["model"][key] = w.to(torch.int64) if cast == "int64" else torch.full_like(w, 1e30)
+    with pytest.raises(ValueError, match=rf"state\['model'\]\['{key}'\] {match}"):
+        make_learner("strol", task).load_state_dict(state)
+
+
+# ---------------------------------------------------------------------- 10. sidecars
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        ({"task": "robot"}, r"'task' must be an object"),
+        ({"network": [1, 2]}, r"'network' must be an object"),
+    ],
+)
+def test_sidecar_fields_of_the_wrong_kind_are_named(tmp_path, edit, match):
+    pt = tmp_path / "w.safetensors"
+    pt.write_bytes(b"")
+    ckpt.sidecar_path(pt).write_text(json.dumps({"kind": "strol", **edit}))
+    with pytest.raises(ValueError, match=rf"sidecar .*w\.json: {match}"):
+        ckpt.read_sidecar(pt)
+
+
+def test_fractional_hidden_widths_are_refused_not_truncated():
+    from strol_gym.learners.network import CorrectionNet
+
+    with pytest.raises(ValueError, match=r"hidden must be a non-empty list of positive integer"):
+        CorrectionNet(4, 2, [256.5])

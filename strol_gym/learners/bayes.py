@@ -16,7 +16,6 @@ from strol_gym.learners.protocol import (
     LinearRuleLearner,
     _as_float_array,
     batch_inputs,
-    check_state,
     checked_theta,
 )
 from strol_gym.limits import check_size
@@ -296,17 +295,45 @@ class BayesLearner(LinearRuleLearner):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         # Read and check everything before anything is assigned: a failed load changes nothing.
-        check_state(state, self.name)
+        self.check_identity(state)
         missing = [k for k in ("particles", "beta_idx", "logw", "updates") if k not in state]
         if missing:
             raise ValueError(f"state lacks {self.name}'s posterior: missing key(s) {missing}")
+        updates = state["updates"]
+        if type(updates) is not int or updates < 0:
+            raise ValueError(f"state['updates'] must be an integer >= 0, got {updates!r}")
         try:
             particles = np.asarray(state["particles"], dtype=np.float64).copy()
             beta_idx = np.asarray(state["beta_idx"]).copy()
             logw = np.asarray(state["logw"], dtype=np.float64).copy()
-            updates = int(state["updates"])
         except (TypeError, ValueError) as e:
             raise ValueError(f"state has an invalid {self.name} posterior ({e})") from None
+        if beta_idx.dtype.kind not in "iu" or (
+            beta_idx.size and (beta_idx.min() < 0 or beta_idx.max() >= len(self.betas))
+        ):
+            raise ValueError(
+                f"state['beta_idx'] must hold integers in [0, {len(self.betas) - 1}] (indices "
+                f"into beta), got dtype {beta_idx.dtype}"
+                + (
+                    f" and values in [{beta_idx.min()}, {beta_idx.max()}]"
+                    if beta_idx.size and beta_idx.dtype.kind in "iu"
+                    else ""
+                )
+            )
+        if particles.ndim not in (2, 3) or particles.shape[-2] != self.n_particles:
+            raise ValueError(
+                f"state['particles'] must have shape ({self.n_particles}, {self.task.dim}) or "
+                f"(B, {self.n_particles}, {self.task.dim}), got {particles.shape}"
+            )
+        theta = np.asarray(state.get("theta"), dtype=object)
+        rows = 1 if particles.ndim == 2 else len(particles)
+        ok_theta = theta.shape == (self.task.dim,) and rows == 1
+        ok_theta = ok_theta or (particles.ndim == 3 and theta.shape == (rows, self.task.dim))
+        if not ok_theta:
+            raise ValueError(
+                f"state['theta'] {theta.shape} does not match the posterior's {rows} row(s): "
+                f"it must be ({self.task.dim},) for one row or ({rows}, {self.task.dim})"
+            )
         for key, arr in (("particles", particles), ("logw", logw)):
             if not np.isfinite(arr).all():
                 raise ValueError(f"state[{key!r}] must be finite (no NaN or inf)")
@@ -319,7 +346,7 @@ class BayesLearner(LinearRuleLearner):
             raise ValueError(f"state['beta_idx'] {beta_idx.shape} must match logw {logw.shape}")
         super().load_state_dict(state)
         self._particles, self._beta_idx, self._logw = particles, beta_idx, logw
-        self._updates = updates
+        self._updates = int(updates)
 
 
 def teacher_bayes(task: Task, **kwargs: Any) -> BayesLearner:

@@ -273,6 +273,12 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     meta = loads_json(side.read_bytes(), f"checkpoint sidecar {side}")
     if not isinstance(meta, dict):
         raise ValueError(f"checkpoint sidecar {side} must hold a JSON object")
+    for key, kind in (("task", dict), ("network", dict), ("kind", str)):
+        if key in meta and not isinstance(meta[key], kind):
+            word = "an object" if kind is dict else "a string"
+            raise ValueError(
+                f"checkpoint sidecar {side}: {key!r} must be {word}, got {meta[key]!r:.80}"
+            )
     return meta
 
 
@@ -313,6 +319,8 @@ def check_sidecar(meta: dict[str, Any], task: Task, kind: str | None = None) -> 
     if kind is not None and meta.get("kind") != kind:
         problems.append(f"kind: checkpoint has {meta.get('kind')!r}, expected {kind!r}")
     have, want = meta.get("task", {}), task_signature(task)
+    if not isinstance(have, dict) or not isinstance(meta.get("network", {}), dict):
+        raise ValueError("checkpoint sidecar: 'task' and 'network' must be JSON objects")
     for key in sorted(set(have) | set(want)):
         a, b = have.get(key), want.get(key)
         if a == b:
