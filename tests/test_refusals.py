@@ -269,3 +269,30 @@ def test_fractional_hidden_widths_are_refused_not_truncated():
 
     with pytest.raises(ValueError, match=r"hidden must be a non-empty list of positive integer"):
         CorrectionNet(4, 2, [256.5])
+
+
+# ---------------------------------------------------------------------- 4. ray vs another service
+def test_a_ray_address_where_another_service_listens_is_refused_at_once():
+    import http.server
+    import socket
+    import threading
+    import time
+
+    from strol_gym.benchmarks.engine.backends import check_reachable
+
+    http_server = http.server.HTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    silent = socket.create_server(("127.0.0.1", 0))  # accepts, never answers
+    threading.Thread(target=http_server.serve_forever, daemon=True).start()
+    try:
+        t = time.monotonic()
+        address = f"127.0.0.1:{http_server.server_address[1]}"
+        with pytest.raises(ValueError, match=rf"--ray-address {address}: .* not a Ray cluster"):
+            check_reachable(address)
+        address = f"127.0.0.1:{silent.getsockname()[1]}"
+        with pytest.raises(ValueError, match=rf"--ray-address {address}: no Ray cluster .*1 s"):
+            check_reachable(address, timeout=1.0)
+        assert time.monotonic() - t < 5
+    finally:
+        http_server.shutdown()
+        http_server.server_close()
+        silent.close()
