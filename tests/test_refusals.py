@@ -296,3 +296,43 @@ def test_a_ray_address_where_another_service_listens_is_refused_at_once():
         http_server.shutdown()
         http_server.server_close()
         silent.close()
+
+
+# ---------------------------------------------------------------------- 12. leftovers, messages
+def test_an_interrupted_train_does_not_promise_a_resume(monkeypatch, capsys):
+    from strol_gym.benchmarks import cli
+
+    def interrupted(args, parser):
+        raise KeyboardInterrupt
+
+    monkeypatch.setitem(cli.COMMANDS, "train", interrupted)
+    assert cli.main(["train", "--task", "robot"]) == 130
+    err = capsys.readouterr().err.strip()
+    assert (
+        err
+        == "interrupted: nothing was saved (train keeps no partial state); rerun it to start over"
+    )
+
+
+def test_a_killed_writers_temp_files_are_cleaned_and_do_not_block_force(tmp_path):
+    import subprocess
+    import sys
+
+    from strol_gym.benchmarks.engine.lock import host
+
+    rd, cfg = _folder(tmp_path)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    left = [
+        rd.path / f".meta.json.{host()}-{dead.pid}.x1.tmp",
+        rd.path / "records" / f".{rd.record_path(cfg.units()[0]).name}.{host()}-{dead.pid}.x2.tmp",
+    ]
+    for p in left:
+        p.write_text("{")
+    ResultsDir.open(rd.path, cfg).finish_session("t", 1.0, 0, 1)  # resume: cleaned on open
+    assert not any(p.exists() for p in left)
+    left[0].write_text("{")
+    other = rd.path / ".meta.json.node-17-1.x3.tmp"  # another host's: kept, and no obstacle
+    other.write_text("{")
+    ResultsDir.open(rd.path, cfg, force=True).finish_session("t", 1.0, 0, 1)
+    assert not left[0].exists()
