@@ -336,3 +336,34 @@ def test_a_killed_writers_temp_files_are_cleaned_and_do_not_block_force(tmp_path
     other.write_text("{")
     ResultsDir.open(rd.path, cfg, force=True).finish_session("t", 1.0, 0, 1)
     assert not left[0].exists()
+
+
+# ---------------------------------------------------------------------- 11. accepted silently
+def test_replay_refuses_errors_that_overflow(tmp_path, capsys):
+    import gymnasium as gym
+    from strol_gym.benchmarks.sessions.replay import replay_session
+    from strol_gym.wrappers import OnlineLearningWrapper
+    from strol_gym.wrappers.session_log import SessionLogger, read_session
+
+    log = tmp_path / "s.jsonl"
+    env = SessionLogger(OnlineLearningWrapper(gym.make("StROL-Robot-v0"), "gradient"), log)
+    env.reset(seed=0)
+    env.step(np.zeros(3, dtype=np.float32))
+    env.close()
+    lines = [json.loads(x) for x in log.read_text().splitlines()]
+    for rec in lines:
+        if rec.get("type") == "episode":
+            rec["theta_star"] = [1e308, -1e308]
+    log.write_text("".join(json.dumps(r) + "\n" for r in lines))
+    with pytest.raises(ValueError, match=rf"{log}: episode 0: ‖θ\* − θ̂‖ overflows"):
+        replay_session(read_session(log), ["gradient"])
+    assert "overflows" in cli_error(
+        ["replay", str(log), "--learners", "gradient", "--no-plots"], capsys
+    )
+
+
+def test_basin_refuses_a_run_results_folder_as_out(tmp_path, capsys):
+    rd, _ = _folder(tmp_path)
+    line = cli_error(["basin", "--grid", "3", "--steps", "2", "--out", str(rd.path)], capsys)
+    assert "is a benchmark's results folder" in line
+    assert not (rd.path / "basin.csv").exists()
