@@ -367,3 +367,30 @@ def test_basin_refuses_a_run_results_folder_as_out(tmp_path, capsys):
     line = cli_error(["basin", "--grid", "3", "--steps", "2", "--out", str(rd.path)], capsys)
     assert "is a benchmark's results folder" in line
     assert not (rd.path / "basin.csv").exists()
+
+
+@pytest.mark.parametrize("env_id", ["StROL-Highway-v0", "StROL-Robot-v0"])
+def test_theta_star_and_prior_modes_beyond_the_range_are_refused(env_id):
+    import gymnasium as gym
+
+    from strol_gym.priors import FixedPrior, MixturePrior
+
+    env = gym.make(env_id)
+    d = env.unwrapped.task.dim
+    with pytest.raises(
+        ValueError, match=r"^theta_star must be finite numbers in \[-1e\+06, 1e\+06\]"
+    ):
+        env.reset(seed=0, options={"theta_star": [1e308] * d})
+    env.close()
+    with pytest.raises(ValueError, match=r"^modes must be finite numbers in"):
+        MixturePrior(np.full((2, d), 1e308))
+    with pytest.raises(ValueError, match=r"^thetas must be finite numbers in"):
+        FixedPrior(np.full((1, d), -1e300))
+
+
+@pytest.mark.parametrize("value", [float("inf"), float("nan"), 0.0, -5.0])
+def test_study_v1_reflex_thresholds_must_be_finite_and_positive(value):
+    import gymnasium as gym
+
+    with pytest.raises(ValueError, match=r"reflex_force must be a finite number > 0"):
+        gym.make("StROL-Study-v1", reflex_force=value)
