@@ -53,6 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     import_study.add_parser(sub)
 
+    from strol_gym.benchmarks.sessions import fit_human
+
+    fit_human.add_parser(sub)  # strol-bench fit-human (issue 35)
+
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
     p.add_argument("--no-plots", action="store_true")
@@ -147,6 +151,12 @@ def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> i
     return command(args, parser)
 
 
+def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.fit_human import command
+
+    return command(args, parser)
+
+
 def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.import_study import command
 
@@ -154,6 +164,7 @@ def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) 
 
 
 COMMANDS = {
+    "fit-human": cmd_fit_human,
     "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,

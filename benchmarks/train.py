@@ -53,7 +53,8 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
         "--kind",
         choices=KINDS,
         default=d.kind,
-        help="strol: g~ = g + ĝ; e2e: g~ = ĝ; strol-unrolled: g~ = g + ĝ(x, u_H, θ̂)",
+        help="strol: g~ = g + ĝ; e2e: g~ = ĝ (‖ĝ‖ ≤ ‖g‖); e2e-scratch: g~ = ĝ unbounded "
+        "(the paper's e2e); strol-unrolled: g~ = g + ĝ(x, u_H, θ̂)",
     )
     a(
         "-K",
@@ -88,7 +89,12 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
     a("--theta-sampling", choices=THETA_SAMPLING, default=d.theta_sampling)
     a("--theta-jitter", type=float, default=d.theta_jitter)
     a("--robot-action", choices=ROBOT_ACTIONS, default=d.robot_action)
-    a("--bound", choices=BOUNDS, default=d.bound)
+    a(
+        "--bound",
+        choices=BOUNDS,
+        default=None,
+        help="ĝ's bound (default: none for e2e-scratch, radial otherwise)",
+    )
     a("--threads", type=positive_int("--threads"), default=d.threads)
     a(
         "--prior",
@@ -124,7 +130,7 @@ def run_train(args: argparse.Namespace) -> Path:
         theta_sampling=args.theta_sampling,
         theta_jitter=args.theta_jitter,
         robot_action=args.robot_action,
-        bound=args.bound,
+        bound=args.bound or ("none" if args.kind == "e2e-scratch" else TrainConfig.bound),
         threads=args.threads,
         unroll=args.unroll,
         prior=args.prior,

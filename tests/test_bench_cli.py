@@ -63,7 +63,9 @@ def test_paper_conditions_follow_design_table():
     assert (robot.runs, robot.n_corrections, robot.training_sigma) == (100, 5, 0.25)
     assert (highway.runs, highway.n_corrections, highway.training_sigma) == (250, 10, 0.10)
     assert paper_condition("robot", "training") == Condition("training", 0.25, 0.0, "bimodal")
-    assert paper_condition("highway", "noisy-biased") == Condition("noisy-biased", 0.5, 0.5)
+    assert paper_condition("highway", "noisy-biased") == Condition(
+        "noisy-biased", 0.5, 0.5, human="driver"
+    )
     assert paper_condition("robot", "uniform-prior").prior == "uniform"
     assert paper_condition("highway", "uniform-prior").sigma == 0.10
     assert paper_condition("robot", "clean").env_kwargs() == {

@@ -6,6 +6,7 @@ import csv
 import json
 
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.engine.conditions import PAPER_TABLE_LEARNERS, REFERENCE_LEARNER
 from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label
 
 
@@ -20,7 +21,8 @@ def test_fast_paper_preset_end_to_end(tmp_path, capsys):
 
     meta = json.loads((out / "meta.json").read_text())
     assert meta["status"] == "complete" and meta["git"] is not None
-    assert set(meta["extra"]["learners"]["robot"]) == {"gradient", "one", "mof", "e2e", "strol"}
+    assert set(meta["extra"]["learners"]["robot"]) == set(PAPER_TABLE_LEARNERS)
+    assert "e2e-scratch" in PAPER_TABLE_LEARNERS  # the paper's e2e beside the bounded one
     assert "checkpoint_sha256" in meta["extra"]["learners"]["highway"]["strol"]
     assert meta["kernels"] == float_kernels()
     for unit in (out / "records").glob("*.json"):
@@ -28,7 +30,7 @@ def test_fast_paper_preset_end_to_end(tmp_path, capsys):
 
     with open(out / "runs.csv") as f:
         runs = list(csv.DictReader(f))
-    assert len(runs) == 2 * 4 * 3 * 5  # envs × conditions × runs × learners
+    assert len(runs) == 2 * 4 * 3 * 6  # envs × conditions × runs × learners
     robot = [r for r in runs if r["env"] == "robot"]
     assert all(r["regret"] != "nan" for r in robot) and "error_step_5" in runs[0]
     highway = [r for r in runs if r["env"] == "highway"]
@@ -41,7 +43,7 @@ def test_fast_paper_preset_end_to_end(tmp_path, capsys):
     assert ("highway", "regret") not in metrics
     with open(out / "stats.csv") as f:
         stats = list(csv.DictReader(f))
-    assert {r["baseline"] for r in stats} == {"gradient", "one", "mof", "e2e"}
+    assert {r["baseline"] for r in stats} == set(PAPER_TABLE_LEARNERS) - {REFERENCE_LEARNER}
     assert all(r["learner"] == "strol" for r in stats)
     for stem in ("fig4", "bars_error", "bars_cos_error", "bars_regret", "curves_error"):
         for ext in ("png", "svg"):

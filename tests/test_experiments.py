@@ -173,6 +173,46 @@ def test_preset_writes_table_meta_and_plot(argv, stem, tmp_path, capsys):
         assert run_meta["config"]["experiments"][0]["condition"]["sigma"] == 0.25
 
 
+def test_confirm_held_out_runs_its_cells_labelled_exploratory(tmp_path, capsys):
+    """--protocol held-out: env × (Boltzmann, myopic, driver), the four learners, an "env"
+    column; other seeds than 3_200_000 are exploratory."""
+    out = tmp_path / "ho"
+    argv = ["confirm", "--protocol", "held-out", "--env", "robot", "--runs", "2"]
+    assert cli.main([*argv, "--seed", str(SEED), "--jobs", "1", "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "held-out humans — EXPLORATORY" in text
+    meta = json.loads((out / "confirm.json").read_text())
+    assert meta["protocol"] is False and meta["protocol_name"] == "held-out"
+    assert set(meta["verdicts"]) == {f"robot/{h}" for h in confirm.HELD_OUT_HUMANS}
+    conds = {e["condition"]["name"]: e["condition"] for e in meta["config"]["experiments"]}
+    assert {c["human"] for c in conds.values()} == set(confirm.HELD_OUT_HUMANS)
+    assert {c["sigma"] for c in conds.values()} == {0.25}  # the Robot's training noise
+    assert (out / "confirm.csv").read_text().startswith("env,condition,metric,baseline")
+    assert confirm.is_protocol(1000, confirm.HELD_OUT_SEED, "held-out")
+    assert not confirm.is_protocol(1000, confirm.PROTOCOL_SEED, "held-out")
+
+
+def test_confirm_held_out_uses_one_minus_cos_on_the_highway():
+    """The Highway cells' verdicts come from 1 − cos (no regret there); the Robot's from
+    regret; the sensitivity Holm spans every cell."""
+    n = 30
+    lower = -0.1 - np.random.default_rng(2).random(n) * 0.1
+    recs = []
+    for env in ("robot", "highway"):
+        for r in _records({h: lower for h in confirm.HELD_OUT_HUMANS}):
+            r = dict(r, env=env)
+            if env == "highway":
+                r["regret"] = float("nan")
+                r["cos_error"] = 1.0 + (0.5 if r["learner"] == "strol" else 0.0)  # StROL higher
+            recs.append(r)
+    res = confirm.analyse_held_out(recs, ["robot", "highway"], resamples=200)
+    for h in confirm.HELD_OUT_HUMANS:
+        assert res["verdicts"][f"robot/{h}"] == "confirmed"
+        assert res["verdicts"][f"highway/{h}"] == "contradicted"
+    assert not any(r["env"] == "highway" and r["metric"] == "regret" for r in res["rows"])
+    assert all("wilcoxon_p_holm_12" in r for r in res["rows"] if r["metric"] in ("regret",))
+
+
 def test_lambda_sweeps_seven_values_by_default():
     args = cli.build_parser().parse_args(["lambda"])
     assert args.lambdas == [0.0, 0.1, 0.5, 1.0, 2.0, 5.0, 10.0]
@@ -188,7 +228,8 @@ def test_lambda_sweeps_seven_values_by_default():
         (["changing", "--runs", "0"], "--runs must be an integer >= 1"),
         (["changing", "--switch-after", "5"], "--switch-after must be below the 5 corrections"),
         (["confirm", "--runs", "0"], "--runs must be an integer >= 1"),
-        (["confirm", "--env", "highway"], "invalid choice: 'highway'"),
+        (["confirm", "--env", "highway"], "--env must be robot for --protocol paper-conditions"),
+        (["confirm", "--protocol", "nope"], "invalid choice: 'nope'"),
     ],
 )
 def test_preset_bad_input_exits_2_before_any_folder(argv, message, tmp_path, capsys):

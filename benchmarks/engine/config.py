@@ -15,6 +15,7 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.conditions import (
     PAPER_LEARNERS,
+    PAPER_TABLE_LEARNERS,
     REFERENCE_LEARNER,
     Condition,
     env_preset,
@@ -184,7 +185,7 @@ class BenchConfig:
     def is_paper(self) -> bool:
         """The paper's comparison: its learners and reference, its settings (H1/H2 apply)."""
         return (
-            set(self.learners) == set(PAPER_LEARNERS)
+            set(self.learners) in (set(PAPER_LEARNERS), set(PAPER_TABLE_LEARNERS))
             and self.reference == REFERENCE_LEARNER
             and not self.learner_kwargs
             and all(e.is_paper() for e in self.experiments)
@@ -256,16 +257,20 @@ def paper_config(
     *,
     runs: int | None = None,
     seed: int = 0,
-    learners: Sequence[str] = PAPER_LEARNERS,
+    learners: Sequence[str] = PAPER_TABLE_LEARNERS,
     reference: str = REFERENCE_LEARNER,
     block: int = DEFAULT_BLOCK,
+    human: str | None = None,
 ) -> BenchConfig:
-    """The paper's comparison for ``envs``: four conditions each, the paper's run counts."""
+    """The paper's comparison for ``envs``: four conditions each, the paper's run counts.
+    ``human`` replaces the conditions' human (a labelled variant, no longer the paper's)."""
     exps = []
     for env in envs:
         preset = env_preset(env)
         n = preset.runs if runs is None else int(runs)
         for cond in preset.conditions().values():
+            if human is not None:
+                cond = dataclasses.replace(cond, human=human)
             exps.append(Experiment(env=env, condition=cond, runs=n, seed=seed))
     return BenchConfig(tuple(exps), tuple(learners), reference, block)
 

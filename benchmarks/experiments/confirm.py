@@ -1,6 +1,12 @@
-"""``strol-bench confirm``: the pre-registered confirmatory Robot test (docs/confirmatory.md).
+"""``strol-bench confirm``: the pre-registered confirmatory tests.
 
-This module implements that protocol and nothing else: 1000 paired runs per paper condition on
+``--protocol paper-conditions`` (the default) is the Robot test of docs/confirmatory.md;
+``--protocol held-out`` is protocol 1 of docs/confirmatory-held-out.md: the same analysis on
+cells env × held-out human (Boltzmann, myopic, driver), 1000 runs each on seeds 3_200_000 –
+3_200_999, primary outcome regret on the Robot and 1 − cos on the Highway.
+
+The first protocol is implemented as written and nothing else: 1000 paired runs per paper
+condition on
 seeds 3_000_000 – 3_000_999, Gradient, One, MOF and StROL; primary outcome regret; the two-sided
 Wilcoxon signed-rank test of StROL against each baseline after the tie rule (|d| ≤ 1e-6 -> 0),
 Holm over the three baselines per condition, direction from the signed ranks; verdicts
@@ -26,6 +32,8 @@ from strol_gym.benchmarks.args import nonneg_int, positive_int
 from strol_gym.benchmarks.engine.conditions import (
     CONDITION_NAMES,
     REFERENCE_LEARNER,
+    Condition,
+    env_preset,
     make_condition,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
@@ -75,6 +83,16 @@ COLUMNS = (
 )
 
 
+PROTOCOLS = ("paper-conditions", "held-out")
+"""docs/confirmatory.md and docs/confirmatory-held-out.md (protocol 1)."""
+HELD_OUT_SEED = 3_200_000
+HELD_OUT_HUMANS = ("boltzmann", "myopic", "driver")
+"""Protocol 1's humans: none is the eq. M6 teacher that every shipped Robot/Highway ĝ saw."""
+HELD_OUT_ENVS = ("robot", "highway")
+HELD_OUT_PRIMARY = {"robot": "regret", "highway": "cos_error"}
+"""The scale-free primary outcome per env (the Highway Task has no planner, so no regret)."""
+
+
 def make_config(env: str = "robot", *, runs: int = PROTOCOL_RUNS, seed: int = PROTOCOL_SEED):
     """The protocol's config: the four paper conditions, the four learners, the default block."""
     exps = tuple(
@@ -83,8 +101,27 @@ def make_config(env: str = "robot", *, runs: int = PROTOCOL_RUNS, seed: int = PR
     return BenchConfig(exps, LEARNERS, REFERENCE, DEFAULT_BLOCK)
 
 
-def is_protocol(runs: int, seed: int) -> bool:
-    return int(runs) == PROTOCOL_RUNS and int(seed) == PROTOCOL_SEED
+def held_out_condition(env: str, human: str) -> Condition:
+    """A held-out cell: ``human`` at its defaults, the env's training σ, ε = 0, bimodal prior."""
+    sigma = env_preset(env).training_sigma
+    return Condition(human, sigma=sigma, bias=0.0, prior="bimodal", human=human)
+
+
+def make_held_out_config(
+    envs: Sequence[str] = HELD_OUT_ENVS, *, runs: int = PROTOCOL_RUNS, seed: int = HELD_OUT_SEED
+) -> BenchConfig:
+    """Protocol 1's config: env × held-out human, the four learners, the default block."""
+    exps = tuple(
+        Experiment(env, held_out_condition(env, h), runs=runs, seed=seed)
+        for env in envs
+        for h in HELD_OUT_HUMANS
+    )
+    return BenchConfig(exps, LEARNERS, REFERENCE, DEFAULT_BLOCK)
+
+
+def is_protocol(runs: int, seed: int, protocol: str = "paper-conditions") -> bool:
+    first = PROTOCOL_SEED if protocol == "paper-conditions" else HELD_OUT_SEED
+    return int(runs) == PROTOCOL_RUNS and int(seed) == first
 
 
 # ---------------------------------------------------------------------- the analysis
@@ -132,10 +169,16 @@ def analyse(
     *,
     resamples: int = RESAMPLES,
     boot_seed: int = BOOTSTRAP_SEED,
+    primary: str = PRIMARY,
 ) -> dict[str, Any]:
-    """The protocol's analysis of the per-run records: test rows, verdicts, descriptives."""
+    """The protocol's analysis of the per-run records: test rows, verdicts, descriptives.
+    ``primary`` is the verdicts' outcome (held-out Highway: 1 − cos); the others are secondary.
+    Rows carry ``env``; the 12-test sensitivity spans this call's conditions."""
     from strol_gym.benchmarks.analysis.base import _matrix
 
+    metrics = (primary, *[m for m in (PRIMARY, *SECONDARY) if m != primary])
+    if env == "highway":  # no planner, no regret
+        metrics = tuple(m for m in metrics if m != "regret")
     rng = np.random.default_rng(boot_seed)
     learners = list(LEARNERS)
     r = learners.index(REFERENCE)
@@ -144,11 +187,11 @@ def analyse(
     verdicts: dict[str, str] = {}
     for cond in conditions:
         ys = {}
-        for metric in (PRIMARY, *SECONDARY):
+        for metric in metrics:
             _, y = _matrix(records, env, cond, learners, metric)
             ys[metric] = y[np.isfinite(y).all(axis=1)]
             for j, learner in enumerate(learners):
-                row = {"condition": cond, "learner": learner, "metric": metric}
+                row = {"env": env, "condition": cond, "learner": learner, "metric": metric}
                 row |= stats.describe(ys[metric][:, j])
                 if metric == PRIMARY:
                     row["n_switch"] = int((ys[metric][:, j] >= SWITCH_REGRET).sum())
@@ -157,15 +200,15 @@ def analyse(
                 # a generator of its own: the protocol's bootstrap stream below stays as it was
                 iv = robust.iqm_interval(
                     ys[metric],
-                    rng=robust.cell_rng("confirm", cond, metric),
+                    rng=robust.cell_rng("confirm", env, cond, metric),
                     resamples=robust.default_resamples(),
                 )
                 for j, row in enumerate(descriptives[-len(learners) :]):
                     row |= {"iqm": float(iv.estimate[j]), "iqm_ci95_low": float(iv.low[j]),
                             "iqm_ci95_high": float(iv.high[j])}  # fmt: skip
-        n = len(ys[PRIMARY])
+        n = len(ys[primary])
         idx = robust.bootstrap_indices(n, int(resamples), rng) if n else np.zeros((0, 0), int)
-        for metric in (PRIMARY, *SECONDARY):
+        for metric in metrics:
             y = ys[metric]
             block = []
             for b in BASELINES:
@@ -182,6 +225,7 @@ def analyse(
                     med_ci = poi_ci = (math.nan, math.nan)
                 block.append(
                     {
+                        "env": env,
                         "condition": cond,
                         "metric": metric,
                         "baseline": b,
@@ -214,22 +258,12 @@ def analyse(
                 row["outcome"] = outcome(float(ph), row["r_minus"], row["r_plus"])
             rows += block
         verdicts[cond] = verdict(
-            [x["outcome"] for x in rows if x["condition"] == cond and x["metric"] == PRIMARY]
+            [x["outcome"] for x in rows if x["condition"] == cond and x["metric"] == primary]
         )
-    primary = [x for x in rows if x["metric"] == PRIMARY]
-    for row, p12 in zip(primary, stats.holm([x["wilcoxon_p_raw"] for x in primary]), strict=True):
-        row["wilcoxon_p_holm_12"] = float(p12)
-    sensitivity = {
-        cond: verdict(
-            [
-                outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
-                for x in primary
-                if x["condition"] == cond
-            ]
-        )
-        for cond in conditions
-    }
+    prim = [x for x in rows if x["metric"] == primary]
+    sensitivity = holm_sensitivity(prim, "condition", conditions)
     return {
+        "primary": primary,
         "rows": rows,
         "descriptives": descriptives,
         "verdicts": verdicts,
@@ -237,19 +271,51 @@ def analyse(
     }
 
 
+def holm_sensitivity(prim: list[dict], key: str, keys: Sequence[str]) -> dict[str, str]:
+    """The stated sensitivity check: Holm over every primary test row in ``prim`` (written to
+    ``wilcoxon_p_holm_12``, the column's name whatever the count), and the verdict per ``key``
+    value (a condition, or a held-out "env/human" cell) under it."""
+    for row, p in zip(prim, stats.holm([x["wilcoxon_p_raw"] for x in prim]), strict=True):
+        row["wilcoxon_p_holm_12"] = float(p)
+    return {
+        k: verdict(
+            [
+                outcome(x["wilcoxon_p_holm_12"], x["r_minus"], x["r_plus"])
+                for x in prim
+                if x[key] == k
+            ]
+        )
+        for k in keys
+    }
+
+
 # ---------------------------------------------------------------------- the command
 class Confirm(BenchExperiment):
-    """the pre-registered confirmatory Robot test (docs/confirmatory.md)
+    """the pre-registered confirmatory tests (docs/confirmatory.md; --protocol held-out:
+    docs/confirmatory-held-out.md)
 
-    Runs exactly the protocol of docs/confirmatory.md. --seed/--runs other than the
-    protocol's make an exploratory run (for tests), labelled as such.
+    Runs exactly a protocol. --seed/--runs other than the protocol's make an exploratory run
+    (for tests), labelled as such.
     """
 
     name = "confirm"
     columns = COLUMNS
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
-        p.add_argument("--env", choices=("robot",), default="robot")
+        p.add_argument(
+            "--protocol",
+            choices=PROTOCOLS,
+            default="paper-conditions",
+            help="paper-conditions: docs/confirmatory.md (Robot); held-out: protocol 1 of "
+            "docs/confirmatory-held-out.md (Boltzmann, myopic, driver; Robot and Highway)",
+        )
+        p.add_argument(
+            "--env",
+            choices=(*HELD_OUT_ENVS, "all"),
+            default=None,
+            help="paper-conditions: robot (its only env); held-out: robot, highway or all "
+            "(default)",
+        )
         p.add_argument(
             "--runs",
             type=positive_int("--runs"),
@@ -259,34 +325,73 @@ class Confirm(BenchExperiment):
         p.add_argument(
             "--seed",
             type=nonneg_int("--seed"),
-            default=PROTOCOL_SEED,
-            help=f"first run seed (protocol: {PROTOCOL_SEED}; tests use other seeds)",
+            default=None,
+            help=f"first run seed (protocols: {PROTOCOL_SEED}, held-out {HELD_OUT_SEED}; tests "
+            "use other seeds)",
         )
         p.add_argument("--jobs", type=positive_int("--jobs"), default=None, help="worker processes")
-        p.add_argument("--out", default=None, help="results folder (default results/confirm-<env>)")
+        p.add_argument(
+            "--out",
+            default=None,
+            help="results folder (default results/confirm-<env>, results/confirm-held-out)",
+        )
         p.add_argument("--quiet", action="store_true", help="no progress bar")
         p.add_argument("--force", action="store_true", help="replace a folder of another config")
         p.add_argument("--no-plots", action="store_true")
 
+    def _envs(self, args: argparse.Namespace) -> list[str]:
+        if args.protocol == "paper-conditions":
+            if args.env not in (None, "robot"):
+                raise ValueError(
+                    f"--env must be robot for --protocol paper-conditions, got {args.env!r}"
+                )
+            return ["robot"]
+        return list(HELD_OUT_ENVS) if args.env in (None, "all") else [args.env]
+
+    def default_out(self, args: argparse.Namespace) -> str:
+        if args.protocol == "held-out":
+            envs = self._envs(args)
+            return "results/confirm-held-out" + ("" if len(envs) > 1 else f"-{envs[0]}")
+        return "results/confirm-robot"
+
     def plan(self, args: argparse.Namespace) -> BenchConfig:
         self._t0 = time.perf_counter()
-        return make_config(args.env, runs=args.runs, seed=args.seed)
+        envs = self._envs(args)
+        if args.protocol == "held-out":
+            if args.seed is None:
+                args.seed = HELD_OUT_SEED
+            self.columns = ("env", *COLUMNS)
+            return make_held_out_config(envs, runs=args.runs, seed=args.seed)
+        if args.seed is None:
+            args.seed = PROTOCOL_SEED
+        self.columns = COLUMNS
+        return make_config(envs[0], runs=args.runs, seed=args.seed)
 
     def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
-        protocol = is_protocol(args.runs, args.seed)
+        protocol = is_protocol(args.runs, args.seed, args.protocol)
         rd, _, run_wall = self.run(config, out, args)
-        result = analyse(rd.read_records(), args.env)
+        records = rd.read_records()
+        if args.protocol == "held-out":
+            result = analyse_held_out(records, self._envs(args))
+        else:
+            result = analyse(records, "robot")
         wall = time.perf_counter() - self._t0
+        doc = (
+            "docs/confirmatory.md"
+            if args.protocol == "paper-conditions"
+            else ("docs/confirmatory-held-out.md, protocol 1")
+        )
         label = (
-            "PRE-REGISTERED confirmatory run (docs/confirmatory.md)"
+            f"PRE-REGISTERED confirmatory run ({doc})"
             if protocol
             else "EXPLORATORY run (not the pre-registered seeds or run count; no confirmatory "
             "claim)"
         )
         seeds = [config.experiments[0].seeds.start, config.experiments[0].seeds.stop - 1]
-        md = markdown(result, label, seeds, rd.meta)
+        md = markdown(result, label, seeds, rd.meta, args.protocol)
         meta = {
             "protocol": protocol,
+            "protocol_name": args.protocol,
             "config": config.to_dict(),
             "seeds": seeds,
             "tie_tol": TIE_TOL,
@@ -297,6 +402,8 @@ class Confirm(BenchExperiment):
             "verdicts_holm_12": result["verdicts_holm_12"],
             "wall_time_s": {"total": wall, "episodes": run_wall},
         }
+        if args.protocol == "paper-conditions":  # the published meta's keys, unchanged
+            del meta["protocol_name"]
         line = (
             f"\nwall time {wall:.1f} s (episodes {run_wall:.1f} s; {load()}); results in {rd.path}/"
         )
@@ -306,8 +413,97 @@ class Confirm(BenchExperiment):
         return plot(outcome.state, folder)
 
 
-def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str]:
+def analyse_held_out(
+    records: Sequence[dict], envs: Sequence[str], *, resamples: int = RESAMPLES
+) -> dict[str, Any]:
+    """Protocol 1: ``analyse`` per env on its held-out cells with its primary outcome; verdict
+    keys are "env/human"; the sensitivity check is Holm over every cell's three tests."""
+    rows: list[dict[str, Any]] = []
+    descriptives: list[dict[str, Any]] = []
+    verdicts: dict[str, str] = {}
+    for env in envs:
+        r = analyse(
+            records, env, HELD_OUT_HUMANS, primary=HELD_OUT_PRIMARY[env], resamples=resamples
+        )
+        for x in (*r["rows"], *r["descriptives"]):
+            x["cell"] = f"{env}/{x['condition']}"
+        rows += r["rows"]
+        descriptives += r["descriptives"]
+        verdicts |= {f"{env}/{c}": v for c, v in r["verdicts"].items()}
+    prim = [x for x in rows if x["metric"] == HELD_OUT_PRIMARY[x["env"]]]
+    sensitivity = holm_sensitivity(prim, "cell", verdicts)
+    return {
+        "primary": HELD_OUT_PRIMARY,
+        "rows": rows,
+        "descriptives": descriptives,
+        "verdicts": verdicts,
+        "verdicts_holm_12": sensitivity,
+    }
+
+
+def _primary_row(result: dict, key: str, baseline: str) -> dict:
+    """The primary-outcome test row of a verdict key (a condition, or "env/human")."""
+    for r in result["rows"]:
+        where = r.get("cell", r["condition"])
+        prim = result["primary"]
+        metric = prim[r["env"]] if isinstance(prim, dict) else prim
+        if (where, r["metric"], r["baseline"]) == (key, metric, baseline):
+            return r
+    raise KeyError(f"no primary row for {key} vs {baseline}")
+
+
+def _verdict_lines(result: dict) -> list[str]:
+    """One bullet per verdict key: the verdict and each baseline's outcome and Holm p."""
     from strol_gym.benchmarks.analysis.report import display
+
+    lines = []
+    for key, v in result["verdicts"].items():
+        rows = [_primary_row(result, key, b) for b in BASELINES]
+        outs = [
+            f"{display(r['baseline'])}: {r['outcome']} (Holm p = {fmt(r['wilcoxon_p_holm'], 4)})"
+            for r in rows
+        ]
+        lines.append(f"- **{key}: {v.upper()}** — " + "; ".join(outs))
+    return lines
+
+
+def _sensitivity_line(result: dict) -> str:
+    """The report's line on the Holm-over-every-comparison check."""
+    changed = {c: v for c, v in result["verdicts_holm_12"].items() if v != result["verdicts"][c]}
+    n_tests = len(BASELINES) * len(result["verdicts"])
+    return f"Sensitivity (Holm over all {n_tests} comparisons): " + (
+        "no verdict changes."
+        if not changed
+        else "; ".join(f"{c} would be {v}" for c, v in changed.items())
+    )
+
+
+def _test_rows(result: dict, key: str) -> list[str]:
+    """One markdown row per test row, first column ``key`` (condition or cell)."""
+    from strol_gym.benchmarks.analysis.report import display
+
+    return [
+        f"| {x[key]} | {x['metric']} | {display(x['baseline'])} | "
+        f"{fmt(x['wilcoxon_p_holm'], 4)}"
+        f"{stats.signed_stars(x['r_plus'] - x['r_minus'], x['wilcoxon_p_holm'])} | "
+        f"{x['r_minus']:.0f} / {x['r_plus']:.0f} | "
+        f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
+        f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
+        f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
+        f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
+        f"{fmt(x['t_p_holm'], 4)}{stats.signed_stars(x['t_mean_diff'], x['t_p_holm'])}, "
+        f"{fmt(x['cohen_dz'], 2)} |"
+        for x in result["rows"]
+    ]
+
+
+def markdown(
+    result: dict, label: str, seeds: list[int], meta: dict, protocol: str = "paper-conditions"
+) -> list[str]:
+    from strol_gym.benchmarks.analysis.report import display
+
+    if protocol == "held-out":
+        return markdown_held_out(result, label, seeds, meta)
 
     git = meta.get("git") or {}
     lines = [
@@ -320,22 +516,10 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
         "## Verdicts (primary: regret, two-sided Wilcoxon, Holm over 3 per condition)",
         "",
     ]
-    for cond, v in result["verdicts"].items():
-        outs = [
-            f"{display(x['baseline'])}: {x['outcome']} (Holm p = {fmt(x['wilcoxon_p_holm'], 4)})"
-            for x in result["rows"]
-            if x["condition"] == cond and x["metric"] == PRIMARY
-        ]
-        lines.append(f"- **{cond}: {v.upper()}** — " + "; ".join(outs))
-    changed = {c: v for c, v in result["verdicts_holm_12"].items() if v != result["verdicts"][c]}
+    lines += _verdict_lines(result)
     lines += [
         "",
-        "Sensitivity (Holm over all 12 comparisons): "
-        + (
-            "no verdict changes."
-            if not changed
-            else "; ".join(f"{c} would be {v}" for c, v in changed.items())
-        ),
+        _sensitivity_line(result),
         "",
         "## Regret per learner (mean ± std; median; IQM [95 % CI]; runs with regret ≥ 0.3)",
         "",
@@ -360,19 +544,7 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
         "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for x in result["rows"]:
-        w_mark = stats.signed_stars(x["r_plus"] - x["r_minus"], x["wilcoxon_p_holm"])
-        lines.append(
-            f"| {x['condition']} | {x['metric']} | {display(x['baseline'])} | "
-            f"{fmt(x['wilcoxon_p_holm'], 4)}{w_mark} | "
-            f"{x['r_minus']:.0f} / {x['r_plus']:.0f} | "
-            f"{x['outcome']} | {fmt(x['median_diff'])} [{fmt(x['median_diff_ci95_low'])}, "
-            f"{fmt(x['median_diff_ci95_high'])}] | {fmt(x['prob_improvement'])} "
-            f"[{fmt(x['prob_improvement_ci95_low'])}, {fmt(x['prob_improvement_ci95_high'])}] | "
-            f"{fmt(x['t_mean_diff'])} [{fmt(x['t_ci95_low'])}, {fmt(x['t_ci95_high'])}], "
-            f"{fmt(x['t_p_holm'], 4)}{stats.signed_stars(x['t_mean_diff'], x['t_p_holm'])}, "
-            f"{fmt(x['cohen_dz'], 2)} |"
-        )
+    lines += _test_rows(result, "condition")
     lines += [
         "",
         f"Outcomes other than regret are secondary (no verdict). Ties: |d| ≤ {TIE_TOL:g} on "
@@ -382,6 +554,64 @@ def markdown(result: dict, label: str, seeds: list[int], meta: dict) -> list[str
         + stats.mark_legend("StROL", "wilcoxon").replace(" (Wilcoxon signed-rank, Holm", " (Holm")
         + ". "
         "IQM = interquartile mean (the mean of the middle 50 % of the runs).",
+    ]
+    return lines
+
+
+def markdown_held_out(result: dict, label: str, seeds: list[int], meta: dict) -> list[str]:
+    """The held-out protocol's report: verdicts per cell, descriptives, every test row."""
+    from strol_gym.benchmarks.analysis.base import METRIC_LABELS
+    from strol_gym.benchmarks.analysis.report import display
+
+    git = meta.get("git") or {}
+    prim = result["primary"]
+    lines = [
+        f"# Confirmatory test with held-out humans — {label}",
+        "",
+        f"Run seeds {seeds[0]}–{seeds[1]} per cell; git {git.get('commit', '?')[:10]}"
+        f"{' (dirty tree)' if git.get('dirty') else ''}; code fingerprint "
+        f"{meta.get('extra', {}).get('code', '?')}. Primary outcome: "
+        + ", ".join(f"{env} {METRIC_LABELS.get(m, m)}" for env, m in prim.items())
+        + ".",
+        "",
+        "## Verdicts (two-sided Wilcoxon, Holm over 3 per cell; H2 holds unless contradicted)",
+        "",
+    ]
+    lines += _verdict_lines(result)
+    lines += [
+        "",
+        _sensitivity_line(result),
+        "",
+        "## Primary outcome per learner (mean ± std; median [Q1, Q3])",
+        "",
+        "| cell | " + " | ".join(display(lr) for lr in LEARNERS) + " |",
+        "|---|" + "---|" * len(LEARNERS),
+    ]
+    desc = {(x["cell"], x["learner"], x["metric"]): x for x in result["descriptives"]}
+    for cell in result["verdicts"]:
+        m = prim[cell.split("/")[0]]
+        cells = []
+        for lr in LEARNERS:
+            x = desc[(cell, lr, m)]
+            cells.append(
+                f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])} "
+                f"[{fmt(x['q1'])}, {fmt(x['q3'])}]"
+            )
+        lines.append(f"| {cell} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "## Tests (StROL − baseline; lower is better)",
+        "",
+        "| cell | metric | vs | Wilcoxon p (Holm) | R− / R+ | outcome | median diff [95 % CI] "
+        "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    lines += _test_rows(result, "cell")
+    lines += [
+        "",
+        f"Outcomes other than each env's primary one are secondary (no verdict). Ties: "
+        f"|d| ≤ {TIE_TOL:g} on regret, exact equality otherwise. Bootstrap: {RESAMPLES} paired "
+        f"resamples, seed {BOOTSTRAP_SEED}.",
     ]
     return lines
 
@@ -399,11 +629,7 @@ def plot(result: dict, out: Path) -> list[Path]:
     for k, b in enumerate(BASELINES):
         xs, ys, lo, hi = [], [], [], []
         for i, cond in enumerate(conds):
-            x = next(
-                r
-                for r in result["rows"]
-                if (r["condition"], r["metric"], r["baseline"]) == (cond, PRIMARY, b)
-            )
+            x = _primary_row(result, cond, b)
             xs.append(i + (k - 1) * width)
             ys.append(x["prob_improvement"])
             lo.append(x["prob_improvement"] - x["prob_improvement_ci95_low"])
@@ -419,7 +645,9 @@ def plot(result: dict, out: Path) -> list[Path]:
         )
     ax.axhline(0.5, color="k", lw=0.8, ls="--")
     ax.set_xticks(range(len(conds)), [f"{c}\n{result['verdicts'][c]}" for c in conds], fontsize=8)
-    ax.set_ylabel("P(StROL regret lower)")
+    ax.set_ylabel(
+        "P(StROL lower)" if isinstance(result["primary"], dict) else "P(StROL regret lower)"
+    )
     ax.set_title("Confirmatory test: probability of improvement (95 % bootstrap CI)")
     ax.legend(fontsize=7)
     return save_figure(fig, out, "confirm")

@@ -43,6 +43,7 @@ from strol_gym.humans.choices import (
     optimal_correction,
     perturb,
 )
+from strol_gym.humans.findings import register_findings
 from strol_gym.humans.interface import (
     DEFAULT_CANDIDATES,
     Draws,
@@ -66,6 +67,8 @@ from strol_gym.humans.registry import (
 )
 from strol_gym.humans.spec import HumanSpec
 from strol_gym.humans.teaching import teach
+
+register_findings()  # the findings' models join the registry (strol_gym.humans.findings)
 
 __getattr__ = moved(
     __name__,

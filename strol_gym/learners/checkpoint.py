@@ -8,7 +8,7 @@ a ``.safetensors`` with the same tensors, bit for bit, through the same writer t
 
 The sidecar (``<name>.json`` next to ``<name>.safetensors``) records the task (id, version,
 feature names, dims, α, action bound), the network input width and architecture, the kind
-("strol" | "e2e"), the training config and seed, package versions, the SHA-256 of the weights
+("strol" | "e2e" | ...), the training config and seed, package versions, the SHA-256 of the weights
 file, the final loss and the held-out Lyapunov check. Loading compares it with the Task and
 raises ValueError naming every difference.
 """
@@ -52,7 +52,12 @@ def register_kind(name: str, *, sees_theta_hat: bool = False) -> None:
         THETA_KINDS.add(name)
 
 
-for _kind, _sees in (("strol", False), ("e2e", False), ("strol-unrolled", True)):
+for _kind, _sees in (
+    ("strol", False),
+    ("e2e", False),
+    ("strol-unrolled", True),
+    ("e2e-scratch", False),
+):
     register_kind(_kind, sees_theta_hat=_sees)
 PRETRAINED_DIR = Path(__file__).resolve().parent.parent / "pretrained"
 SAFETENSORS, TORCH_PT = ".safetensors", ".pt"

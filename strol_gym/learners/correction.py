@@ -1,10 +1,11 @@
 """StROL and e2e: learning rules that use a trained correction term ĝ (paper, Section IV-B).
 
 StROL: G = g + λ·ĝ (λ = 1 in the paper; λ = 0 is exactly Gradient). e2e: G = ĝ, the same
-network trained from scratch without the designer's g in the update. strol-unrolled: G = g + ĝ
-with ĝ also conditioned on θ̂ and trained through K unrolled corrections. In all, ĝ is bounded
-by ‖ĝ‖ ≤ ‖g‖ (see ``strol_gym.learners.network``). By default the learner loads the ĝ shipped for
-the task (``strol_gym/pretrained``), looked up by ``task.task_id``.
+network trained without the designer's g in the update, still bounded by ‖g‖; e2e-scratch:
+G = ĝ with ĝ unbounded, the paper's "completely from scratch". strol-unrolled: G = g + ĝ
+with ĝ also conditioned on θ̂ and trained through K unrolled corrections. In all but
+e2e-scratch, ĝ is bounded by ‖ĝ‖ ≤ ‖g‖ (see ``strol_gym.learners.network``). By default the
+learner loads the ĝ shipped for the task (``strol_gym/pretrained``), looked up by ``task.task_id``.
 """
 
 from __future__ import annotations
@@ -197,6 +198,15 @@ class E2ELearner(CorrectionLearner):
 
     def direction(self, x, u_h, u_r, theta) -> np.ndarray:
         return self.correction(x, u_h, u_r)
+
+
+class E2EScratchLearner(E2ELearner):
+    """e2e as the paper defines it: θ̂ ← θ̂ + α·ĝ with ĝ *unbounded* (``bound="none"``), the
+    learning rule "trained completely from scratch" (nothing of g enters ĝ). ``e2e`` is the
+    same rule with ‖ĝ‖ ≤ ‖g‖ (docs/fidelity.md says why both exist)."""
+
+    name = "e2e-scratch"
+    kind = "e2e-scratch"
 
 
 class UnrolledStROLLearner(StROLLearner):

@@ -8,6 +8,9 @@ the designer's update, never overpower it. We use a *radial* tanh squash by defa
 so ‖s‖ < 1 in every direction (the per-component ``"box"`` variant, tanh(o)/√d, only reaches
 ‖g‖ along the diagonals). The factor c keeps ‖ĝ‖ < ‖g‖ even after float rounding. The bound is
 part of the forward pass, so it holds in training and in use alike.
+
+``"none"`` is the unbounded network, ĝ = o: nothing of g enters it. It is the paper's e2e,
+whose rule is "trained completely from scratch" (kind ``e2e-scratch``); StROL keeps its bound.
 """
 
 from __future__ import annotations
@@ -18,18 +21,21 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
-BOUNDS = ("radial", "box")
+BOUNDS = ("radial", "box", "none")
 SHRINK = 1.0 - 1e-6
 DEFAULT_HIDDEN = (256, 256, 128, 64)
 
 
 def bound_correction(raw: torch.Tensor, g: torch.Tensor, mode: str = "radial") -> torch.Tensor:
-    """Map raw network outputs (..., d) to ĝ with ‖ĝ‖ < ‖g‖ (for g ≠ 0; ĝ = 0 where g = 0).
+    """Map raw network outputs (..., d) to ĝ with ‖ĝ‖ < ‖g‖ (for g ≠ 0; ĝ = 0 where g = 0);
+    ``"none"`` returns them unchanged (in g's dtype).
 
     The margin is 1e-6 relative: it holds as long as ‖g‖² is a normal float of g's dtype
     (‖g‖ above about 1e-19 in float32, 1e-154 in float64); below that the norms themselves
     are computed from subnormal squares and carry more rounding than the margin.
     """
+    if mode == "none":
+        return raw.to(g.dtype)
     if mode == "radial":
         r = torch.sqrt((raw * raw).sum(dim=-1, keepdim=True) + 1e-12)
         s = raw * (torch.tanh(r) / r)

@@ -26,6 +26,7 @@ _REGISTRY: dict[str, Factory | str] = {
     "bayes-teacher": "strol_gym.learners.bayes:teacher_bayes",
     "strol-adaptive": "strol_gym.learners.adaptive:AdaptiveStROLLearner",
     "strol-unrolled": "strol_gym.learners.correction:UnrolledStROLLearner",
+    "e2e-scratch": "strol_gym.learners.correction:E2EScratchLearner",
 }
 
 _DISPLAY: dict[str, str] = {

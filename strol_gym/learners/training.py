@@ -108,6 +108,11 @@ class TrainConfig:
         choice("theta_sampling", THETA_SAMPLING)
         choice("robot_action", ROBOT_ACTIONS)
         choice("bound", BOUNDS)
+        if (self.kind == "e2e-scratch") != (self.bound == "none") and self.kind != "strol":
+            raise ValueError(
+                f"bound must be 'none' for kind 'e2e-scratch' (the paper's unbounded e2e) and "
+                f"one of {BOUNDS[:-1]} for kind {self.kind!r}, got {self.bound!r}"
+            )
         choice("prior", TRAIN_PRIORS)
         for name in ("steps", "batch", "lr_halve_every", "n_candidates", "threads"):
             positive(name)
@@ -201,9 +206,13 @@ def lyapunov_term(alpha: float, e: np.ndarray, g_tilde: np.ndarray) -> np.ndarra
     return alpha**2 * np.sum(g_tilde * g_tilde, axis=-1) - 2 * alpha * np.sum(e * g_tilde, axis=-1)
 
 
+REPLACING_KINDS = ("e2e", "e2e-scratch")
+"""Kinds whose rule is ĝ alone (g̃ = ĝ); every other kind adds ĝ to g."""
+
+
 def modified_rule(kind: str, g: torch.Tensor, g_hat: torch.Tensor) -> torch.Tensor:
-    """g̃ for a kind: ĝ (e2e) or g + ĝ (StROL and strol-unrolled, λ = 1 as trained)."""
-    return g_hat if kind == "e2e" else g + g_hat
+    """g̃ for a kind: ĝ (e2e, e2e-scratch) or g + ĝ (StROL and strol-unrolled, λ = 1)."""
+    return g_hat if kind in REPLACING_KINDS else g + g_hat
 
 
 @contextmanager

@@ -1,0 +1,269 @@
+"""Does ``fit-human`` get back what made the data? Parameter recovery and model selection.
+
+For each model it simulates datasets with known, non-default parameters (people taught by the
+one teaching loop, ``humans.teach``: θ* from the Task's prior, the Gradient learner from the
+prior's mean, the Task's robot policy, 5 corrections each), fits the model back and reports,
+per parameter, the coverage of the 95 % bootstrap interval and the bias against a quarter of
+the mean interval width. Then model selection at matched spreads: data from one model, every
+candidate fitted, the one with the highest held-out log-likelihood chosen: the confusion matrix.
+
+    nice python -m strol_gym.benchmarks.analysis.fit_recovery --datasets 20 \
+        --out results/fit-recovery
+
+The CI test (tests/test_fit_human.py) runs the same functions on 5 datasets and fewer samples.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from strol_gym.humans import human_model, teach
+from strol_gym.humans.fitting import Corrections, fit
+from strol_gym.learners.registry import make_learner
+from strol_gym.tasks import make_task
+from strol_gym.tasks.base import Task
+
+RECOVERY: dict[str, dict[str, float]] = {
+    "nominal": {"sigma": 0.35, "bias": 0.1},
+    "boltzmann": {"sigma": 0.2, "bias": 0.0, "beta": 20.0},
+    "myopic": {"sigma": 0.3, "bias": -0.1},
+    "skipping": {"sigma": 0.25, "bias": 0.0, "p": 0.25},
+    "over": {"sigma": 0.25, "bias": 0.0, "scale": 1.6},
+    "under": {"sigma": 0.2, "bias": 0.0, "scale": 0.6},
+    "mistaken": {"sigma": 0.2, "bias": 0.0, "rate": 0.3},
+    "feature-noise": {"sigma": 0.15, "bias": 0.0, "kappa": 0.4},
+    "competence": {"sigma": 0.25, "bias": 0.0, "p_good": 0.85, "p_bad": 0.4},
+    "hazard": {"sigma": 0.25, "bias": 0.0, "rate": 1.5, "gamma": 2.0},
+    "margin-noise": {"sigma": 0.2, "bias": 0.0, "kappa": 0.3, "equal": 0.15},
+    "scale-free": {"sigma": 0.2, "bias": 0.0, "beta_rel": 8.0},
+    "reversing": {"sigma": 0.2, "bias": 0.0, "rate": 0.2},
+}
+"""Known, non-default parameters each model's datasets are simulated with."""
+SELECTION: dict[str, tuple[str, dict[str, float]]] = {
+    "nominal σ 0.35": ("nominal", {"sigma": 0.35}),
+    "boltzmann (matched)": ("boltzmann", {"sigma": 0.0}),  # β set by matched_beta
+    "mistaken 0.1": ("mistaken", {"sigma": 0.35, "rate": 0.1}),
+}
+"""The selection scenarios: nominal σ 0.35 against Boltzmann with β giving the same mean
+|u_H − u*| (σ 0), and mistaken at rate 0.1 (σ 0.35) against nominal."""
+CANDIDATES = ("nominal", "boltzmann", "mistaken")
+
+
+def simulate_people(
+    task: Task,
+    human: str,
+    n_people: int,
+    seed: int,
+    n_corrections: int = 5,
+    robot: bool = True,
+    **params: Any,
+) -> Corrections:
+    """``n_people`` people of ``human`` (with ``params``) teaching the Gradient learner: every
+    correction as a log would hold it (x, u_H, u_R, θ*, θ̂ before it). u_R is the Task's robot
+    policy (``robot``; else 0: the tests' cheaper episodes)."""
+    kw = {k: v for k, v in params.items() if k not in ("sigma", "bias", "beta")}
+    model = human_model(
+        human,
+        task,
+        sigma=params.get("sigma", 0.0),
+        bias=params.get("bias", 0.0),
+        beta=params.get("beta", 50.0),
+        **kw,
+    )
+    rng = np.random.default_rng(seed)
+    star = task.prior.sample(rng, n_people)
+    x0 = task.sample_start(rng, n_people)
+    learner = make_learner("gradient", task=task)
+    theta0 = np.broadcast_to(learner.reset(), (n_people, task.dim)).copy()
+    learner.reset(theta0)
+    rec: dict[str, list[np.ndarray]] = {"x": [], "u_h": [], "u_r": [], "hat": []}
+
+    def update(x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
+        rec["x"].append(np.array(x))
+        rec["u_h"].append(np.array(u_h))
+        rec["u_r"].append(np.array(u_r))
+        rec["hat"].append(np.array(np.broadcast_to(learner.theta, (n_people, task.dim))))
+        return learner.update(x, u_h, u_r)
+
+    policy = task.robot_policy if robot else None
+    teach(task, model, star, theta0, x0, update, rng, n_corrections, robot_policy=policy)
+    k = np.repeat(np.arange(n_corrections), n_people)
+    person = np.tile(np.arange(n_people), n_corrections)
+    return Corrections(
+        task,
+        np.concatenate(rec["x"]),
+        np.concatenate(rec["u_h"]),
+        np.concatenate(rec["u_r"]),
+        np.tile(star, (n_corrections, 1)),
+        np.concatenate(rec["hat"]),
+        k,
+        person,
+        person,
+        [f"person {i}" for i in range(n_people)],
+    )
+
+
+def mean_deviation(data: Corrections) -> float:
+    """Mean ‖u_H − u*‖ / a_max over the corrections (u* the eq. M6 teacher's choice)."""
+    from strol_gym.humans.fitting import teacher_choice
+
+    a = np.asarray(data.task.action_bound)
+    return float(np.linalg.norm((data.u_h - teacher_choice(data)) / a, axis=1).mean())
+
+
+def matched_beta(task: Task, target: float, n_people: int, seed: int) -> float:
+    """The Boltzmann β (σ 0) whose mean |u_H − u*| matches ``target`` (bisection on log β)."""
+    lo, hi = math.log(0.1), math.log(1e5)
+    for _ in range(14):
+        mid = 0.5 * (lo + hi)
+        dev = mean_deviation(simulate_people(task, "boltzmann", n_people, seed, beta=math.exp(mid)))
+        lo, hi = (mid, hi) if dev > target else (lo, mid)
+    return math.exp(0.5 * (lo + hi))
+
+
+def recovery(
+    task: Task,
+    human: str,
+    truth: dict[str, float],
+    datasets: int,
+    n_people: int,
+    n_boot: int,
+    seed: int = 0,
+    robot: bool = True,
+) -> dict[str, Any]:
+    """Coverage and bias of each parameter over ``datasets`` simulated datasets."""
+    est: dict[str, list[float]] = {k: [] for k in truth}
+    cover: dict[str, list[bool]] = {k: [] for k in truth}
+    width: dict[str, list[float]] = {k: [] for k in truth}
+    for d in range(datasets):
+        data = simulate_people(task, human, n_people, seed + 1000 * d, robot=robot, **truth)
+        f = fit(human, data, n_boot=n_boot, heldout_too=False, seed=d)
+        for k, v in truth.items():
+            lo, hi = f.ci95[k]
+            est[k].append(f.estimate[k])
+            cover[k].append(lo <= v <= hi)
+            width[k].append(hi - lo)
+    out = {}
+    for k, v in truth.items():
+        bias = float(np.mean(est[k]) - v)
+        w = float(np.mean(width[k]))
+        out[k] = {
+            "truth": v,
+            "mean_estimate": float(np.mean(est[k])),
+            "bias": bias,
+            "mean_ci_width": w,
+            "coverage": float(np.mean(cover[k])),
+            "bias_ok": abs(bias) < w / 4,
+        }
+    return out
+
+
+def selection(
+    task: Task,
+    scenarios: dict[str, tuple[str, dict[str, float]]],
+    datasets: int,
+    n_people: int,
+    candidates: Sequence[str] = CANDIDATES,
+    seed: int = 0,
+    folds: int = 5,
+    robot: bool = True,
+) -> dict[str, dict[str, int]]:
+    """Confusion counts: scenario -> model chosen by held-out log-likelihood -> datasets."""
+    out: dict[str, dict[str, int]] = {}
+    for label, (human, params) in scenarios.items():
+        counts = dict.fromkeys(candidates, 0)
+        for d in range(datasets):
+            data = simulate_people(
+                task, human, n_people, seed + 7919 * (d + 1), robot=robot, **params
+            )
+            held = {
+                c: fit(c, data, n_boot=0, folds=folds, seed=d).heldout_loglik for c in candidates
+            }
+            counts[max(held, key=lambda c: held[c])] += 1  # type: ignore[arg-type, return-value]
+        out[label] = counts
+    return out
+
+
+def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) -> str:
+    lines = [
+        "| model | parameter | truth | mean estimate | bias | mean 95 % width | coverage | "
+        "\\|bias\\| < width/4 |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for human, params in rec.items():
+        for k, r in params.items():
+            lines.append(
+                f"| {human} | {k} | {r['truth']:g} | {r['mean_estimate']:.3f} | "
+                f"{r['bias']:+.3f} | {r['mean_ci_width']:.3f} | {100 * r['coverage']:.0f} % | "
+                f"{'yes' if r['bias_ok'] else 'no'} |"
+            )
+    if conf:
+        cands = list(next(iter(conf.values())))
+        lines += [
+            "",
+            "| data \\ chosen | " + " | ".join(cands) + " |",
+            "|---|" + "---|" * len(cands),
+        ]
+        for label, counts in conf.items():
+            lines.append(f"| {label} | " + " | ".join(str(counts[c]) for c in cands) + " |")
+    lines += ["", f"{meta}"]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--task", default="robot")
+    p.add_argument("--datasets", type=int, default=20)
+    p.add_argument("--people", type=int, default=20)
+    p.add_argument("--bootstrap", type=int, default=200)
+    p.add_argument("--models", default=",".join(RECOVERY))
+    p.add_argument("--no-selection", action="store_true")
+    p.add_argument("--out", default="results/fit-recovery")
+    args = p.parse_args(argv)
+    task = make_task(args.task)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    rec = {}
+    for human in [m for m in args.models.split(",") if m]:
+        t = time.perf_counter()
+        rec[human] = recovery(
+            task, human, RECOVERY[human], args.datasets, args.people, args.bootstrap
+        )
+        print(human, json.dumps(rec[human]), f"{time.perf_counter() - t:.0f} s", flush=True)
+    conf: dict[str, dict[str, int]] = {}
+    beta = None
+    if not args.no_selection:
+        target = mean_deviation(simulate_people(task, "nominal", args.people, 99, sigma=0.35))
+        beta = matched_beta(task, target, args.people, 99)
+        scen = dict(SELECTION)
+        scen["boltzmann (matched)"] = ("boltzmann", {"sigma": 0.0, "beta": beta})
+        conf = selection(task, scen, args.datasets, args.people)
+        print("confusion", json.dumps(conf), f"matched β {beta:.4g}", flush=True)
+    meta = {
+        "task": args.task,
+        "datasets": args.datasets,
+        "people": args.people,
+        "bootstrap": args.bootstrap,
+        "matched_beta": beta,
+        "seconds": round(time.perf_counter() - t0, 1),
+    }
+    (out / "recovery.json").write_text(
+        json.dumps({"recovery": rec, "confusion": conf, **meta}, indent=2) + "\n"
+    )
+    (out / "recovery.md").write_text(markdown(rec, conf, meta))
+    print(f"wrote {out / 'recovery.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,784 @@
+"""Fitting human models to correction logs: the likelihood of each model, its maximum, the
+bootstrap and the held-out comparison (``strol-bench fit-human`` is the front end).
+
+**What a fit sees.** A :class:`Corrections` holds only what a real person's log holds: per
+correction the state x, u_H, u_R, θ* (the preference the person was asked to teach), θ̂ before
+the correction where it is logged, the correction's index in its episode and who made it. Never
+the simulator's candidates, noise draws, seeds or the header's generating parameters (σ, the
+human's name): stripping them from a log gives the same estimate (a test checks).
+
+**The likelihood.** Each model is a :class:`Family`: per correction a mixture of noise-free
+choices μ_c with weights w_c (one choice for a deterministic model), a probability q of giving
+no correction (u_H = 0 exactly) and a noise scale σ_i, so that
+
+    p(u_H) = q                                          if u_H = 0 and q > 0,
+           = (1 − q) Σ_c w_c Π_j f(u_Hj; s μ_cj + ε a_j, σ_i a_j)   otherwise,
+
+with f the Gaussian density, replaced by its tail mass P(u ≥ a_j) or P(u ≤ −a_j) for a
+component that sits exactly on the action bound (a log that clips records the bound: a censored
+Gaussian). The simulated people choose among k random candidates (and zero) that no log holds,
+so their choice is itself random, and the likelihood integrates over it on a fixed quadrature
+(``QUADRATURE`` scrambled-Sobol points over the admissible box plus zero, seeded):
+
+- a choice that minimises a cost (the eq. M6 teacher, the myopic person) has the order
+  statistic of k uniform draws: a point whose cost beats a fraction F of the box carries
+  (k/Q)(1 − F)^(k−1), zero carries (1 − F(0))^k (:func:`order_weights`); k is the simulated
+  person's candidate count (512): for a real person, how many options they weigh;
+- a Boltzmann choice carries exp(β R(c)) at each point, k/Q candidates per point;
+- the wrong θ of ``mistaken`` is integrated over ``WRONG_THETAS`` draws of the Task's prior.
+
+Every parameter is estimated by maximum likelihood (L-BFGS-B on a transformed scale, several
+starts); the 95 % intervals are percentile bootstraps over the people (each person's corrections
+resampled together); the held-out log-likelihood sums, over folds of people, the log-likelihood
+of the held-out people under the fit to the others. Models whose choice needs θ̂ are fitted only
+to corrections whose θ̂ the log holds (or reconstructs: :attr:`Corrections.theta_hat_source`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from scipy import optimize, special
+from scipy.stats import qmc
+
+from strol_gym.humans.findings import margin, scale_free_logits
+from strol_gym.humans.interface import DEFAULT_CANDIDATES
+from strol_gym.tasks.base import Task
+
+QUADRATURE = 4096
+"""Quadrature points over the admissible box (plus zero): 8 per candidate of the simulated
+person's 512, so that the order statistic's few best points are resolved."""
+BOLTZMANN_QUADRATURE = 1024
+"""Quadrature points for a Boltzmann choice, whose weight spreads over the box (no order
+statistic to resolve): each stands for k/Q of the person's candidates."""
+TOP = 256
+"""Points kept per correction for a cost-minimising choice: its weight falls as
+exp(−k·rank/Q), e^−32 at the 256th point."""
+WRONG_THETAS = 32
+"""Prior draws integrating the wrong θ of ``mistaken``."""
+FIT_SEED = 20_260_001
+"""The seed of the fitter's own quadrature and prior draws (fixed: one dataset, one estimate)."""
+SOFT_EQUAL = 0.02
+"""The width over which the fitter smooths ``margin-noise``'s hard indifference threshold (the
+person's candidates are not logged, so their margin and the fitter's differ slightly)."""
+MAX_CORRECTIONS = 1_000_000
+"""The most corrections a fit reads (sizes capped)."""
+
+
+# ---------------------------------------------------------------------------- the data
+@dataclasses.dataclass
+class Corrections:
+    """Corrections as a real log holds them (module docstring). ``person`` indexes ``people``;
+    ``theta_hat`` rows are NaN where θ̂ is unknown."""
+
+    task: Task
+    x: np.ndarray
+    u_h: np.ndarray
+    u_r: np.ndarray
+    theta_star: np.ndarray
+    theta_hat: np.ndarray
+    k: np.ndarray
+    episode: np.ndarray
+    person: np.ndarray
+    people: list[str]
+    theta_hat_source: str = "logged"
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    @property
+    def has_theta_hat(self) -> np.ndarray:
+        return np.isfinite(self.theta_hat).all(axis=1)
+
+    def subset(self, rows: np.ndarray) -> Corrections:
+        """The corrections ``rows`` (an index or mask array), people renumbered densely."""
+        rows = np.asarray(rows)
+        keep = np.unique(self.person[rows])
+        remap = np.full(len(self.people), -1)
+        remap[keep] = np.arange(len(keep))
+        return dataclasses.replace(
+            self,
+            x=self.x[rows],
+            u_h=self.u_h[rows],
+            u_r=self.u_r[rows],
+            theta_star=self.theta_star[rows],
+            theta_hat=self.theta_hat[rows],
+            k=self.k[rows],
+            episode=self.episode[rows],
+            person=remap[self.person[rows]],
+            people=[self.people[i] for i in keep],
+        )
+
+
+def person_rows(data: Corrections) -> list[np.ndarray]:
+    """The row indices of each person, in ``data.people`` order."""
+    order = np.argsort(data.person, kind="stable")
+    cuts = np.searchsorted(data.person[order], np.arange(1, len(data.people)))
+    return np.split(order, cuts)
+
+
+# ---------------------------------------------------------------------------- quadrature
+def quadrature(task: Task, points: int = QUADRATURE) -> np.ndarray:
+    """(points + 1, a): the zero correction first, then a scrambled Sobol sequence over the
+    admissible box (seeded: one dataset, one estimate)."""
+    a = task.action_dim
+    pts = qmc.Sobol(a, scramble=True, seed=FIT_SEED).random(points)
+    bound = np.asarray(task.action_bound, dtype=np.float64)
+    return np.concatenate([np.zeros((1, a)), (2.0 * pts - 1.0) * bound])
+
+
+def _chunks(n: int, per_row: int, budget: int = 4_000_000) -> list[slice]:
+    step = max(1, budget // max(1, per_row))
+    return [slice(i, min(n, i + step)) for i in range(0, n, step)]
+
+
+def quadrature_g(data: Corrections, q: np.ndarray) -> np.ndarray:
+    """g(x, c, u_R) (n, Q, d) at every quadrature point c of every correction."""
+    task = data.task
+    out = np.empty((len(data), len(q), task.dim))
+    for rows in _chunks(len(data), len(q) * (task.state_dim + task.dim)):
+        out[rows] = task.g(data.x[rows][:, None], q[None], data.u_r[rows][:, None])
+    return out
+
+
+def teacher_objective(data: Corrections, g: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """‖target − (θ̂ + α g)‖² (n, Q): what eq. M6 minimises, at each quadrature point."""
+    diff = (target - data.theta_hat)[:, None, :] - data.task.alpha * g
+    return np.einsum("nqd,nqd->nq", diff, diff)
+
+
+def order_weights(cost: np.ndarray, k: int) -> np.ndarray:
+    """log P (n, Q) that the best of the zero correction and ``k`` uniform candidates (the
+    simulated person's) lies at each quadrature point, for a choice minimising ``cost``.
+
+    With F the fraction of the box whose cost is below a point's (its rank among the
+    quadrature points): P(zero) = (1 − F(zero))^k, and a point c better than zero carries
+    (k/Q)(1 − F_c)^(k−1): the order statistic of k uniform draws."""
+    m = cost.shape[1] - 1
+    inner = cost[:, 1:]
+    ranks = np.argsort(np.argsort(inner, axis=1, kind="stable"), axis=1)
+    f = (ranks + 0.5) / m
+    better = inner < cost[:, :1]
+    f0 = better.mean(axis=1)
+    out = np.empty_like(cost)
+    with np.errstate(divide="ignore"):
+        out[:, 0] = k * np.log1p(-np.minimum(f0, 1.0))
+        out[:, 1:] = np.where(better, math.log(k / m) + (k - 1) * np.log1p(-f), -np.inf)
+    return out - special.logsumexp(out, axis=1, keepdims=True)
+
+
+def top(logw: np.ndarray, q: np.ndarray, n_top: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``n_top`` heaviest quadrature points per correction: (points (n, T, a), log weights
+    (n, T) renormalised). The order statistic's weight falls as exp(−k·rank/Q), so the rest
+    carry nothing a float can hold."""
+    n_top = min(n_top, logw.shape[1])
+    idx = np.argpartition(-logw, n_top - 1, axis=1)[:, :n_top]
+    lw = np.take_along_axis(logw, idx, axis=1)
+    return q[idx], lw - special.logsumexp(lw, axis=1, keepdims=True)
+
+
+def best_point(data: Corrections, cost: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The quadrature point of least ``cost`` per correction (n, a)."""
+    return q[np.argmin(cost, axis=1)]
+
+
+def teacher_choice(data: Corrections) -> np.ndarray:
+    """u*: eq. M6's best correction among the quadrature points (n, a), from the logged θ̂."""
+    q = quadrature(data.task)
+    return best_point(data, teacher_objective(data, quadrature_g(data, q), data.theta_star), q)
+
+
+def best_for_theta(data: Corrections) -> np.ndarray:
+    """θ*'s best single correction, argmax θ*·g over the quadrature points (n, a)."""
+    q = quadrature(data.task)
+    rew = np.einsum("nqd,nd->nq", quadrature_g(data, q), data.theta_star)
+    return best_point(data, -rew, q)
+
+
+# ---------------------------------------------------------------------------- parameters
+@dataclasses.dataclass(frozen=True)
+class Param:
+    """One fitted parameter: its range [low, high] (mapped through a logistic, or a log for
+    a scale) and a starting value."""
+
+    name: str
+    low: float
+    high: float
+    start: float
+    log: bool = False
+
+    def to_free(self, v: float) -> float:
+        if self.log:
+            return math.log(min(max(v, self.low), self.high))
+        p = (v - self.low) / (self.high - self.low)
+        p = min(max(p, 1e-9), 1 - 1e-9)
+        return math.log(p / (1 - p))
+
+    def from_free(self, t: float) -> float:
+        if self.log:
+            return float(min(max(math.exp(t), self.low), self.high))
+        return float(self.low + (self.high - self.low) * special.expit(t))
+
+
+SIGMA = Param("sigma", 1e-3, 10.0, 0.3, log=True)
+BIAS = Param("bias", -2.0, 2.0, 0.0)
+
+
+@dataclasses.dataclass
+class Parts:
+    """A family's likelihood pieces at one parameter value (module docstring): choices μ
+    (n or 1, C, a) in units of a_max, log weights (n, C), noise σ (n,) or (n, C) in units of
+    a_max, bias ε, log q (n,) or None for a person who always corrects; ``fixed``: μ does not
+    depend on the parameters (its distances to u_H are cached)."""
+
+    mu: np.ndarray
+    logw: np.ndarray
+    sigma: np.ndarray
+    bias: float
+    log_q: np.ndarray | None = None
+    fixed: bool = True
+
+
+def _unit(data: Corrections, u: np.ndarray) -> np.ndarray:
+    return u / np.asarray(data.task.action_bound, dtype=np.float64)
+
+
+class Family:
+    """A fittable model: ``prepare`` computes what does not depend on the parameters (the
+    choice's weights over the quadrature), ``parts`` the likelihood's pieces at a value."""
+
+    name = ""
+    params: tuple[Param, ...] = (SIGMA, BIAS)
+    needs_theta_hat = False
+    n_candidates = DEFAULT_CANDIDATES
+    """The simulated person's candidate count k (the order statistic's)."""
+
+    def prepare(self, data: Corrections) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def parts(self, prep: dict[str, Any], v: dict[str, float]) -> Parts:
+        raise NotImplementedError
+
+    def _sigma(self, prep: dict[str, Any], v: dict[str, float]) -> np.ndarray:
+        return np.full(len(prep["uh"]), v["sigma"])
+
+
+class Teacher(Family):
+    """The eq. M6 teacher: the best of k uniform candidates and zero, then δ."""
+
+    name, needs_theta_hat = "nominal", True
+
+    def cost(self, data: Corrections, g: np.ndarray, target: np.ndarray) -> np.ndarray:
+        return teacher_objective(data, g, target)
+
+    def prepare(self, data):
+        q = quadrature(data.task)
+        g = quadrature_g(data, q)
+        lw = order_weights(self.cost(data, g, data.theta_star), self.n_candidates)
+        mu, logw = top(lw, _unit(data, q), TOP)
+        return {"uh": _unit(data, data.u_h), "mu": mu, "logw": logw, "g": g, "lw_full": lw}
+
+    def scale(self, v: dict[str, float]) -> float:
+        return 1.0
+
+    def parts(self, prep, v):
+        s = self.scale(v)
+        mu = prep["mu"] if s == 1.0 else prep["mu"] * s
+        return Parts(mu, prep["logw"], self._sigma(prep, v), v["bias"], fixed=s == 1.0)
+
+
+class Myopic(Teacher):
+    """The myopic person: the best of k candidates by θ*·g (θ*·φ of the next state)."""
+
+    name, needs_theta_hat = "myopic", False
+
+    def cost(self, data, g, target):
+        return -np.einsum("nqd,nd->nq", g, target)
+
+
+class Scaled(Teacher):
+    """over/under: u = s·u* + δ, s in the preset's range."""
+
+    def __init__(self, name: str, low: float, high: float, start: float) -> None:
+        self.name = name
+        self.params = (SIGMA, BIAS, Param("scale", low, high, start))
+
+    def scale(self, v):
+        return v["scale"]
+
+
+class FeatureNoise(Teacher):
+    """σ_c = σ + κ r_c, r_c the chosen candidate's ‖g/s‖ over the largest (``noise_with="g"``)."""
+
+    name = "feature-noise"
+    params = (SIGMA, BIAS, Param("kappa", 0.0, 5.0, 0.3))
+
+    def prepare(self, data):
+        prep = super().prepare(data)
+        scale = np.asarray(data.task.feature_scale, dtype=np.float64)
+        size = np.linalg.norm(prep["g"] / scale, axis=-1)  # (n, Q)
+        top_size = size.max(axis=1, keepdims=True)
+        q = _unit(data, quadrature(data.task))
+        # the size at each kept point: find it again by matching the kept points' indices
+        idx = np.argpartition(-prep["lw_full"], min(TOP, q.shape[0]) - 1, axis=1)[:, :TOP]
+        r = np.take_along_axis(size, idx, axis=1)
+        prep["r"] = np.divide(r, top_size, out=np.zeros_like(r), where=top_size > 0)
+        return prep
+
+    def _sigma(self, prep, v):
+        return v["sigma"] + v["kappa"] * prep["r"]
+
+
+class Silent(Teacher):
+    """The teacher with a probability of no correction (``log_q``) read off the margin."""
+
+    def prepare(self, data):
+        prep = super().prepare(data)
+        prep["m"] = margin(np.einsum("nqd,nd->nq", prep["g"], data.theta_star))
+        return prep
+
+    def log_q(self, prep: dict[str, Any], v: dict[str, float]) -> np.ndarray:
+        raise NotImplementedError
+
+    def parts(self, prep, v):
+        p = super().parts(prep, v)
+        p.log_q = self.log_q(prep, v)
+        return p
+
+
+class Skipping(Silent):
+    name = "skipping"
+    params = (SIGMA, BIAS, Param("p", 0.0, 1.0, 0.2))
+
+    def log_q(self, prep, v):
+        return np.full(len(prep["uh"]), math.log(max(v["p"], 1e-300)))
+
+
+class Competence(Silent):
+    name = "competence"
+    params = (SIGMA, BIAS, Param("p_good", 0.0, 1.0, 0.8), Param("p_bad", 0.0, 1.0, 0.6))
+
+    def log_q(self, prep, v):
+        act = v["p_good"] + (v["p_bad"] - v["p_good"]) * prep["m"]
+        return np.log(np.clip(1.0 - act, 1e-300, 1.0))
+
+
+class Hazard(Silent):
+    name = "hazard"
+    params = (
+        SIGMA,
+        BIAS,
+        Param("rate", 1e-3, 100.0, 1.0, log=True),
+        Param("gamma", 0.0, 20.0, 1.0),
+    )
+
+    def log_q(self, prep, v):
+        return -v["rate"] * np.exp(v["gamma"] * (prep["m"] - 1.0))
+
+
+class MarginNoise(Silent):
+    name = "margin-noise"
+    params = (SIGMA, BIAS, Param("kappa", 0.0, 5.0, 0.2), Param("equal", 0.0, 1.0, 0.05))
+
+    def _sigma(self, prep, v):
+        return v["sigma"] + v["kappa"] * (1.0 - prep["m"])
+
+    def log_q(self, prep, v):
+        return special.log_expit((v["equal"] - prep["m"]) / SOFT_EQUAL)
+
+
+def _mix(rate: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    r = min(max(rate, 1e-300), 1.0 - 1e-16)
+    return np.concatenate([math.log1p(-r) + a, math.log(r) + b], axis=1)
+
+
+class Mistaken(Teacher):
+    """With probability ``rate`` the teacher's choice toward a wrong θ from the prior."""
+
+    name = "mistaken"
+    params = (SIGMA, BIAS, Param("rate", 0.0, 1.0, 0.1))
+
+    def prepare(self, data):
+        prep = super().prepare(data)
+        rng = np.random.default_rng(FIT_SEED + 2)
+        wrong = data.task.prior.sample(rng, WRONG_THETAS)
+        lws = [
+            order_weights(
+                self.cost(data, prep["g"], np.broadcast_to(w, data.theta_star.shape)),
+                self.n_candidates,
+            )
+            for w in wrong
+        ]
+        mean = special.logsumexp(np.stack(lws), axis=0) - math.log(len(lws))
+        mu_w, lw_w = top(mean, _unit(data, quadrature(data.task)), TOP)
+        prep["mu"] = np.concatenate([prep["mu"], mu_w], axis=1)
+        prep["lw_right"], prep["lw_wrong"] = prep["logw"], lw_w
+        return prep
+
+    def parts(self, prep, v):
+        logw = _mix(v["rate"], prep["lw_right"], prep["lw_wrong"])
+        return Parts(prep["mu"], logw, self._sigma(prep, v), v["bias"])
+
+
+class Reversing(Teacher):
+    """With probability ``rate`` the teacher's correction reversed (B-Pref's mistake)."""
+
+    name = "reversing"
+    params = (SIGMA, BIAS, Param("rate", 0.0, 1.0, 0.1))
+
+    def prepare(self, data):
+        prep = super().prepare(data)
+        prep["lw_one"] = prep["logw"]
+        prep["mu"] = np.concatenate([prep["mu"], -prep["mu"]], axis=1)
+        return prep
+
+    def parts(self, prep, v):
+        logw = _mix(v["rate"], prep["lw_one"], prep["lw_one"])
+        return Parts(prep["mu"], logw, self._sigma(prep, v), v["bias"])
+
+
+class Boltzmann(Family):
+    """P(c) ∝ exp(β R(c)) over k uniform candidates and zero (``relative``: β R / S, the
+    scale-free β), integrated over the quadrature: each point stands for k/Q candidates."""
+
+    def __init__(self, name: str, relative: bool) -> None:
+        self.name, self.relative = name, relative
+        beta = Param(
+            "beta_rel" if relative else "beta", 1e-3, 1e4 if relative else 1e6, 5.0, log=True
+        )
+        self.params = (SIGMA, BIAS, beta)
+
+    def prepare(self, data):
+        q = quadrature(data.task, BOLTZMANN_QUADRATURE)
+        rew = np.einsum("nqd,nd->nq", quadrature_g(data, q), data.theta_star)
+        return {"uh": _unit(data, data.u_h), "mu": _unit(data, q)[None], "R": rew}
+
+    def parts(self, prep, v):
+        if self.relative:
+            logits = scale_free_logits(prep["R"], v["beta_rel"])
+        else:
+            logits = v["beta"] * prep["R"]
+        logits[:, 1:] += math.log(self.n_candidates / (logits.shape[1] - 1))
+        logw = logits - special.logsumexp(logits, axis=1, keepdims=True)
+        return Parts(prep["mu"], logw, self._sigma(prep, v), v["bias"])
+
+
+class _Preset(Family):
+    """A registered preset fitted as its family (its parameters free)."""
+
+    def __init__(self, name: str, family: Family) -> None:
+        self.name, self.family = name, family
+        self.params, self.needs_theta_hat = family.params, family.needs_theta_hat
+
+    def prepare(self, data):
+        return self.family.prepare(data)
+
+    def parts(self, prep, v):
+        return self.family.parts(prep, v)
+
+
+def families() -> dict[str, Family]:
+    """Every fittable registered human by name (the presets fit their family's parameters)."""
+    out: dict[str, Family] = {
+        "nominal": Teacher(),
+        "boltzmann": Boltzmann("boltzmann", relative=False),
+        "myopic": Myopic(),
+        "feature-noise": FeatureNoise(),
+        "skipping": Skipping(),
+        "over": Scaled("over", 1.0, 10.0, 2.0),
+        "under": Scaled("under", 1e-3, 1.0, 0.5),
+        "mistaken": Mistaken(),
+        "competence": Competence(),
+        "hazard": Hazard(),
+        "margin-noise": MarginNoise(),
+        "scale-free": Boltzmann("scale-free", relative=True),
+        "reversing": Reversing(),
+    }
+    for preset, base in (
+        ("bpref-stoc", "scale-free"),
+        ("bpref-mistake", "reversing"),
+        ("bpref-skip", "skipping"),
+        ("bpref-equal", "margin-noise"),
+        ("fitted-study", "scale-free"),
+    ):
+        out[preset] = _Preset(preset, out[base])
+    return out
+
+
+NOT_FITTABLE = {
+    "changing": "its switch index is a change point that one preference's logs do not identify",
+    "early": "its window is a discrete index (fit `skipping` or `hazard` for silences)",
+    "late": "its window is a discrete index (fit `skipping` or `hazard` for silences)",
+    "driver": "its look-ahead score is not exposed by `choices.driver_correction` (only its "
+    "argmax): not yet fittable",
+}
+"""Registered humans ``fit-human`` leaves out, and why."""
+
+
+def family(name: str) -> Family:
+    """The fittable family of registered human ``name``, else ValueError listing them."""
+    table = families()
+    if not isinstance(name, str) or name not in table:
+        why = NOT_FITTABLE.get(name) if isinstance(name, str) else None
+        extra = f" ({why})" if why else ""
+        raise ValueError(f"--human {name!r} cannot be fitted{extra}; fittable: {', '.join(table)}")
+    return table[name]
+
+
+# ---------------------------------------------------------------------------- the likelihood
+def loglik_terms(fam: Family, prep: dict[str, Any], v: dict[str, float]) -> np.ndarray:
+    """Each correction's log-likelihood (n,) under ``fam`` at parameter values ``v``, in
+    u_H's own units (the a_max Jacobian included, so that models compare)."""
+    p = fam.parts(prep, v)
+    uh = prep["uh"]
+    a = uh.shape[1]
+    sig = np.maximum(p.sigma, 1e-9)
+    sig = sig[:, None] if sig.ndim == 1 else sig
+    censored = prep.get("censored")
+    if censored is None:
+        censored = prep["censored"] = bool((np.abs(uh) == 1.0).any())
+    if p.fixed and not censored:
+        if "_d2" not in prep:  # Σ_j (u_j − μ_j)² and Σ_j (u_j − μ_j), cached: μ is fixed
+            d = uh[:, None, :] - p.mu
+            prep["_d2"], prep["_d1"] = np.einsum("nca,nca->nc", d, d), d.sum(axis=2)
+        sq = prep["_d2"] - 2.0 * p.bias * prep["_d1"] + a * p.bias**2
+        per = sq * (-0.5 / sig**2)
+        per -= a * np.log(sig) + 0.5 * a * math.log(2 * math.pi)
+    else:
+        mean = p.mu + p.bias
+        s3 = sig[:, :, None]
+        z = (uh[:, None, :] - mean) / s3
+        dens = -0.5 * z * z - np.log(s3) - 0.5 * math.log(2 * math.pi)
+        if censored:
+            hi, lo = (uh == 1.0)[:, None, :], (uh == -1.0)[:, None, :]
+            dens = np.where(hi, special.log_ndtr((mean - 1.0) / s3), dens)
+            dens = np.where(lo, special.log_ndtr((-1.0 - mean) / s3), dens)
+        per = dens.sum(axis=2)
+    per += p.logw
+    top_ = per.max(axis=1, keepdims=True)
+    top_[~np.isfinite(top_)] = 0.0
+    per -= top_
+    np.exp(per, out=per)
+    with np.errstate(divide="ignore"):
+        cont = np.log(per.sum(axis=1)) + top_[:, 0] - prep["log_volume"]
+    if p.log_q is None:
+        return cont
+    zero = np.all(uh == 0.0, axis=1)
+    log_q = np.minimum(p.log_q, 0.0)
+    speak = np.log(-np.expm1(np.minimum(log_q, -1e-300)))
+    return np.where(zero, log_q, speak + cont)
+
+
+def prepare(fam: Family, data: Corrections) -> dict[str, np.ndarray]:
+    """``fam.prepare`` plus the Jacobian of the a_max units (log-likelihoods in u_H's own
+    units, so models compare)."""
+    prep = fam.prepare(data)
+    prep.pop("g", None)  # (n, Q, d): prepared, no longer needed
+    prep.pop("lw_full", None)
+    prep["log_volume"] = float(np.sum(np.log(data.task.action_bound)))
+    return prep
+
+
+def _take(prep: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
+    """The prepared pieces of corrections ``rows`` (per-correction arrays sliced)."""
+    out = {}
+    n = len(prep["uh"])
+    for key, value in prep.items():
+        if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == n and n > 1:
+            out[key] = value[rows]
+        else:
+            out[key] = value
+    return out
+
+
+def maximise(
+    fam: Family, prep: dict[str, Any], starts: Sequence[dict[str, float]] | None = None
+) -> tuple[dict[str, float], float]:
+    """The maximum-likelihood values and the maximum log-likelihood."""
+    params = fam.params
+
+    def values(t: np.ndarray) -> dict[str, float]:
+        return {p.name: p.from_free(x) for p, x in zip(params, t, strict=True)}
+
+    def neg(t: np.ndarray) -> float:
+        ll = loglik_terms(fam, prep, values(t)).sum()
+        return float(-ll) if np.isfinite(ll) else 1e300
+
+    if starts:  # a resample or a fold starts where the whole data's maximum is
+        init = list(starts)
+    else:  # a spread of σ: a mixture's surface can have more than one hill
+        init = [{p.name: p.start for p in params}]
+        init += [{**init[0], "sigma": s} for s in (0.1, 1.0)]
+    best_t, best = None, math.inf
+    for start in init:
+        t0 = np.array([p.to_free(start[p.name]) for p in params])
+        res = optimize.minimize(neg, t0, method="L-BFGS-B", bounds=[(-25, 25)] * len(params))
+        if res.fun < best:
+            best_t, best = res.x, float(res.fun)
+    assert best_t is not None
+    return values(best_t), -best
+
+
+@dataclasses.dataclass
+class Fit:
+    """A fitted model: estimates, 95 % intervals, log-likelihood, held-out log-likelihood."""
+
+    model: str
+    n_people: int
+    n_corrections: int
+    estimate: dict[str, float]
+    ci95: dict[str, tuple[float, float]]
+    loglik: float
+    heldout_loglik: float | None
+    note: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "model": self.model,
+            "n_people": self.n_people,
+            "n_corrections": self.n_corrections,
+            "params": {
+                k: {"estimate": self.estimate[k], "ci95": list(self.ci95[k])} for k in self.estimate
+            },
+            "loglik": self.loglik,
+            "heldout_loglik": self.heldout_loglik,
+            "note": self.note,
+        }
+
+
+def usable(fam: Family, data: Corrections) -> tuple[Corrections, str]:
+    """The corrections ``fam`` can be fitted to and a note on what was left out."""
+    if not fam.needs_theta_hat:
+        return data, ""
+    ok = data.has_theta_hat
+    if not ok.any():
+        raise ValueError(
+            f"--human {fam.name!r} teaches relative to θ̂, which these logs do not hold"
+        )
+    note = ""
+    if data.theta_hat_source != "logged":
+        note = f"fitted on θ̂ {data.theta_hat_source}"
+    if not ok.all():
+        note = (note + "; " if note else "") + f"{int((~ok).sum())} corrections without θ̂ left out"
+    return data.subset(np.flatnonzero(ok)), note
+
+
+def bootstrap(
+    fam: Family,
+    prep: dict[str, Any],
+    data: Corrections,
+    mle: dict[str, float],
+    n_boot: int,
+    rng: np.random.Generator,
+) -> dict[str, tuple[float, float]]:
+    """Percentile 95 % intervals, resampling people with replacement."""
+    groups = person_rows(data)
+    draws: list[list[float]] = []
+    for _ in range(n_boot):
+        pick = rng.integers(0, len(groups), len(groups))
+        rows = np.concatenate([groups[i] for i in pick])
+        v, _ = maximise(fam, _take(prep, rows), starts=[mle])
+        draws.append([v[p.name] for p in fam.params])
+    arr = np.array(draws)
+    return {
+        p.name: (float(np.percentile(arr[:, j], 2.5)), float(np.percentile(arr[:, j], 97.5)))
+        for j, p in enumerate(fam.params)
+    }
+
+
+def heldout(
+    fam: Family,
+    prep: dict[str, Any],
+    data: Corrections,
+    folds: int,
+    rng: np.random.Generator,
+    start: dict[str, float] | None = None,
+) -> float:
+    """Σ over folds of people of the held-out people's log-likelihood under the others' fit."""
+    groups = person_rows(data)
+    n = len(groups)
+    folds = min(folds, n)
+    if folds < 2:
+        return math.nan
+    order = rng.permutation(n)
+    total = 0.0
+    for f in range(folds):
+        test = np.concatenate([groups[i] for i in order[f::folds]])
+        train = np.concatenate([groups[i] for j, i in enumerate(order) if j % folds != f])
+        v, _ = maximise(fam, _take(prep, train), starts=[start] if start else None)
+        total += float(loglik_terms(fam, _take(prep, test), v).sum())
+    return total
+
+
+def fit(
+    name: str,
+    data: Corrections,
+    *,
+    n_boot: int = 200,
+    folds: int = 5,
+    seed: int = 0,
+    heldout_too: bool = True,
+) -> Fit:
+    """Fit registered human ``name`` to ``data``: MLE, bootstrap intervals over people and
+    (``heldout_too``) the held-out log-likelihood over ``folds`` folds of people."""
+    fam = family(name)
+    data, note = usable(fam, data)
+    prep = prepare(fam, data)
+    mle, ll = maximise(fam, prep)
+    rng = np.random.default_rng(seed)
+    ci = bootstrap(fam, prep, data, mle, n_boot, rng) if n_boot else {}
+    ci = {k: ci.get(k, (math.nan, math.nan)) for k in mle}
+    held = None
+    if heldout_too:
+        held = heldout(fam, prep, data, folds, np.random.default_rng(seed + 1), mle)
+    return Fit(name, len(data.people), len(data), mle, ci, ll, held, note)
+
+
+# ---------------------------------------------------------------------------- predictive draws
+def simulate(
+    name: str, data: Corrections, values: dict[str, float], rng: np.random.Generator
+) -> np.ndarray:
+    """u_H (n, a) drawn from the fitted model at the logged corrections' states (x, u_R, θ*,
+    θ̂): the posterior-predictive draw ``--compare`` plots against the real corrections. Where
+    the log clips at the bound, the draw is clipped too."""
+    fam = family(name)
+    data, _ = usable(fam, data)
+    prep = prepare(fam, data)
+    p = fam.parts(prep, values)
+    n, c, a = len(prep["uh"]), p.mu.shape[1], p.mu.shape[2]
+    w = np.exp(p.logw - special.logsumexp(p.logw, axis=1, keepdims=True))
+    idx = np.minimum((w.cumsum(axis=1) < rng.random((n, 1))).sum(axis=1), c - 1)
+    mu = np.broadcast_to(p.mu, (n, c, a))[np.arange(n), idx]
+    sig = p.sigma if p.sigma.ndim == 1 else p.sigma[np.arange(n), idx]
+    u = mu + p.bias + sig[:, None] * rng.standard_normal((n, a))
+    if (np.abs(prep["uh"]) == 1.0).any():
+        u = np.clip(u, -1.0, 1.0)
+    if p.log_q is not None:
+        u[rng.random(n) < np.exp(p.log_q)] = 0.0
+    return u * np.asarray(data.task.action_bound)
+
+
+__all__ = [
+    "NOT_FITTABLE",
+    "Corrections",
+    "Family",
+    "Fit",
+    "Param",
+    "best_for_theta",
+    "families",
+    "family",
+    "fit",
+    "heldout",
+    "loglik_terms",
+    "maximise",
+    "order_weights",
+    "person_rows",
+    "prepare",
+    "quadrature",
+    "simulate",
+    "teacher_choice",
+]

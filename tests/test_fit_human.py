@@ -1,0 +1,184 @@
+"""``strol-bench fit-human`` and ``strol_gym.humans.fitting``: recovery, model selection, the
+log's generating parameters out of sight, the bound's censoring, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from cli_checks import cli_error
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.analysis.fit_recovery import recovery, selection, simulate_people
+from strol_gym.benchmarks.sessions.fit_human import load_corrections
+from strol_gym.wrappers import OnlineLearningWrapper
+from strol_gym.wrappers.session_log import SessionLogger
+
+import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.humans import human_model
+from strol_gym.humans.findings import candidate_rewards, margin
+from strol_gym.humans.fitting import fit
+from strol_gym.tasks import make_task
+
+TASK = make_task("robot")
+
+
+def test_recovery_of_the_teacher_covers_its_parameters():
+    """5 datasets of 8 people (σ 0.35, ε 0.1, not the defaults), 30 bootstrap samples each:
+    each interval holds the truth in most datasets and the mean estimate sits within half an
+    interval's width (the benchmark script measures 20 datasets: docs/humans.md)."""
+    out = recovery(TASK, "nominal", {"sigma": 0.35, "bias": 0.1}, 5, 8, 30, seed=11, robot=False)
+    for name, r in out.items():
+        assert r["coverage"] >= 0.6, (name, r)
+        assert abs(r["bias"]) < r["mean_ci_width"] / 2, (name, r)
+
+
+def test_selection_by_heldout_likelihood_finds_the_generating_model():
+    scen = {
+        "mistaken": ("mistaken", {"sigma": 0.2, "rate": 0.35}),
+        "nominal": ("nominal", {"sigma": 0.3}),
+    }
+    conf = selection(
+        TASK, scen, 1, 10, candidates=("nominal", "mistaken", "myopic"), seed=5, robot=False
+    )
+    assert conf["mistaken"]["mistaken"] == 1, conf
+    assert conf["nominal"]["myopic"] == 0, conf  # the teacher's data are not the myopic's
+
+
+def test_censored_gaussian_recovers_sigma_from_clipped_corrections():
+    """A log that clips u_H at the bound holds less spread; the censored likelihood gets σ back,
+    the plain Gaussian would not."""
+    data = simulate_people(TASK, "nominal", 25, 3, robot=False, sigma=0.6)
+    bound = np.asarray(TASK.action_bound)
+    clipped = np.clip(data.u_h, -bound, bound)
+    assert (np.abs(clipped) == bound).mean() > 0.2  # many components sit on the bound
+    est = fit("nominal", data, n_boot=0, heldout_too=False).estimate["sigma"]
+    data.u_h = clipped
+    est_clipped = fit("nominal", data, n_boot=0, heldout_too=False).estimate["sigma"]
+    assert abs(est_clipped - est) < 0.1 * est, (est, est_clipped)
+    data.u_h = clipped * (1 - 1e-9)  # just inside the bound: read as uncensored Gaussians
+    est_plain = fit("nominal", data, n_boot=0, heldout_too=False).estimate["sigma"]
+    assert est_plain < 0.85 * est, (est, est_plain)
+
+
+def _log(path, seed0: int = 0) -> None:
+    env = SessionLogger(
+        OnlineLearningWrapper(
+            gym.make("StROL-Robot-v0", human="mistaken", sigma=0.3, human_kwargs={"rate": 0.2}),
+            "gradient",
+        ),
+        path,
+        extra={"note": "simulated", "sigma": 0.3},
+    )
+    task = env.unwrapped.task
+    for seed in range(seed0, seed0 + 6):
+        obs, _ = env.reset(seed=seed)
+        done = False
+        while not done:
+            u_r = task.robot_policy(obs["state"], obs["theta_hat"])[0]
+            obs, _, terminated, truncated, _ = env.step(u_r / task.robot_action_bound)
+            done = terminated or truncated
+    env.close()
+
+
+def _strip(src, dst) -> None:
+    """The log as a person's would be: no seeds, no env kwargs, no extras, no versions."""
+    lines = []
+    for line in src.read_text().splitlines():
+        rec = json.loads(line)
+        if rec["type"] == "header":
+            rec.update(env_kwargs={}, extra={}, packages={}, learner=None, learner_kwargs={})
+        if rec["type"] == "episode":
+            rec["seed"] = None
+        if rec["type"] == "end":
+            continue
+        lines.append(json.dumps(rec))
+    dst.write_text("\n".join(lines) + "\n")
+
+
+def test_fit_ignores_the_headers_generating_parameters_and_seeds(tmp_path, capsys):
+    _log(tmp_path / "full.jsonl")
+    (tmp_path / "bare").mkdir()
+    _strip(tmp_path / "full.jsonl", tmp_path / "bare" / "a.jsonl")
+    outs = []
+    for i, src in enumerate([tmp_path / "full.jsonl", tmp_path / "bare"]):
+        out = tmp_path / f"out{i}"
+        argv = ["fit-human", str(src), "--human", "skipping", "--out", str(out)]
+        assert cli.main([*argv, "--bootstrap", "10", "--folds", "2"]) == 0
+        outs.append(json.loads((out / "fit.json").read_text()))
+    assert outs[0]["params"] == outs[1]["params"]
+    assert outs[0]["loglik"] == outs[1]["loglik"]
+    assert outs[0]["n_people"] == 6 and outs[0]["n_corrections"] == 30
+    for p in outs[0]["params"].values():
+        lo, hi = p["ci95"]
+        assert lo - 1e-6 <= p["estimate"] <= hi + 1e-6  # (p ≈ 0 here: no skips to see)
+    assert "fit.json" in capsys.readouterr().out
+
+
+def test_compare_writes_the_table_and_the_predictive_plot(tmp_path):
+    _log(tmp_path / "s.jsonl", seed0=20)
+    argv = ["fit-human", str(tmp_path / "s.jsonl"), "--human", "nominal"]
+    argv += ["--compare", "skipping,changing,myopic", "--out", str(tmp_path / "o")]
+    code = None
+    try:
+        code = cli.main([*argv, "--bootstrap", "5", "--folds", "2"])
+    except SystemExit as e:
+        code = e.code
+    assert code == 2  # 'changing' is not fittable: named before any work
+    argv[argv.index("skipping,changing,myopic")] = "skipping,myopic"
+    assert cli.main([*argv, "--bootstrap", "5", "--folds", "2"]) == 0
+    table = (tmp_path / "o" / "compare.md").read_text()
+    assert "| skipping |" in table and "| myopic |" in table
+    assert (tmp_path / "o" / "plots" / "ppc.png").stat().st_size > 1000
+    held = json.loads((tmp_path / "o" / "compare.json").read_text())["fits"]
+    assert all(np.isfinite(f["heldout_loglik"]) for f in held)
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["nowhere.jsonl", "--human", "nominal"], "nowhere"),
+        (["{log}", "--human", "nobody"], "nobody"),
+        (["{log}", "--human", "changing"], "change point"),
+        (["{empty}", "--human", "nominal"], "without session logs"),
+        (["{bad}", "--human", "nominal"], "bad.jsonl"),
+        (["{log}", "--human", "nominal", "--bootstrap", "-1"], "--bootstrap"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, argv, needle):
+    log = tmp_path / "s.jsonl"
+    log.write_text("")
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "bad.jsonl").write_text('{"type": "header"\n')
+    paths = {"log": str(log), "empty": str(tmp_path / "empty"), "bad": str(tmp_path / "bad.jsonl")}
+    argv = [a.format(**paths) for a in argv]
+    line = cli_error(["fit-human", *argv, "--out", str(tmp_path / "o")], capsys)
+    assert needle in line
+
+
+def test_loading_reads_theta_hat_before_each_correction(tmp_path):
+    _log(tmp_path / "s.jsonl", seed0=40)
+    data = load_corrections([str(tmp_path / "s.jsonl")])
+    first = data.k == 0
+    assert np.all(data.theta_hat[first] == 0.0)  # θ̂0, the prior's mean
+    assert np.all(data.has_theta_hat)
+    assert not np.allclose(data.theta_hat[~first], 0.0)
+
+
+def test_competence_propensity_follows_the_margin():
+    """Silences of the competence person happen at the rate 1 − p(m), m the margin."""
+    n = 800
+    rng = np.random.default_rng(1)
+    x = TASK.sample_start(rng, n)
+    u_r = TASK.robot_policy(x, np.zeros((n, TASK.dim)))
+    star = TASK.prior.sample(rng, n)
+    model = human_model("competence", TASK, sigma=0.1, p_good=0.95, p_bad=0.2)
+    draws = model.draw(np.random.default_rng(2), n)
+    u = model.corrections(x, u_r, star, draws, np.zeros((n, TASK.dim)))
+    m = margin(candidate_rewards(TASK, x, u_r, star, draws.candidates))
+    silent = np.all(u == 0.0, axis=1)
+    expect = 1.0 - (0.95 + (0.2 - 0.95) * m)
+    assert abs(silent.mean() - expect.mean()) < 4 * np.sqrt(expect.mean() / n)
+    hi, lo = m > np.median(m), m <= np.median(m)
+    assert silent[hi].mean() > silent[lo].mean()  # a robot doing badly is corrected less
