@@ -136,7 +136,8 @@ def _edit_first_record(rd, cfg, edit):
 @pytest.mark.parametrize(
     ("edit", "match"),
     [
-        (lambda d: d["records"][0].update(regret=float("nan")), r"'regret' must be a finite"),
+        (lambda d: d["records"][0].update(regret=float("nan")), r"'regret' is NaN while other"),
+        (lambda d: d["records"][0].update(regret=float("inf")), r"'regret' must be a finite"),
         (lambda d: d["records"][0].update(regret=None), r"'regret' must be a finite"),
         (lambda d: d["records"][0]["errors"].append(float("inf")), r"'errors' must be a list"),
         (lambda d: d["records"][0].pop("errors"), r"'errors' is missing"),
@@ -144,7 +145,7 @@ def _edit_first_record(rd, cfg, edit):
         (lambda d: d["records"][0].update(condition="clean"), r"is not its unit's"),
         (lambda d: d.update(records={"a": 1}), r"records must be a list of objects"),
     ],
-    ids=["nan", "null", "inf-curve", "errors-missing", "steps", "condition", "records-dict"],
+    ids=["nan", "inf", "null", "inf-curve", "errors-missing", "steps", "condition", "records-dict"],
 )
 def test_hand_edited_records_are_named_not_dropped(tmp_path, edit, match):
     rd, cfg = _folder(tmp_path)

@@ -305,6 +305,7 @@ class ResultsDir:
         """Every record, validated, in canonical order (experiment, seed, learner order)."""
         units = {u.key: u for u in self.config.units()}
         out: list[dict] = []
+        nan_seen: dict[tuple[int, str], dict[bool, tuple[Path, dict]]] = {}
         for p in sorted((self.path / RECORDS).glob("*.json")):
             if p.name.startswith("."):
                 continue
@@ -330,6 +331,8 @@ class ResultsDir:
             exp = self.config.experiments[unit.experiment]
             for r in recs:
                 _check_record(p, r, exp.env, exp.condition.name, exp.corrections)
+                for key in RUN_FIELDS:  # NaN: legitimate only for a whole experiment
+                    nan_seen.setdefault((unit.experiment, key), {})[math.isnan(r[key])] = (p, r)
             got = [(r.get("seed"), r.get("learner")) for r in recs]
             where = {(r.get("env"), r.get("condition")) for r in recs}
             if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
@@ -337,6 +340,14 @@ class ResultsDir:
             if where != {(exp.env, exp.condition.name)}:
                 raise ResultsError(f"{p} holds runs of another env or condition than its unit's")
             out.extend(recs)
+        for (_, key), seen in nan_seen.items():
+            if len(seen) > 1:  # some runs have it and some do not: an edited or broken record
+                p, r = seen[True]
+                raise ResultsError(
+                    f"{p}: run seed {r['seed']!r}, learner {r['learner']!r}: {key!r} is NaN while "
+                    "other runs of its experiment have it (NaN is only for an env that does not "
+                    "score it, e.g. regret without a planner); delete the file to rerun its unit"
+                )
         order = {learner: i for i, learner in enumerate(self.config.learners)}
         exp_index = {(e.env, e.condition.name): i for i, e in enumerate(self.config.experiments)}
         out.sort(
@@ -426,16 +437,17 @@ def _check_record(p: Path, r: dict, env: str, condition: str, corrections: int) 
         raise ResultsError(
             f"{who}: 'steps' must be an integer in [0, {corrections}], got {steps!r}"
         )
-    for key in RUN_FIELDS:
+    for key in RUN_FIELDS:  # NaN is checked across the experiment by read_records
         v = r.get(key)
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        if isinstance(v, bool) or not isinstance(v, int | float) or math.isinf(v):
             raise ResultsError(f"{who}: {key!r} must be a finite number, got {v!r}{rerun}")
     for key in ("errors", "cos_errors"):
         seq = r.get(key)
         if not isinstance(seq, list) or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in seq
+            isinstance(v, int | float) and not isinstance(v, bool) and not math.isinf(v)
+            for v in seq
         ):
-            raise ResultsError(f"{who}: {key!r} must be a list of finite numbers{rerun}")
+            raise ResultsError(f"{who}: {key!r} must be a list of numbers (no inf){rerun}")
     if len(r["cos_errors"]) != len(r["errors"]):
         raise ResultsError(f"{who}: 'errors' and 'cos_errors' differ in length{rerun}")
 

@@ -320,6 +320,16 @@ class BayesLearner(LinearRuleLearner):
                     else ""
                 )
             )
+        for key, arr in (("particles", particles), ("logw", logw)):
+            if not np.isfinite(arr).all():
+                raise ValueError(f"state[{key!r}] must be finite (no NaN or inf)")
+        if particles.shape[:-1] != logw.shape or particles.shape[-1:] != (self.task.dim,):
+            raise ValueError(
+                f"state['particles'] {particles.shape} must be logw's shape {logw.shape} "
+                f"+ ({self.task.dim},)"
+            )
+        if beta_idx.shape != logw.shape:
+            raise ValueError(f"state['beta_idx'] {beta_idx.shape} must match logw {logw.shape}")
         if particles.ndim not in (2, 3) or particles.shape[-2] != self.n_particles:
             raise ValueError(
                 f"state['particles'] must have shape ({self.n_particles}, {self.task.dim}) or "
@@ -334,16 +344,6 @@ class BayesLearner(LinearRuleLearner):
                 f"state['theta'] {theta.shape} does not match the posterior's {rows} row(s): "
                 f"it must be ({self.task.dim},) for one row or ({rows}, {self.task.dim})"
             )
-        for key, arr in (("particles", particles), ("logw", logw)):
-            if not np.isfinite(arr).all():
-                raise ValueError(f"state[{key!r}] must be finite (no NaN or inf)")
-        if particles.shape[:-1] != logw.shape or particles.shape[-1:] != (self.task.dim,):
-            raise ValueError(
-                f"state['particles'] {particles.shape} must be logw's shape {logw.shape} "
-                f"+ ({self.task.dim},)"
-            )
-        if beta_idx.shape != logw.shape:
-            raise ValueError(f"state['beta_idx'] {beta_idx.shape} must match logw {logw.shape}")
         super().load_state_dict(state)
         self._particles, self._beta_idx, self._logw = particles, beta_idx, logw
         self._updates = int(updates)
