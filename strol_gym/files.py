@@ -95,7 +95,7 @@ def loads_json(text: str | bytes, what: str, max_depth: int = MAX_JSON_DEPTH) ->
     except RecursionError:
         raise ValueError(f"{what}: JSON nested deeper than {max_depth} levels") from None
     except ValueError as e:  # JSONDecodeError, UnicodeDecodeError, an integer with 5000 digits
-        raise ValueError(f"{what}: not valid JSON ({' '.join(str(e).split())[:200]})") from None
+        raise ValueError(f"{what} must be JSON ({' '.join(str(e).split())[:200]})") from None
     stack: list[tuple[Any, int]] = [(value, 1)]
     while stack:
         v, depth = stack.pop()
