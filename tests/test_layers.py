@@ -42,6 +42,7 @@ LAYERS: list[tuple[str, ...]] = [
         "strol_gym.deprecation",
         "strol_gym.planning",
         "strol_gym.metrics",
+        "strol_gym.compiled",
     ),
     ("strol_gym.priors",),
     ("strol_gym.tasks",),

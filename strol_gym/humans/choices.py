@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.driver import driver_correction as driver_correction
 
@@ -26,7 +27,13 @@ def optimal_correction(
     """Eq. M6, batched: the candidate u minimising ‖θ* − (θ̂ + α g(x, u, u_R))‖.
 
     Shapes: x (B, s), u_r (B, a), theta_hat / theta_star (B, d), candidates (B, K, a) -> (B, a).
+    With compiled kernels on (``strol_gym.compiled``), a Task's own kernel (``Task.m6_choice``)
+    searches instead: the same choice, bit for bit.
     """
+    if use_fast():
+        best = task.m6_choice(x, u_r, theta_hat, theta_star, candidates)
+        if best is not None:
+            return candidates[np.arange(len(candidates)), best]
     g = task.g_planes(x[:, None, :], candidates, u_r[:, None, :])  # (d, B, K)
     # θ* − (θ̂ + α g) and its squared norm one feature at a time, on (B, K) planes: the
     # numbers of broadcasting (B, 1, d) against (B, K, d), whose inner loops are only d long.

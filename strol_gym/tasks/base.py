@@ -157,6 +157,25 @@ class Task(ABC):
         g = self.g(x, u_h, u_r)
         return g.transpose(g.ndim - 1, *range(g.ndim - 1))
 
+    def m6_choice(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        candidates: np.ndarray,
+    ) -> np.ndarray | None:
+        """Eq. M6's chosen candidate per person, (B,) indices, from a compiled kernel
+        (``strol_gym.compiled``), or None: then ``optimal_correction``'s plain search runs. A
+        Task offers a kernel only while the methods it repeats are its own (``_unchanged``)."""
+        return None
+
+    def _unchanged(self, cls: type, names: Sequence[str]) -> bool:
+        """Whether this Task's ``names`` are ``cls``'s: a subclass that overrides one of them
+        changes what a kernel written for ``cls`` would compute."""
+        own = type(self)
+        return all(getattr(own, n) is getattr(cls, n) for n in names)
+
     def candidate_actions(self, rng: np.random.Generator, n: int, k: int) -> np.ndarray:
         """Candidate human actions for eq. M6, shape (n, k + 1, action_dim).
 

@@ -42,6 +42,7 @@ of the passer is flipped because our speed feature is the human's own speed: wit
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Sequence
 from typing import ClassVar
 
@@ -227,6 +228,61 @@ class HighwayTask(Task):
         if out.shape != (*lead, 3):
             out = np.broadcast_to(out, (*lead, 3)).copy()
         return out
+
+    def m6_choice(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        candidates: np.ndarray,
+    ) -> np.ndarray | None:
+        """Eq. M6 by ``strol_gym.tasks.m6_kernels.highway_m6`` (the numbers of ``g``). numpy
+        computes the steering angles β = arctan(½ tan δ): its tangent and arctangent are its own
+        SIMD ones, not the C library's that a kernel would call."""
+        if not self._unchanged(HighwayTask, ("g", "g_planes", "_phi", "_step_car", "dynamics")):
+            return None
+        from strol_gym.tasks.m6_kernels import highway_m6
+
+        u_r = np.asarray(u_r, dtype=np.float64)
+        candidates = np.asarray(candidates, dtype=np.float64)
+        best = np.empty(len(candidates), dtype=np.int64)
+        f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, theta_hat, theta_star)]
+        highway_m6(
+            f64[0],
+            np.ascontiguousarray(u_r[:, 0]),
+            np.ascontiguousarray(np.arctan(0.5 * np.tan(u_r[:, 1]))),
+            f64[1],
+            f64[2],
+            np.ascontiguousarray(candidates[..., 0]),
+            np.arctan(0.5 * np.tan(candidates[..., 1])),
+            self._kernel_params,
+            best,
+        )
+        return best
+
+    @functools.cached_property
+    def _kernel_params(self) -> np.ndarray:
+        """The numbers ``highway_m6`` reads, in its order."""
+        return np.array(
+            [
+                self.headway,
+                self.min_gap,
+                self.close_penalty,
+                self.lane_weight,
+                float(self.lane_centers[0]),
+                LANE_WIDTH,
+                self.gap_scale,
+                self.speed_ref,
+                self.speed_scale,
+                self.alpha,
+                self.dt,
+                CAR_LENGTH / 2,
+                MAX_SPEED,
+                MIN_SPEED,
+            ],
+            dtype=np.float64,
+        )
 
     def sample_episode_start(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """Where an episode of the env starts: both cars in the left lane, the human behind.

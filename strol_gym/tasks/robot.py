@@ -36,6 +36,10 @@ _LONG = 3000
 """Array size from which φ and ∂φ/∂x work per object and axis (``RobotTask._offsets``)."""
 
 
+_M6_METHODS = ("g", "g_planes", "features", "dynamics", "_offsets", "_features_one", "dynamics_one")
+"""What ``robot_m6`` computes over again: a subclass overriding one of them takes the plain path."""
+
+
 def _m6_layout(x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> bool:
     """x and u_R (B, 1, 3) with K candidate u_H (B, K, 3): eq. M6's layout."""
     if not x.ndim == u_h.ndim == u_r.ndim == 3:
@@ -234,6 +238,32 @@ class RobotTask(Task):
         np.negative(cup, out=cup)
         cup -= phi_r[1]
         return out
+
+    def m6_choice(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        candidates: np.ndarray,
+    ) -> np.ndarray | None:
+        """Eq. M6 by ``strol_gym.tasks.m6_kernels.robot_m6`` (the numbers of ``g_planes``)."""
+        if not self._unchanged(RobotTask, _M6_METHODS):
+            return None
+        from strol_gym.tasks.m6_kernels import robot_m6
+
+        best = np.empty(len(candidates), dtype=np.int64)
+        robot_m6(
+            *(np.ascontiguousarray(a, dtype=np.float64) for a in (x, u_r, theta_hat, theta_star)),
+            np.ascontiguousarray(candidates, dtype=np.float64),
+            float(self.alpha),
+            self.plate,
+            self.cup,
+            self.workspace_low,
+            self.workspace_high,
+            best,
+        )
+        return best
 
     @functools.cached_property
     def _box_planes(self) -> np.ndarray:

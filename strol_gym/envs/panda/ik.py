@@ -6,10 +6,12 @@ shifted by ``lift``.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.envs.panda.model import EE_SITE, FINGER_OPEN, N_ARM, Q_HOME
 
 IK_ITERS = 6
@@ -60,6 +62,7 @@ class PandaIK:
         self._w9 = np.zeros(model.nv)
         self._s = np.zeros(N_ARM)
         self._r = np.zeros(3)
+        self._no_ref = np.zeros(N_ARM)
         self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
         self._lift_l = self.lift.tolist()
         self.seeds = seeds
@@ -146,6 +149,30 @@ class PandaIK:
         m, d, q = self.model, self.data, self.q
         x = d.site_xpos[self.site]
         xmat = d.site_xmat[self.site]
+        kernel = solver()
+        if kernel is not None:  # the same iterations, compiled (strol_gym.envs.panda.ik_kernel)
+            return kernel(
+                m._address,
+                d._address,
+                self.site,
+                x,
+                xmat,
+                q,
+                self._jp,
+                self._jr,
+                self._w9,
+                self._orient,
+                np.asarray(target, dtype=np.float64),
+                iters,
+                tol,
+                self._no_ref if ref is None else np.asarray(ref, dtype=np.float64),
+                ref is not None,
+                orient_gain,
+                IK_POSTURE_GAIN,
+                IK_DAMPING**2,
+                self.lo,
+                self.hi,
+            )
         jp = self._jp[:, :N_ARM]
         tx, ty, tz = target if isinstance(target, list) else np.asarray(target).tolist()
         tol2 = tol * tol
@@ -222,6 +249,16 @@ class PandaIK:
             for qn, lj, hj in zip(q_new, lo, hi, strict=True)
         ]
         return q_new, q_clip
+
+
+def solver() -> Callable[..., float] | None:
+    """The compiled ``PandaIK._solve`` (``strol_gym.envs.panda.ik_kernel``) when the fast
+    kernels are on and it can run here; None: the plain path."""
+    if not use_fast():
+        return None
+    from strol_gym.envs.panda.ik_kernel import solver as compiled_solver
+
+    return compiled_solver()
 
 
 def _skew(v: np.ndarray) -> np.ndarray:

@@ -1,0 +1,294 @@
+"""``PandaIK._solve`` as one compiled loop (numba) that calls MuJoCo's C functions itself.
+
+The C-calling kernel: ``mj_kinematics``, ``mj_comPos``, ``mj_jacSite`` and MuJoCo's Cholesky and
+Jᵀ products are the very calls of the plain path, reached through ``libmujoco``'s exported
+symbols and the private ``MjModel._address`` / ``MjData._address`` of the Python binding. The
+3x7 algebra that the plain path leaves to numpy's BLAS (OpenBLAS) is written out in the order
+and with the fused multiply-adds of OpenBLAS's kernels (J Jᵀ: one fused multiply-add per joint,
+in order; J s and the gripper-down term: ``dgemv_t``'s pairwise sums and fused tail), so every
+iteration reaches the same bits. ``solver()`` checks that on random Jacobians against this
+process's numpy first (``_agrees``): under another BLAS kernel the plain path runs.
+
+The C functions' addresses are arguments, not constants compiled in (``_call``), so the kernel
+is cached on disk like the others (``cache=True``): a process loads it instead of compiling.
+This module imports numba: import it only when ``strol_gym.compiled.use_fast()``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import glob
+import os
+from collections.abc import Callable
+from typing import Any
+
+import mujoco
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+from strol_gym.envs.panda.model import N_ARM
+
+_SYMBOLS = (
+    "mj_kinematics",
+    "mj_comPos",
+    "mj_jacSite",
+    "mju_cholFactor",
+    "mju_cholSolve",
+    "mju_mulMatTVec",
+)
+"""The C functions the kernel calls, in the order of its ``fp`` argument."""
+KIN, COM, JAC, CHOL, SOLVE, MUL_T = range(len(_SYMBOLS))
+
+_jit = njit(cache=True, nogil=True)
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """a·b + c rounded once (LLVM's ``llvm.fma.f64``), as OpenBLAS's kernels compute."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        d = ir.DoubleType()
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(d, [d, d, d]), "llvm.fma.f64"
+        )
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+def _c_function(ret: Any, params: tuple[Any, ...]) -> tuple[Any, Callable[..., Any]]:
+    """The typing signature and code generator of a call to the C function whose address is
+    the first argument, with C parameter types ``params`` (numba types) returning ``ret``."""
+
+    def ll(t: Any) -> ir.Type:
+        return ir.DoubleType() if t == types.float64 else ir.IntType(t.bitwidth)
+
+    sig = (types.void if ret is None else ret)(types.intp, *params)
+
+    def codegen(context, builder, signature, llargs):
+        fnty = ir.FunctionType(ir.VoidType() if ret is None else ll(ret), [ll(p) for p in params])
+        out = builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), llargs[1:])
+        return context.get_dummy_value() if ret is None else out
+
+    return sig, codegen
+
+
+_p, _i, _f = types.intp, types.int32, types.float64
+
+
+@intrinsic
+def _call_md(typingctx, address, m, d):
+    """mj_kinematics(m, d) or mj_comPos(m, d) at ``address``."""
+    return _c_function(None, (_p, _p))
+
+
+@intrinsic
+def _call_jac(typingctx, address, m, d, jacp, jacr, site):
+    """mj_jacSite(m, d, jacp, jacr, site) at ``address``."""
+    return _c_function(None, (_p, _p, _p, _p, _i))
+
+
+@intrinsic
+def _call_chol(typingctx, address, mat, n, mindiag):
+    """mju_cholFactor(mat, n, mindiag) at ``address``."""
+    return _c_function(_i, (_p, _i, _f))
+
+
+@intrinsic
+def _call_solve(typingctx, address, res, mat, vec, n):
+    """mju_cholSolve(res, mat, vec, n) at ``address``."""
+    return _c_function(None, (_p, _p, _p, _i))
+
+
+@intrinsic
+def _call_mul_t(typingctx, address, res, mat, vec, nr, nc):
+    """mju_mulMatTVec(res, mat, vec, nr, nc) at ``address``."""
+    return _c_function(None, (_p, _p, _p, _i, _i))
+
+
+@_jit
+def _dot7(a, i, x):
+    """Row i of a (3, 7) by x (7,): OpenBLAS ``dgemv_t`` (a 4-row block, a 3-row tail)."""
+    r = (a[i, 0] * x[0] + a[i, 2] * x[2]) + (a[i, 1] * x[1] + a[i, 3] * x[3])
+    return r + _fma(a[i, 6], x[6], _fma(a[i, 4], x[4], a[i, 5] * x[5]))
+
+
+@_jit
+def _dot9(a, i, x):
+    """Row i of a (3, 9) by x (9,): OpenBLAS ``dgemv_t`` (rows 0-1 by its 2-column kernel,
+    row 2 by its 1-column kernel, then a 1-row tail)."""
+    p = np.empty(8)
+    for k in range(8):
+        p[k] = a[i, k] * x[k]
+    if i < 2:
+        r = (((p[0] + p[2]) + p[4]) + p[6]) + (((p[1] + p[3]) + p[5]) + p[7])
+    else:
+        r = ((p[0] + p[4]) + (p[2] + p[6])) + ((p[1] + p[5]) + (p[3] + p[7]))
+    return _fma(a[i, 8], x[8], r)
+
+
+@_jit
+def _jjt(jp, i, k):
+    """Entry (i, k) of J Jᵀ: OpenBLAS's one fused multiply-add per joint, in order."""
+    acc = 0.0
+    for j in range(N_ARM):
+        acc = _fma(jp[i, j], jp[k, j], acc)
+    return acc
+
+
+@_jit
+def _probe(jp, jf, s, orient, xmat, out):
+    """The products as ``_solve`` computes them, for ``_agrees`` to compare with numpy's."""
+    for i in range(3):
+        for k in range(3):
+            out[i, k] = _jjt(jp, i, k)
+            out[i, 3 + k] = _jjt(jf, i, k)
+        out[i, 6] = _dot7(jp, i, s)
+        out[i, 7] = _dot7(jf, i, s)
+        out[i, 8] = _dot9(orient, i, xmat)
+
+
+@_jit
+def _update(fp, jp, jt, out, nt, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip):
+    """``PandaIK._update``: q_new and q_clip; whether a joint was clipped."""
+    for i in range(3):
+        for k in range(3):
+            a[i, k] = _jjt(jp, i, k) + (damp2 if i == k else 0.0)
+    _call_chol(fp[CHOL], a.ctypes.data, np.int32(3), 0.0)
+    for i in range(3):
+        r[i] = e[i] - _dot7(jp, i, s)
+    _call_solve(fp[SOLVE], y.ctypes.data, a.ctypes.data, r.ctypes.data, np.int32(3))
+    _call_mul_t(
+        fp[MUL_T], out.ctypes.data, jt.ctypes.data, y.ctypes.data, np.int32(3), np.int32(nt)
+    )
+    clipped = False
+    for j in range(N_ARM):
+        qn = q[j] + (s[j] + out[j])
+        q_new[j] = qn
+        c = hi[j] if qn > hi[j] else (lo[j] if qn < lo[j] else qn)
+        clipped = clipped or c != qn
+        q_clip[j] = c
+    return clipped
+
+
+@_jit
+def _solve(
+    fp,
+    m,
+    d,
+    site,
+    xpos,
+    xmat,
+    q,
+    jp_full,
+    jr_full,
+    w9,
+    orient,
+    target,
+    iters,
+    tol,
+    ref,
+    has_ref,
+    orient_gain,
+    posture,
+    damp2,
+    lo,
+    hi,
+):
+    """``PandaIK._solve``: ``iters`` iterations towards ``target`` (world frame); the error."""
+    tx, ty, tz = target[0], target[1], target[2]
+    tol2 = tol * tol
+    a, y, r = np.empty((3, 3)), np.empty(3), np.empty(3)
+    s, ox, e = np.empty(N_ARM), np.empty(3), np.empty(3)
+    q_new, q_clip = np.empty(N_ARM), np.empty(N_ARM)
+    jp = np.empty((3, N_ARM))
+    jf = np.empty((3, N_ARM))
+    nv = jp_full.shape[1]
+    site32 = np.int32(site)
+    for _ in range(iters):
+        e[0], e[1], e[2] = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+        if e[0] * e[0] + e[1] * e[1] + e[2] * e[2] < tol2:
+            break
+        _call_md(fp[COM], m, d)
+        _call_jac(fp[JAC], m, d, jp_full.ctypes.data, jr_full.ctypes.data, site32)
+        for i in range(3):
+            ox[i] = _dot9(orient, i, xmat)
+        _call_mul_t(
+            fp[MUL_T],
+            w9.ctypes.data,
+            jr_full.ctypes.data,
+            ox.ctypes.data,
+            np.int32(3),
+            np.int32(nv),
+        )
+        for j in range(N_ARM):
+            s[j] = orient_gain * w9[j]
+            if has_ref:
+                s[j] = s[j] + posture * (ref[j] - q[j])
+            for i in range(3):
+                jp[i, j] = jp_full[i, j]
+        if _update(fp, jp, jp_full, w9, nv, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip):
+            # Joints at a limit drop out (their columns of J and entries of s times 0).
+            for j in range(N_ARM):
+                free = 1.0 if lo[j] <= q_new[j] <= hi[j] else 0.0
+                s[j] = s[j] * free
+                for i in range(3):
+                    jf[i, j] = jp[i, j] * free
+            _update(fp, jf, jf, w9, N_ARM, q, s, e, damp2, lo, hi, a, y, r, q_new, q_clip)
+        for j in range(N_ARM):
+            q[j] = q_clip[j]
+        _call_md(fp[KIN], m, d)
+    e0, e1, e2 = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+    return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
+def _addresses() -> np.ndarray | None:
+    """The C functions' addresses in MuJoCo's shared library (the one the binding loaded), in
+    ``_SYMBOLS``' order; None where there is no such library or a symbol is missing."""
+    here = os.path.dirname(mujoco.__file__)
+    for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
+        for path in sorted(glob.glob(os.path.join(here, pattern))):
+            try:
+                lib = ctypes.CDLL(path)
+            except OSError:
+                continue
+            if all(hasattr(lib, s) for s in _SYMBOLS):
+                addr = [ctypes.cast(getattr(lib, s), ctypes.c_void_p).value for s in _SYMBOLS]
+                return np.array(addr, dtype=np.intp)
+    return None
+
+
+def _agrees(cases: int = 200) -> bool:
+    """Whether the kernel's products equal numpy's (this process's BLAS) bit for bit on random
+    Jacobians, in the layouts ``PandaIK`` uses: a (3, 7) view of MuJoCo's (3, 9) Jacobian, a
+    (3, 7) copy (the limit step), and the (3, 9) gripper-down term. Another BLAS kernel
+    (``OPENBLAS_CORETYPE``, another library) sums in another order: then the plain path runs."""
+    rng = np.random.default_rng(0)
+    out = np.empty((3, 9))
+    for _ in range(cases):
+        full, orient = rng.standard_normal((2, 3, 9))
+        jp, jf = full[:, :N_ARM], np.ascontiguousarray(full[:, :N_ARM] * 0.5)
+        s, xmat = rng.standard_normal(N_ARM), rng.standard_normal(9)
+        _probe(jp, jf, s, orient, xmat, out)
+        want = np.hstack([jp @ jp.T, jf @ jf.T, (jp @ s)[:, None], (jf @ s)[:, None]])
+        want = np.hstack([want, (orient @ xmat)[:, None]])
+        if want.tobytes() != out.tobytes():
+            return False
+    return True
+
+
+@functools.cache
+def solver() -> Callable[..., float] | None:
+    """``_solve`` with MuJoCo's function addresses bound, or None: no binding addresses
+    (``MjModel._address``), no library or symbols, or a BLAS that sums otherwise."""
+    if not hasattr(mujoco.MjModel, "_address"):
+        return None
+    fp = _addresses()
+    if fp is None or not _agrees():
+        return None
+    return functools.partial(_solve, fp)

@@ -1,0 +1,178 @@
+"""Eq. M6's candidate search for the Robot and Highway Tasks as compiled loops (numba, through
+``strol_gym.compiled``): one pass over each person's candidates, no (B, K) temporaries.
+
+Each loop repeats, number for number, the IEEE operations of the plain path (``RobotTask.g_planes``
+or ``HighwayTask.g`` followed by ``strol_gym.humans.choices.optimal_correction``), in the same
+order and without fast-math, so it picks the same candidate to the bit (tests/test_kernels.py).
+Sine and cosine are the C library's in both paths; numpy's tangent and arctangent are its own
+(SIMD) ones, so the Highway's steering angle β = arctan(½ tan δ) comes in computed by numpy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from strol_gym.compiled import compiled
+
+
+@compiled
+def _argmin_first(norm: float, k: int, best: int, best_norm: float) -> tuple[int, float, bool]:
+    """One step of numpy's argmin (from pick 0 at +inf): the first minimum, or the first NaN
+    (which ends the search)."""
+    if norm != norm:
+        return k, norm, True
+    if norm < best_norm:
+        return k, norm, False
+    return best, best_norm, False
+
+
+@compiled
+def robot_m6(
+    x: np.ndarray,
+    u_r: np.ndarray,
+    th_hat: np.ndarray,
+    th_star: np.ndarray,
+    cand: np.ndarray,
+    alpha: float,
+    plate: np.ndarray,
+    cup: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    best: np.ndarray,
+) -> None:
+    """Eq. M6 on ``RobotTask``: the index of each person's chosen candidate, into ``best`` (B,)."""
+    p0, p1 = plate[0], plate[1]
+    c0, c1, c2 = cup[0], cup[1], cup[2]
+    for b in range(cand.shape[0]):
+        base = np.empty(3)
+        xr = np.empty(3)
+        for a in range(3):
+            base[a] = x[b, a] + u_r[b, a]
+            v = base[a] + 0.0
+            v = lo[a] if v < lo[a] else v
+            xr[a] = hi[a] if v > hi[a] else v
+        d0, d1 = p0 - xr[0], p1 - xr[1]
+        e0, e1, e2 = c0 - xr[0], c1 - xr[1], c2 - xr[2]
+        phi0 = -math.sqrt(d0 * d0 + d1 * d1)
+        phi1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1)
+        h0, h1, s0, s1 = th_hat[b, 0], th_hat[b, 1], th_star[b, 0], th_star[b, 1]
+        pick, low = 0, math.inf
+        for k in range(cand.shape[1]):
+            xh0 = base[0] + cand[b, k, 0]
+            xh1 = base[1] + cand[b, k, 1]
+            xh2 = base[2] + cand[b, k, 2]
+            xh0 = lo[0] if xh0 < lo[0] else xh0
+            xh1 = lo[1] if xh1 < lo[1] else xh1
+            xh2 = lo[2] if xh2 < lo[2] else xh2
+            xh0 = hi[0] if xh0 > hi[0] else xh0
+            xh1 = hi[1] if xh1 > hi[1] else xh1
+            xh2 = hi[2] if xh2 > hi[2] else xh2
+            d0, d1 = p0 - xh0, p1 - xh1
+            e0, e1, e2 = c0 - xh0, c1 - xh1, c2 - xh2
+            g0 = -math.sqrt(d0 * d0 + d1 * d1) - phi0
+            g1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1) - phi1
+            r0 = s0 - (g0 * alpha + h0)
+            r1 = s1 - (g1 * alpha + h1)
+            norm = r0 * r0 + r1 * r1
+            pick, low, stop = _argmin_first(norm, k, pick, low)
+            if stop:
+                break
+        best[b] = pick
+
+
+@compiled
+def _robot_ahead(xr: float, yr: float, vr: float, hr: float, t: float) -> tuple[float, float]:
+    """The robot car's position ``headway`` seconds ahead, as ``HighwayTask._phi`` computes it
+    (once per person here: it does not depend on the candidate)."""
+    return xr + t * vr * math.cos(hr), yr + t * vr * math.sin(hr)
+
+
+@compiled
+def _phi(
+    ahead: tuple[float, float],
+    xh: float,
+    yh: float,
+    vh: float,
+    hh: float,
+    prm: np.ndarray,
+) -> tuple[float, float, float]:
+    """``HighwayTask._phi`` of one pair of cars, the robot's part ``ahead`` (``_robot_ahead``);
+    ``prm`` as ``HighwayTask._kernel_params``."""
+    t, min_gap, close, lane_w = prm[0], prm[1], prm[2], prm[3]
+    lane0, lane_width, gap_scale, speed_ref, speed_scale = prm[4], prm[5], prm[6], prm[7], prm[8]
+    vh_sin = vh * math.sin(hh)
+    behind = ahead[0] - (xh + t * vh * math.cos(hh))
+    beside = ahead[1] - (yh + t * vh_sin)
+    short = min_gap - behind
+    a, c = -short, close * short
+    slot = (a if a >= c else c) + lane_w * abs(beside)
+    lane = (yh + t * vh_sin - lane0) / lane_width
+    return slot / -gap_scale, (vh - speed_ref) / speed_scale, 1.0 - abs(lane - 1.0)
+
+
+@compiled
+def _car(
+    px: float,
+    py: float,
+    v: float,
+    h: float,
+    acc: float,
+    beta: float,
+    dt: float,
+    half_length: float,
+    max_speed: float,
+    min_speed: float,
+) -> tuple[float, float, float, float]:
+    """``strol_gym.tasks.highway._car_step`` of one car, its steering angle β given."""
+    if v > max_speed:
+        acc = min(acc, max_speed - v)
+    elif v < min_speed:
+        acc = max(acc, min_speed - v)
+    hb = h + beta
+    return (
+        px + v * math.cos(hb) * dt,
+        py + v * math.sin(hb) * dt,
+        v + acc * dt,
+        h + v * math.sin(beta) / half_length * dt,
+    )
+
+
+@compiled
+def highway_m6(
+    x: np.ndarray,
+    acc_r: np.ndarray,
+    beta_r: np.ndarray,
+    th_hat: np.ndarray,
+    th_star: np.ndarray,
+    acc_h: np.ndarray,
+    beta_h: np.ndarray,
+    prm: np.ndarray,
+    best: np.ndarray,
+) -> None:
+    """Eq. M6 on ``HighwayTask``: each person's chosen candidate index into ``best`` (B,).
+    ``acc_*``, ``beta_*``: the robot's (B,) and the candidates' (B, K) accelerations and
+    steering angles β; ``prm`` as ``HighwayTask._kernel_params``."""
+    alpha, dt, half, vmax, vmin = prm[9], prm[10], prm[11], prm[12], prm[13]
+    for b in range(acc_h.shape[0]):
+        r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], acc_r[b], beta_r[b], dt, half, vmax, vmin)
+        z = _car(x[b, 4], x[b, 5], x[b, 6], x[b, 7], 0.0, 0.0, dt, half, vmax, vmin)
+        ahead = _robot_ahead(r[0], r[1], r[2], r[3], prm[0])
+        f0 = _phi(ahead, z[0], z[1], z[2], z[3], prm)
+        h0, h1, h2 = th_hat[b, 0], th_hat[b, 1], th_hat[b, 2]
+        s0, s1, s2 = th_star[b, 0], th_star[b, 1], th_star[b, 2]
+        pick, low = 0, math.inf
+        for k in range(acc_h.shape[1]):
+            c = _car(
+                x[b, 4], x[b, 5], x[b, 6], x[b, 7], acc_h[b, k], beta_h[b, k], dt, half, vmax, vmin
+            )
+            f = _phi(ahead, c[0], c[1], c[2], c[3], prm)
+            q0 = s0 - ((f[0] - f0[0]) * alpha + h0)
+            q1 = s1 - ((f[1] - f0[1]) * alpha + h1)
+            q2 = s2 - ((f[2] - f0[2]) * alpha + h2)
+            norm = q0 * q0 + q1 * q1 + q2 * q2
+            pick, low, stop = _argmin_first(norm, k, pick, low)
+            if stop:
+                break
+        best[b] = pick

@@ -1,0 +1,194 @@
+"""The compiled kernels (``strol_gym.compiled``, the ``[fast]`` extra) against the plain path:
+the same bytes on fixed seeds. Both paths run in this process (``compiled.FAST`` flipped)."""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import strol_gym.compiled as compiled
+from strol_gym.envs.panda.ik import PandaIK, solver
+from strol_gym.humans.choices import optimal_correction
+from strol_gym.tasks.highway import HighwayTask
+from strol_gym.tasks.robot import RobotTask
+
+pytest.importorskip("numba")
+
+
+@pytest.fixture
+def path(monkeypatch):
+    """``path(True)`` turns the compiled kernels on, ``path(False)`` off, for this test."""
+
+    def switch(fast: bool) -> None:
+        monkeypatch.setattr(compiled, "FAST", fast)
+
+    return switch
+
+
+@pytest.mark.parametrize("task", [RobotTask(), HighwayTask()], ids=["robot", "highway"])
+def test_eq_m6_choices_are_the_plain_searchs(task, path):
+    rng = np.random.default_rng(40)
+    for trial in range(60):
+        b = 1 if trial % 2 else 17
+        x = task.sample_start(rng, b)
+        if isinstance(task, HighwayTask) and trial % 3 == 0:
+            x[:, 6] = rng.choice([45.0, -45.0, 25.0], b)  # the speed clip of _car_step
+        u_r = rng.uniform(-1.5, 1.5, (b, task.action_dim)) * task.action_bound  # some clipped
+        theta_hat, theta_star = rng.standard_normal((2, b, task.dim))
+        cand = task.candidate_actions(rng, b, 512)
+        path(False)
+        plain = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+        path(True)
+        fast = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+        assert fast.tobytes() == plain.tobytes()
+
+
+@pytest.mark.parametrize("task", [RobotTask(), HighwayTask()], ids=["robot", "highway"])
+def test_a_nan_norm_is_chosen_first_as_numpys_argmin_does(task, path):
+    rng = np.random.default_rng(1)
+    x = task.sample_start(rng, 2)
+    u_r = np.zeros((2, task.action_dim))
+    theta_hat = np.zeros((2, task.dim))
+    theta_hat[0, 0] = np.nan
+    cand = task.candidate_actions(rng, 2, 16)
+    path(False)
+    plain = optimal_correction(task, x, u_r, theta_hat, np.ones((2, task.dim)), cand)
+    path(True)
+    fast = optimal_correction(task, x, u_r, theta_hat, np.ones((2, task.dim)), cand)
+    assert fast.tobytes() == plain.tobytes()
+    assert (fast[0] == cand[0, 0]).all()
+
+
+def test_a_task_that_overrides_what_the_kernel_repeats_takes_the_plain_path(path):
+    class Shifted(RobotTask):
+        def features(self, x):
+            return super().features(x) + 1.0
+
+    path(True)
+    task, x = Shifted(), np.zeros((1, 3))
+    assert task.m6_choice(x, x, np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 2, 3))) is None
+    assert (
+        RobotTask().m6_choice(x, x, np.zeros((1, 2)), np.ones((1, 2)), np.zeros((1, 2, 3)))[0] == 0
+    )
+
+
+def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
+    env = gym.make(env_id, **kwargs)
+    h = hashlib.sha256()
+    obs, info = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    for _ in range(steps):
+        obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape))
+        for key in sorted(obs):
+            h.update(np.asarray(obs[key]).tobytes())
+        h.update(np.float64(reward).tobytes())
+        for key in ("target", "ik_error", "correction", "robot_action"):
+            if key in info:
+                h.update(np.asarray(info[key], dtype=np.float64).tobytes())
+        if env_id == "StROL-Robot-v0":
+            h.update(env.unwrapped.data.qpos.tobytes())
+        if term or trunc:
+            env.reset()
+    env.close()
+    return h.hexdigest()
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs"),
+    [
+        ("StROL-Robot-v0", {}),
+        ("StROL-Robot-v0", {"n_corrections": 0}),
+        ("StROL-Highway-v0", {}),
+    ],
+)
+def test_env_rollouts_are_the_same_bytes_on_both_paths(env_id, kwargs, path):
+    for seed in (3, 11):
+        path(False)
+        plain = _rollout(env_id, seed, 120, **kwargs)
+        path(True)
+        assert _rollout(env_id, seed, 120, **kwargs) == plain
+
+
+def _limit_and_restart_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(start posture, target) pairs that drive the arm into joint limits and IK restarts."""
+    rng = np.random.default_rng(7)
+    q = rng.uniform(ik.lo, ik.hi, (60, 7))
+    q[::3] = ik.hi - 1e-3  # at the upper limits
+    q[1::3] = ik.lo + 1e-3
+    targets = rng.uniform([-0.3, -0.9, -0.3], [1.2, 0.8, 1.1], (60, 3))  # some out of reach
+    return list(zip(q, targets, strict=True))
+
+
+def test_ik_solves_are_the_same_bytes_through_joint_limits_and_restarts(path, monkeypatch):
+    env = gym.make("StROL-Robot-v0").unwrapped
+    ik = env.ik
+    limited = []
+    update = PandaIK._update
+
+    def counting(self, jp, jt, *args):
+        limited.append(jp is jt)  # the limit step calls _update with J for both
+        return update(self, jp, jt, *args)
+
+    for q0, target in _limit_and_restart_cases(ik):
+        path(False)
+        monkeypatch.setattr(PandaIK, "_update", counting)
+        ik.set_q(q0)
+        err_plain = ik.solve(target)
+        q_plain = ik.data.qpos.copy()
+        monkeypatch.setattr(PandaIK, "_update", update)
+        path(True)
+        ik.set_q(q0)
+        err_fast = ik.solve(target)
+        assert np.float64(err_fast).tobytes() == np.float64(err_plain).tobytes()
+        assert ik.data.qpos.tobytes() == q_plain.tobytes()
+    assert sum(limited) > 10  # the limit step ran, not only free steps
+    env.close()
+
+
+def test_vector_envs_give_the_same_bytes_on_both_paths(path):
+    for env_id in ("StROL-Robot-v0", "StROL-Highway-v0"):
+        out = []
+        for fast in (False, True):
+            path(fast)
+            env = gym.make_vec(env_id, 8, vectorization_mode="vector_entry_point")
+            obs, _ = env.reset(seed=5)
+            h = hashlib.sha256()
+            rng = np.random.default_rng(5)
+            for _ in range(25):
+                obs, reward, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape))
+                h.update(b"".join(np.asarray(obs[k]).tobytes() for k in sorted(obs)))
+                h.update(np.asarray(reward).tobytes())
+            env.close()
+            out.append(h.hexdigest())
+        assert out[0] == out[1], env_id
+
+
+def test_the_ik_kernel_is_there_where_numba_and_this_mujoco_are(path):
+    path(True)
+    assert solver() is not None
+    path(False)
+    assert solver() is None
+
+
+def _mode_in_a_fresh_process(value: str, numba: bool = True) -> subprocess.CompletedProcess:
+    code = "" if numba else "import sys; sys.modules['numba'] = None; "  # as if it failed to load
+    code += "import strol_gym.compiled as c; print(c.kernels_in_use())"
+    env = {"STROL_GYM_KERNELS": value, "PATH": ""}
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+
+
+def test_the_switch_reads_its_variable_and_names_a_bad_value():
+    assert _mode_in_a_fresh_process("plain").stdout.strip() == "plain"
+    assert _mode_in_a_fresh_process("fast").stdout.strip() == "fast"
+    assert _mode_in_a_fresh_process("auto").stdout.strip() == "fast"  # numba is here
+    assert _mode_in_a_fresh_process("auto", numba=False).stdout.strip() == "plain"
+    missing = _mode_in_a_fresh_process("fast", numba=False)
+    assert "STROL_GYM_KERNELS=fast needs numba: pip install 'strol-gym[fast]'" in missing.stderr
+    bad = _mode_in_a_fresh_process("turbo")
+    assert bad.returncode != 0
+    assert "STROL_GYM_KERNELS must be one of auto, plain, fast, got 'turbo'" in bad.stderr
