@@ -16,8 +16,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from strol_gym.limits import CAPS
-
 
 @contextlib.contextmanager
 def naming_file(path: Path) -> Iterator[None]:
@@ -81,7 +79,7 @@ def write_json_atomic(path: Path, obj: Any) -> Path:
     return write_atomic(path, lambda tmp: tmp.write_bytes(data))
 
 
-MAX_JSON_DEPTH = CAPS["json_depth"]
+MAX_JSON_DEPTH = 64
 """The deepest nesting of arrays and objects a JSON input may have (a cap, not a limit of
 ours: every file and option this project writes nests fewer than 10 levels)."""
 

@@ -28,7 +28,6 @@ CAPS: dict[str, int] = {
     "threads": 1_024,  # torch threads of `train`
     "corrections": 10_000,  # correction steps per episode (`run`, `export`; paper: 5 and 10)
     "lambdas": 1_000,  # values in a --lambdas list
-    "json_depth": 64,  # nesting of any JSON read (options, meta.json, records, sidecars)
     "session_line_bytes": 2**20,  # one session-log line (a correction is ~1 KB)
     "dataset_steps": 10_000_000,  # steps in one Minari dataset array (rows)
     "dataset_episodes": 1_000_000,  # episodes in one Minari dataset
