@@ -7,14 +7,16 @@ message naming it and its valid range before any work starts.
 from __future__ import annotations
 
 import argparse
-import json
 import math
+import os
 from collections.abc import Callable
 from typing import Any
 
 from strol_gym import checks
 from strol_gym.benchmarks.engine.backends import add_backend_options
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK
+from strol_gym.files import loads_json
+from strol_gym.limits import CAPS, lift
 
 
 def positive_int(name: str, high: int | None = None, *, low: int = 1) -> Callable[[str], int]:
@@ -73,10 +75,7 @@ def learner_kwargs(text: str | None) -> dict[str, dict[str, Any]]:
     ValueError naming the option otherwise."""
     if not text:
         return {}
-    try:
-        kwargs = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise ValueError(f"--learner-kwargs must be JSON ({e})") from None
+    kwargs = loads_json(text, "--learner-kwargs")
     if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
         raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {...}}')
     return kwargs
@@ -112,9 +111,9 @@ def json_object(name: str):
 
     def parse(text: str) -> dict[str, Any]:
         try:
-            value = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise argparse.ArgumentTypeError(f"{name} must be a JSON object ({e})") from None
+            value = loads_json(text, name)
+        except ValueError as e:
+            raise argparse.ArgumentTypeError(f"{e}; it must be a JSON object") from None
         if not isinstance(value, dict):
             raise argparse.ArgumentTypeError(f"{name} must be a JSON object, got {text!r}")
         return value
@@ -135,8 +134,10 @@ def plugin_option(p: argparse.ArgumentParser) -> None:
 
 
 def run_options(p: argparse.ArgumentParser) -> None:
-    """The options of every command that runs a config through the runner."""
+    """The options of every command that runs a config through the runner (their sizes are
+    checked against ``RUNNER_CAPS`` by the CLI, with ``--allow-large``)."""
     plugin_option(p)
+    add_allow_large(p)
     p.add_argument("--out", default=None, help="results folder (default results/<preset>)")
     p.add_argument(
         "--jobs",
@@ -176,13 +177,22 @@ TRAIN_CAPS = {
     "candidates": 1_024,
     "heldout": 50_000,
     "unroll": 100,
+    "threads": CAPS["threads"],
 }
 """``train``: 100x the paper's batch of 100, a million Adam steps, 1,024 candidate actions,
 50,000 held-out samples, K = 100 unrolled updates."""
 BASIN_CAPS = {"grid": 201, "steps": 10_000}
 """``basin``: a 201 x 201 grid of θ̂0, 10,000 corrections."""
-RUN_CAPS = {"corrections": 10_000}
+RUN_CAPS = {"corrections": CAPS["corrections"]}
 """``run``: 10,000 corrections per episode (the paper's envs use 5 and 10)."""
+JOBS_PER_CPU = 4
+RUNNER_CAPS = {
+    "block": CAPS["block"],
+    "jobs": min(CAPS["jobs"], JOBS_PER_CPU * (os.cpu_count() or 1)),
+    "lambdas": CAPS["lambdas"],
+}
+"""Every command that runs the runner: run seeds per unit, worker processes (at most 4 per CPU
+of this machine and 1,024), values in a ``--lambdas`` list (a list's length is checked)."""
 
 
 def add_allow_large(parser: argparse.ArgumentParser) -> None:
@@ -195,11 +205,16 @@ def add_allow_large(parser: argparse.ArgumentParser) -> None:
 
 
 def check_size_caps(args: argparse.Namespace, caps: dict[str, int]) -> None:
-    """ValueError naming the option and its cap for a size above it, unless --allow-large."""
+    """ValueError naming the option and its cap for a size above it, unless --allow-large
+    (which also lifts the caps of ``strol_gym.limits`` for the whole command: learner and human
+    kwargs, env sizes)."""
     if getattr(args, "allow_large", False):
+        lift(True)
         return
     for dest, cap in caps.items():
         value = getattr(args, dest, None)
+        if isinstance(value, list | tuple):
+            value = len(value)
         if value is not None and value > cap:
             flag = "--" + dest.replace("_", "-")
             raise ValueError(

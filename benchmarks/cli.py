@@ -17,7 +17,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
-from strol_gym.benchmarks.args import plugin_option
+from strol_gym.benchmarks.args import RUNNER_CAPS, check_size_caps, plugin_option
 from strol_gym.benchmarks.engine.conditions import ENV_PRESETS, make_condition
 from strol_gym.benchmarks.engine.results import ResultsError
 from strol_gym.benchmarks.experiments import EXPERIMENTS, make_experiment
@@ -188,6 +188,19 @@ def _import_plugins(argv: Sequence[str]) -> None:
 
 
 INTERRUPTED = "interrupted: finished runs are saved; rerun the same command to resume"
+INTERRUPTED_NO_RESUME = (
+    "interrupted: nothing was saved ({command} keeps no partial state); rerun it to start over"
+)
+RESUMABLE = frozenset({"run", "paper", "lambda", "changing", "robustness", "confirm", "study"})
+"""The commands that write a results folder and so resume after an interrupt."""
+
+
+def _interrupted(args: argparse.Namespace) -> str:
+    """What is true after an interrupt: a results folder resumes; other commands start over."""
+    command = getattr(args, "command", "")
+    if command in RESUMABLE or hasattr(args, "block"):
+        return INTERRUPTED
+    return INTERRUPTED_NO_RESUME.format(command=command)
 
 
 def _interrupted_at_start(signum: int, frame: Any) -> None:
@@ -244,6 +257,8 @@ def _main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "out", None) == "":  # would silently mean the default folder
         parser.error("--out must name a path, got an empty string")
     try:
+        if hasattr(args, "block") and hasattr(args, "jobs"):  # a command that runs the runner
+            check_size_caps(args, RUNNER_CAPS)
         command = COMMANDS.get(args.command) or make_experiment(args.command)
         return command(args, parser)
     except (ResultsError, LearnerFailed) as e:
@@ -254,12 +269,12 @@ def _main(argv: Sequence[str] | None = None) -> int:
     except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
         parser.exit(2, f"strol-bench: error: {e}\n")
     except KeyboardInterrupt:
-        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        print(f"\n{_interrupted(args)}", file=sys.stderr)
         return 130
     except ImportError as e:  # an interrupt inside a C extension's import surfaces as this
         if not isinstance(e.__context__, KeyboardInterrupt):
             raise
-        print(f"\n{INTERRUPTED}", file=sys.stderr)
+        print(f"\n{_interrupted(args)}", file=sys.stderr)
         return 130
 
 

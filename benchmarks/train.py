@@ -11,7 +11,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from strol_gym.benchmarks.args import TRAIN_CAPS, add_allow_large, check_size_caps, json_object
+from strol_gym.benchmarks.args import (
+    TRAIN_CAPS,
+    add_allow_large,
+    check_size_caps,
+    json_object,
+    positive_int,
+)
 from strol_gym.learners.checkpoint import KINDS, SAFETENSORS, check_weights_path, save_checkpoint
 from strol_gym.learners.network import BOUNDS
 from strol_gym.learners.training import (
@@ -89,7 +95,7 @@ def add_train_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentPar
         default=None,
         help="ĝ's bound (default: none for e2e-scratch, radial otherwise)",
     )
-    a("--threads", type=int, default=d.threads)
+    a("--threads", type=positive_int("--threads"), default=d.threads)
     a(
         "--prior",
         choices=TRAIN_PRIORS,

@@ -28,6 +28,20 @@ class Prior(Protocol):
         ...
 
 
+MAX_THETA = 1e6
+"""The largest |component| of a θ a prior or a ``theta_star`` may hold: the paper's θ lie in
+[−1, 1] and basin maps reach 10; far larger values (1e308) make rewards θ·φ overflow to inf."""
+
+
+def check_theta_range(name: str, values: np.ndarray) -> None:
+    """ValueError naming ``name`` unless every component is finite and within ±MAX_THETA."""
+    if not np.isfinite(values).all() or (np.abs(values) > MAX_THETA).any():
+        raise ValueError(
+            f"{name} must be finite numbers in [-{MAX_THETA:g}, {MAX_THETA:g}], "
+            f"got {np.asarray(values).tolist()!r:.80}"
+        )
+
+
 @dataclass(frozen=True)
 class MixturePrior:
     """Equal-weight mixture of modes with isotropic Gaussian jitter (the paper's bimodal prior)."""
@@ -41,8 +55,7 @@ class MixturePrior:
         modes = np.atleast_2d(np.asarray(self.modes, dtype=np.float64))
         if modes.ndim != 2 or modes.shape[0] < 1:
             raise ValueError(f"modes must have shape (k, d) with k >= 1, got {modes.shape}")
-        if not np.isfinite(modes).all():
-            raise ValueError("modes must be finite")
+        check_theta_range("modes", modes)
         if not (np.isfinite(self.jitter) and self.jitter >= 0):
             raise ValueError(f"jitter must be a finite number >= 0, got {self.jitter}")
         object.__setattr__(self, "modes", modes)
@@ -91,6 +104,7 @@ class UniformPrior:
             raise ValueError(f"dim must be >= 1, got {self.dim}")
         if not (np.isfinite(self.low) and np.isfinite(self.high) and self.low < self.high):
             raise ValueError(f"need finite low < high, got low={self.low}, high={self.high}")
+        check_theta_range("low and high", np.array([self.low, self.high], dtype=np.float64))
 
     @property
     def mean(self) -> np.ndarray:
@@ -117,8 +131,7 @@ class FixedPrior:
             ) from None
         if thetas.ndim != 2 or thetas.shape[0] < 1 or thetas.shape[1] < 1:
             raise ValueError(f"thetas must have shape (k, d) with k, d >= 1, got {thetas.shape}")
-        if not np.isfinite(thetas).all():
-            raise ValueError("thetas must be finite (no NaN or inf)")
+        check_theta_range("thetas", thetas)
         object.__setattr__(self, "thetas", thetas)
         object.__setattr__(self, "dim", thetas.shape[1])
 

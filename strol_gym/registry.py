@@ -25,7 +25,9 @@ from strol_gym import checks
 T = TypeVar("T")
 
 __all__ = [
+    "PieceError",
     "Registry",
+    "call_piece",
     "import_spec",
     "install_specs",
     "load_installed_plugins",
@@ -92,6 +94,25 @@ def _callable_check(kind: str, signature: str) -> Callable[[str, Any], None]:
         checks.callable_arg(f"{kind} {name!r}", piece, signature, spec=True)
 
     return check
+
+
+class PieceError(TypeError, ValueError):
+    """A registered name or ``"module:attr"`` that is not a piece of its kind (``os:system``
+    as a Task); a ValueError too, so the CLI's refusal (exit 2) covers it."""
+
+
+def call_piece(kind: str, spec: Any, factory: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """``factory(*args, **kwargs)`` for the piece named ``spec``; a TypeError from the call (a
+    callable with another signature, such as ``os:system``) becomes a :class:`PieceError`
+    naming the spec and its kind, instead of a traceback from inside it."""
+    try:
+        return factory(*args, **kwargs)
+    except TypeError as e:
+        said = " ".join(str(e).split())[:200]
+        raise PieceError(
+            f"{kind} {spec!r} is not a {kind} strol-gym can build: calling it failed "
+            f"(TypeError: {said})"
+        ) from None
 
 
 class Registry(Generic[T]):

@@ -275,7 +275,14 @@ def _config():
 def _records(config, unit):
     exp = config.experiments[unit.experiment]
     return [
-        {"env": exp.env, "condition": exp.condition.name, "learner": learner, "seed": s}
+        {
+            "env": exp.env,
+            "condition": exp.condition.name,
+            "learner": learner,
+            "seed": s,
+            **{"error": 0.5, "cos_error": 0.1, "regret": 0.2, "steps": 1, "terminated": False},
+            **{"errors": [0.5], "cos_errors": [0.1]},
+        }
         for learner in config.learners
         for s in unit.seeds
     ]
@@ -357,7 +364,7 @@ def test_lock_refuses_a_concurrent_run_and_takes_over_a_stale_one(tmp_path, caps
     try:
         (tmp_path / "r" / LOCK).write_text(f"{other.pid}\n")
         with pytest.raises(
-            ResultsError, match=rf"in use by another strol-bench run \(pid {other.pid}"
+            ResultsError, match=rf"in use by another strol-bench run \(host .*, pid {other.pid}"
         ):
             ResultsDir.open(tmp_path / "r", cfg)
         with pytest.raises(ResultsError, match="in use"):
@@ -367,6 +374,6 @@ def test_lock_refuses_a_concurrent_run_and_takes_over_a_stale_one(tmp_path, caps
         other.kill()
         other.wait()
     rd = ResultsDir.open(tmp_path / "r", cfg)  # its process is gone: a stale lock
-    assert f"taking over {tmp_path / 'r' / LOCK}" in capsys.readouterr().err
-    assert (tmp_path / "r" / LOCK).read_text().strip() == str(os.getpid())
+    assert f"took over {tmp_path / 'r' / LOCK}" in capsys.readouterr().err
+    assert json.loads((tmp_path / "r" / LOCK).read_text())["pid"] == os.getpid()
     rd.finish_session("t", 1.0, 0, 1)

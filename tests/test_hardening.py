@@ -399,7 +399,8 @@ def test_an_interrupt_surfacing_as_import_error_is_an_interrupt(monkeypatch, cap
     monkeypatch.setitem(cli.COMMANDS, "list", interrupted_import)
     assert cli.main(["list"]) == 130
     err = capsys.readouterr().err
-    assert err.strip() == cli.INTERRUPTED and "Traceback" not in err
+    assert err.strip() == cli.INTERRUPTED_NO_RESUME.format(command="list")
+    assert "Traceback" not in err
 
 
 def test_pool_workers_start_with_sigint_ignored():

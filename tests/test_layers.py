@@ -40,6 +40,7 @@ LAYERS: list[tuple[str, ...]] = [
         "strol_gym.registry",
         "strol_gym.provenance",
         "strol_gym.files",
+        "strol_gym.limits",
         "strol_gym.deprecation",
         "strol_gym.planning",
         "strol_gym.metrics",

@@ -236,7 +236,8 @@ def results(tmp_path_factory) -> Path:
 
 def test_results_folders_and_plugin_lists_naming_code(results, tmp_path, marker, capsys):
     """meta.json's plugin list, learners, human, prior and Task naming code: ``report`` reads
-    the folder (names are strings in tables) and imports nothing, nor does ``run`` resuming it;
+    the folder's config (whose recomputed hash no longer matches: refused) and imports nothing,
+    nor does ``run`` resuming it;
     records of another condition than their unit's are refused."""
     for how, (spec, _) in code_names(marker).items():
         for place in ("plugins", "human", "prior", "task", "learners"):
@@ -260,8 +261,11 @@ def test_results_folders_and_plugin_lists_naming_code(results, tmp_path, marker,
                         r["learner"] = spec if r["learner"] == "strol" else r["learner"]
                     p.write_text(json.dumps(unit))
             (folder / "meta.json").write_text(json.dumps(meta))
-            assert cli(["report", str(folder), "--no-plots"]) == 0, (how, place)
-            assert "Traceback" not in capsys.readouterr().err
+            # the edit changed the config, so its recomputed hash no longer matches: refused
+            # (exit 2, one line naming the file), and nothing the file names was imported
+            assert cli(["report", str(folder), "--no-plots"]) == 2, (how, place)
+            err = capsys.readouterr().err
+            assert "Traceback" not in err and "config_hash" in err, (how, place)
             assert not marker.exists(), (how, place)
         # resuming compares the config hash; the command's own config runs, the file's
         # plugin list is never installed
@@ -274,7 +278,7 @@ def test_results_folders_and_plugin_lists_naming_code(results, tmp_path, marker,
     unit = json.loads(record.read_text())
     unit["records"][0]["condition"] = "os:system"
     (folder / "records" / record.name).write_text(json.dumps(unit))
-    assert "another env or condition" in cli_error(["report", str(folder)], capsys)
+    assert "is not its unit's" in cli_error(["report", str(folder)], capsys)
 
 
 class _Reduce:

@@ -35,6 +35,7 @@ import datetime as dt
 import json
 import math
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
@@ -42,6 +43,7 @@ import gymnasium as gym
 import numpy as np
 
 from strol_gym.learners.protocol import OnlineRewardLearner
+from strol_gym.limits import CAPS, lifted_now
 from strol_gym.provenance import package_versions
 from strol_gym.registry import registered_name, spec_of
 from strol_gym.tasks import Task, task_name
@@ -301,20 +303,38 @@ def _parse(where: str, text: str) -> Any:
         raise SessionLogError(f"{where}: not a session log line ({e})") from None
 
 
+def _lines(path: Path) -> Iterator[tuple[int, bytes]]:
+    """(line number, bytes) of a log, each line read with a bounded ``readline``: a line over
+    the cap (``strol_gym.limits``, ``session_line_bytes``) is refused before it is held whole."""
+    cap = CAPS["session_line_bytes"] if not lifted_now() else None
+    try:
+        with path.open("rb") as f:
+            no = 0
+            while True:
+                line = f.readline(-1 if cap is None else cap + 1)
+                if not line:
+                    return
+                no += 1
+                if cap is not None and len(line) > cap and not line.endswith(b"\n"):
+                    raise SessionLogError(
+                        f"{path}:{no}: a line longer than {cap:,} bytes (the cap on a session "
+                        "log line; strol_gym.limits.lift() lifts it)"
+                    )
+                yield no, line.rstrip(b"\n")
+    except OSError as e:
+        raise SessionLogError(f"{path}: cannot read the session log ({e})") from e
+
+
 def read_session(path: str | Path) -> Session:
     """Parse and validate a session log; :class:`SessionLogError` names the file and line.
 
     Reading runs no code: the header's Task is a name, looked up by :func:`session_task`.
     """
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise SessionLogError(f"{path}: cannot read the session log ({e})") from e
     header: dict[str, Any] | None = None
     episodes: list[Episode] = []
     dims: dict[str, int] = {}
-    for no, line in enumerate(raw.split(b"\n"), start=1):
+    for no, line in _lines(path):
         where = f"{path}:{no}"
         try:
             text = line.decode("utf-8")

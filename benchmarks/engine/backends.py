@@ -103,8 +103,15 @@ RAY_CONNECT_TIMEOUT = 10.0
 minutes)."""
 
 
+HTTP2_PREFACE = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes.fromhex("000000040000000000")
+"""What an HTTP/2 client sends first (the connection preface, then an empty SETTINGS frame)."""
+
+
 def check_reachable(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> None:
-    """ValueError naming ``address`` unless a TCP connection to it opens within ``timeout`` s.
+    """ValueError naming ``address`` unless a Ray cluster's GCS answers there within
+    ``timeout`` s: a TCP connection alone is not enough (any service accepts one, and Ray would
+    then retry for minutes). Ray's GCS speaks gRPC, i.e. HTTP/2, whose server answers a client's
+    connection preface with a SETTINGS frame (RFC 9113, 3.4): that answer is what is checked.
 
     Only for ``host:port`` addresses; ``auto`` and ``ray://`` addresses are left to Ray.
     """
@@ -116,11 +123,25 @@ def check_reachable(address: str, timeout: float = RAY_CONNECT_TIMEOUT) -> None:
     if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
         raise ValueError(f"--ray-address must be HOST:PORT (port in [1, 65535]), got {address!r}")
     try:
-        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout) as s:
+            s.settimeout(timeout)
+            s.sendall(HTTP2_PREFACE)
+            head = b""
+            while len(head) < 9:  # a frame header: length (3), type (1), flags (1), stream (4)
+                more = s.recv(9 - len(head))
+                if not more:
+                    break
+                head += more
     except OSError as e:
         raise ValueError(
             f"--ray-address {address}: no Ray cluster reachable there within {timeout:g} s ({e})"
         ) from None
+    if len(head) < 9 or head[3] != 0x04:
+        raise ValueError(
+            f"--ray-address {address}: the service there is not a Ray cluster (it does not speak "
+            f"gRPC/HTTP-2; it answered {head[:16]!r}); give the head node's GCS address, "
+            "HOST:6379 by default"
+        )
 
 
 # ---------------------------------------------------------------------- inside a Ray worker

@@ -16,9 +16,10 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.robots import ROBOTS
 from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
+from strol_gym.limits import check_size
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.priors import PRIORS
-from strol_gym.registry import Registry
+from strol_gym.registry import Registry, call_piece
 
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
 """The paper's five rules, in the order its figures use (e2e with ‖ĝ‖ ≤ ‖g‖, as shipped for
@@ -65,6 +66,9 @@ class Condition:
             )
         if self.human_kwargs is not None and not isinstance(self.human_kwargs, dict):
             raise ValueError(f"human_kwargs must be a dict, got {self.human_kwargs!r}")
+        for key in ("n_candidates",):  # sizes: refused here, before a worker allocates them
+            if self.human_kwargs and key in self.human_kwargs:
+                check_size(f"human_kwargs[{key!r}]", self.human_kwargs[key], key)
 
     def human_spec(self) -> HumanSpec:
         """The condition's human as the envs take it (the env's default model when unset);
@@ -296,7 +300,7 @@ def make_condition(env: str, spec: str) -> Condition:
     """The condition named ``spec`` (registered or "module:attr") for ``env``."""
     preset = env_preset(env)
     obj = CONDITIONS.get(spec)
-    cond = obj if isinstance(obj, Condition) else obj(preset)
+    cond = obj if isinstance(obj, Condition) else call_piece("condition", spec, obj, preset)
     if not isinstance(cond, Condition):
         raise ValueError(f"condition {spec!r} gave {type(cond).__name__}, not a Condition")
     if cond.name in CONDITION_NAMES and spec != cond.name:

@@ -33,6 +33,11 @@ SCHEMA_VERSION = 1
 MAX_RUNS = 1_000_000
 """The most runs per experiment (env × condition): the paper uses 100–250, and a run's record
 is kept in memory while the tables are built, so far more than this cannot finish anyway."""
+MAX_TOTAL_RUNS = 10_000_000
+"""The most runs in one config, summed over its experiments (a meta.json listing 300
+experiments × 10⁶ runs would plan 1.2·10⁷ units before anything ran)."""
+MAX_EXPERIMENTS = 10_000
+"""The most experiments in one config (the paper's tables have 8)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -148,6 +153,16 @@ class BenchConfig:
     def __post_init__(self) -> None:
         if not self.experiments:
             raise ValueError("a benchmark needs at least one experiment")
+        if len(self.experiments) > MAX_EXPERIMENTS:
+            raise ValueError(
+                f"a benchmark may hold at most {MAX_EXPERIMENTS} experiments, got "
+                f"{len(self.experiments)}"
+            )
+        total = sum(int(e.runs) for e in self.experiments)
+        if total > MAX_TOTAL_RUNS:
+            raise ValueError(
+                f"a benchmark may hold at most {MAX_TOTAL_RUNS} runs in all, got {total}"
+            )
         if not self.learners:
             raise ValueError("learners must name at least one learner")
         if len(set(self.learners)) != len(self.learners):

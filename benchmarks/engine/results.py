@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
-import json
 import math
 import os
 import shutil
@@ -28,17 +27,24 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit, diff_configs
 from strol_gym.benchmarks.engine.kernels import float_kernels, kernel_label, mixed_kernels_message
-from strol_gym.files import naming_file, write_json_atomic
+from strol_gym.benchmarks.engine.lock import (
+    BREAK,
+    LOCK,
+    LockError,
+    clean_leftovers,
+    hold_folder,
+    release_folder,
+)
+from strol_gym.files import loads_json, naming_file, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.provenance import git_revision, package_versions, version_changes
 
 META = "meta.json"
 RECORDS = "records"
-LOCK = ".lock"
-"""Holds the pid of the process running into the folder; a second run is refused while that
-process lives. A lock whose process is gone (killed, crashed) is taken over with a note."""
 RUN_FIELDS = ("error", "cos_error", "regret")
 """The column order of the run metrics in runs.csv (a file format: it stays as it is); the
 metrics themselves are ``strol_gym.metrics.RUN_METRICS``."""
@@ -117,8 +123,10 @@ class ResultsDir:
                 )
             if force:
                 cls._check_ours(path)
-                _acquire_lock(path)  # never delete a folder another live run is writing
-                shutil.rmtree(path)
+                _acquire_lock(path, force=True)  # never delete a folder a live run is writing
+                for p in path.iterdir():  # everything but the lock we hold
+                    if p.name != LOCK:
+                        shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
             else:
                 meta = cls._read_meta(path)
                 cls._check_versions(path, meta)  # first: the plainest reason a hash differs
@@ -164,8 +172,8 @@ class ResultsDir:
     @staticmethod
     def _read_meta(path: Path) -> dict:
         try:
-            meta = json.loads((path / META).read_bytes().decode("utf-8"))
-        except (OSError, ValueError) as e:  # ValueError: bad JSON or bytes that are not UTF-8
+            meta = loads_json((path / META).read_bytes(), str(path / META))
+        except (OSError, ValueError) as e:  # ValueError: bad JSON, not UTF-8, nested too deep
             raise ResultsError(
                 f"{path / META} is unreadable or corrupt ({type(e).__name__}: {e}). Use another "
                 "--out, or --force to delete this folder's results and start over."
@@ -211,8 +219,12 @@ class ResultsDir:
     def _check_ours(path: Path) -> None:
         """Refuse to delete a folder holding anything but our own outputs."""
         ours = {META, RECORDS, "plots", "runs.csv", "curves.csv", "summary.csv", "stats.csv"}
-        ours |= {"anova.csv", "summary.md", LOCK, ".slurm"}
-        foreign = [p.name for p in path.iterdir() if p.name not in ours]
+        ours |= {"anova.csv", "summary.md", LOCK, BREAK, ".slurm"}
+        foreign = [
+            p.name
+            for p in path.iterdir()
+            if p.name not in ours and not (p.name.startswith(".") and p.name.endswith(".tmp"))
+        ]
         if foreign:
             raise ResultsError(
                 f"--force refused: {path} holds files strol-bench did not write: {foreign[:5]}"
@@ -231,6 +243,13 @@ class ResultsDir:
             raise ResultsError(
                 f"{path / META} has an invalid config ({type(e).__name__}: {e})"
             ) from None
+        extra = meta.get("extra", {})
+        if not isinstance(extra, dict) or config.hash(extra) != meta["config_hash"]:
+            raise ResultsError(
+                f"{path / META}: its config does not match its config_hash (the file was "
+                "edited?); the tables would describe settings the runs did not use. Rerun the "
+                "benchmark, or restore meta.json"
+            )
         return cls(path, config, meta["config_hash"], meta)
 
     # ------------------------------------------------------------------ records
@@ -268,7 +287,7 @@ class ResultsDir:
             if p.name.startswith("."):
                 continue
             try:
-                label = json.loads(p.read_text()).get("kernels") or "unrecorded"
+                label = loads_json(p.read_bytes(), str(p)).get("kernels") or "unrecorded"
             except (OSError, ValueError, AttributeError):
                 label = "unreadable"
             out.setdefault(str(label), []).append(p.stem)
@@ -286,6 +305,7 @@ class ResultsDir:
         """Every record, validated, in canonical order (experiment, seed, learner order)."""
         units = {u.key: u for u in self.config.units()}
         out: list[dict] = []
+        nan_seen: dict[tuple[int, str], dict[bool, tuple[Path, dict]]] = {}
         for p in sorted((self.path / RECORDS).glob("*.json")):
             if p.name.startswith("."):
                 continue
@@ -293,7 +313,7 @@ class ResultsDir:
             if unit is None:
                 raise ResultsError(f"{p} does not belong to this config's units: corrupt folder")
             try:
-                payload = json.loads(p.read_text())
+                payload = loads_json(p.read_bytes(), str(p))
                 ok = payload["config_hash"] == self.config_hash
                 recs = payload["records"]
                 seeds = tuple(payload["unit"]["seeds"])
@@ -301,17 +321,33 @@ class ResultsDir:
                 raise ResultsError(f"{p} is corrupt ({e}); delete it to rerun that unit") from e
             if not ok:
                 raise ResultsError(f"{p} was written by another config (hash differs)")
-            if not isinstance(recs, list) or not all(isinstance(r, dict) for r in recs):
-                raise ResultsError(f"{p} is corrupt (its records are not a list of objects)")
             expected = {(s, learner) for s in unit.seeds for learner in self.config.learners}
-            got = [(r.get("seed"), r.get("learner")) for r in recs]
+            if (
+                not isinstance(recs, list)
+                or not all(isinstance(r, dict) for r in recs)
+                or not all(isinstance(s, int) for s in seeds)
+            ):
+                raise ResultsError(f"{p} is corrupt (records must be a list of objects)")
             exp = self.config.experiments[unit.experiment]
+            for r in recs:
+                _check_record(p, r, exp.env, exp.condition.name, exp.corrections)
+                for key in RUN_FIELDS:  # NaN: legitimate only for a whole experiment
+                    nan_seen.setdefault((unit.experiment, key), {})[math.isnan(r[key])] = (p, r)
+            got = [(r.get("seed"), r.get("learner")) for r in recs]
             where = {(r.get("env"), r.get("condition")) for r in recs}
             if seeds != unit.seeds or len(got) != len(expected) or set(got) != expected:
                 raise ResultsError(f"{p} does not hold exactly its unit's runs; delete it to rerun")
             if where != {(exp.env, exp.condition.name)}:
                 raise ResultsError(f"{p} holds runs of another env or condition than its unit's")
             out.extend(recs)
+        for (_, key), seen in nan_seen.items():
+            if len(seen) > 1:  # some runs have it and some do not: an edited or broken record
+                p, r = seen[True]
+                raise ResultsError(
+                    f"{p}: run seed {r['seed']!r}, learner {r['learner']!r}: {key!r} is NaN while "
+                    "other runs of its experiment have it (NaN is only for an env that does not "
+                    "score it, e.g. regret without a planner); delete the file to rerun its unit"
+                )
         order = {learner: i for i, learner in enumerate(self.config.learners)}
         exp_index = {(e.env, e.condition.name): i for i, e in enumerate(self.config.experiments)}
         out.sort(
@@ -383,57 +419,52 @@ class ResultsDir:
         return runs_path, curves_path
 
 
-def _pid_alive(pid: int) -> bool:
+def _check_record(p: Path, r: dict, env: str, condition: str, corrections: int) -> None:
+    """One run's record as the runner writes it, or ResultsError naming the file, the run and
+    the field: a missing or non-finite value is named, never dropped from the tables."""
+    who = f"{p}: run seed {r.get('seed')!r}, learner {r.get('learner')!r}"
+    rerun = "; delete the file to rerun its unit"
+    for key in ("env", "condition", "learner", "seed", "steps", "terminated", "errors"):
+        if key not in r:
+            raise ResultsError(f"{who}: {key!r} is missing{rerun}")
+    if r["env"] != env or r["condition"] != condition:
+        raise ResultsError(
+            f"{who}: env/condition {r['env']!r}/{r['condition']!r} is not its unit's "
+            f"{env!r}/{condition!r}{rerun}"
+        )
+    steps = r["steps"]
+    if type(steps) is not int or not 0 <= steps <= corrections:
+        raise ResultsError(
+            f"{who}: 'steps' must be an integer in [0, {corrections}], got {steps!r}"
+        )
+    for key in RUN_FIELDS:  # NaN is checked across the experiment by read_records
+        v = r.get(key)
+        if isinstance(v, bool) or not isinstance(v, int | float) or math.isinf(v):
+            raise ResultsError(f"{who}: {key!r} must be a finite number, got {v!r}{rerun}")
+    for key in ("errors", "cos_errors"):
+        seq = r.get(key)
+        if not isinstance(seq, list) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and not math.isinf(v)
+            for v in seq
+        ):
+            raise ResultsError(f"{who}: {key!r} must be a list of numbers (no inf){rerun}")
+    if len(r["cos_errors"]) != len(r["errors"]):
+        raise ResultsError(f"{who}: 'errors' and 'cos_errors' differ in length{rerun}")
+
+
+def _acquire_lock(path: Path, force: bool = False) -> None:
+    """Hold ``path``'s lock (see ``engine.lock``) and clean what dead writers left behind."""
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # alive, owned by someone else
-        return True
-    return True
-
-
-def _acquire_lock(path: Path) -> None:
-    """Create ``path/LOCK`` holding our pid, or ResultsError if a live process holds it.
-
-    A lock left by a process that no longer runs is taken over (with a note on stderr); our
-    own pid in it means an earlier run of this process ended without releasing it.
-    """
-    lock = path / LOCK
-    for _ in range(2):
-        try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-        except FileExistsError:
-            try:
-                pid = int(lock.read_text().strip() or "0")
-            except (OSError, ValueError):
-                pid = 0
-            if pid > 0 and pid != os.getpid() and _pid_alive(pid):
-                raise ResultsError(
-                    f"{path} is in use by another strol-bench run (pid {pid}, lock file {lock}); "
-                    "wait for it to finish or use another --out"
-                ) from None
-            if pid != os.getpid():
-                print(
-                    f"note: taking over {lock}: the run that held it (pid {pid}) is gone",
-                    file=sys.stderr,
-                )
-            lock.unlink(missing_ok=True)
-            continue
-        with os.fdopen(fd, "w") as f:
-            f.write(f"{os.getpid()}\n")
-        return
-    raise ResultsError(f"{path}: could not take the lock file {lock} (another run took it)")
+        hold_folder(path, force=force)
+    except LockError as e:
+        raise ResultsError(str(e)) from None
+    clean_leftovers(path)
+    clean_leftovers(path / RECORDS)
 
 
 def _release_lock(path: Path) -> None:
-    """Remove ``path/LOCK`` if this process holds it."""
-    lock = path / LOCK
-    try:
-        if int(lock.read_text().strip() or "0") == os.getpid():
-            lock.unlink()
-    except (OSError, ValueError):
-        pass
+    """Remove ``path``'s lock if this process holds it."""
+    release_folder(path)
 
 
 def _fmt(x: Any) -> str:
@@ -454,6 +485,10 @@ def write_csv(path: Path, rows: Iterable[dict], columns: Sequence[str]) -> Path:
 
 
 def _cell(v: Any) -> str:
+    """A CSV cell: numpy scalars as the Python numbers they hold (numpy 2's repr would write
+    ``np.float64(2.2)``), floats at full precision, booleans lower-case, None empty."""
+    if isinstance(v, np.generic):
+        v = v.item()
     if isinstance(v, bool):
         return str(v).lower()
     if isinstance(v, float):

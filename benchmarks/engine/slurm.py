@@ -17,7 +17,6 @@ array with submitit's local executor (no cluster): how CI tests it.
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 import uuid
@@ -27,6 +26,7 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.results import ResultsError, write_json_atomic
+from strol_gym.files import temp_tag
 
 SLURM_DIR = ".slurm"
 EXECUTORS = ("slurm", "local")
@@ -51,7 +51,7 @@ def _array_task(
         records = worker.run_unit(unit)
     finally:
         worker.close()
-    path = Path(blocks) / f"{unit.key}.{os.getpid()}-{uuid.uuid4().hex[:8]}.json"
+    path = Path(blocks) / f"{unit.key}.{temp_tag()}-{uuid.uuid4().hex[:8]}.json"  # host-pid
     payload = {"config_hash": config.hash(), "unit": unit.key, "records": records}
     write_json_atomic(path, payload)
     return path.name

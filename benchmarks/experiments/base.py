@@ -111,12 +111,21 @@ class BenchExperiment:
             plugin_option(p)
         return p
 
+    needs_own_out: bool = False
+    """True for experiments that write their own files into ``--out`` (not a results folder of
+    the runner there): a run's results folder is then refused, never mixed into."""
+
     def __call__(self, args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
         try:
             plan = self.plan(args)
         except ValueError as e:
             parser.error(str(e))
         out = Path(args.out or self.default_out(args))
+        if self.needs_own_out and (out / "meta.json").exists():
+            parser.error(
+                f"--out {out} is a benchmark's results folder (it holds meta.json); {self.name} "
+                "writes files of its own: choose another --out"
+            )
         outcome = self.execute(plan, args, out)
         files: list[Path] = []
         if self.columns:

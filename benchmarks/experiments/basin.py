@@ -43,6 +43,8 @@ class Basin(BenchExperiment):
     name = "basin"
     columns = COLUMNS
 
+    needs_own_out = True
+
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
         p.add_argument("--env", choices=("robot", "highway"), default="robot")
         p.add_argument(

@@ -65,6 +65,7 @@ class LambdaSweep(BenchExperiment):
 
     name = "lambda"
     columns = COLUMNS
+    needs_own_out = True
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
         p.add_argument("--env", choices=("robot",), default="robot")

@@ -8,7 +8,6 @@ from pathlib import Path
 
 from strol_gym.benchmarks.args import (
     RUN_CAPS,
-    add_allow_large,
     beta,
     check_learner_names,
     check_size_caps,
@@ -115,7 +114,6 @@ class Run(RunsAndReports):
             help='JSON: constructor kwargs per learner, e.g. \'{"strol": {"lam": 0.5}}\'',
         )
         run_options(p)
-        add_allow_large(p)
 
     def plan(self, args: argparse.Namespace) -> BenchConfig:
         check_size_caps(args, RUN_CAPS)

@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from strol_gym.limits import CAPS, check_size, lifted_now
 from strol_gym.wrappers.session_log import SessionLogError
 
 METADATA = "metadata.json"
@@ -234,7 +235,52 @@ def check_metadata(path: str | Path) -> dict[str, Any]:
     for key in ("env_spec", "eval_env_spec"):
         if meta.get(key) is not None:
             check_env_spec(f"{path}: {key}", meta[key])
+    for key, cap in (("total_episodes", "dataset_episodes"), ("total_steps", "dataset_steps")):
+        if key in meta:
+            try:
+                check_size(f"{path}: {key}", meta[key], cap, low=0)
+            except (TypeError, ValueError) as e:
+                raise DatasetRefused(str(e)) from None
+    check_arrays(path.parent)
     return meta
+
+
+DATA_FILE = "main_data.hdf5"
+MAX_ROW_WIDTH = 1_024
+"""The most numbers per step in a dataset array (ours hold tens)."""
+
+
+def check_arrays(folder: Path) -> None:
+    """:class:`DatasetRefused` naming the file and array if any array in the dataset's HDF5
+    file declares more rows than the cap (``dataset_steps``) or rows wider than
+    :data:`MAX_ROW_WIDTH`: shapes are read from the file's headers, before Minari allocates."""
+    data = folder / DATA_FILE
+    if not data.is_file():
+        return
+    try:
+        import h5py
+    except ImportError:  # Minari without HDF5 cannot read it either
+        return
+    rows = CAPS["dataset_steps"] + 1
+    found: list[str] = []
+
+    def visit(name: str, obj: Any) -> None:
+        shape = getattr(obj, "shape", None)
+        if shape is None or found:
+            return
+        if len(shape) and (shape[0] > rows or math.prod(shape[1:]) > MAX_ROW_WIDTH):
+            found.append(f"{name} {tuple(shape)}")
+
+    try:
+        with h5py.File(data, "r") as f:
+            f.visititems(visit)
+    except OSError as e:
+        raise DatasetRefused(f"{data}: not a readable HDF5 file ({e})") from None
+    if found and not lifted_now():
+        raise DatasetRefused(
+            f"{data}: array {found[0]} is larger than the cap ({rows - 1:,} rows of at most "
+            f"{MAX_ROW_WIDTH} numbers; strol_gym.limits.lift() lifts it)"
+        )
 
 
 __all__ = [

@@ -369,7 +369,7 @@ __all__ = ["export_runs", "export_session", "read_any", "read_dataset"]
 
 # ---------------------------------------------------------------------- CLI (strol-bench export)
 def add_parser(sub: Any) -> None:
-    from strol_gym.benchmarks.args import plugin_option, positive_int
+    from strol_gym.benchmarks.args import add_allow_large, plugin_option, positive_int
 
     p = sub.add_parser(
         "export",
@@ -390,12 +390,16 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--runs", type=positive_int("--runs", 10_000), default=10, help="with --env")
     p.add_argument("--seed", type=positive_int("--seed", low=0), default=0, help="first run seed")
     p.add_argument("--corrections", type=positive_int("--corrections"), default=None)
+    add_allow_large(p)
     p.add_argument("--task", default=None, help="with --env: a Task name (default: the env's)")
     p.add_argument("--learner-kwargs", default=None, help="with --env: JSON, e.g. '{\"lam\": 0.5}'")
     plugin_option(p)
 
 
 def command(args: Any, parser: Any) -> int:
+    from strol_gym.benchmarks.args import RUN_CAPS, check_size_caps
+
+    check_size_caps(args, RUN_CAPS)
     if args.log is not None:
         dataset = export_session(args.log, args.dataset_id)
     else:

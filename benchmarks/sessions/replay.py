@@ -42,9 +42,27 @@ def replay_session(
                     where = f"in episode {k}, correction {j} of {session.path}"
                     raise LearnerFailed.of(str(name), where, e) from None
                 thetas.append(np.asarray(learner.theta, dtype=np.float64).copy())
-            curves.append(np.array(thetas))
+            curve = np.array(thetas)
+            _check_finite_errors(session, k, curve)
+            curves.append(curve)
         out[name] = curves
     return out
+
+
+def _check_finite_errors(session: Session, k: int, curve: np.ndarray) -> None:
+    """ValueError naming the log and episode if an error to θ* cannot be computed (θ* or θ̂ so
+    large that ‖θ* − θ̂‖ overflows): replay writes no inf or NaN error."""
+    star = session.episodes[k].theta_star
+    if star is None:
+        return
+    with np.errstate(over="ignore", invalid="ignore"):
+        ok = np.isfinite(np.linalg.norm(curve - star, axis=1)).all()
+    if not ok:
+        raise ValueError(
+            f"{session.path}: episode {k}: ‖θ* − θ̂‖ overflows (θ* = {star.tolist()!r:.60}, "
+            "or θ̂ from the log's values): the values are too large to compare; "
+            "this log cannot be replayed"
+        )
 
 
 def _fmt(v: np.ndarray) -> str:

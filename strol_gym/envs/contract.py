@@ -61,7 +61,7 @@ from gymnasium import spaces
 from strol_gym import checks
 from strol_gym.humans import Human, HumanFactory, needs_theta_hat
 from strol_gym.humans.spec import HumanSpec
-from strol_gym.priors import Prior, make_prior, sample_each
+from strol_gym.priors import Prior, check_theta_range, make_prior, sample_each
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task, vector_arg
 
@@ -445,8 +445,11 @@ class CorrectionEnv:
             raise ValueError(f"unknown reset option(s) {sorted(bad)}; valid: {RESET_OPTIONS}")
         theta_star = options.get("theta_star")
         state = options.get("state")
+        if theta_star is not None:
+            theta_star = vector_arg("theta_star", theta_star, self.task.dim)
+            check_theta_range("theta_star", theta_star)
         return (
-            None if theta_star is None else vector_arg("theta_star", theta_star, self.task.dim),
+            theta_star,
             None if state is None else vector_arg("state", state, self.task.state_dim),
         )
 

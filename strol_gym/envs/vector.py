@@ -37,6 +37,7 @@ from strol_gym.envs.contract import (
     robot_actions,
 )
 from strol_gym.humans.population import batched_corrections
+from strol_gym.limits import check_size
 
 
 class VectorCorrectionEnv(VectorEnv):
@@ -54,7 +55,7 @@ class VectorCorrectionEnv(VectorEnv):
     def __init__(
         self, num_envs: int = 1, max_episode_steps: int | None = None, **kwargs: Any
     ) -> None:
-        self.num_envs = int_arg("num_envs", num_envs, 1)
+        self.num_envs = check_size("num_envs", int_arg("num_envs", num_envs, 1))
         if max_episode_steps is not None:
             max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
         self.max_episode_steps = max_episode_steps

@@ -29,6 +29,7 @@ import numpy as np
 
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.choices import perturb
+from strol_gym.limits import check_size
 from strol_gym.tasks.base import Task
 
 DEFAULT_CANDIDATES = 512
@@ -100,9 +101,7 @@ class HumanModel:
         self.task = task
         self.sigma = check_fraction("sigma", sigma)
         self.bias = check_fraction("bias", bias, allow_negative=True)
-        if isinstance(n_candidates, bool) or int(n_candidates) < 1:
-            raise ValueError(f"n_candidates must be an integer >= 1, got {n_candidates!r}")
-        self.n_candidates = int(n_candidates)
+        self.n_candidates = check_size("n_candidates", n_candidates)
 
     # ------------------------------------------------------------------ what subclasses give
     def choose(

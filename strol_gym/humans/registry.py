@@ -13,7 +13,7 @@ from strol_gym import checks
 from strol_gym.humans.builtin import BoltzmannModel, ChangingModel, DriverModel, NominalModel
 from strol_gym.humans.interface import Draws, Human, HumanModel, SimulatedHuman, needs_theta_hat
 from strol_gym.humans.zoo import ZOO
-from strol_gym.registry import Registry
+from strol_gym.registry import Registry, call_piece
 from strol_gym.tasks.base import Task
 
 if TYPE_CHECKING:
@@ -149,7 +149,7 @@ def make_human(
     ``human_kwargs``, restricted to those the factory's signature declares."""
     factory = human_factory(human)
     params = _params(factory, {"sigma": sigma, "bias": bias, "beta": beta, **human_kwargs})
-    obj = factory(task, theta_star, rng, **params)
+    obj = call_piece("human", human, factory, task, theta_star, rng, **params)
     if not isinstance(obj, Human):
         raise ValueError(
             f"human {human!r} must return an object with act(x, u_r, theta_hat) and "

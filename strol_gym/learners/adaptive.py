@@ -197,5 +197,29 @@ class AdaptiveStROLLearner(StROLLearner):
             ]
         except (KeyError, TypeError, ValueError) as e:
             raise ValueError(f"state lacks strol-adaptive's statistics ({e})") from None
+        total, count, last = stats
+        for key, arr in zip(("stat_sum", "stat_count", "last_correction"), stats, strict=True):
+            if not np.isfinite(arr).all():
+                raise ValueError(f"state[{key!r}] must be finite (no NaN or inf)")
+        if (count < 0).any() or (count != np.round(count)).any():
+            raise ValueError("state['stat_count'] must hold integers >= 0 (counts of corrections)")
+        if (np.abs(total) > count * (1 + 1e-9)).any():
+            raise ValueError(
+                "state['stat_sum'] must lie in [-stat_count, stat_count] (a sum of cosines)"
+            )
+        theta_rows = np.shape(np.asarray(state.get("theta")))[:-1]
+        if (
+            total.shape != count.shape
+            or total.shape != theta_rows
+            or last.shape
+            != (
+                *theta_rows,
+                self.task.dim,
+            )
+        ):
+            raise ValueError(
+                f"state's statistics must match θ̂'s batch {theta_rows}: stat_sum {total.shape}, "
+                f"stat_count {count.shape}, last_correction {last.shape}"
+            )
         super().load_state_dict(state)
         self._sum, self._count, self._last = stats

@@ -17,8 +17,9 @@ from strol_gym.learners.protocol import (
     LinearRuleLearner,
     _as_float_array,
     batch_inputs,
-    check_state,
+    checked_theta,
 )
+from strol_gym.limits import check_size
 from strol_gym.priors import HedgedPrior
 from strol_gym.tasks.base import Task
 
@@ -91,6 +92,7 @@ class BayesLearner(LinearRuleLearner):
         candidate_seed: int = 0,
     ) -> None:
         checks.number("n_particles", n_particles, low=1, integer=True)
+        n_particles = check_size("n_particles", n_particles)
         betas = np.atleast_1d(checks.array("beta", beta, finite=False))
         if betas.ndim != 1 or len(betas) == 0 or not (np.isfinite(betas).all() and betas.min() > 0):
             raise ValueError(f"beta must be a finite number > 0 or a list of them, got {beta!r}")
@@ -101,6 +103,7 @@ class BayesLearner(LinearRuleLearner):
         checks.number("mode_jitter", mode_jitter, low=0)
         checks.number("bandwidth", bandwidth, low=0)
         checks.number("n_candidates", n_candidates, low=1, integer=True)
+        n_candidates = check_size("n_candidates", n_candidates)
         checks.number("seed", seed, low=0, integer=True)
         checks.number("candidate_seed", candidate_seed, low=0, integer=True)
         super().__init__(task)
@@ -197,12 +200,42 @@ class BayesLearner(LinearRuleLearner):
 
     def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:
         x2, uh2, ur2, th2, single = batch_inputs(self.task, x, u_h, u_r, self.theta)
+        saved = (self._particles, self._beta_idx, self._logw, self._updates)
+        try:
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                theta = self._update(x2, uh2, ur2, th2)
+            if not (
+                np.isfinite(theta).all()
+                and np.isfinite(self._particles).all()
+                and np.isfinite(self._logw).all()
+            ):
+                checked_theta(np.full_like(theta, np.nan))  # the same refusal as other learners
+        except BaseException:  # a refused update changes nothing
+            self._particles, self._beta_idx, self._logw, self._updates = saved
+            raise
+        self.theta = theta[0] if single else theta
+        return self.theta.copy()
+
+    def _update(
+        self, x2: np.ndarray, uh2: np.ndarray, ur2: np.ndarray, th2: np.ndarray
+    ) -> np.ndarray:
+        """One Bayes step on fresh copies of the posterior (``update`` restores the old one if
+        the result is not finite); returns the posterior means, (B, d)."""
         b, n = len(x2), self.n_particles
-        if self._particles.ndim == 2:  # one shared prior sample: give each row its own copy
-            self._particles = np.broadcast_to(self._particles, (b, n, self.task.dim)).copy()
-            self._beta_idx = np.broadcast_to(self._beta_idx, (b, n)).copy()
-            self._logw = np.broadcast_to(self._logw, (b, n)).copy()
-        logw = self._logw + self.log_likelihood(x2, uh2, ur2, th2)
+        rows = 1 if self._particles.ndim == 2 else len(self._logw)
+        if rows not in (1, b):
+            raise ValueError(
+                f"x, u_h and u_r hold a batch of {b} but the posterior holds {rows} rows; "
+                "reset() to start another batch"
+            )
+        shape = (b, n)
+        self._particles = np.broadcast_to(self._particles, (*shape, self.task.dim)).copy()
+        self._beta_idx = np.broadcast_to(self._beta_idx, shape).copy()
+        self._logw = np.broadcast_to(self._logw, shape).copy()
+        ll = self.log_likelihood(x2, uh2, ur2, th2)
+        if not np.isfinite(ll).all():
+            checked_theta(np.full(self.task.dim, np.nan))  # u_h or θ̂ overflow the likelihood
+        logw = self._logw + ll
         self._updates += 1
         logw -= logw.max(axis=1, keepdims=True)
         w = np.exp(logw)
@@ -213,9 +246,7 @@ class BayesLearner(LinearRuleLearner):
         if len(low):
             self._resample(low, w[low])
             w[low] = 1.0 / n
-        theta = np.einsum("bn,bnd->bd", w, self._particles)
-        self.theta = theta[0] if single else theta
-        return self.theta.copy()
+        return np.einsum("bn,bnd->bd", w, self._particles)
 
     def _resample(self, rows: np.ndarray, w: np.ndarray) -> None:
         """Systematic resampling of ``rows`` (weights w, (R, N)), then a Gaussian jitter."""
@@ -259,17 +290,31 @@ class BayesLearner(LinearRuleLearner):
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         # Read and check everything before anything is assigned: a failed load changes nothing.
-        check_state(state, self.name)
+        self.check_identity(state)
         missing = [k for k in ("particles", "beta_idx", "logw", "updates") if k not in state]
         if missing:
             raise ValueError(f"state lacks {self.name}'s posterior: missing key(s) {missing}")
+        updates = state["updates"]
+        if type(updates) is not int or updates < 0:
+            raise ValueError(f"state['updates'] must be an integer >= 0, got {updates!r}")
         try:
             particles = np.asarray(state["particles"], dtype=np.float64).copy()
             beta_idx = np.asarray(state["beta_idx"]).copy()
             logw = np.asarray(state["logw"], dtype=np.float64).copy()
-            updates = int(state["updates"])
         except (TypeError, ValueError) as e:
             raise ValueError(f"state has an invalid {self.name} posterior ({e})") from None
+        if beta_idx.dtype.kind not in "iu" or (
+            beta_idx.size and (beta_idx.min() < 0 or beta_idx.max() >= len(self.betas))
+        ):
+            raise ValueError(
+                f"state['beta_idx'] must hold integers in [0, {len(self.betas) - 1}] (indices "
+                f"into beta), got dtype {beta_idx.dtype}"
+                + (
+                    f" and values in [{beta_idx.min()}, {beta_idx.max()}]"
+                    if beta_idx.size and beta_idx.dtype.kind in "iu"
+                    else ""
+                )
+            )
         for key, arr in (("particles", particles), ("logw", logw)):
             if not np.isfinite(arr).all():
                 raise ValueError(f"state[{key!r}] must be finite (no NaN or inf)")
@@ -280,9 +325,23 @@ class BayesLearner(LinearRuleLearner):
             )
         if beta_idx.shape != logw.shape:
             raise ValueError(f"state['beta_idx'] {beta_idx.shape} must match logw {logw.shape}")
+        if particles.ndim not in (2, 3) or particles.shape[-2] != self.n_particles:
+            raise ValueError(
+                f"state['particles'] must have shape ({self.n_particles}, {self.task.dim}) or "
+                f"(B, {self.n_particles}, {self.task.dim}), got {particles.shape}"
+            )
+        theta = np.asarray(state.get("theta"), dtype=object)
+        rows = 1 if particles.ndim == 2 else len(particles)
+        ok_theta = theta.shape == (self.task.dim,) and rows == 1
+        ok_theta = ok_theta or (particles.ndim == 3 and theta.shape == (rows, self.task.dim))
+        if not ok_theta:
+            raise ValueError(
+                f"state['theta'] {theta.shape} does not match the posterior's {rows} row(s): "
+                f"it must be ({self.task.dim},) for one row or ({rows}, {self.task.dim})"
+            )
         super().load_state_dict(state)
         self._particles, self._beta_idx, self._logw = particles, beta_idx, logw
-        self._updates = updates
+        self._updates = int(updates)
 
 
 def teacher_bayes(task: Task, **kwargs: Any) -> BayesLearner:

@@ -26,7 +26,7 @@ import torch
 from safetensors.torch import load as load_safetensors
 from safetensors.torch import save as save_safetensors
 
-from strol_gym.files import temp_beside
+from strol_gym.files import loads_json, temp_beside
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.provenance import package_versions
 from strol_gym.tasks.base import Task
@@ -68,7 +68,22 @@ WEIGHTS_SUFFIXES = (SAFETENSORS, TORCH_PT)
 def weights_sha256(path: str | Path) -> str:
     """SHA-256 of a weights file's bytes: the sidecar's ``weights_sha256``, so a sidecar only
     vouches for the exact file it was written for."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    h = hashlib.sha256()
+    _hash_file(h, Path(path))
+    return h.hexdigest()
+
+
+HASH_CHUNK = 1 << 20
+
+
+def _hash_file(h: Any, path: Path, prefix_length: bool = False) -> None:
+    """Feed ``path``'s bytes to ``h`` in 1 MiB chunks (a 1 GB file costs 1 MiB of memory),
+    preceded by its length (8 bytes, little-endian) if ``prefix_length``."""
+    with open(path, "rb") as f:
+        if prefix_length:
+            h.update(os.fstat(f.fileno()).st_size.to_bytes(8, "little"))
+        while chunk := f.read(HASH_CHUNK):
+            h.update(chunk)
 
 
 def check_finite_weights(weights: dict[str, Any], where: str) -> None:
@@ -109,8 +124,7 @@ def checkpoint_sha256(path: str | Path) -> str:
     learner's behaviour as much as the weights do."""
     h = hashlib.sha256()
     for part in (Path(path), sidecar_path(path)):
-        data = part.read_bytes()
-        h.update(len(data).to_bytes(8, "little") + data)
+        _hash_file(h, part, prefix_length=True)
     return h.hexdigest()
 
 
@@ -261,12 +275,15 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     side = sidecar_path(path)
     if not side.is_file():
         raise FileNotFoundError(f"checkpoint sidecar {side} is missing (needed beside {path})")
-    try:
-        meta = json.loads(side.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise ValueError(f"checkpoint sidecar {side} is not valid JSON ({e})") from None
+    meta = loads_json(side.read_bytes(), f"checkpoint sidecar {side}")
     if not isinstance(meta, dict):
         raise ValueError(f"checkpoint sidecar {side} must hold a JSON object")
+    for key, kind in (("task", dict), ("network", dict), ("kind", str)):
+        if key in meta and not isinstance(meta[key], kind):
+            word = "an object" if kind is dict else "a string"
+            raise ValueError(
+                f"checkpoint sidecar {side}: {key!r} must be {word}, got {meta[key]!r:.80}"
+            )
     return meta
 
 
@@ -307,6 +324,8 @@ def check_sidecar(meta: dict[str, Any], task: Task, kind: str | None = None) -> 
     if kind is not None and meta.get("kind") != kind:
         problems.append(f"kind: checkpoint has {meta.get('kind')!r}, expected {kind!r}")
     have, want = meta.get("task", {}), task_signature(task)
+    if not isinstance(have, dict) or not isinstance(meta.get("network", {}), dict):
+        raise ValueError("checkpoint sidecar: 'task' and 'network' must be JSON objects")
     for key in sorted(set(have) | set(want)):
         a, b = have.get(key), want.get(key)
         if a == b:
@@ -368,8 +387,10 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
     found = []
     for side in sorted(directory.glob("*.json")):
         try:
-            meta = json.loads(side.read_text())
-        except (OSError, json.JSONDecodeError):
+            meta = loads_json(side.read_bytes(), str(side))
+        except (OSError, ValueError):
+            continue
+        if not isinstance(meta, dict) or not isinstance(meta.get("task"), dict):
             continue
         if meta.get("kind") == kind and meta.get("task", {}).get("task_id") == task.task_id:
             weights = [side.with_suffix(s) for s in WEIGHTS_SUFFIXES]

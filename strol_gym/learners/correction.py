@@ -137,6 +137,19 @@ class CorrectionLearner(LinearRuleLearner):
         weights = state.get("model")
         if not isinstance(weights, dict):
             raise ValueError("state['model'] must be the network's state_dict")
+        current = self.model.state_dict()
+        for key, value in weights.items():
+            want = current.get(key)
+            if not torch.is_tensor(value) or want is None or value.dtype != want.dtype:
+                raise ValueError(
+                    f"state['model'][{key!r}] must be a {getattr(want, 'dtype', 'known')} tensor "
+                    f"(the network's own), got {getattr(value, 'dtype', type(value).__name__)}"
+                )
+            if value.is_floating_point() and value.abs().max() > MAX_WEIGHT:
+                raise ValueError(
+                    f"state['model'][{key!r}] holds a weight beyond ±{MAX_WEIGHT:g} (trained "
+                    "weights are far smaller; such a network overflows at the first update)"
+                )
         try:
             model.load_state_dict(weights)
         except RuntimeError as e:
@@ -145,6 +158,10 @@ class CorrectionLearner(LinearRuleLearner):
         super().load_state_dict(state)  # checks θ̂ before it assigns it
         self.model = model.eval()
 
+
+MAX_WEIGHT = 1e6
+"""The largest |weight| a loaded ĝ state may hold: trained networks hold weights below 10; far
+larger ones overflow float32 activations and would fail at the first update."""
 
 MAX_LAM = 1000.0
 """Largest λ: 100x the λ sweep's largest; beyond it λ·ĝ swamps g and θ̂ runs off."""

@@ -63,8 +63,15 @@ class CorrectionNet(nn.Module):
         super().__init__()
         if in_dim < 1 or out_dim < 1:
             raise ValueError(f"in_dim and out_dim must be >= 1, got {in_dim}, {out_dim}")
-        if not hidden or any(int(h) < 1 for h in hidden):
-            raise ValueError(f"hidden must be a non-empty list of positive widths, got {hidden}")
+        if (
+            not isinstance(hidden, Sequence)
+            or isinstance(hidden, str | bytes)
+            or not hidden
+            or any(isinstance(h, bool) or not hasattr(h, "__index__") or h < 1 for h in hidden)
+        ):
+            raise ValueError(
+                f"hidden must be a non-empty list of positive integer widths, got {hidden!r}"
+            )
         if bound not in BOUNDS:
             raise ValueError(f"bound must be one of {BOUNDS}, got {bound!r}")
         self.in_dim, self.out_dim = int(in_dim), int(out_dim)

@@ -37,7 +37,10 @@ class OnlineRewardLearner(Protocol):
         ...
 
     def state_dict(self) -> dict[str, Any]:
-        """Everything needed to restore the learner (arrays, tensors and plain values)."""
+        """Everything needed to restore the learner (numpy arrays, torch tensors and plain
+        values), for ``load_state_dict`` in this or another process (it pickles). It is not a
+        torch checkpoint: ``torch.load(weights_only=True)`` refuses the numpy arrays in it;
+        ĝ weights travel as safetensors files (``learners.checkpoint``)."""
         ...
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -164,6 +167,18 @@ class LinearRuleLearner:
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        self.check_identity(state)
+        if "theta" not in state:
+            raise ValueError(f"state lacks {self.name}'s estimate: missing key 'theta'")
+        try:
+            theta = np.asarray(state["theta"], dtype=np.float64)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"state['theta'] must be {self.task.dim} numbers ({e})") from None
+        self.theta = _as_float_array("theta", theta, self.task.dim).copy()
+
+    def check_identity(self, state: Any) -> None:
+        """ValueError unless ``state`` is this learner's kind, Task and config: checked first,
+        so that a state of another size is named as such, not by its arrays' shapes."""
         check_state(state, self.name)
         if state.get("name") != self.name:
             raise ValueError(f"state is for learner {state.get('name')!r}, not {self.name!r}")
@@ -176,13 +191,6 @@ class LinearRuleLearner:
             raise ValueError(
                 f"state config {state.get('config')} differs from this learner's {self.config()}"
             )
-        if "theta" not in state:
-            raise ValueError(f"state lacks {self.name}'s estimate: missing key 'theta'")
-        try:
-            theta = np.asarray(state["theta"], dtype=np.float64)
-        except (TypeError, ValueError) as e:
-            raise ValueError(f"state['theta'] must be {self.task.dim} numbers ({e})") from None
-        self.theta = _as_float_array("theta", theta, self.task.dim).copy()
 
     def __repr__(self) -> str:
         cfg = ", ".join(f"{k}={v!r}" for k, v in self.config().items())

@@ -11,6 +11,7 @@ import numpy as np
 
 from strol_gym import checks
 from strol_gym.learners.protocol import LinearRuleLearner
+from strol_gym.limits import check_size
 from strol_gym.tasks.base import Task
 
 
@@ -82,6 +83,8 @@ class MOFLearner(LinearRuleLearner):
         self.threshold = float(checks.number("threshold", threshold, high=1.0))
         checks.number("n_candidates", n_candidates, low=1, integer=True)
         checks.number("n_hypotheses", n_hypotheses, low=0, integer=True)
+        n_candidates = check_size("n_candidates", n_candidates)
+        n_hypotheses = check_size("n_hypotheses", n_hypotheses, low=0)
         checks.number("seed", seed, low=0, integer=True)
         self.n_candidates = int(n_candidates)
         self.n_hypotheses = int(n_hypotheses)

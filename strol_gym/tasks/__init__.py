@@ -7,7 +7,7 @@ an env id (a Task's ``task_id``), a ``"module:attr"`` or a Task object.
 from collections.abc import Callable
 from typing import Any, TypeVar, overload
 
-from strol_gym.registry import Registry
+from strol_gym.registry import Registry, call_piece
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.highway import HighwayTask
 from strol_gym.tasks.robot import RobotTask
@@ -65,7 +65,7 @@ def make_task(spec: Any, of: type[Task] | None = None) -> Task:
         obj = TASKS.get(spec)
     else:
         obj = spec
-    task = obj if isinstance(obj, Task) else obj() if callable(obj) else obj
+    task = obj if isinstance(obj, Task) else call_piece("task", spec, obj) if callable(obj) else obj
     if not isinstance(task, Task):
         raise ValueError(f"task {spec!r} is not a strol_gym Task (got {type(task).__name__})")
     if of is not None and not isinstance(task, of):
