@@ -107,6 +107,8 @@ def call_piece(kind: str, spec: Any, factory: Callable[..., Any], *args: Any, **
     naming the spec and its kind, instead of a traceback from inside it."""
     try:
         return factory(*args, **kwargs)
+    except checks.ArgumentTypeError:
+        raise  # the piece was built and named a bad argument itself: its own words stand
     except TypeError as e:
         said = " ".join(str(e).split())[:200]
         raise PieceError(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -392,7 +393,10 @@ def test_theta_star_and_prior_modes_beyond_the_range_are_refused(env_id):
 
 @pytest.mark.parametrize("value", [float("inf"), float("nan"), 0.0, -5.0])
 def test_study_v1_reflex_thresholds_must_be_finite_and_positive(value):
+    """Refused within the documented range (v1 and v2 share it: [20, 150] N)."""
     import gymnasium as gym
 
-    with pytest.raises(ValueError, match=r"reflex_force must be a finite number > 0"):
-        gym.make("StROL-Study-v1", reflex_force=value)
+    with pytest.raises(ValueError, match=r"reflex_force must be a finite number in \[20, 150\]"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # v1 is deprecated
+            gym.make("StROL-Study-v1", reflex_force=value)
