@@ -8,6 +8,7 @@ pose helpers in ``geometry``, the people who push in ``user`` and ``participant`
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from typing import Any, ClassVar, cast
@@ -20,10 +21,11 @@ from gymnasium import spaces
 from strol_gym import checks
 from strol_gym.envs.contract import CorrectionEnv, int_arg, render_metadata, vector_arg
 from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
+from strol_gym.envs.study import population
 from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
 from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight, within_reach
-from strol_gym.envs.study.participant import Participant
-from strol_gym.envs.study.people import HeldWrench, ScriptedWrench
+from strol_gym.envs.study.participant import FittedParticipant, Participant
+from strol_gym.envs.study.people import TORQUE_LEVER, HeldWrench, ScriptedWrench
 from strol_gym.envs.study.scene import build_model, model_q
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, V2, StudyVersion
@@ -44,8 +46,6 @@ END_HOLD = 2.0
 """Seconds the robot waits at the end of its plan before it returns home and plays it again."""
 _F32_MAX = float(np.finfo(np.float32).max)
 _STILL: Velocity = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-TORQUE_LEVER = 0.1
-"""A torque τ counts as a force ‖τ‖ / 0.1 m towards the correction threshold."""
 
 
 class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
@@ -455,6 +455,11 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
     def _new_user(self, theta_star: np.ndarray, rng: np.random.Generator) -> SimulatedUser:
         """The simulated person who pushes: the ``participant`` "observer" (``Participant``),
         else the regret-judging ``SimulatedUser`` (v0's; v1's "oracle")."""
+        if self.participant == "fitted":
+            params = population.shipped().draw(rng, self.task.number)
+            if self.user_kwargs:
+                params = dataclasses.replace(params, **self.user_kwargs)
+            return FittedParticipant(self.task, theta_star, rng, params=params)
         if self.participant == "observer":
             return Participant(
                 self.task, theta_star, rng, sigma=self.sigma, bias=self.bias, **self.user_kwargs

@@ -45,7 +45,13 @@ from typing import Any
 import numpy as np
 
 from strol_gym.envs.study.geometry import angle_delta
-from strol_gym.envs.study.people import THRESHOLD, ParticipantParams  # noqa: F401
+from strol_gym.envs.study.people import (  # noqa: F401  (THRESHOLD: here until 0.2)
+    THRESHOLD,
+    TORQUE_LEVER,
+    FittedParams,
+    ParticipantParams,
+)
+from strol_gym.envs.study.population import draw_corrections
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
 from strol_gym.tasks.study import StudyTask
@@ -224,3 +230,110 @@ class Participant(SimulatedUser):
     def _released(self, t: float, x: np.ndarray) -> None:
         self._pending_score = self._rejected  # what the push was meant to improve
         self._seen.clear()  # judge the robot's motion after the push, not the push itself
+
+
+class FittedParticipant(Participant):
+    """A person of the fitted population (StROL-Study-v2's default, ``participant="fitted"``;
+    ``population``): it judges the cup's motion as ``Participant`` does, and:
+
+    - **where it pushes** is drawn from the fit: the direction θ*'s steepest ascent at the
+      pose it sees (in a_max units) plus its aim's noise, the displacement and rotation its
+      own log-normal sizes (``population.draw_corrections``); the env's ``sigma`` and
+      ``bias`` are not used (its noise is fitted);
+    - **when it is done**: after ``budget`` corrections it pushes no more this session; it
+      watches ``linger`` × the path time it had watched before its last push, then it is
+      done: ``done_at`` (s; None until then);
+    - **it lets go along its push**: while the force falls (``ramp``) it keeps the push's
+      direction rather than re-aiming at the target, so a cup that overshoots is not pushed
+      back (v1's participant's rebounds: a second, opposite correction < 0.5 s later);
+    - it watches ``rest`` s before its first judgment, as after each push.
+    """
+
+    def __init__(
+        self,
+        task: StudyTask,
+        theta_star: np.ndarray,
+        rng: np.random.Generator,
+        *,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        params: FittedParams | None = None,
+        **kwargs: Any,
+    ) -> None:
+        """``params`` (a person drawn from ``population``), or its fields as keywords."""
+        params = params if params is not None else FittedParams(**kwargs)
+        super().__init__(task, theta_star, rng, sigma=sigma, bias=bias, params=params)
+        self.params: FittedParams = params
+        self.made = 0
+        """Corrections pushed (released) so far this session."""
+        self.done_at: float | None = 0.0 if params.budget == 0 else None
+        self._t_next = params.rest
+        self._push_wrench = (np.zeros(3), np.zeros(3))
+        self._axes = task.action_dim
+        self._started = 0.0
+        self._pushed = 0.0
+
+    def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: Any = None) -> np.ndarray:
+        """A correction drawn at pose ``x`` from this person's fitted aim and sizes."""
+        del u_r, theta_hat
+        x = np.asarray(x, dtype=np.float64)
+        best = (self.task.feature_jacobian(x).T @ self._theta_star)[: self._axes] * self._a_max
+        p = self.params
+        u = draw_corrections(
+            best,
+            self.rng,
+            aim=p.aim,
+            size=p.size,
+            size_within=p.size_within,
+            turn=p.turn,
+            turn_within=p.turn_within,
+        )[0]
+        return u * self._a_max
+
+    def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
+        if self.made >= self.params.budget:
+            return None
+        return super()._decide(t, x, theta_hat)
+
+    def wrench(
+        self, t: float, x: np.ndarray, theta_hat: Any = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """As ``Participant.wrench``, but pushing as hard as the intended displacement needs
+        (``feel``; at least ``min_felt``, at most ``push_force``), and a release ramps the
+        push's own wrench down."""
+        before = self.phase
+        f, tq = super().wrench(t, x, theta_hat)
+        if self.phase == "push":
+            if before != "push":
+                self._started = t
+                self._sizing = self._push_sizes(x)
+            force, torque = self._sizing
+            f = f * (force / self.params.push_force)
+            tq = tq * (torque / self.params.push_torque)
+            self._push_wrench = (f, tq)
+        elif self.phase == "release":
+            start = self._t0 if before == "release" else t
+            level = max(0.0, 1.0 - (t - start) / self.params.ramp)
+            f, tq = self._push_wrench[0] * level, self._push_wrench[1] * level
+        return f, tq
+
+    def _push_sizes(self, x: np.ndarray) -> tuple[float, float]:
+        """(force N, torque N m) of the push that begins at pose ``x``: ``feel`` times the
+        intended displacement and turn, capped, and raised together to ``min_felt``."""
+        p = self.params
+        dp, dr = self._error(x)
+        force = min(p.push_force, p.feel * float(np.linalg.norm(dp)))
+        torque = min(p.push_torque, p.feel_rot * float(np.linalg.norm(dr)))
+        felt = force + torque / TORQUE_LEVER
+        if 0.0 < felt < p.min_felt:
+            scale = p.min_felt / felt
+            force, torque = min(p.push_force, force * scale), min(p.push_torque, torque * scale)
+        return force, torque
+
+    def _released(self, t: float, x: np.ndarray) -> None:
+        super()._released(t, x)
+        self.made += 1
+        watched = self._started - self._pushed  # the robot's path time before this push
+        self._pushed += t - self._started
+        if self.made >= self.params.budget:
+            self.done_at = t + self.params.linger * watched

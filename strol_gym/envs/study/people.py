@@ -20,6 +20,8 @@ from strol_gym.envs.contract import int_arg
 SATISFIED_REGRET = 1.0
 """Default ``satisfied_regret``: the user stops pushing once the regret of the robot's plan (from
 home, under its θ*) is at most this (calibrated on seeds 900-919, docs/study.md)."""
+TORQUE_LEVER = 0.1
+"""A torque τ counts as a force ‖τ‖ / 0.1 m towards the correction threshold."""
 THRESHOLD = 0.4
 """Default acceptance threshold of the participant on the motion's score (calibrated,
 docs/study.md)."""
@@ -78,6 +80,13 @@ def _check(name: str, value: float, low: float, strict: bool) -> float:
     return float(checks.number(f"user_kwargs[{name!r}]", value, low=low, low_open=strict))
 
 
+def _check_fields(params: object, lows: dict[str, tuple[float, bool]]) -> None:
+    """Check the named fields of a frozen params object in place: each ``name: (low,
+    strict)`` a number ≥ low (> low if strict), the error naming its ``user_kwargs`` key."""
+    for name, (low, strict) in lows.items():
+        object.__setattr__(params, name, _check(name, getattr(params, name), low, strict))
+
+
 @dataclass(frozen=True)
 class PushParams:
     """How a simulated person pushes and when it is satisfied (``user.SimulatedUser``)."""
@@ -94,10 +103,9 @@ class PushParams:
     satisfied_regret: float = SATISFIED_REGRET
 
     def __post_init__(self) -> None:
-        for f in fields(PushParams):
-            strict = f.name != "satisfied_regret"  # the others > 0, the regret >= 0
-            low = 0.0 if strict else 0
-            object.__setattr__(self, f.name, _check(f.name, getattr(self, f.name), low, strict))
+        # every field > 0, the regret >= 0
+        lows = {f.name: (0.0, f.name != "satisfied_regret") for f in fields(PushParams)}
+        _check_fields(self, lows)
 
 
 @dataclass(frozen=True)
@@ -119,16 +127,49 @@ class ParticipantParams(PushParams):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        for name, low in (
-            ("threshold_noise", 0.0),
-            ("window", 1e-9),
-            ("min_motion", 1e-9),
-            ("reaction", 0.0),
-            ("improvement", 0.0),
-            ("step", 1e-9),
-            ("stall", 1e-9),
-        ):
-            object.__setattr__(self, name, _check(name, getattr(self, name), low, strict=False))
+        lows = {"threshold_noise": 0.0, "window": 1e-9, "min_motion": 1e-9, "reaction": 0.0}
+        lows |= {"improvement": 0.0, "step": 1e-9, "stall": 1e-9}
+        _check_fields(self, {name: (low, False) for name, low in lows.items()})
         threshold = float(checks.number("user_kwargs['threshold']", self.threshold))
         object.__setattr__(self, "threshold", threshold)
         object.__setattr__(self, "patience", int_arg("user_kwargs['patience']", self.patience, 1))
+
+
+@dataclass(frozen=True)
+class FittedParams(ParticipantParams):
+    """One person of the fitted population (``population.Population.draw``;
+    ``participant.FittedParticipant``): how large and how well aimed its corrections are, how
+    many it makes in a session at most, how long it watches after its last one; the pushing
+    and judging fields are ``ParticipantParams``' (v2's defaults: ``population.PRIORS``)."""
+
+    size: float = 1.0
+    """Median displacement of its corrections (a_max units: 1 = 0.1 m)."""
+    size_within: float = 0.7
+    """sd of a correction's log displacement about the median."""
+    turn: float = 1.0
+    """Median rotation of its corrections (Tasks 2-3; a_max units: 1 = 0.3 rad)."""
+    turn_within: float = 0.7
+    """sd of a correction's log rotation about the median."""
+    aim: float = 1.0
+    """Its aim's noise τ: the direction is b̂ + τ z (b̂ θ*'s steepest ascent in a_max units,
+    z standard normal), then sized."""
+    budget: int = 5
+    """The most corrections it makes this session (then it is done)."""
+    linger: float = 0.5
+    """After its last correction it watches this share of the session so far, then it is done
+    (where along the path its corrections fall)."""
+    feel: float = 390.0
+    """N per m of the intended displacement it pushes with (up to ``push_force``): pushing a
+    spring, a person feels how hard to push."""
+    feel_rot: float = 13.0
+    """N m per rad of the intended turn it twists with (up to ``push_torque``)."""
+    min_felt: float = 20.0
+    """N: the least push it makes (force + torque / 0.1 m), enough to be felt as one (15 N)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        lows = dict.fromkeys(("size", "turn", "aim", "linger", "feel", "feel_rot"), (0.0, True))
+        lows["min_felt"] = (0.0, False)
+        lows |= dict.fromkeys(("size_within", "turn_within"), (0.0, False))
+        _check_fields(self, lows)
+        object.__setattr__(self, "budget", int_arg("user_kwargs['budget']", self.budget, 0))

@@ -20,6 +20,9 @@ PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
 ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
 (``human``, default eq. M6, the training human), satisfied by the plan's regret."""
+PARTICIPANTS_V2 = ("fitted", *PARTICIPANTS)
+"""v2's: ``fitted`` (default), a person drawn from the population fitted to the authors' twelve
+participants (``population``, ``participant.FittedParticipant``), then v1's two."""
 REST_TRUST = 0.01
 """m: beyond this lag at a correction's start, u_H is measured from the cup's pose (v0's way)."""
 
@@ -88,7 +91,7 @@ V2 = StudyVersion(
     stiffness=300.0,
     rot_stiffness=10.0,
     reflex=True,
-    participants=PARTICIPANTS,
+    participants=PARTICIPANTS_V2,
     tasks=STUDY_TASKS_V2,
     hull_return=True,
 )

@@ -1,0 +1,259 @@
+"""The fitted study population: StROL-Study-v2's default participant ("fitted"), read from
+the shipped fit file ``participant_fit.json`` beside this module.
+
+**Source.** The authors' user study: 12 people × 3 Tasks × 3 learners = 108 sessions of
+physical corrections (github.com/VT-Collab/StROL_RAL, the tree before commit ``d383bef``),
+imported with ``strol-bench import-study DATA --out LOGS`` and fitted with
+
+    strol-bench fit-participant LOGS --out strol_gym/envs/study/participant_fit.json
+
+on 2026-11-25 (``benchmarks/sessions/fit_participant.py``; the file's ``command`` and
+``date`` say the same). Only fitted numbers are shipped: no session, no correction.
+
+**What is fitted** (each a between-person distribution: a person's own value, then a normal
+on a log scale over the twelve; 95 % intervals by resampling people; leave-one-person-out
+held-out log-likelihoods in the file): corrections per session (per-Task means and a person's
+multiplier), a correction's displacement and rotation (a person's median and the spread about
+it), its aim against θ*'s best correction (τ: the direction is b̂ + τ z, matched to the
+person's median cosine at its own poses), and when the person is done (``linger``: after the
+last correction it watches this share of the session so far; from where the last correction
+fell along the path). **What is not fitted** (the logs hold no time and no force): reaction
+time, how a push is held and released, the rest between pushes, the push's force and the
+judging of the robot's motion: :data:`PRIORS`, each marked "prior, not fitted" with its
+source, in the file and in docs/study.md.
+
+A simulated user draws its own parameters (:meth:`Population.draw`) from its own generator:
+twenty users are twenty people, the same seed the same person.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from strol_gym import checks
+from strol_gym.envs.study.people import FittedParams
+from strol_gym.files import loads_json
+
+FIT_FILE = Path(__file__).with_name("participant_fit.json")
+"""The shipped fit (module docstring)."""
+FORMAT = "strol-participant-fit"
+MAX_FIT_BYTES = 1_000_000
+"""A fit file larger than this is refused before it is read."""
+
+FITTED = (
+    "size_log_mean",
+    "size_log_sd",
+    "size_within",
+    "turn_log_mean",
+    "turn_log_sd",
+    "turn_within",
+    "aim_log_mean",
+    "aim_log_sd",
+    "linger_log_mean",
+    "linger_log_sd",
+    "count_person_sd",
+)
+"""The fitted scalars (each ``{"estimate", "ci95"}`` in the file), besides ``count_mean``."""
+
+PRIORS: dict[str, dict[str, Any]] = {
+    "reaction": {
+        "value": 0.4,
+        "unit": "s",
+        "source": "Card, Moran & Newell (1983), The Psychology of Human-Computer Interaction, "
+        "ch. 2: a perceive-decide-act cycle of 240 ms [105-470 ms]; 0.4 s within it, a "
+        "choice (where to push) on top of a simple reaction",
+    },
+    "max_push": {
+        "value": 2.0,
+        "unit": "s",
+        "source": "hand-set (v1's participant); no measured push duration found: the logs "
+        "hold no time. Most pushes end earlier, at the target or when the arm stops giving",
+    },
+    "ramp": {
+        "value": 0.2,
+        "unit": "s",
+        "source": "hand-set (v1's participant): the force rises and falls over 0.2 s",
+    },
+    "rest": {
+        "value": 1.5,
+        "unit": "s",
+        "source": "hand-set (v1's participant): after a push it watches 1.5 s before judging "
+        "again (above the 0.5 s hold-off that ends a correction)",
+    },
+    "push_force": {
+        "value": 60.0,
+        "unit": "N",
+        "source": "the most it pushes (v1's participant's force); a push's force is feel x "
+        "the intended displacement (the median 11 cm: 43 N); not fitted (no force logged)",
+    },
+    "push_torque": {
+        "value": 6.0,
+        "unit": "N m",
+        "source": "the most it twists; a push's torque is feel_rot x the intended turn (the "
+        "median 7°: 1.6 N m); not fitted",
+    },
+    "feel": {
+        "value": 390.0,
+        "unit": "N/m",
+        "source": "1.3x v2's stiffness (300 N/m): a person pushing a spring feels how hard to "
+        "push, and holds it a little past the target; not fitted (no force logged)",
+    },
+    "feel_rot": {
+        "value": 13.0,
+        "unit": "N m/rad",
+        "source": "1.3x v2's rotational stiffness (10 N m/rad), as feel; not fitted",
+    },
+    "min_felt": {
+        "value": 20.0,
+        "unit": "N",
+        "source": "the least push that is a correction (15 N, the logs' threshold too) with a "
+        "margin; not fitted",
+    },
+    "threshold": {
+        "value": 0.4,
+        "unit": "score",
+        "source": "v1's calibrated acceptance threshold on the motion's score (docs/study.md); "
+        "not identified by the logs (no θ̂ per correction)",
+    },
+}
+"""Parameters the logs do not identify: prior, not fitted (each with its source)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Population:
+    """The fitted between-person distribution (:data:`FIT_FILE`)."""
+
+    count_mean: dict[int, float]
+    """Corrections per session, per Task (the mean over people and learners)."""
+    fitted: dict[str, float]
+    """The :data:`FITTED` estimates."""
+    priors: dict[str, float]
+    """The :data:`PRIORS` values the file names."""
+
+    def draw(self, rng: np.random.Generator, task: int) -> FittedParams:
+        """One person for a session of Task ``task`` (1-3), from ``rng``: its sizes, aim,
+        linger and budget (Poisson of the Task's mean times its own multiplier)."""
+        f = self.fitted
+        task = int(checks.number("task", task, low=1, high=3, integer=True))
+        z = rng.standard_normal(5)
+        sd_r = f["count_person_sd"]
+        multiplier = math.exp(sd_r * z[4] - 0.5 * sd_r**2)  # mean 1
+        return FittedParams(
+            size=math.exp(f["size_log_mean"] + f["size_log_sd"] * z[0]),
+            size_within=f["size_within"],
+            turn=math.exp(f["turn_log_mean"] + f["turn_log_sd"] * z[1]),
+            turn_within=f["turn_within"],
+            aim=math.exp(f["aim_log_mean"] + f["aim_log_sd"] * z[2]),
+            linger=math.exp(f["linger_log_mean"] + f["linger_log_sd"] * z[3]),
+            budget=int(rng.poisson(self.count_mean[task] * multiplier)),
+            **self.priors,
+        )
+
+
+def parse(obj: Any, what: str = "participant fit") -> Population:
+    """A :class:`Population` from a fit file's JSON object (every field checked)."""
+    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
+        raise ValueError(f"{what} must be a JSON object with format {FORMAT!r}")
+    fitted = checks.mapping(f"{what}['fitted']", obj.get("fitted"), "an object")
+    est: dict[str, float] = {}
+    for name in FITTED:
+        entry = checks.mapping(f"{what}['fitted'][{name!r}]", fitted.get(name), "an object")
+        low = 0.0 if name.endswith(("_sd", "_within")) else None
+        est[name] = float(
+            checks.number(f"{what}['fitted'][{name!r}]['estimate']", entry.get("estimate"), low=low)
+        )
+    counts = checks.mapping(
+        f"{what}['fitted']['count_mean']", fitted.get("count_mean"), "an object"
+    )
+    count_mean = {}
+    for t in (1, 2, 3):
+        entry = checks.mapping(f"{what}['fitted']['count_mean']['{t}']", counts.get(str(t)))
+        count_mean[t] = float(
+            checks.number(
+                f"{what}['fitted']['count_mean']['{t}']['estimate']",
+                entry.get("estimate"),
+                low=0.0,
+                high=1000.0,
+            )
+        )
+    prior = checks.mapping(f"{what}['prior']", obj.get("prior"), "an object")
+    priors = {}
+    for name in PRIORS:
+        entry = checks.mapping(f"{what}['prior'][{name!r}]", prior.get(name), "an object")
+        priors[name] = float(
+            checks.number(f"{what}['prior'][{name!r}]['value']", entry.get("value"), low=0.0)
+        )
+    return Population(count_mean, est, priors)
+
+
+def read_fit(path: str | Path) -> Population:
+    """The population of fit file ``path`` (size-capped, plain JSON, checked)."""
+    path = Path(path)
+    if path.stat().st_size > MAX_FIT_BYTES:
+        raise ValueError(f"{path}: a participant fit file is at most {MAX_FIT_BYTES} bytes")
+    return parse(loads_json(path.read_bytes(), str(path)), str(path))
+
+
+@functools.cache
+def shipped() -> Population:
+    """The shipped fit (read once per process)."""
+    return read_fit(FIT_FILE)
+
+
+def draw_corrections(
+    best: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    aim: float,
+    size: float,
+    size_within: float,
+    turn: float = 1.0,
+    turn_within: float = 0.0,
+) -> np.ndarray:
+    """Corrections (n, a) in a_max units at poses whose θ*'s steepest ascent (in a_max units)
+    is ``best`` (n, a): direction b̂ + ``aim``·z, z ~ N(0, I); the position part scaled to a
+    log-normal length (median ``size``, log sd ``size_within``), the rotation part (a = 6) to
+    one of median ``turn``. The participant's choice and the fit's model: one function."""
+    best = np.atleast_2d(np.asarray(best, dtype=np.float64))
+    n, a = best.shape
+    unit = best / np.maximum(np.linalg.norm(best, axis=1, keepdims=True), 1e-12)
+    d = unit + aim * rng.standard_normal((n, a))
+    lengths = size * np.exp(size_within * rng.standard_normal(n))
+    out = np.empty_like(d)
+    pos = d[:, :3]
+    out[:, :3] = pos / np.maximum(np.linalg.norm(pos, axis=1, keepdims=True), 1e-12)
+    out[:, :3] *= lengths[:, None]
+    if a > 3:
+        rot = d[:, 3:]
+        turns = turn * np.exp(turn_within * rng.standard_normal(n))
+        out[:, 3:] = rot / np.maximum(np.linalg.norm(rot, axis=1, keepdims=True), 1e-12)
+        out[:, 3:] *= turns[:, None]
+    return out
+
+
+def cosine(u: np.ndarray, best: np.ndarray) -> np.ndarray:
+    """cos(u, best) row by row, both in a_max units (NaN where either is zero): the data
+    card's "cos(u_H, θ*'s best correction)"."""
+    u, best = np.atleast_2d(u), np.atleast_2d(best)
+    den = np.linalg.norm(u, axis=1) * np.linalg.norm(best, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, np.einsum("ij,ij->i", u, best) / den, np.nan)
+
+
+__all__ = [
+    "FITTED",
+    "FIT_FILE",
+    "PRIORS",
+    "Population",
+    "cosine",
+    "draw_corrections",
+    "parse",
+    "read_fit",
+    "shipped",
+]

@@ -1,0 +1,182 @@
+"""The fitted study population: StROL-Study-v2's default participant, its fit file, the fit on
+synthetic sessions in the authors' layout (written here, never their data), rebounds."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from cli_checks import cli_error
+from test_study_import import _session, _write
+
+import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.benchmarks import cli
+from strol_gym.envs.study import population
+from strol_gym.envs.study.participant import FittedParticipant
+from strol_gym.envs.study.people import FittedParams
+from strol_gym.tasks.study import STUDY_TASKS_V2
+
+
+def _v2(**kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return gym.make("StROL-Study-v2", **kwargs)
+
+
+def test_v2_default_participant_is_the_fitted_population():
+    shipped = json.loads(population.FIT_FILE.read_text())
+    assert shipped["format"] == population.FORMAT
+    assert shipped["n_people"] == 12 and shipped["source"] and shipped["command"]
+    pop = population.shipped()
+    for name in population.FITTED:
+        assert pop.fitted[name] == shipped["fitted"][name]["estimate"]
+        lo, hi = shipped["fitted"][name]["ci95"]
+        assert lo <= pop.fitted[name] <= hi
+    for name, entry in shipped["prior"].items():
+        assert entry["status"] == "prior, not fitted" and entry["source"]
+    env = _v2(task=2)
+    env.reset(seed=5)
+    human = env.unwrapped.human
+    assert env.unwrapped.participant == "fitted"
+    assert isinstance(human, FittedParticipant)
+    for name, entry in shipped["prior"].items():  # the priors, read back
+        assert getattr(human.params, name) == entry["value"]
+    env.close()
+    # the between-person distribution read back: draws recover the file's log means and sds
+    rng = np.random.default_rng(0)
+    people = [pop.draw(rng, 3) for _ in range(4000)]
+    for key in ("size", "turn", "aim", "linger"):
+        logs = np.log([getattr(p, key) for p in people])
+        mean, sd = pop.fitted[f"{key}_log_mean"], pop.fitted[f"{key}_log_sd"]
+        assert abs(logs.mean() - mean) < 4 * sd / math.sqrt(len(logs)) + 1e-12
+        assert abs(logs.std() - sd) < 0.1 * sd + 1e-12
+    budgets = np.array([p.budget for p in people])
+    assert abs(budgets.mean() - pop.count_mean[3]) < 4 * math.sqrt(pop.count_mean[3] / 4000)
+
+
+def test_two_users_draw_different_people_and_a_seed_the_same():
+    env = _v2(task=1)
+    drawn = []
+    for seed in (11, 12, 11):
+        env.reset(seed=seed)
+        p = env.unwrapped.human.params
+        drawn.append((p.size, p.turn, p.aim, p.linger, p.budget))
+    env.close()
+    assert drawn[0] != drawn[1]
+    assert drawn[0] == drawn[2]
+
+
+def test_fitted_params_are_checked():
+    with pytest.raises(ValueError, match=r"user_kwargs\['size'\]"):
+        FittedParams(size=-1.0)
+    with pytest.raises(ValueError, match=r"user_kwargs\['budget'\]"):
+        FittedParams(budget=-2)
+    with pytest.raises(ValueError, match="participant fit"):
+        population.parse({"format": "something else"})
+
+
+def test_release_keeps_the_push_direction():
+    """A cup that overshoots its target while the push is let go is not pushed back (v1's
+    participant re-aimed at the target: a second, opposite correction, a rebound)."""
+    task = STUDY_TASKS_V2[1]()
+    params = FittedParams(budget=3, ramp=0.2)
+    p = FittedParticipant(task, task.theta_star, np.random.default_rng(0), params=params)
+    x = task.start.copy()
+    p.phase, p.target, p._t0, p._level = "push", x + [0.05, 0, 0], 0.0, 1.0
+    p._sizing = p._push_sizes(x)
+    p._started = 0.0
+    f_push, _ = p.wrench(0.05, x)
+    assert f_push[0] > 0
+    beyond = x + [0.08, 0, 0]  # overshot: the target is now behind the cup
+    p._stalled = lambda t, x: True  # the person lets go now
+    forces = []
+    t = 0.1
+    while p.phase != "idle":
+        f, _ = p.wrench(t, beyond)
+        forces.append(f)
+        t += 0.05
+    assert all(f[0] >= 0 and abs(f[1]) < 1e-12 for f in forces)  # never pushed back
+    assert p.made == 1
+
+
+def test_no_rebounds_on_v2():
+    """Fitted people pushing v2's arm: no correction starts < 0.3 s after the last one ended
+    opposite to it (v1's participant: 22 % on Task 1)."""
+    records = []
+    for task, seed in ((1, 3), (2, 4)):
+        env = _v2(task=task, duration=25.0)
+        env.reset(seed=seed)
+        env.unwrapped.human.params = FittedParams(
+            **{**env.unwrapped.human.params.__dict__, "budget": 6}
+        )
+        zero = np.zeros(env.action_space.shape, dtype=np.float32)
+        truncated, recs = False, []
+        while not truncated:
+            _, _, _, truncated, info = env.step(zero)
+            if info["is_correction"]:
+                recs.append(info["correction_record"])
+        env.close()
+        records.append(recs)
+    n = sum(len(r) for r in records)
+    assert n >= 4  # people pushed
+    rebounds = sum(
+        b["start_time"] - a["end_time"] < 0.3 and float(a["u_h"] @ b["u_h"]) < 0
+        for recs in records
+        for a, b in zip(recs, recs[1:], strict=False)
+    )
+    assert rebounds == 0
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    """Four people × Tasks 1-3 × every learner in the authors' layout, person p's corrections
+    all moving the cup 0.05·(p+1) m; imported with import-study."""
+    root = tmp_path_factory.mktemp("authors") / "data"
+    rng = np.random.default_rng(39)
+    for p in range(4):
+        for task in (1, 2, 3):
+            for alg in ("b1", "b2", "ours"):
+                moves = []
+                for _ in range(2):
+                    d = rng.normal(size=3)
+                    pos = d / np.linalg.norm(d) * 0.05 * (p + 1)
+                    turn = rng.uniform(-0.1, 0.1, 3) if task > 1 else np.zeros(3)
+                    moves.append(np.concatenate([pos, turn]))
+                _write(root, f"user_{p + 1}", task, alg, _session(task, rng, moves, [5, 0, 1, 3]))
+    out = tmp_path_factory.mktemp("logs") / "logs"
+    assert cli.main(["import-study", str(root), "--out", str(out)]) == 0
+    return out
+
+
+def test_fit_on_synthetic_sessions(logs, tmp_path, capsys):
+    out = tmp_path / "fit.json"
+    argv = ["fit-participant", str(logs), "--out", str(out), "--bootstrap", "20"]
+    assert cli.main(argv) == 0
+    assert "corrections per session, Task 1" in capsys.readouterr().out
+    fit = json.loads(out.read_text())
+    assert fit["n_people"] == 4 and fit["n_sessions"] == 36 and fit["n_corrections"] == 72
+    for t in ("1", "2", "3"):  # four corrections logged per session (empty and one-pose too)
+        assert fit["fitted"]["count_mean"][t]["estimate"] == pytest.approx(4.0)
+    sizes = np.log([0.5, 1.0, 1.5, 2.0])  # each person's displacement in a_max units
+    f = fit["fitted"]
+    assert f["size_log_mean"]["estimate"] == pytest.approx(sizes.mean(), abs=1e-6)
+    assert f["size_log_sd"]["estimate"] == pytest.approx(sizes.std(ddof=1), abs=1e-6)
+    assert f["size_within"]["estimate"] == pytest.approx(0.0, abs=1e-6)
+    assert f["count_person_sd"]["estimate"] == 0.0  # every person made as many
+    assert set(fit["heldout"]) == {"size", "turn", "aim", "linger", "count"}
+    assert all(v["status"] == "prior, not fitted" for v in fit["prior"].values())
+    pop = population.read_fit(out)  # the env's reader takes it
+    assert pop.count_mean == {1: 4.0, 2: 4.0, 3: 4.0}
+    assert out.with_suffix(".md").exists()
+
+
+def test_fit_participant_bad_input(tmp_path, capsys):
+    err = cli_error(["fit-participant", str(tmp_path / "none"), "--out", "x.json"], capsys)
+    assert "LOGS" in err
+    (tmp_path / "empty").mkdir()
+    err = cli_error(["fit-participant", str(tmp_path / "empty"), "--out", "x.json"], capsys)
+    assert "no session logs" in err or "no" in err
