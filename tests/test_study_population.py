@@ -3,6 +3,7 @@ synthetic sessions in the authors' layout (written here, never their data), rebo
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import warnings
@@ -36,7 +37,7 @@ def test_v2_default_participant_is_the_fitted_population():
         assert pop.fitted[name] == shipped["fitted"][name]["estimate"]
         lo, hi = shipped["fitted"][name]["ci95"]
         assert lo <= pop.fitted[name] <= hi
-    for name, entry in shipped["prior"].items():
+    for entry in shipped["prior"].values():
         assert entry["status"] == "prior, not fitted" and entry["source"]
     env = _v2(task=2)
     env.reset(seed=5)
@@ -86,12 +87,12 @@ def test_release_keeps_the_push_direction():
     params = FittedParams(budget=3, ramp=0.2)
     p = FittedParticipant(task, task.theta_star, np.random.default_rng(0), params=params)
     x = task.start.copy()
-    p.phase, p.target, p._t0, p._level = "push", x + [0.05, 0, 0], 0.0, 1.0
+    p.phase, p.target, p._t0, p._level = "push", x + np.array([0.05, 0, 0]), 0.0, 1.0
     p._sizing = p._push_sizes(x)
     p._started = 0.0
     f_push, _ = p.wrench(0.05, x)
     assert f_push[0] > 0
-    beyond = x + [0.08, 0, 0]  # overshot: the target is now behind the cup
+    beyond = x + np.array([0.08, 0, 0])  # overshot: the target is now behind the cup
     p._stalled = lambda t, x: True  # the person lets go now
     forces = []
     t = 0.1
@@ -126,7 +127,7 @@ def test_no_rebounds_on_v2():
     rebounds = sum(
         b["start_time"] - a["end_time"] < 0.3 and float(a["u_h"] @ b["u_h"]) < 0
         for recs in records
-        for a, b in zip(recs, recs[1:], strict=False)
+        for a, b in itertools.pairwise(recs)
     )
     assert rebounds == 0
 
