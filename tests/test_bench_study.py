@@ -34,7 +34,7 @@ def test_study_bad_input_exits_2_before_any_folder(argv, message, tmp_path, caps
     assert not out.exists()
 
 
-def test_study_defaults_to_v1_with_the_held_out_participant():
+def test_study_defaults_to_v2_with_the_fitted_population():
     import argparse
 
     from strol_gym.benchmarks.experiments.study import Study
@@ -43,17 +43,24 @@ def test_study_defaults_to_v1_with_the_held_out_participant():
     p = argparse.ArgumentParser()
     Study().add_arguments(p)
     config = Study().plan(p.parse_args([]))
-    assert [e.env for e in config.experiments] == ["study1-v1", "study2-v1", "study3-v1"]
-    assert {e.env_id for e in config.experiments} == {"StROL-Study-v1"}
-    assert all(e.env_kwargs()["participant"] == "observer" for e in config.experiments)
+    assert [e.env for e in config.experiments] == ["study1-v2", "study2-v2", "study3-v2"]
+    assert {e.env_id for e in config.experiments} == {"StROL-Study-v2"}
+    assert all(e.env_kwargs()["participant"] == "fitted" for e in config.experiments)
+    # v1 keeps its hand-set participant; the fitted one exists on v2 only
+    v1 = Study().plan(p.parse_args(["--env-version", "v1"]))
+    assert [e.env for e in v1.experiments] == ["study1-v1", "study2-v1", "study3-v1"]
+    assert all(e.env_kwargs()["participant"] == "observer" for e in v1.experiments)
+    with pytest.raises(SystemExit) as e:
+        Study().plan(p.parse_args(["--env-version", "v1", "--participant", "fitted"]))
+    assert e.value.code == 2
     # v1's study Tasks find the ĝ trained for v1; v0's keep the published ones
     for k in (1, 2, 3):
-        task = config.experiments[k - 1].env_kwargs()["task"]
+        task = v1.experiments[k - 1].env_kwargs()["task"]
         for kind in ("strol", "e2e"):
-            v1 = make_learner(kind, task=make_task(task)).checkpoint
+            v1_path = make_learner(kind, task=make_task(task)).checkpoint
             v0 = make_learner(kind, task=make_task(f"study-task{k}")).checkpoint
             assert make_task(task).task_id == f"StROL-Study-v1-task{k}"
-            assert v1.endswith(f"study{k}-v1_{kind}.safetensors")
+            assert v1_path.endswith(f"study{k}-v1_{kind}.safetensors")
             assert v0.endswith(f"study{k}_{kind}.safetensors")
 
 

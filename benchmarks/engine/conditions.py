@@ -209,6 +209,15 @@ for _k in (1, 2, 3):  # the user study's Tasks (``strol-bench study``), not part
             # logs and datasets name them without a module path.
             make_kwargs={"task": f"study-task{_k}-v1", "participant": _who},
         )
+    # StROL-Study-v2: the fitted population (default), and v1's two for comparison.
+    for _who in ("fitted", "observer", "oracle"):
+        _key = f"study{_k}-v2" + ("" if _who == "fitted" else f"-{_who}")
+        ENV_PRESETS[_key] = dataclasses.replace(
+            ENV_PRESETS[f"study{_k}"],
+            key=_key,
+            env_id="StROL-Study-v2",
+            make_kwargs={"task": _k, "participant": _who},
+        )
 
 
 def _check_preset(key: str, preset: object) -> None:

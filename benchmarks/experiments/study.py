@@ -1,5 +1,6 @@
-"""``strol-bench study``: the paper's user study (H3) with simulated users in ``StROL-Study-v1``
-(the held-out participant who judges what it sees; ``--env-version v0``: the published results,
+"""``strol-bench study``: the paper's user study (H3) with simulated users in ``StROL-Study-v2``
+(the population fitted to the authors' twelve participants, ``--participant fitted``;
+``--env-version v1``: v1 with its hand-set participant; ``v0``: the published results,
 deprecated).
 
 Tasks 1–3 × learners × N simulated users, paired: user seed s (θ̂0, the user's noise and
@@ -107,22 +108,30 @@ def parse_tasks(text: str) -> tuple[int, ...]:
     return tasks
 
 
-ENV_VERSIONS = ("v0", "v1")
-PARTICIPANTS = ("observer", "oracle")
+ENV_VERSIONS = ("v0", "v1", "v2")
+PARTICIPANTS = ("fitted", "observer", "oracle")
+"""``fitted``: the population fitted to the twelve people (v2 only, its default); ``observer``:
+v1's hand-set participant (v1's default); ``oracle``: v0's regret-judging user."""
+DEFAULT_PARTICIPANT = {"v1": "observer", "v2": "fitted"}
 
 
-DEFAULT_VERSION = "v1"
+DEFAULT_VERSION = "v2"
 V0_WARNING = (
     "warning: StROL-Study-v0 is deprecated (u_H carries the arm's own motion, the user is an "
-    "oracle); it stays for the published results. The study's default is v1."
+    "oracle); it stays for the published results. The study's default is v2."
 )
 
 
-def study_env(task: int, version: str = DEFAULT_VERSION, participant: str = "observer") -> str:
-    """The env preset of a study Task: v0's, or v1's with its participant (``conditions.py``)."""
+def study_env(task: int, version: str = DEFAULT_VERSION, participant: str | None = None) -> str:
+    """The env preset of a study Task: v0's, or v1's or v2's with its participant (None: the
+    version's default; ``conditions.py``)."""
     if version == "v0":
         return f"study{task}"
-    return f"study{task}-v1" + ("" if participant == "observer" else "-oracle")
+    default = DEFAULT_PARTICIPANT[version]
+    who = participant or default
+    if who not in PARTICIPANTS or (version == "v1" and who == "fitted"):
+        raise ValueError(f"--participant {who!r} does not exist on StROL-Study-{version}")
+    return f"study{task}-{version}" + ("" if who == default else f"-{who}")
 
 
 def study_config(
@@ -131,7 +140,7 @@ def study_config(
     seed: int = SEED,
     learners: Sequence[str] = PAPER_LEARNERS,
     version: str = DEFAULT_VERSION,
-    participant: str = "observer",
+    participant: str | None = None,
 ) -> BenchConfig:
     """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
     exps = tuple(
@@ -383,18 +392,26 @@ def _who(config: BenchConfig) -> str:
     exp = config.experiments[0]
     if exp.env_id.endswith("-v0"):
         return f"{exp.env_id}, v0's user and the training human"
-    kind = "oracle" if exp.env.endswith("-oracle") else "held-out participant"
+    if exp.env.endswith("-oracle"):
+        kind = "oracle"
+    elif exp.env_id.endswith("-v2") and not exp.env.endswith("-observer"):
+        kind = "the fitted population"
+    else:
+        kind = "v1's held-out participant"
     return f"{exp.env_id}, {kind}"
 
 
 def add_authors_regret(records: list[dict]) -> None:
     """Each record's regret the authors' way (``study_authors.regret``), batched per Task."""
-    from strol_gym.tasks.study import STUDY_TASKS
+    from strol_gym.tasks.study import STUDY_TASKS, STUDY_TASKS_V2
 
     for env in dict.fromkeys(r["env"] for r in records):
         rs = [r for r in records if r["env"] == env]
         cols = regret_inputs(rs)
-        for r, v in zip(rs, study_authors.regret(STUDY_TASKS[_task_of(env)](), *cols), strict=True):
+        # the env's own planner (v2's keeps to the reachable set), scored the authors' way
+        tasks = STUDY_TASKS_V2 if env.split("-")[1:2] == ["v2"] else STUDY_TASKS
+        task = tasks[_task_of(env)]()
+        for r, v in zip(rs, study_authors.regret(task, *cols), strict=True):
             r["regret_authors"] = float(v)
 
 
@@ -431,11 +448,12 @@ class Study(BenchExperiment):
     """The simulated user study as an experiment; it writes its own tables (study_table.*)."""
 
     name = "study"
-    help = "the user study (H3) with simulated users: Tasks 1-3 of StROL-Study-v1"
+    help = "the user study (H3) with simulated users: Tasks 1-3 of StROL-Study-v2"
     description = (
-        "StROL-Study-v1's Tasks x Gradient, One, MOF, e2e, StROL x simulated users "
-        "(paired; the held-out participant by default); regret, correction time, H3 verdicts, "
-        "table beside the paper's, plots. --env-version v0: the published results (deprecated)."
+        "StROL-Study-v2's Tasks x Gradient, One, MOF, e2e, StROL x simulated users "
+        "(paired; the population fitted to the twelve real people by default); regret, "
+        "correction time, H3 verdicts, table beside the paper's, plots. --env-version v1: v1 "
+        "with its hand-set participant; v0: the published results (deprecated)."
     )
 
     def add_arguments(self, p: argparse.ArgumentParser) -> None:
@@ -454,15 +472,16 @@ class Study(BenchExperiment):
             "--env-version",
             choices=ENV_VERSIONS,
             default=DEFAULT_VERSION,
-            help="StROL-Study-v1 (default: u_H = the person's push) or v0 (the published "
-            "results; deprecated)",
+            help="StROL-Study-v2 (default: the fitted population), v1 (its hand-set "
+            "participant) or v0 (the published results; deprecated)",
         )
         p.add_argument(
             "--participant",
             choices=PARTICIPANTS,
-            default="observer",
-            help="v1's simulated person: observer (default; held out, judges what it sees) or "
-            "oracle (v0's user: the training human, satisfied by the plan's regret)",
+            default=None,
+            help="the simulated person: fitted (v2's default: drawn from the population fitted "
+            "to the twelve real people), observer (v1's default; hand-set, judges what it sees) "
+            "or oracle (v0's user: the training human, satisfied by the plan's regret)",
         )
         p.add_argument("--out", default=None, help="results folder (default results/study)")
         p.add_argument(
@@ -478,13 +497,17 @@ class Study(BenchExperiment):
         p.add_argument("--no-plots", action="store_true", help="skip the figures")
 
     def plan(self, args: argparse.Namespace) -> BenchConfig:
-        version = getattr(args, "env_version", DEFAULT_VERSION)
-        who = getattr(args, "participant", "observer")
-        if version == "v0":
-            import sys
+        import sys
 
+        version = getattr(args, "env_version", DEFAULT_VERSION)
+        who = getattr(args, "participant", None)
+        if version == "v0":
             print(V0_WARNING, file=sys.stderr)
-        return study_config(args.task, args.users, args.seed, version=version, participant=who)
+        try:
+            return study_config(args.task, args.users, args.seed, version=version, participant=who)
+        except ValueError as e:
+            print(f"strol-bench study: error: {e}", file=sys.stderr)
+            raise SystemExit(2) from None
 
     def execute(self, config: BenchConfig, args: argparse.Namespace, out: Path) -> Outcome:
         """Run (or resume) the study; its table, verdicts and plots."""

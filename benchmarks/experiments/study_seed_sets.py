@@ -111,9 +111,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument(
         "--env-version",
-        choices=("v0", "v1"),
-        default="v1",
-        help="v1 (the study's default: the held-out participant) or v0 (the published results)",
+        choices=("v0", "v1", "v2"),
+        default="v2",
+        help="v2 (the study's default: the fitted population), v1 (its hand-set participant) "
+        "or v0 (the published results)",
     )
     args = p.parse_args(argv)
     if args.users < 1 or args.sets < 1:

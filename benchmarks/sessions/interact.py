@@ -341,11 +341,11 @@ def session_env(
 
     # strol-bench study's default preset (experiments.study.study_env(task), which this layer
     # may not import); tests/test_interact.py checks the two agree
-    preset = env_preset(f"study{task}-v1")
+    preset = env_preset(f"study{task}-v2")
     kwargs = {**(preset.make_kwargs or {}), "human": None, **(env_kwargs or {})}
     with warnings.catch_warnings():
-        # v1 on purpose (v2's default person and ĝ are not ready: docs/study.md): gymnasium's
-        # "out of date" notice would be a second line where the session promises one.
+        # (an older version's "out of date" notice would be a second line where the session
+        # promises one)
         warnings.filterwarnings("ignore", message=".*StROL-Study-v1 is out of date")
         base = gym.make(preset.env_id, **kwargs)
     return OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
