@@ -39,6 +39,9 @@ import numpy as np
 from strol_gym import checks
 from strol_gym.envs.study.people import FittedParams
 from strol_gym.files import loads_json
+from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
+from strol_gym.tasks.base import Task
+from strol_gym.tasks.study import StudyTask
 
 FIT_FILE = Path(__file__).with_name("participant_fit.json")
 """The shipped fit (module docstring)."""
@@ -217,30 +220,54 @@ def draw_corrections(
     best: np.ndarray,
     rng: np.random.Generator,
     *,
-    aim: float,
-    size: float,
+    aim: float | np.ndarray,
+    size: float | np.ndarray,
     size_within: float,
-    turn: float = 1.0,
+    turn: float | np.ndarray = 1.0,
     turn_within: float = 0.0,
 ) -> np.ndarray:
     """Corrections (n, a) in a_max units at poses whose θ*'s steepest ascent (in a_max units)
-    is ``best`` (n, a): direction b̂ + ``aim``·z, z ~ N(0, I); the position part scaled to a
-    log-normal length (median ``size``, log sd ``size_within``), the rotation part (a = 6) to
-    one of median ``turn``. The participant's choice and the fit's model: one function."""
+    is ``best`` (n, a), drawn from ``rng``: :func:`shape_corrections` of standard normals."""
     best = np.atleast_2d(np.asarray(best, dtype=np.float64))
     n, a = best.shape
+    z = rng.standard_normal((n, a + 2))
+    return shape_corrections(
+        best, z, aim=aim, size=size, size_within=size_within, turn=turn, turn_within=turn_within
+    )
+
+
+def shape_corrections(
+    best: np.ndarray,
+    z: np.ndarray,
+    *,
+    aim: float | np.ndarray,
+    size: float | np.ndarray,
+    size_within: float,
+    turn: float | np.ndarray = 1.0,
+    turn_within: float = 0.0,
+) -> np.ndarray:
+    """The fitted model of a correction, given its standard normals ``z`` (n, a + 2): the
+    direction b̂ + ``aim``·z[:, :a]; the position part scaled to a log-normal length (median
+    ``size``, log sd ``size_within``, from z[:, a]), the rotation part (a = 6) to one of median
+    ``turn`` (from z[:, a + 1]). Per-row parameters may be arrays (n,). The participant's
+    choice, the fit's model and the ĝ training's human: one function."""
+    best = np.atleast_2d(np.asarray(best, dtype=np.float64))
+    n, a = best.shape
+    col = np.reshape  # per-row parameters as columns
+
+    def per_row(v: float | np.ndarray) -> np.ndarray:
+        return col(np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)), (n, 1))
+
     unit = best / np.maximum(np.linalg.norm(best, axis=1, keepdims=True), 1e-12)
-    d = unit + aim * rng.standard_normal((n, a))
-    lengths = size * np.exp(size_within * rng.standard_normal(n))
+    d = unit + per_row(aim) * z[:, :a]
     out = np.empty_like(d)
+    lengths = per_row(size) * np.exp(size_within * z[:, a : a + 1])
     pos = d[:, :3]
-    out[:, :3] = pos / np.maximum(np.linalg.norm(pos, axis=1, keepdims=True), 1e-12)
-    out[:, :3] *= lengths[:, None]
+    out[:, :3] = pos / np.maximum(np.linalg.norm(pos, axis=1, keepdims=True), 1e-12) * lengths
     if a > 3:
         rot = d[:, 3:]
-        turns = turn * np.exp(turn_within * rng.standard_normal(n))
-        out[:, 3:] = rot / np.maximum(np.linalg.norm(rot, axis=1, keepdims=True), 1e-12)
-        out[:, 3:] *= turns[:, None]
+        turns = per_row(turn) * np.exp(turn_within * z[:, a + 1 : a + 2])
+        out[:, 3:] = rot / np.maximum(np.linalg.norm(rot, axis=1, keepdims=True), 1e-12) * turns
     return out
 
 
@@ -253,14 +280,66 @@ def cosine(u: np.ndarray, best: np.ndarray) -> np.ndarray:
         return np.where(den > 0, np.einsum("ij,ij->i", u, best) / den, np.nan)
 
 
+class FittedPopulationModel(HumanModel):
+    """The fitted population's corrections as a human model (``strol-bench train --human
+    strol_gym.envs.study.population:FittedPopulationModel``, the v2 study ĝ's training human):
+    each correction by its own person drawn from the shipped fit, in the participant's way
+    (:func:`shape_corrections` at θ*'s steepest ascent), unclipped (v2 reads pushes past
+    a_max as they are, so ĝ sees the run-time scale). σ and ε add to it (default 0: the aim
+    is the fitted noise)."""
+
+    def __init__(
+        self,
+        task: Task,
+        sigma: float = 0.0,
+        bias: float = 0.0,
+        n_candidates: int = DEFAULT_CANDIDATES,
+    ) -> None:
+        if not isinstance(task, StudyTask):
+            raise ValueError(f"task must be a study Task, got {type(task).__name__}")
+        super().__init__(task, sigma, bias, n_candidates)
+        self.fit = shipped()
+
+    def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+        a = self.task.action_dim
+        return {"person": rng.standard_normal((n, 3)), "z": rng.standard_normal((n, a + 2))}
+
+    def choose(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_star: np.ndarray,
+        draws: Draws,
+        theta_hat: np.ndarray | None = None,
+        k: np.ndarray | int = 0,
+    ) -> np.ndarray:
+        task, f = self.task, self.fit.fitted
+        bound = np.asarray(task.action_bound, dtype=np.float64)
+        jac = task.feature_jacobian(np.asarray(x, dtype=np.float64))  # (n, d, s)
+        best = np.einsum("nds,nd->ns", jac, theta_star)[:, : task.action_dim] * bound
+        z = draws.extra["person"]
+        u = shape_corrections(
+            best,
+            draws.extra["z"],
+            aim=np.exp(f["aim_log_mean"] + f["aim_log_sd"] * z[:, 0]),
+            size=np.exp(f["size_log_mean"] + f["size_log_sd"] * z[:, 1]),
+            size_within=f["size_within"],
+            turn=np.exp(f["turn_log_mean"] + f["turn_log_sd"] * z[:, 2]),
+            turn_within=f["turn_within"],
+        )
+        return u * bound
+
+
 __all__ = [
     "FITTED",
     "FIT_FILE",
     "PRIORS",
+    "FittedPopulationModel",
     "Population",
     "cosine",
     "draw_corrections",
     "parse",
     "read_fit",
+    "shape_corrections",
     "shipped",
 ]
