@@ -19,6 +19,7 @@ from strol_gym.benchmarks import cli
 from strol_gym.envs.study import population
 from strol_gym.envs.study.participant import FittedParticipant
 from strol_gym.envs.study.people import FittedParams
+from strol_gym.tasks import make_task
 from strol_gym.tasks.study import STUDY_TASKS_V2
 
 
@@ -181,3 +182,36 @@ def test_fit_participant_bad_input(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     err = cli_error(["fit-participant", str(tmp_path / "empty"), "--out", "x.json"], capsys)
     assert "no session logs" in err or "no" in err
+
+
+@pytest.mark.parametrize("kind", ["strol", "e2e"])
+def test_v2_ghat_trained_on_the_fitted_population(kind):
+    """v2's study ĝ are its own, trained on the fitted population's corrections; v1's stay."""
+    from strol_gym.learners.registry import make_learner
+
+    for k in (1, 2, 3):
+        learner = make_learner(kind, task=STUDY_TASKS_V2[k]())
+        assert learner.checkpoint.endswith(f"study{k}-v2_{kind}.safetensors")
+        training = learner.checkpoint_meta["training"]
+        assert training["human"].endswith("population:FittedPopulationModel")
+        assert training["sigma"] == 0.0
+    v1 = make_learner(kind, task=make_task("study-task1-v1"))
+    assert v1.checkpoint.endswith(f"study1-v1_{kind}.safetensors")
+
+
+def test_fitted_population_model_draws_the_fitted_sizes():
+    """The training human's corrections have the population's sizes, unclipped."""
+    task = STUDY_TASKS_V2[2]()
+    model = population.FittedPopulationModel(task)
+    n = 4000
+    rng = np.random.default_rng(1)
+    x = np.tile(task.start, (n, 1))
+    u = model.correct(x, np.zeros((n, 6)), np.tile(task.theta_star, (n, 1)), rng)
+    size = np.linalg.norm(u[:, :3], axis=1) / task.pos_step
+    f = population.shipped().fitted
+    assert abs(np.log(size).mean() - f["size_log_mean"]) < 0.05
+    spread = math.sqrt(f["size_log_sd"] ** 2 + f["size_within"] ** 2)
+    assert abs(np.log(size).std() - spread) < 0.05
+    assert size.max() > 1.0  # past a_max: the run-time scale, not clipped
+    with pytest.raises(ValueError, match="study Task"):
+        population.FittedPopulationModel(make_task("robot"))

@@ -165,10 +165,10 @@ def test_reflex_settings_are_bounded(name, value):
         make(**{name: value})
 
 
-def test_v2_uses_its_tasks_planner_and_v1s_ghat():
+def test_v2_uses_its_tasks_planner_and_its_own_ghat():
     env = make(task=2)
     assert isinstance(env.task, STUDY_TASKS_V2[2])
-    assert env.task.ghat_task.task_id == "StROL-Study-v1-task2"
+    assert env.task.ghat_task.task_id == "StROL-Study-v2-task2"  # trained for v2 (issue 39)
     plans = env.task.plan(
         np.random.default_rng(0).uniform(-1, 1, (8, 4)), np.tile(env.task.start, (8, 1))
     )

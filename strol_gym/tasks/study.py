@@ -625,8 +625,9 @@ class StudyTaskV2(StudyTask):
 
     @property
     def ghat_task(self) -> StudyTask:
-        """StROL-Study-v2 uses v1's ĝ until its own are trained (docs/study.md)."""
-        return STUDY_TASKS_V1[self.number]()
+        """StROL-Study-v2's own ĝ (``pretrained/study{1,2,3}-v2_*``, trained on the fitted
+        population's corrections, docs/study.md)."""
+        return self
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
