@@ -38,6 +38,7 @@ from strol_gym.benchmarks.sessions.fit_participant import (
     read_sessions,
 )
 from strol_gym.envs.study.population import cosine
+from strol_gym.tasks.study import StudyTask
 
 SEED = 39_100
 LEARNERS = ("one", "mof", "strol")
@@ -84,6 +85,8 @@ def simulate(who: str, task: int, learner: str, seed: int) -> dict[str, Any]:
     task_arg: Any = f"study-task{task}-v1" if who == "v1" else task
     env = gym.make(env_id, task=task_arg, **kwargs)
     t = learning_env(env).task
+    if not isinstance(t, StudyTask):
+        raise TypeError(f"{env_id} built a {type(t).__name__}, not a study Task")
     env = OnlineLearningWrapper(env, make_learner(learner, task=t))
     env.reset(seed=seed)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)

@@ -298,6 +298,7 @@ class FittedPopulationModel(HumanModel):
         if not isinstance(task, StudyTask):
             raise ValueError(f"task must be a study Task, got {type(task).__name__}")
         super().__init__(task, sigma, bias, n_candidates)
+        self.study_task: StudyTask = task
         self.fit = shipped()
 
     def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
@@ -313,7 +314,7 @@ class FittedPopulationModel(HumanModel):
         theta_hat: np.ndarray | None = None,
         k: np.ndarray | int = 0,
     ) -> np.ndarray:
-        task, f = self.task, self.fit.fitted
+        task, f = self.study_task, self.fit.fitted
         bound = np.asarray(task.action_bound, dtype=np.float64)
         jac = task.feature_jacobian(np.asarray(x, dtype=np.float64))  # (n, d, s)
         best = np.einsum("nds,nd->ns", jac, theta_star)[:, : task.action_dim] * bound
