@@ -453,8 +453,9 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         return self._new_user(theta_star, rng)  # type: ignore[return-value]
 
     def _new_user(self, theta_star: np.ndarray, rng: np.random.Generator) -> SimulatedUser:
-        """The simulated person who pushes: the ``participant`` "observer" (``Participant``),
-        else the regret-judging ``SimulatedUser`` (v0's; v1's "oracle")."""
+        """The simulated person who pushes: the ``participant`` "fitted" (a person drawn from
+        the fitted population with ``rng``, ``FittedParticipant``), "observer"
+        (``Participant``), else the regret-judging ``SimulatedUser`` (v0's; "oracle")."""
         if self.participant == "fitted":
             params = population.shipped().draw(rng, self.task.number)
             if self.user_kwargs:
@@ -760,8 +761,10 @@ class StudyEnvV2(StudyEnv):
     - ``info["contact"]``: the cup touched the pitcher, the plate or the table this step
       (``info["contacts"]`` counts the steps).
 
-    The participant is v1's (``participant="observer"``); the ĝ are v1's
-    (``StudyTaskV2.ghat_task``) until v2's are trained.
+    The participant is a person of the population fitted to the authors' twelve participants
+    (``participant="fitted"``, default; ``population``, ``participant.FittedParticipant``;
+    ``user_kwargs`` override its drawn fields), or v1's ``"observer"`` and ``"oracle"``; the
+    ĝ are v2's own (trained on the fitted population's corrections).
 
     ## Version History
 
