@@ -10,7 +10,7 @@ simulated users resampled with replacement, 95 % percentile band). Also counts r
 correction starting < 0.3 s after the last ended, opposite to it) and the reflexes that
 tripped while the participant pushed (a push lost: the arm braked, no correction).
 
-    python -m strol_gym.benchmarks.experiments.study_participant LOGS --users 12 --out DIR
+    python -m strol_gym.benchmarks.sessions.participant_check LOGS --users 12 --out DIR
 
 Writes DIR/distances.json and DIR/distances.md (aggregates only).
 """
