@@ -16,7 +16,9 @@ import contextlib
 import os
 from collections.abc import Iterator
 
-__all__ = ["CAPS", "SizeTypeError", "check_size", "lift", "lifted", "lifted_now"]
+from strol_gym import checks
+
+__all__ = ["CAPS", "check_size", "lift", "lifted", "lifted_now"]
 
 CAPS: dict[str, int] = {
     "n_candidates": 8_192,  # candidate actions per state (shipped: 64-512)
@@ -36,11 +38,6 @@ CAPS: dict[str, int] = {
 
 ENV_VAR = "STROL_GYM_ALLOW_LARGE"
 """Set to "1" by :func:`lift` so that worker processes (spawned, Ray, Slurm) inherit it."""
-
-
-class SizeTypeError(TypeError, ValueError):
-    """A size that is not an integer; a ValueError too, as every bad argument is (the CLI and
-    the learner registry pass ValueErrors through as they are)."""
 
 
 _LIFTED = [os.environ.get(ENV_VAR) == "1"]
@@ -73,14 +70,15 @@ def lifted() -> Iterator[None]:
 
 def check_size(name: str, value: object, cap: str | None = None, low: int = 1) -> int:
     """``value`` as an int in [low, CAPS[cap]] (cap defaults to ``name``), else ValueError (a
-    number out of range) or TypeError (not an integer) naming ``name`` and the valid range."""
+    number out of range) or ``checks.ArgumentTypeError`` (not a number: a TypeError that is
+    also a ValueError) naming ``name`` and the valid range."""
     key = cap or name.lstrip("-").replace("-", "_")
     top = CAPS[key]
     valid = f"an integer in [{low}, {top:,}] (a fixed cap; --allow-large or limits.lift() lifts it)"
     if isinstance(value, bool) or (
         not hasattr(value, "__index__") and not isinstance(value, float)
     ):
-        raise SizeTypeError(f"{name} must be {valid}, got {value!r}")
+        raise checks.ArgumentTypeError(f"{name} must be {valid}, got {value!r}")
     try:
         as_int = int(value)
     except (OverflowError, ValueError):  # inf, nan

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from cli_checks import cli_error
 
-from strol_gym import limits
+from strol_gym import checks, limits
 from strol_gym.benchmarks.engine.config import MAX_TOTAL_RUNS, paper_config
 from strol_gym.benchmarks.engine.results import META, ResultsDir, ResultsError
 from strol_gym.humans import make_human
@@ -42,8 +42,8 @@ def test_learner_and_human_sizes_are_capped_in_the_api_and_liftable():
         make_learner("mof", task, n_candidates=10**9)
     with pytest.raises(ValueError, match=r"^n_candidates must be"):
         make_human("nominal", task, np.zeros(task.dim), np.random.default_rng(0), n_candidates=1e9)
-    with pytest.raises(TypeError, match=r"^n_particles must be an integer"):
-        make_learner("bayes", task, n_particles="many")
+    with pytest.raises(checks.ArgumentTypeError, match=r"^n_particles must be an integer"):
+        make_learner("bayes", task, n_particles="many")  # the one vocabulary of strol_gym.checks
     with limits.lifted():  # lifted: the same size is built
         assert make_learner("bayes", task, n_particles=200_001).n_particles == 200_001
     with pytest.raises(ValueError, match="n_particles"):
