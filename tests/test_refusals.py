@@ -326,6 +326,25 @@ def test_an_interrupted_train_does_not_promise_a_resume(monkeypatch, capsys):
     )
 
 
+def test_train_leaves_nothing_in_its_temporary_folder(tmp_path):
+    """``train`` turns on torch's deterministic kernels, whose first use imports torch's
+    compiler, which made ``$TMPDIR/torchinductor_<user>`` and left it (issue 31, item 12)."""
+    import os
+    import subprocess
+    import sys
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "TORCHINDUCTOR_CACHE_DIR"}
+    env["TMPDIR"] = str(tmp)
+    out = tmp_path / "g.safetensors"
+    args = ["train", "--steps", "1", "--batch", "4", "--heldout", "4", "--quiet", "--out", str(out)]
+    cmd = [sys.executable, "-m", "strol_gym.benchmarks", *args]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert out.exists() and sorted(p.name for p in tmp.iterdir()) == []
+
+
 def test_a_killed_writers_temp_files_are_cleaned_and_do_not_block_force(tmp_path):
     import subprocess
     import sys
