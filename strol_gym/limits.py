@@ -26,7 +26,7 @@ CAPS: dict[str, int] = {
     "n_hypotheses": 100_000,  # MOF's hypotheses (default: a few hundred)
     "num_envs": 16_384,  # sub-envs of a native vector env (benchmarks: 1,024)
     "block": 10_000,  # run seeds per unit of work (default 25)
-    "jobs": 1_024,  # worker processes (and never more than 8 per CPU)
+    "jobs": 1_024,  # worker processes (and never more than 4 per CPU: args.JOBS_PER_CPU)
     "threads": 1_024,  # torch threads of `train`
     "corrections": 10_000,  # correction steps per episode (`run`, `export`; paper: 5 and 10)
     "lambdas": 1_000,  # values in a --lambdas list
