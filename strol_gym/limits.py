@@ -25,7 +25,7 @@ CAPS: dict[str, int] = {
     "n_particles": 200_000,  # bayes posterior particles (default 2,000)
     "n_hypotheses": 100_000,  # MOF's hypotheses (default: a few hundred)
     "num_envs": 16_384,  # sub-envs of a native vector env (benchmarks: 1,024)
-    "block": 10_000,  # run seeds per unit of work (default 25)
+    "block": 1_024,  # run seeds per unit of work (default 25); ~3.5 GB with two Robot learners
     "jobs": 1_024,  # worker processes (and never more than 4 per CPU: args.JOBS_PER_CPU)
     "threads": 1_024,  # torch threads of `train`
     "corrections": 10_000,  # correction steps per episode (`run`, `export`; paper: 5 and 10)

@@ -58,7 +58,7 @@ def test_num_envs_is_capped_before_the_envs_are_built():
 @pytest.mark.parametrize(
     ("argv", "flag"),
     [
-        (["run", "--env", "robot", "--block", "20000"], "--block must be at most 10,000"),
+        (["run", "--env", "robot", "--block", "1025"], "--block must be at most 1,024"),
         (["run", "--env", "robot", "--jobs", "100000"], "--jobs must be at most"),
         (["lambda", "--lambdas", ",".join(["1"] * 1001)], "--lambdas must be at most 1,000"),
         (["train", "--task", "robot", "--threads", "100000"], "--threads must be at most 1,024"),
@@ -79,8 +79,15 @@ def test_num_envs_is_capped_before_the_envs_are_built():
             ["run", "--env", "robot", "--human-kwargs", '{"n_candidates": 1e9}'],
             "human_kwargs['n_candidates'] must be an integer in [1, 8,192]",
         ),
+        (  # train sets n_candidates itself (--candidates): once, not a traceback
+            ["train", "--task", "robot", "--human-kwargs", '{"n_candidates": 1e9}'],
+            "human_kwargs must not hold 'n_candidates' in training",
+        ),
     ],
-    ids=["block", "jobs", "lambdas", "threads", "export-corrections", "n_particles", "human"],
+    ids=[
+        *("block", "jobs", "lambdas", "threads", "export-corrections", "n_particles", "human"),
+        "train-human",
+    ],
 )
 def test_cli_sizes_are_refused_in_one_line(argv, flag, tmp_path, capsys):
     out = [] if argv[0] == "export" else ["--out", str(tmp_path / "o")]

@@ -106,6 +106,11 @@ class TrainConfig:
         HUMANS.check_name(self.human)
         # the human's own kwargs: a dict of parameters it declares, never σ, ε or β
         check_human_kwargs(self.human, self.human_kwargs)
+        if "n_candidates" in (self.human_kwargs or {}):  # training sets it: one place for it
+            raise ValueError(
+                "human_kwargs must not hold 'n_candidates' in training: it is TrainConfig's "
+                "n_candidates (train --candidates)"
+            )
         choice("theta_sampling", THETA_SAMPLING)
         choice("robot_action", ROBOT_ACTIONS)
         choice("bound", BOUNDS)
