@@ -47,6 +47,16 @@ def test_bayes_refuses_an_overflowing_update_and_stays_finite(name):
     assert np.isfinite(after).all()
 
 
+@pytest.mark.parametrize("name", ["gradient", "strol", "bayes", "bayes-teacher"])
+def test_a_start_beyond_the_theta_range_is_refused(name):
+    """reset(θ̂0 = 1e308) was accepted; bayes then refused every update blaming x and u_h."""
+    task = make_task("highway")
+    learner = make_learner(name, task)
+    with pytest.raises(ValueError, match=r"^theta0 must be finite numbers in \[-1e\+06, 1e\+06\]"):
+        learner.reset(np.full(task.dim, 1e308))
+    assert np.isfinite(learner.reset(np.full(task.dim, 1e6))).all()  # the bound itself is a start
+
+
 def test_bayes_teacher_batch_update_after_a_single_one():
     task = make_task("highway")
     learner = make_learner("bayes-teacher", task, n_particles=32)
