@@ -451,14 +451,18 @@ def test_study_v1_reflex_thresholds_must_be_finite_and_positive(value):
     ],
 )
 def test_study_observer_refuses_the_human_model_it_would_ignore(version, kwargs, named):
-    """v1's and v2's default participant ("observer") pushes θ*-greedy by itself: a human model
-    it was given would be ignored (issue 31, item 11), so it is refused, naming the argument."""
+    """v1's default participant ("observer") pushes θ*-greedy by itself, v2's ("fitted") from
+    its fitted aim and sizes: a human model it was given would be ignored (issue 31, item 11),
+    so it is refused, naming the argument."""
     import gymnasium as gym
 
+    who = "observer" if version == "v1" else "fitted"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # v1 is deprecated
-        with pytest.raises(ValueError, match=rf"^{named} must be .*participant='observer'"):
+        with pytest.raises(ValueError, match=rf"^{named} must be .*participant='{who}'"):
             gym.make(f"StROL-Study-{version}", **kwargs)
+        with pytest.raises(ValueError, match=rf"^{named} must be .*participant='observer'"):
+            gym.make(f"StROL-Study-{version}", participant="observer", **kwargs)
 
 
 BOLTZMANN = {"human": "boltzmann", "beta": 5.0}

@@ -178,8 +178,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 raise ValueError(
                     f"participant must be one of {sorted(v.participants)}, got {participant!r}"
                 )
-        if participant == "observer":
-            _observer_takes_no_model(kwargs)
+        if participant in ("observer", "fitted"):
+            _observer_takes_no_model(kwargs, participant)
         self.participant = participant
         self.reflex_force = _within(
             "reflex_force", 100.0 if reflex_force is None else reflex_force, REFLEX_FORCE_RANGE
@@ -708,10 +708,11 @@ def _positive(name: str, value: Any) -> float:
     return float(checks.number(name, value, low=0, low_open=True, text=True))
 
 
-def _observer_takes_no_model(kwargs: dict[str, Any]) -> None:
+def _observer_takes_no_model(kwargs: dict[str, Any], who: str = "observer") -> None:
     """``participant="observer"`` chooses its pushes itself (θ*-greedy over the poses it sees,
-    with the env's σ and ε: ``participant``): a human model, its β or its ``human_kwargs`` would
-    be taken and never used, so they are refused (``participant="oracle"`` uses them)."""
+    with the env's σ and ε: ``participant``), ``"fitted"`` from its fitted aim and sizes: a
+    human model, its β or its ``human_kwargs`` would be taken and never used, so they are
+    refused (``participant="oracle"`` uses them)."""
     spec = HumanSpec.from_args(
         kwargs.get("human", DEFAULT_HUMAN),
         beta=kwargs.get("beta", DEFAULT_BETA),
@@ -719,19 +720,19 @@ def _observer_takes_no_model(kwargs: dict[str, Any]) -> None:
     )
     if spec.name is None:  # no simulated participant: nothing to ignore
         return
-    rest = "participant='observer' chooses its own pushes, with no human model; 'oracle' takes one"
+    rest = f"participant={who!r} chooses its own pushes, with no human model; 'oracle' takes one"
     if spec.name != DEFAULT_HUMAN:
         raise ValueError(
             f"human must be {DEFAULT_HUMAN!r} (the default: the participant pushes) or None "
-            f"(nobody does) with participant='observer', got {spec.name!r} ({rest})"
+            f"(nobody does) with participant={who!r}, got {spec.name!r} ({rest})"
         )
     if spec.kwargs:
         raise ValueError(
-            f"human_kwargs must be empty with participant='observer', got {spec.kwargs!r} ({rest})"
+            f"human_kwargs must be empty with participant={who!r}, got {spec.kwargs!r} ({rest})"
         )
     if spec.beta != DEFAULT_BETA:
         raise ValueError(
-            f"beta must be left at {DEFAULT_BETA:g} with participant='observer', got "
+            f"beta must be left at {DEFAULT_BETA:g} with participant={who!r}, got "
             f"{spec.beta!r} ({rest})"
         )
 
