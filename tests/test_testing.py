@@ -17,7 +17,11 @@ from strol_gym.testing import check_human, check_learner, check_task
 V1_TASKS = [name for name in TASKS.names() if name.startswith("study-") and name.endswith("-v1")]
 """StROL-Study-v1's Tasks: v0's Tasks under their own task_id (so learners find v1's ĝ), so
 v0's checks of φ, g, planner and humans are theirs; checked once below for what differs."""
-TASKS_CHECKED = [name for name in TASKS.names() if name not in V1_TASKS]
+V2_TASKS = [name for name in TASKS.names() if name.startswith("study-") and name.endswith("-v2")]
+"""StROL-Study-v2's Tasks: v0's features and g with v2's planner (tests/test_study_v2.py) and
+v2's own StROL and e2e ĝ (no strol-unrolled or e2e-scratch ĝ: those learners are not the
+study's); checked once below for what differs."""
+TASKS_CHECKED = [name for name in TASKS.names() if name not in V1_TASKS + V2_TASKS]
 
 
 @pytest.mark.parametrize("task", TASKS_CHECKED)
@@ -41,6 +45,15 @@ def test_study_v1_tasks_are_v0s_with_their_own_id():
         assert dataclasses.asdict(v1).keys() == dataclasses.asdict(v0).keys()
         assert v1.describe()["feature_names"] == v0.describe()["feature_names"]
     check_learner("strol", make_task(V1_TASKS[0]))
+
+
+def test_study_v2_tasks_have_their_own_id_and_ghat():
+    assert V2_TASKS == ["study-task1-v2", "study-task2-v2", "study-task3-v2"]
+    for k, name in enumerate(V2_TASKS, start=1):
+        v2, v0 = make_task(name), make_task(f"study-task{k}")
+        assert isinstance(v2, type(v0)) and v2.task_id == f"StROL-Study-v2-task{k}"
+        assert v2.describe()["feature_names"] == v0.describe()["feature_names"]
+    check_learner("strol", make_task(V2_TASKS[0]))
 
 
 @pytest.mark.parametrize("task", TASKS_CHECKED)

@@ -216,7 +216,7 @@ for _k in (1, 2, 3):  # the user study's Tasks (``strol-bench study``), not part
             ENV_PRESETS[f"study{_k}"],
             key=_key,
             env_id="StROL-Study-v2",
-            make_kwargs={"task": _k, "participant": _who},
+            make_kwargs={"task": f"study-task{_k}-v2", "participant": _who},
         )
 
 

@@ -21,6 +21,9 @@ _TASKS: dict[str, Any] = {
     "study-task1-v1": "strol_gym.tasks.study:StudyTask1V1",
     "study-task2-v1": "strol_gym.tasks.study:StudyTask2V1",
     "study-task3-v1": "strol_gym.tasks.study:StudyTask3V1",
+    "study-task1-v2": "strol_gym.tasks.study:StudyTask1V2",
+    "study-task2-v2": "strol_gym.tasks.study:StudyTask2V2",
+    "study-task3-v2": "strol_gym.tasks.study:StudyTask3V2",
 }
 
 
