@@ -20,6 +20,12 @@ PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
 ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
 (``human``, default eq. M6, the training human), satisfied by the plan's regret."""
+HOLD_OFF = 0.3
+"""s, v2's hold-off: a person who lets go and pushes again within 0.3 s is regripping, not
+starting a new correction. 0.3 s is about a simple reaction time (0.2-0.25 s) plus a hand's
+release and re-grasp, the gaps a mouse drag's force leaves are one or two 50 ms steps, and the
+published study's people waited for the experimenter between corrections (seconds); longer
+would delay the learner's update after each release by as much (docs/study.md)."""
 REST_TRUST = 0.01
 """m: beyond this lag at a correction's start, u_H is measured from the cup's pose (v0's way)."""
 
@@ -64,6 +70,13 @@ class StudyVersion:
     them in a straight line."""
     tasks: Mapping[int, type[StudyTask]] | None = None
     """The Task classes ``task=1, 2, 3`` build (None: ``STUDY_TASKS``, the published ones)."""
+    hold_off: float | None = None
+    """None: a correction ends at the first step the felt force is at or below the threshold,
+    the setpoint held throughout (the published rule). A number: the default hold-off (s; the
+    ``hold_off`` argument, ``segment.HOLD_OFF_RANGE``): a correction ends once the force has
+    stayed at or below the threshold that long (``segment.PushSegmenter``), and while it
+    lasts the arm yields: below the threshold the setpoint follows the cup, so the arm stays
+    where the person left it instead of springing back through the hold-off."""
 
 
 V0 = StudyVersion("v0", "StROL-Study-v0")
@@ -91,7 +104,9 @@ V2 = StudyVersion(
     participants=PARTICIPANTS,
     tasks=STUDY_TASKS_V2,
     hull_return=True,
+    hold_off=HOLD_OFF,
 )
 """u_H by counterfactual, the joint limits at every physics step, the Task's reachable set and
-hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``."""
+hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``, one
+push one correction (the hold-off)."""
 VERSIONS = {v.name: v for v in (V0, V1, V2)}
