@@ -163,12 +163,14 @@ class ImpedanceController:
         """The arm yields to a person who let go: its setpoint is the held one (``held``: pose,
         rotation) moved as the person moved the cup (``moved``: the pushed pose, then the
         pose the held arm reaches without the push), so the arm neither springs back nor stops
-        its own motion where the push left it. The integral stays frozen (the correction is
-        still active). Called before a control step (``versions.StudyVersion.hold_off``)."""
+        its own motion where the push left it. Without orientation in the state (Task 1) the
+        rotation setpoint is the cup's rotation: released, a tilted cup righting itself would
+        drag the cup's position with it. The integral stays frozen (the correction is still
+        active). Called before a control step (``versions.StudyVersion.hold_off``)."""
         pushed, unpushed = moved
         pos = held[0][:3] + (pushed[:3] - unpushed[:3])
         if not self._oriented:
-            self._sp = pos
+            self._sp, self._sp_R = pos, self._site_xmat.copy()
             return
         turn = rpy_to_mat(pushed[3:]).dot(rpy_to_mat(unpushed[3:]).T)
         self._sp_R = turn.dot(held[1])

@@ -182,10 +182,19 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                     f"participant must be one of {sorted(v.participants)}, got {participant!r}"
                 )
         self.participant = participant
+        low, high = HOLD_OFF_RANGE
         self.hold_off = (
             0.0
             if v.hold_off is None
-            else _within("hold_off", v.hold_off if hold_off is None else hold_off, HOLD_OFF_RANGE)
+            else float(
+                checks.number(
+                    "hold_off",
+                    v.hold_off if hold_off is None else hold_off,
+                    low=low,
+                    high=high,
+                    text=True,
+                )
+            )
         )
         """Seconds the felt force must stay at or below the threshold for a correction to end
         (``segment.PushSegmenter``; 0 on versions without a hold-off)."""
@@ -420,6 +429,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._sp = self._x.copy()
         if self._oriented:
             self._sp_R = rpy_to_mat(self._sp[3:])
+        else:  # upright (a yielded correction may have left it tilted)
+            self._sp_R = self._home_R
 
     def _plan_step(self, k0: float, k1: float) -> np.ndarray:
         """The plan's displacement from k0 to k1 waypoints along it (0 < k1 − k0 < 1): the

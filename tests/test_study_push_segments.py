@@ -1,0 +1,191 @@
+"""One push, one correction (StROL-Study-v2's hold-off), from outside: pushes through the
+public push API (``apply_wrench``, ``hold_wrench``) on ``gym.make("StROL-Study-v2", ...)`` with
+no simulated person, at study seeds never used while building the hold-off (61001-61011, and
+62006-62009 for u_H with and without it, run once), and the state machine on its own."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import strol_gym  # noqa: F401  (registers the envs)
+from strol_gym.envs.study.env import StudyEnvV2
+from strol_gym.envs.study.segment import PushSegmenter
+from strol_gym.tasks.study import CONTROL_DT
+
+HOLD_STEPS = 6
+"""v2's default hold-off, 0.3 s, in 50 ms control steps."""
+
+
+def make(**kw) -> StudyEnvV2:
+    kw.setdefault("human", None)
+    return gym.make("StROL-Study-v2", **kw).unwrapped
+
+
+def run(env: StudyEnvV2, n: int) -> list[dict]:
+    zero = np.zeros(env.action_space.shape, dtype=np.float32)
+    return [env.step(zero)[4] for _ in range(n)]
+
+
+def pushes(env: StudyEnvV2, pieces: list[tuple[float, float]], axis: np.ndarray) -> list[dict]:
+    """Push along ``axis`` with (newtons, seconds) pieces in a row (0 N: no push), then let
+    go for 1 s; the steps' infos."""
+    infos: list[dict] = []
+    for newtons, seconds in pieces:
+        n = round(seconds / CONTROL_DT)
+        if newtons:
+            env.apply_wrench(newtons * axis, duration=seconds)
+        infos += run(env, n)
+    return infos + run(env, 20)
+
+
+def ends(infos: list[dict]) -> list[dict]:
+    return [i for i in infos if i["is_correction"]]
+
+
+def settled(task: int, seed: int, **kw) -> StudyEnvV2:
+    """The env after 1 s along its plan and a 1 s pause (the arm near its setpoint)."""
+    env = make(task=task, **kw)
+    env.reset(seed=seed)
+    run(env, 20)
+    env.pause(1.0)
+    run(env, 20)
+    return env
+
+
+X, Y, Z = np.eye(3)
+
+
+@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61001, Y), (2, 61002, -X)])
+def test_a_push_that_eases_off_and_comes_back_is_one_correction(task, seed, axis):
+    """30 N for 0.8 s, 10 N (below the 15 N threshold) for 0.1 s, 30 N for 0.8 s: one
+    correction, ending after the 0.3 s hold-off, whose u_H points along the push and is larger
+    than the first piece's alone (the arm stayed where the first piece left it)."""
+    env = settled(task, seed)
+    infos = pushes(env, [(30.0, 0.8), (10.0, 0.1), (30.0, 0.8)], axis)
+    (end,) = ends(infos)
+    assert infos[-1]["corrections"] == 1
+    rec = end["correction_record"]
+    assert rec["end_time"] - rec["start_time"] == pytest.approx(1.7 + 0.3, abs=1e-6)
+    assert end["correction_time"] == pytest.approx(1.6, abs=1e-6)  # the seconds above 15 N
+    u = end["u_h"][:3]
+    assert u @ axis / np.linalg.norm(u) > math.cos(math.radians(25.0))
+
+    single = settled(task, seed)
+    (one,) = ends(pushes(single, [(30.0, 0.8)], axis))
+    assert np.linalg.norm(u) > 1.5 * np.linalg.norm(one["u_h"][:3])
+
+
+def test_the_published_rule_cuts_the_same_push_in_two():
+    """hold_off=0 ends a correction at the first step below the threshold (v0/v1's rule)."""
+    env = settled(1, 61003, hold_off=0.0)
+    infos = pushes(env, [(30.0, 0.8), (10.0, 0.1), (30.0, 0.8)], X)
+    assert len(ends(infos)) == 2
+
+
+@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61004, -Y), (3, 61005, Z)])
+def test_two_pushes_a_second_apart_are_two_corrections(task, seed, axis):
+    env = settled(task, seed)
+    infos = pushes(env, [(30.0, 0.8), (0.0, 1.0), (30.0, 0.8)], axis)
+    first, second = ends(infos)
+    assert infos[-1]["corrections"] == 2
+    for end in (first, second):
+        u = end["u_h"][:3]
+        assert np.linalg.norm(u) > 0.04
+        assert u @ axis / np.linalg.norm(u) > math.cos(math.radians(25.0))
+
+
+CASES = [
+    (1, 62006, X, 0),
+    (1, 62007, -Z, 30),
+    (2, 62008, Y, 0),
+    (2, 62008, -X, 30),
+    (3, 62009, -Y, 0),
+    (3, 62009, X + Z, 30),
+]
+"""(task, seed, direction, steps along the plan before the push: 0 = settled, else moving)."""
+
+
+@pytest.mark.parametrize(("task", "seed", "axis", "moving"), CASES)
+def test_the_hold_off_does_not_shrink_u_h(task, seed, axis, moving):
+    """A 30 N push for 0.8 s: u_H with the 0.3 s hold-off within 10 % of u_H without one (the
+    arm yields through the hold-off, and u_H is still the pushed pose minus the counterfactual
+    over the whole correction)."""
+    u = []
+    for hold_off in (0.0, 0.3):
+        if moving:
+            env = make(task=task, hold_off=hold_off)
+            env.reset(seed=seed)
+            run(env, moving)
+        else:
+            env = settled(task, seed, hold_off=hold_off)
+        infos = pushes(env, [(30.0, 0.8)], axis / np.linalg.norm(axis))
+        (end,) = ends(infos)
+        rec = end["correction_record"]
+        assert rec["end_time"] - rec["start_time"] == pytest.approx(0.8 + hold_off, abs=1e-6)
+        u.append(end["u_h"][:3])
+    assert np.linalg.norm(u[1] - u[0]) <= 0.10 * np.linalg.norm(u[0]), u
+
+
+def test_a_jittery_drag_held_each_step_is_one_correction():
+    """What interact hands the env: a wrench held each step, here a drag that grows from 0 to
+    45 N over 1.5 s with one-step dips below the threshold every few steps (a mouse's
+    perturbation), then let go. v2: one correction; v1 (no hold-off): one per stretch."""
+    rng = np.random.default_rng(36)
+    force = np.minimum(np.arange(1, 41) * 1.5, 45.0)
+    force[rng.choice(np.arange(12, 40), size=7, replace=False)] = 8.0
+    counts = {}
+    for env_id in ("StROL-Study-v2", "StROL-Study-v1"):
+        env = gym.make(env_id, human=None, task=1).unwrapped
+        env.reset(seed=61010)
+        run(env, 20)
+        infos = []
+        for f in force:
+            env.hold_wrench((0.0, -f, 0.0))
+            infos += run(env, 1)
+        env.hold_wrench((0.0, 0.0, 0.0))
+        infos += run(env, 20)
+        assert not any(i["reflex"] for i in infos)
+        counts[env_id] = len(ends(infos))
+    assert counts["StROL-Study-v2"] == 1
+    assert counts["StROL-Study-v1"] >= 5
+
+
+def test_info_says_when_a_correction_is_under_way_and_when_it_ended():
+    env = settled(1, 61011)
+    infos = pushes(env, [(30.0, 0.5)], X)
+    phases = [i["correction_phase"] for i in infos]
+    assert phases == ["pushing"] * 10 + ["holding"] * HOLD_STEPS + ["ended"] + ["idle"] * 13
+    assert [i["correction_active"] for i in infos] == [p in ("pushing", "holding") for p in phases]
+    assert phases.index("ended") == [i["is_correction"] for i in infos].index(True)
+
+
+@pytest.mark.parametrize("value", [-0.1, 0.51, float("nan"), float("inf"), "soon", True])
+def test_the_hold_off_argument_is_checked(value):
+    with pytest.raises((TypeError, ValueError), match=r"hold_off must be a number in \[0, 0.5\]"):
+        make(hold_off=value)
+
+
+def test_only_versions_with_a_hold_off_take_the_argument():
+    assert make(hold_off=0.5).hold_off == 0.5
+    assert make().hold_off == pytest.approx(HOLD_STEPS * CONTROL_DT)
+    with pytest.raises(ValueError, match="hold_off"):
+        gym.make("StROL-Study-v1", human=None, hold_off=0.3)
+
+
+def test_the_segmenter_on_its_own():
+    """The state machine alone: the hold-off in steps, a comeback within it, a brake."""
+    seg = PushSegmenter.for_hold_off(15.0, 0.3, 0.05)
+    assert seg.hold_steps == HOLD_STEPS
+    felt = [20.0, 20.0, 5.0, 5.0, 20.0] + [0.0] * HOLD_STEPS + [0.0, 20.0]
+    events = [seg.feed(f) for f in felt]
+    assert events == ["start", None, "release", None, None, "release", *[None] * 5, "end", "start"]
+    assert seg.active
+    assert seg.feed(50.0, can_push=False) == "release"  # braked: no push
+    seg.cancel()
+    assert not seg.active and seg.feed(5.0) is None
+    first_drop = PushSegmenter.for_hold_off(15.0, 0.0, 0.05)
+    assert [first_drop.feed(f) for f in (20.0, 10.0, 20.0)] == ["start", "end", "start"]
