@@ -20,12 +20,14 @@ PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
 ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
 (``human``, default eq. M6, the training human), satisfied by the plan's regret."""
-HOLD_OFF = 0.3
-"""s, v2's hold-off: a person who lets go and pushes again within 0.3 s is regripping, not
-starting a new correction. 0.3 s is about a simple reaction time (0.2-0.25 s) plus a hand's
-release and re-grasp, the gaps a mouse drag's force leaves are one or two 50 ms steps, and the
-published study's people waited for the experimenter between corrections (seconds); longer
-would delay the learner's update after each release by as much (docs/study.md)."""
+HOLD_OFF = 0.4
+"""s, v2's hold-off: a push whose force comes back within 0.4 s is the same push. Shorter would
+cut real pushes: ``strol-bench interact`` hands the env the viewer's perturbation, updated at
+least every 5th control step (0.25 s), and between updates the force sags as the arm moves
+towards the mouse (an xdotool drag sagged to 7 N for 0.25 s between 17 N and 29 N); a person
+who lets go to regrip takes a reaction time (0.2-0.25 s) and the hand's move. Longer would
+merge deliberate pushes and delay the learner's update after each release by as much; the
+arm yields through it, so u_H hardly depends on it (docs/study.md)."""
 REST_TRUST = 0.01
 """m: beyond this lag at a correction's start, u_H is measured from the cup's pose (v0's way)."""
 
