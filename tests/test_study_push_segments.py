@@ -1,21 +1,28 @@
 """One push, one correction (StROL-Study-v2's hold-off), from outside: pushes through the
 public push API (``apply_wrench``, ``hold_wrench``) on ``gym.make("StROL-Study-v2", ...)`` with
 no simulated person, at study seeds never used while building the hold-off (61001-61011, and
-62006-62009 for u_H with and without it, run once), and the state machine on its own."""
+62006-62009 for u_H with and without it, run once), the state machine on its own, and a mouse
+drag sent as X events to ``strol-bench interact`` on v2 under Xvfb."""
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
+import sys
 
 import gymnasium as gym
 import numpy as np
 import pytest
+from test_interact_person import ARM_DRIVER, DRAG, needs_x
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.envs.study.env import StudyEnvV2
 from strol_gym.envs.study.segment import PushSegmenter
 from strol_gym.envs.study.versions import HOLD_OFF
 from strol_gym.tasks.study import CONTROL_DT
+from strol_gym.wrappers.session_log import read_session
 
 HOLD_STEPS = round(HOLD_OFF / CONTROL_DT)
 """v2's default hold-off in 50 ms control steps (8)."""
@@ -192,3 +199,57 @@ def test_the_segmenter_on_its_own():
     assert not seg.active and seg.feed(5.0) is None
     first_drop = PushSegmenter.for_hold_off(15.0, 0.0, 0.05)
     assert [first_drop.feed(f) for f in (20.0, 10.0, 20.0)] == ["start", "end", "start"]
+
+
+ON_V2 = """
+import gymnasium as gym
+from strol_gym.wrappers import OnlineLearningWrapper
+
+
+def on_v2(task, learner="strol", learner_kwargs=None, env_kwargs=None):
+    # interact's session on StROL-Study-v2 (interact itself builds strol-bench study's preset)
+    base = gym.make("StROL-Study-v2", task=task, human=None, **(env_kwargs or {}))
+    return OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
+
+
+interact.session_env = on_v2
+"""
+SELECT = "interact.passive_viewer = Selected"
+DRAG_DRIVER = ARM_DRIVER.replace(SELECT, ON_V2 + SELECT, 1)
+"""test_interact_person's driver (the real viewer, link 7 selected), its session on v2."""
+SLOW_DRAG = DRAG.replace(
+    "$(seq 1 20); do xdotool mousemove_relative -- 4 -3",
+    "$(seq 1 16); do xdotool mousemove_relative -- 2 -2",
+)
+"""test_interact_person's Ctrl + right-drag, slower (45 px in 0.8 s, not 100 px in 1 s)."""
+
+
+@needs_x
+def test_one_mouse_drag_on_v2_is_one_correction_under_xvfb(tmp_path):
+    """Ctrl + right-drag on the selected link, sent as X events, interact's session on v2: the
+    drag leaves one correction in the log, whose force trace went above 15 N, or (where the
+    viewer's force outgrew the reflex: the arm moves along its plan, so the click's distance
+    to the link, and the force, depend on the machine's load) a reflex and no correction; never
+    several. On v1 one such drag became 13 corrections: the viewer's force sags between its
+    updates and every sag below 15 N ended one."""
+    log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
+    (tmp_path / "driver.py").write_text(DRAG_DRIVER)
+    assert "on_v2" in DRAG_DRIVER and SLOW_DRAG != DRAG
+    (tmp_path / "drag.sh").write_text(SLOW_DRAG)
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    run = [sys.executable, str(tmp_path / "driver.py"), str(ready), "interact", "--task", "1"]
+    run += ["--max-steps", "100", "--log", str(log)]
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "bash", str(tmp_path / "drag.sh")]
+    done = subprocess.run(
+        [*cmd, str(ready), *run], capture_output=True, text=True, timeout=240, env=env
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    lines = [json.loads(t) for t in log.read_text().splitlines()]
+    assert json.loads(log.read_text().splitlines()[0])["env_id"] == "StROL-Study-v2"
+    corrections = [r for r in lines if r["type"] == "correction"]
+    reflexes = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
+    assert len(corrections) == 1 or (reflexes and not corrections), (corrections, reflexes)
+    for c in corrections:
+        felt = np.linalg.norm(np.array(c["trace"]["force"]), axis=1)
+        assert felt.max() > 15.0 and np.linalg.norm(c["u_h"]) > 0.0
+    read_session(log)

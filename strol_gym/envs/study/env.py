@@ -120,7 +120,9 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
       ``min_correction``, ``tol``, ``ang_tol``, ``satisfied_regret``;
       ``strol_gym.envs.study.user``).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
-    - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
+    - ``force_threshold`` (N, > 0, default 15), ``hold_off`` (v2 only: s in [0, 0.5], default
+      0.4; how long the force must stay at or below the threshold for a correction to end),
+      ``duration`` (s, > 0, default 60),
       ``stiffness`` (N/m, > 0, default 400; v2: 300), ``rot_stiffness`` (N m/rad, > 0,
       default 30; v2: 10).
     - ``max_episode_steps`` (int ≥ 1 or None), ``render_mode`` (None | "rgb_array" |
@@ -804,6 +806,14 @@ class StudyEnvV2(StudyEnv):
       11 cm per correction).
     - ``info["contact"]``: the cup touched the pitcher, the plate or the table this step
       (``info["contacts"]`` counts the steps).
+    - **One push, one correction.** A correction ends only once the felt force has stayed at
+      or below ``force_threshold`` for ``hold_off`` seconds (default 0.4, in [0, 0.5];
+      ``segment.PushSegmenter``): a push that eases off and comes back within it is the same
+      correction. Released, the arm yields: its setpoint is the held one moved by the push
+      so far, so it stays where the person left it through the hold-off, and afterwards the
+      robot replans from there. u_H's counterfactual covers the whole correction, hold-off
+      included; ``correction_time`` counts the seconds above the threshold.
+      ``info["correction_phase"]``: "idle", "pushing", "holding" (the hold-off) or "ended".
 
     The participant is v1's (``participant="observer"``); the ĝ are v1's
     (``StudyTaskV2.ghat_task``) until v2's are trained.
@@ -811,7 +821,8 @@ class StudyEnvV2(StudyEnv):
     ## Version History
 
     - v2: u_H by counterfactual, the Task's reachable set and hulls, joint limits at every
-      physics step, a softer arm, ``info["contact"]``.
+      physics step, a softer arm, ``info["contact"]``, one push one correction (the
+      hold-off, the arm yielding).
     - v1: u_H measured against the held setpoint (deprecated).
     - v0: initial version (deprecated).
     """
