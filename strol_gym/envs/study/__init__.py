@@ -8,7 +8,9 @@ that carries a cup, in MuJoCo.
 - ``controller``: the impedance controllers (v0's, v1's); ``geometry``: pose helpers and the
   reachable box; ``scene``: the MuJoCo scene.
 - ``people``: the interface of whoever pushes (``Pusher``); ``user`` (the regret-judging
-  simulated user), ``participant`` (the simulated participant who judges what it sees).
+  simulated user), ``participant`` (the simulated participant who judges what it sees, and
+  ``FittedParticipant``, v2's default); ``population`` (the population fitted to the authors'
+  twelve participants, read from the shipped ``participant_fit.json``).
 - ``metrics``: the study's metrics the authors' way.
 
 Names load their module on first use.
