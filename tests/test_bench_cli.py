@@ -23,8 +23,10 @@ from strol_gym.benchmarks.engine.config import BenchConfig, Experiment, paper_co
         (
             ["run", "--env", "boat"],
             "env must be one of ['highway', 'robot', 'study1', 'study1-v1', 'study1-v1-oracle', "
-            "'study2', 'study2-v1', 'study2-v1-oracle', 'study3', 'study3-v1', "
-            "'study3-v1-oracle'], got 'boat'",
+            "'study1-v2', 'study1-v2-observer', 'study1-v2-oracle', 'study2', 'study2-v1', "
+            "'study2-v1-oracle', 'study2-v2', 'study2-v2-observer', 'study2-v2-oracle', 'study3', "
+            "'study3-v1', 'study3-v1-oracle', 'study3-v2', 'study3-v2-observer', "
+            "'study3-v2-oracle'], got 'boat'",
         ),
         (["paper", "--runs", "0"], "--runs must be an integer in [1, "),
         (["paper", "--jobs", "0"], "--jobs must be an integer >= 1"),
