@@ -97,7 +97,7 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     assert info["corrections"] == 1
     assert info["correction_time"] == pytest.approx(1.0, abs=0.051)
     s = read_session(log)
-    assert s.header["learner"] == "strol" and s.header["task"] == "study-task1-v2"
+    assert s.header["learner"] == "strol" and s.header["task"] == "study-task1-v1"
     assert s.header["env_kwargs"]["human"] is None
     (ep,) = s.episodes
     (c,) = ep.corrections
@@ -226,7 +226,7 @@ def test_real_passive_viewer_under_xvfb(tmp_path):
 def test_t_key_shows_the_plan_for_theta_star(tmp_path):
     """With the T key's flag set, the plan for θ* (from the cup's pose) is drawn beside the
     robot's own plan."""
-    from strol_gym.tasks.study import StudyTask1V2  # the study's (v2's) Task and planner
+    from strol_gym.tasks.study import StudyTask1
 
     viewers = []
 
@@ -245,7 +245,7 @@ def test_t_key_shows_the_plan_for_theta_star(tmp_path):
     )
     (viewer,) = viewers
     assert viewer.targets[0] is not None and viewer.targets[0].shape[1] == 3
-    task = StudyTask1V2()
+    task = StudyTask1()
     x0 = np.array(json.loads(log.read_text().splitlines()[1])["x0"])
     start = viewer.targets[0][0]  # the cup where the key was read (Task 1's state is x, y, z)
     assert np.linalg.norm(start - x0) < 0.01
@@ -265,7 +265,8 @@ def test_a_person_meets_the_task_and_g_hat_of_strol_bench_study(task):
     from strol_gym.benchmarks.sessions.interact import session_env
     from strol_gym.learners.registry import make_learner
 
-    (exp,) = study_config(tasks=(task,), users=1).experiments
+    # v1's study (its Task and ĝ): interact stays on v1 while the study's default is v2
+    (exp,) = study_config(tasks=(task,), users=1, version="v1").experiments
     env = gym.make(exp.env_id, **exp.env_kwargs())
     study_learner = make_learner("strol", task=env.unwrapped.task)
     person = session_env(task, "strol")
