@@ -27,7 +27,22 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans.fitting import Corrections, Fit, best_for_theta, fit, simulate
+from strol_gym.humans.fitting import (
+    DEFAULT_INTERVAL,
+    FEW_PEOPLE,
+    INTERVALS,
+    Corrections,
+    Fit,
+    best_for_theta,
+    fit,
+    simulate,
+)
+
+INTERVAL_NAMES = {
+    "bca": "BCa bootstrap, widened for few people",
+    "sandwich": "person-clustered sandwich, t on G − 1 df",
+    "percentile": "percentile bootstrap",
+}
 
 MAX_FILES = 10_000
 MAX_FILE_BYTES = 200_000_000
@@ -215,8 +230,13 @@ def _usable(name: str, data: Corrections) -> Corrections:
 
 
 # ---------------------------------------------------------------------------- reports
-def _fmt(v: float) -> str:
-    return "nan" if not math.isfinite(v) else f"{v:.4g}"
+def _fmt(v: float | None) -> str:
+    return "–" if v is None or not math.isfinite(v) else f"{v:.4g}"
+
+
+def _interval(f: Fit, k: str) -> str:
+    lo, hi = f.ci95[k]
+    return "–" if not (math.isfinite(lo) and math.isfinite(hi)) else f"[{_fmt(lo)}, {_fmt(hi)}]"
 
 
 def fit_markdown(f: Fit, sources: Sequence[str]) -> str:
@@ -224,18 +244,17 @@ def fit_markdown(f: Fit, sources: Sequence[str]) -> str:
         f"# fit-human: `{f.model}`",
         "",
         f"{f.n_people} people (bootstrap unit), {f.n_corrections} corrections, from "
-        f"{len(sources)} source(s). Maximum likelihood; 95 % percentile bootstrap over people.",
+        f"{len(sources)} source(s). Maximum likelihood; 95 % intervals over people "
+        f"({INTERVAL_NAMES[f.interval]}).",
         "",
         "| parameter | estimate | 95 % interval |",
         "|---|---|---|",
     ]
     for k, v in f.estimate.items():
-        lo, hi = f.ci95[k]
-        lines.append(f"| {k} | {_fmt(v)} | [{_fmt(lo)}, {_fmt(hi)}] |")
+        lines.append(f"| {k} | {_fmt(v)} | {_interval(f, k)} |")
     lines += [
         "",
-        f"log-likelihood {f.loglik:.2f}; held-out (folds over people) "
-        f"{_fmt(f.heldout_loglik if f.heldout_loglik is not None else math.nan)}",
+        f"log-likelihood {f.loglik:.2f}; held-out (folds over people) {_fmt(f.heldout_loglik)}",
     ]
     if f.note:
         lines += ["", f"Note: {f.note}."]
@@ -252,10 +271,7 @@ def compare_markdown(fits: dict[str, Fit], skipped: dict[str, str]) -> str:
     ranked = sorted(fits.values(), key=lambda f: -(f.heldout_loglik or -math.inf))
     for f in ranked:
         held = f.heldout_loglik if f.heldout_loglik is not None else math.nan
-        params = ", ".join(
-            f"{k} {_fmt(v)} [{_fmt(f.ci95[k][0])}, {_fmt(f.ci95[k][1])}]"
-            for k, v in f.estimate.items()
-        )
+        params = ", ".join(f"{k} {_fmt(v)} {_interval(f, k)}" for k, v in f.estimate.items())
         lines.append(
             f"| {f.model} | {f.n_corrections} | {held:.2f} | {held / f.n_corrections:.3f} | "
             f"{f.loglik:.2f} | {params} |"
@@ -279,20 +295,27 @@ def run_fit_human(
     folds: int = 5,
     seed: int = 0,
     plots: bool = True,
+    interval: str = DEFAULT_INTERVAL,
 ) -> dict[str, Fit]:
-    """The command's work (module docstring); the fits by model name."""
+    """The command's work (module docstring); the fits by model name. ValueError where
+    ``compare`` is asked of fewer than 2 people (held-out needs folds of people)."""
     from strol_gym.humans.fitting import family
 
     for name in [human, *compare]:
         family(name)  # every name checked before any work
     data = load_corrections(sources)
+    if compare and len(data.people) < 2:
+        raise ValueError(
+            f"--compare ranks models by held-out log-likelihood: {FEW_PEOPLE}; SOURCE holds "
+            f"{len(data.people)} (give more logs)"
+        )
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     fits: dict[str, Fit] = {}
     skipped: dict[str, str] = {}
     for name in dict.fromkeys([human, *compare]):
         try:
-            fits[name] = fit(name, data, n_boot=n_boot, folds=folds, seed=seed)
+            fits[name] = fit(name, data, n_boot=n_boot, folds=folds, seed=seed, interval=interval)
         except ValueError as e:
             if name == human:
                 raise
@@ -333,6 +356,14 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--bootstrap", type=positive_int("--bootstrap", 10_000, low=0), default=200)
     p.add_argument("--folds", type=positive_int("--folds", 100, low=2), default=5)
     p.add_argument("--seed", type=positive_int("--seed", low=0), default=0)
+    p.add_argument(
+        "--interval",
+        choices=INTERVALS,
+        default=DEFAULT_INTERVAL,
+        help="95 %% intervals over people: bca (bootstrap, bias-corrected and accelerated, "
+        "widened for few people; default), sandwich (person-clustered Wald, t on G - 1 df; no "
+        "resampling), percentile (plain bootstrap; under-covers with few people)",
+    )
     p.add_argument("--no-plots", action="store_true")
     plugin_option(p)
 
@@ -348,14 +379,13 @@ def command(args: Any, parser: Any) -> int:
         args.folds,
         args.seed,
         plots=not args.no_plots,
+        interval=args.interval,
     )
     for f in fits.values():
-        params = ", ".join(
-            f"{k} {_fmt(v)} [{_fmt(f.ci95[k][0])}, {_fmt(f.ci95[k][1])}]"
-            for k, v in f.estimate.items()
-        )
-        held = _fmt(f.heldout_loglik) if f.heldout_loglik is not None else "-"
-        print(f"{f.model}: {params}; loglik {f.loglik:.2f}, held-out {held}")
+        params = ", ".join(f"{k} {_fmt(v)} {_interval(f, k)}" for k, v in f.estimate.items())
+        print(f"{f.model}: {params}; loglik {f.loglik:.2f}, held-out {_fmt(f.heldout_loglik)}")
+        if f.note:
+            print(f"  note: {f.note}")
     print(f"wrote {Path(args.out) / 'fit.json'}")
     return 0
 

@@ -76,7 +76,27 @@ def check_positive(name: str, value: Any, high: float) -> float:
     return v
 
 
-class CompetenceModel(NominalModel):
+class MarginSilenceModel(NominalModel):
+    """The eq. M6 teacher who corrects only with a probability ``p_correct(m)`` of the
+    correction's margin m (module docstring), else gives none (u_H = 0): the one choice block
+    of ``competence`` and ``hazard``, which differ only in p_correct. One uniform draw per
+    correction."""
+
+    def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+        return {"act": rng.random(n)}
+
+    def p_correct(self, m: np.ndarray) -> np.ndarray:
+        """P(correct) at margin m (each model's own)."""
+        raise NotImplementedError
+
+    def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
+        u = super().corrections(x, u_r, theta_star, draws, theta_hat, k)
+        pref = self.preference(theta_star, k)
+        m = margin(candidate_rewards(self.task, x, u_r, pref, draws.candidates))
+        return _silence(u, draws.extra["act"] >= self.p_correct(m))
+
+
+class CompetenceModel(MarginSilenceModel):
     """Competence-dependent propensity (arXiv 2501.03515): the eq. M6 teacher who corrects with
     probability p(m) = p_good + (p_bad − p_good)·m, where m is the correction's margin (module
     docstring: 0 when the robot's motion is already about the best, 1 when it does badly), and
@@ -99,21 +119,14 @@ class CompetenceModel(NominalModel):
         self.p_good = check_probability("p_good", p_good)
         self.p_bad = check_probability("p_bad", p_bad)
 
-    def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
-        return {"act": rng.random(n)}
-
-    def propensity(self, m: np.ndarray) -> np.ndarray:
+    def p_correct(self, m: np.ndarray) -> np.ndarray:
         """P(correct) at margin m."""
         return self.p_good + (self.p_bad - self.p_good) * m
 
-    def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
-        u = super().corrections(x, u_r, theta_star, draws, theta_hat, k)
-        pref = self.preference(theta_star, k)
-        m = margin(candidate_rewards(self.task, x, u_r, pref, draws.candidates))
-        return _silence(u, draws.extra["act"] >= self.propensity(m))
+    propensity = p_correct
 
 
-class HazardModel(NominalModel):
+class HazardModel(MarginSilenceModel):
     """A state-dependent timing hazard (issue 35 cites arXiv 2602.18603): at each step the
     person steps in with probability h = 1 − exp(−λ·exp(γ (m − 1))), a proportional hazard in
     the margin m (module docstring), else lets the robot be (u_H = 0). λ is the hazard where the
@@ -136,18 +149,11 @@ class HazardModel(NominalModel):
         self.rate = check_positive("rate", rate, 100.0)
         self.gamma = check_positive("gamma", gamma, 100.0)
 
-    def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
-        return {"act": rng.random(n)}
-
-    def hazard(self, m: np.ndarray) -> np.ndarray:
+    def p_correct(self, m: np.ndarray) -> np.ndarray:
         """P(step in) at margin m."""
         return -np.expm1(-self.rate * np.exp(self.gamma * (m - 1.0)))
 
-    def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
-        u = super().corrections(x, u_r, theta_star, draws, theta_hat, k)
-        pref = self.preference(theta_star, k)
-        m = margin(candidate_rewards(self.task, x, u_r, pref, draws.candidates))
-        return _silence(u, draws.extra["act"] >= self.hazard(m))
+    hazard = p_correct
 
 
 class MarginNoiseModel(NominalModel):
@@ -379,6 +385,7 @@ __all__ = [
     "FittedStudyModel",
     "HazardModel",
     "MarginNoiseModel",
+    "MarginSilenceModel",
     "ReversingModel",
     "ScaleFreeBoltzmannModel",
     "candidate_rewards",

@@ -635,6 +635,7 @@ class Fit:
     loglik: float
     heldout_loglik: float | None
     note: str = ""
+    interval: str = "bca"
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -642,12 +643,19 @@ class Fit:
             "n_people": self.n_people,
             "n_corrections": self.n_corrections,
             "params": {
-                k: {"estimate": self.estimate[k], "ci95": list(self.ci95[k])} for k in self.estimate
+                k: {"estimate": self.estimate[k], "ci95": [_finite(x) for x in self.ci95[k]]}
+                for k in self.estimate
             },
+            "interval": self.interval,
             "loglik": self.loglik,
             "heldout_loglik": self.heldout_loglik,
             "note": self.note,
         }
+
+
+def _finite(x: float) -> float | None:
+    """A number for JSON: None where there is none (NaN is not JSON)."""
+    return float(x) if math.isfinite(x) else None
 
 
 def usable(fam: Family, data: Corrections) -> tuple[Corrections, str]:
@@ -667,6 +675,224 @@ def usable(fam: Family, data: Corrections) -> tuple[Corrections, str]:
     return data.subset(np.flatnonzero(ok)), note
 
 
+INTERVALS = ("bca", "sandwich", "percentile")
+"""How ``fit`` makes its 95 % intervals (all with the person as the unit; docs/humans.md,
+"Intervals"): ``bca`` the bias-corrected and accelerated bootstrap over people with its tail
+probabilities widened for few people, ``sandwich`` a Wald interval from the person-clustered
+sandwich covariance with Student's t on G − 1 degrees of freedom, ``percentile`` the plain
+percentile bootstrap (kept to show why it was replaced: it under-covers with 12 people)."""
+DEFAULT_INTERVAL = "bca"
+"""``fit``'s interval (the recovery's coverage: docs/humans.md)."""
+AT_BOUND = 20.0
+"""A free-scale value beyond ±this is a parameter at its range's bound (logistic scale: within
+2e-9 of the range; the optimiser stops at ±25)."""
+
+
+def free_values(fam: Family, v: dict[str, float]) -> np.ndarray:
+    """Parameter values ``v`` on the optimiser's free scale (logistic or log)."""
+    return np.array([p.to_free(v[p.name]) for p in fam.params])
+
+
+def _values(fam: Family, t: np.ndarray) -> dict[str, float]:
+    return {p.name: p.from_free(x) for p, x in zip(fam.params, t, strict=True)}
+
+
+def _at_bound(fam: Family, t: np.ndarray) -> np.ndarray:
+    out = np.abs(t) > AT_BOUND
+    for j, p in enumerate(fam.params):
+        if p.log:  # a log scale's range is clamped in from_free
+            out[j] = not (p.low * (1 + 1e-6) < math.exp(t[j]) < p.high * (1 - 1e-6))
+    return out
+
+
+def person_scores(
+    fam: Family, prep: dict[str, Any], data: Corrections, t: np.ndarray, h: float = 1e-4
+) -> np.ndarray:
+    """Each person's score (G, p): ∂ Σ_{i ∈ person} log p_i / ∂t on the free scale, by
+    central differences of the per-correction log-likelihood."""
+    groups = person_rows(data)
+    out = np.zeros((len(groups), len(t)))
+    for j in range(len(t)):
+        up, down = t.copy(), t.copy()
+        up[j] += h
+        down[j] -= h
+        d = loglik_terms(fam, prep, _values(fam, up)) - loglik_terms(fam, prep, _values(fam, down))
+        d /= 2 * h
+        out[:, j] = [d[g].sum() for g in groups]
+    return out
+
+
+def hessian(fam: Family, prep: dict[str, Any], t: np.ndarray, h: float = 1e-3) -> np.ndarray:
+    """The log-likelihood's Hessian (p, p) on the free scale, by central differences."""
+    n = len(t)
+
+    def ll(x: np.ndarray) -> float:
+        return float(loglik_terms(fam, prep, _values(fam, x)).sum())
+
+    out = np.zeros((n, n))
+    f0 = ll(t)
+    for i in range(n):
+        for j in range(i, n):
+            if i == j:
+                e = np.zeros(n)
+                e[i] = h
+                out[i, i] = (ll(t + e) - 2 * f0 + ll(t - e)) / h**2
+            else:
+                ei, ej = np.zeros(n), np.zeros(n)
+                ei[i], ej[j] = h, h
+                out[i, j] = out[j, i] = (
+                    ll(t + ei + ej) - ll(t + ei - ej) - ll(t - ei + ej) + ll(t - ei - ej)
+                ) / (4 * h * h)
+    return out
+
+
+def _one_sided(fam: Family, prep: dict[str, Any], t: np.ndarray, j: int, level: float) -> float:
+    """For a parameter at its bound: the free value where the log-likelihood (the others at
+    their estimate) has fallen by χ²₁(2·level − 1)/2 (a one-sided likelihood-ratio bound)."""
+    from scipy.stats import chi2
+
+    drop = 0.5 * float(chi2.ppf(2 * level - 1, 1))
+    inward = -np.sign(t[j]) if t[j] != 0 else 1.0
+    base = float(loglik_terms(fam, prep, _values(fam, t)).sum())
+
+    def gap(x: float) -> float:
+        s = t.copy()
+        s[j] = x
+        ll = float(loglik_terms(fam, prep, _values(fam, s)).sum())
+        return (base - ll if np.isfinite(ll) else math.inf) - drop
+
+    far = t[j] + inward * 50.0
+    if gap(far) < 0:
+        return far
+    return float(optimize.brentq(gap, t[j], far, xtol=1e-6))
+
+
+def sandwich_intervals(
+    fam: Family,
+    prep: dict[str, Any],
+    data: Corrections,
+    mle: dict[str, float],
+    level: float = 0.95,
+) -> dict[str, tuple[float, float]]:
+    """Wald intervals on the free scale from the person-clustered sandwich covariance
+    H⁻¹ (Σ_g s_g s_gᵀ) H⁻¹ · G/(G − 1), Student's t on G − 1 degrees of freedom, mapped back
+    (so they stay in each parameter's range). A parameter at its bound gets a one-sided
+    likelihood-ratio interval from the bound (``_one_sided``)."""
+    from scipy.stats import t as student
+
+    t = free_values(fam, mle)
+    g = len(data.people)
+    bound = _at_bound(fam, t)
+    free = np.flatnonzero(~bound)
+    out: dict[str, tuple[float, float]] = {}
+    if len(free) and g >= 2:
+        sub = np.ix_(free, free)
+        h = hessian(fam, prep, t)[sub]
+        s = person_scores(fam, prep, data, t)[:, free]
+        meat = s.T @ s * g / (g - 1)
+        try:
+            inv = np.linalg.inv(-h)
+            cov = inv @ meat @ inv
+        except np.linalg.LinAlgError:
+            cov = np.full((len(free), len(free)), math.inf)
+        q = float(student.ppf(0.5 + level / 2, g - 1))
+        for k, j in enumerate(free):
+            se = math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) and cov[k, k] >= 0 else math.inf
+            p = fam.params[j]
+            lo = p.from_free(max(t[j] - q * se, -50.0))
+            hi = p.from_free(min(t[j] + q * se, 50.0))
+            out[p.name] = (lo, hi)
+    for j in np.flatnonzero(bound):
+        p = fam.params[j]
+        ends = sorted((p.from_free(t[j]), p.from_free(_one_sided(fam, prep, t, j, level))))
+        out[p.name] = (ends[0], ends[1])
+    for p in fam.params:
+        out.setdefault(p.name, (math.nan, math.nan))
+    return out
+
+
+def bootstrap_draws(
+    fam: Family,
+    prep: dict[str, Any],
+    data: Corrections,
+    mle: dict[str, float],
+    n_boot: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """(n_boot, p) maximum-likelihood values on the free scale, refitted to resamples of the
+    people with replacement (each person's corrections together)."""
+    groups = person_rows(data)
+    draws = np.empty((n_boot, len(fam.params)))
+    for b in range(n_boot):
+        pick = rng.integers(0, len(groups), len(groups))
+        rows = np.concatenate([groups[i] for i in pick])
+        v, _ = maximise(fam, _take(prep, rows), starts=[mle])
+        draws[b] = free_values(fam, v)
+    return draws
+
+
+def jackknife_draws(
+    fam: Family, prep: dict[str, Any], data: Corrections, mle: dict[str, float]
+) -> np.ndarray:
+    """(G, p) free-scale estimates with each person left out in turn (BCa's acceleration)."""
+    groups = person_rows(data)
+    out = np.empty((len(groups), len(fam.params)))
+    for i in range(len(groups)):
+        rows = np.concatenate([g for j, g in enumerate(groups) if j != i])
+        v, _ = maximise(fam, _take(prep, rows), starts=[mle])
+        out[i] = free_values(fam, v)
+    return out
+
+
+def expanded_level(level: float, n_people: int) -> float:
+    """The two-sided level whose normal quantile is √(G/(G−1)) t_{G−1}: the bootstrap over G
+    people sees a spread (G−1)/G of the truth's and normal tails where Student's belong, so
+    its intervals are too narrow for few people (Hesterberg 2015, "expanded percentile")."""
+    from scipy.stats import norm
+    from scipy.stats import t as student
+
+    if n_people < 2:
+        return level
+    q = math.sqrt(n_people / (n_people - 1)) * float(student.ppf(0.5 + level / 2, n_people - 1))
+    return float(2 * norm.cdf(q) - 1)
+
+
+def bca_intervals(
+    fam: Family,
+    draws: np.ndarray,
+    jack: np.ndarray | None,
+    mle: dict[str, float],
+    n_people: int,
+    level: float = 0.95,
+) -> dict[str, tuple[float, float]]:
+    """BCa intervals (Efron 1987) from bootstrap ``draws`` on the free scale: the percentiles
+    moved by the bias correction z₀ (the share of draws below the estimate) and the acceleration
+    a (the jackknife's skewness), at the ``expanded_level`` for ``n_people``; ``jack`` None
+    gives the plain percentile interval at ``level``."""
+    from scipy.stats import norm
+
+    t = free_values(fam, mle)
+    out = {}
+    for j, p in enumerate(fam.params):
+        d = draws[:, j]
+        if jack is None:
+            lo_p, hi_p = 0.5 - level / 2, 0.5 + level / 2
+        else:
+            wide = expanded_level(level, n_people)
+            share = (np.sum(d < t[j]) + 0.5 * np.sum(d == t[j])) / len(d)
+            z0 = float(norm.ppf(min(max(share, 0.5 / len(d)), 1 - 0.5 / len(d))))
+            dev = jack[:, j].mean() - jack[:, j]
+            den = 6.0 * float(np.sum(dev**2)) ** 1.5
+            acc = float(np.sum(dev**3)) / den if den > 0 else 0.0
+            ends = []
+            for z in (norm.ppf(0.5 - wide / 2), norm.ppf(0.5 + wide / 2)):
+                ends.append(float(norm.cdf(z0 + (z0 + z) / (1 - acc * (z0 + z)))))
+            lo_p, hi_p = ends
+        lo, hi = np.quantile(d, [lo_p, hi_p])
+        out[p.name] = (p.from_free(float(lo)), p.from_free(float(hi)))
+    return out
+
+
 def bootstrap(
     fam: Family,
     prep: dict[str, Any],
@@ -674,20 +900,24 @@ def bootstrap(
     mle: dict[str, float],
     n_boot: int,
     rng: np.random.Generator,
+    method: str = "bca",
 ) -> dict[str, tuple[float, float]]:
-    """Percentile 95 % intervals, resampling people with replacement."""
-    groups = person_rows(data)
-    draws: list[list[float]] = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, len(groups), len(groups))
-        rows = np.concatenate([groups[i] for i in pick])
-        v, _ = maximise(fam, _take(prep, rows), starts=[mle])
-        draws.append([v[p.name] for p in fam.params])
-    arr = np.array(draws)
-    return {
-        p.name: (float(np.percentile(arr[:, j], 2.5)), float(np.percentile(arr[:, j], 97.5)))
-        for j, p in enumerate(fam.params)
-    }
+    """95 % intervals over people: ``method`` "bca" (default) or "percentile" from ``n_boot``
+    resamples of the people, "sandwich" without resampling (:data:`INTERVALS`)."""
+    if method not in INTERVALS:
+        raise ValueError(f"interval method must be one of {', '.join(INTERVALS)}, got {method!r}")
+    if method == "sandwich":
+        return sandwich_intervals(fam, prep, data, mle)
+    draws = bootstrap_draws(fam, prep, data, mle, n_boot, rng)
+    jack = jackknife_draws(fam, prep, data, mle) if method == "bca" else None
+    return bca_intervals(fam, draws, jack, mle, len(data.people))
+
+
+FEW_PEOPLE = (
+    "intervals over people and the held-out log-likelihood (folds of people) need at least 2 "
+    "people (participants, or episodes where the log names none)"
+)
+"""What a fit of one person says instead of a degenerate interval and a NaN held-out score."""
 
 
 def heldout(
@@ -698,12 +928,13 @@ def heldout(
     rng: np.random.Generator,
     start: dict[str, float] | None = None,
 ) -> float:
-    """Σ over folds of people of the held-out people's log-likelihood under the others' fit."""
+    """Σ over folds of people of the held-out people's log-likelihood under the others' fit;
+    ValueError with fewer than 2 people or folds (:data:`FEW_PEOPLE`)."""
     groups = person_rows(data)
     n = len(groups)
     folds = min(folds, n)
     if folds < 2:
-        return math.nan
+        raise ValueError(f"held-out log-likelihood: {FEW_PEOPLE}; these logs hold {n}")
     order = rng.permutation(n)
     total = 0.0
     for f in range(folds):
@@ -722,20 +953,29 @@ def fit(
     folds: int = 5,
     seed: int = 0,
     heldout_too: bool = True,
+    interval: str = DEFAULT_INTERVAL,
 ) -> Fit:
-    """Fit registered human ``name`` to ``data``: MLE, bootstrap intervals over people and
-    (``heldout_too``) the held-out log-likelihood over ``folds`` folds of people."""
+    """Fit registered human ``name`` to ``data``: MLE, 95 % intervals over people
+    (``interval``, :data:`INTERVALS`; the bootstrap ones from ``n_boot`` resamples, none when
+    it is 0) and (``heldout_too``) the held-out log-likelihood over ``folds`` folds of people.
+    With one person there are no intervals and no held-out score, and the note says why."""
     fam = family(name)
+    if interval not in INTERVALS:
+        raise ValueError(f"interval must be one of {', '.join(INTERVALS)}, got {interval!r}")
     data, note = usable(fam, data)
     prep = prepare(fam, data)
     mle, ll = maximise(fam, prep)
-    rng = np.random.default_rng(seed)
-    ci = bootstrap(fam, prep, data, mle, n_boot, rng) if n_boot else {}
+    few = len(data.people) < 2
+    ci: dict[str, tuple[float, float]] = {}
+    if not few and (n_boot or interval == "sandwich"):
+        ci = bootstrap(fam, prep, data, mle, n_boot, np.random.default_rng(seed), interval)
     ci = {k: ci.get(k, (math.nan, math.nan)) for k in mle}
     held = None
-    if heldout_too:
+    if heldout_too and not few:
         held = heldout(fam, prep, data, folds, np.random.default_rng(seed + 1), mle)
-    return Fit(name, len(data.people), len(data), mle, ci, ll, held, note)
+    if few:
+        note = (note + "; " if note else "") + f"one person: {FEW_PEOPLE}"
+    return Fit(name, len(data.people), len(data), mle, ci, ll, held, note, interval)
 
 
 # ---------------------------------------------------------------------------- predictive draws
@@ -763,22 +1003,31 @@ def simulate(
 
 
 __all__ = [
+    "FEW_PEOPLE",
+    "INTERVALS",
     "NOT_FITTABLE",
     "Corrections",
     "Family",
     "Fit",
     "Param",
+    "bca_intervals",
     "best_for_theta",
+    "bootstrap",
+    "bootstrap_draws",
+    "expanded_level",
     "families",
     "family",
     "fit",
+    "free_values",
     "heldout",
+    "jackknife_draws",
     "loglik_terms",
     "maximise",
     "order_weights",
     "person_rows",
     "prepare",
     "quadrature",
+    "sandwich_intervals",
     "simulate",
     "teacher_choice",
 ]
