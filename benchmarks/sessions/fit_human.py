@@ -92,6 +92,13 @@ def _theta0_unknown(header: dict[str, Any]) -> bool:
     return isinstance(unknown, list) and "theta_hat0" in unknown
 
 
+def _theta_reconstructed(header: dict[str, Any]) -> bool:
+    """Whether the log's θ̂ is reconstructed rather than logged (``import-study --theta0
+    implied`` on a One or MOF session: the header's ``extra["theta_hat"]`` says so)."""
+    how = _extra(header).get("theta_hat")
+    return isinstance(how, str) and how.startswith("reconstructed")
+
+
 def load_corrections(sources: Sequence[str]) -> Corrections:
     """Every correction of ``sources`` (logs, folders, Minari ids) as a :class:`Corrections`;
     ValueError on a bad source, mixed Tasks, no θ* or too many corrections."""
@@ -103,7 +110,7 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
     rows: dict[str, list[Any]] = {k: [] for k in ("x", "u_h", "u_r", "star", "hat", "k", "ep")}
     people: dict[str, int] = {}
     person: list[int] = []
-    task, task_name, n_ep, unknown = None, None, 0, False
+    task, task_name, n_ep, unknown, rebuilt = None, None, 0, False, 0
     for src in _sources(sources):
         path = Path(src)
         if path.is_file() and path.stat().st_size > MAX_FILE_BYTES:
@@ -118,6 +125,7 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
             raise ValueError(f"SOURCE {src}: task {name!r}, the others {task_name!r}")
         no_theta0 = _theta0_unknown(session.header)
         unknown |= no_theta0
+        rebuilt += _theta_reconstructed(session.header)
         for e, ep in enumerate(session.episodes):
             if ep.theta_star is None:
                 continue
@@ -154,8 +162,16 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
         np.array(rows["ep"]),
         np.array(person),
         list(people),
-        "logged, partly unknown" if unknown else "logged",
+        _hat_source(unknown, rebuilt),
     )
+
+
+def _hat_source(unknown: bool, rebuilt: int) -> str:
+    """How the corrections' θ̂ came to be known (``Corrections.theta_hat_source``)."""
+    if rebuilt:
+        part = ", unknown in the others" if unknown else ""
+        return f"reconstructed (not logged) in {rebuilt} session(s){part}"
+    return "logged, partly unknown" if unknown else "logged"
 
 
 def _max_corrections() -> int:
