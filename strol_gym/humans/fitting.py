@@ -36,9 +36,10 @@ to corrections whose θ̂ the log holds (or reconstructs: :attr:`Corrections.the
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -160,7 +161,9 @@ def order_weights(cost: np.ndarray, k: int) -> np.ndarray:
     (k/Q)(1 − F_c)^(k−1): the order statistic of k uniform draws."""
     m = cost.shape[1] - 1
     inner = cost[:, 1:]
-    ranks = np.argsort(np.argsort(inner, axis=1, kind="stable"), axis=1)
+    order = np.argsort(inner, axis=1, kind="stable")
+    ranks = np.empty_like(order)
+    np.put_along_axis(ranks, order, np.arange(m)[None, :], axis=1)
     f = (ranks + 0.5) / m
     better = inner < cost[:, :1]
     f0 = better.mean(axis=1)
@@ -595,10 +598,68 @@ def _take(prep: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
     return out
 
 
+_BLAS_SETTERS: list[tuple[Any, Any]] | None = None
+
+
+def _blas_setters() -> list[tuple[Any, Any]]:
+    """(get, set) thread-count functions of every OpenBLAS this process has loaded (Linux:
+    found in /proc/self/maps; elsewhere none)."""
+    global _BLAS_SETTERS
+    if _BLAS_SETTERS is None:
+        import ctypes
+
+        found: list[tuple[Any, Any]] = []
+        try:
+            with open("/proc/self/maps") as maps:
+                paths = {ln.split()[-1] for ln in maps if "openblas" in ln and "/" in ln}
+        except OSError:
+            paths = set()
+        for path in sorted(paths):
+            try:
+                lib = ctypes.CDLL(path)
+            except OSError:
+                continue
+            for pre in ("scipy_openblas", "openblas"):
+                for suf in ("64_", ""):
+                    get = getattr(lib, f"{pre}_get_num_threads{suf}", None)
+                    put = getattr(lib, f"{pre}_set_num_threads{suf}", None)
+                    if get is not None and put is not None:
+                        found.append((get, put))
+                        break
+                else:
+                    continue
+                break
+        _BLAS_SETTERS = found
+    return _BLAS_SETTERS
+
+
+@contextlib.contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """OpenBLAS on one thread while L-BFGS-B runs, restored after: its threads wake for a
+    problem of 2–4 parameters and, on a shared machine, wait for cores (measured: a 5-dataset
+    recovery 27.7 s → 4.4 s at load 5 on 2 cores). The results do not change."""
+    setters = _blas_setters()
+    before = [get() for get, _ in setters]
+    for _, put in setters:
+        put(1)
+    try:
+        yield
+    finally:
+        for (_, put), n in zip(setters, before, strict=True):
+            put(n)
+
+
 def maximise(
     fam: Family, prep: dict[str, Any], starts: Sequence[dict[str, float]] | None = None
 ) -> tuple[dict[str, float], float]:
     """The maximum-likelihood values and the maximum log-likelihood."""
+    with one_blas_thread():
+        return _maximise(fam, prep, starts)
+
+
+def _maximise(
+    fam: Family, prep: dict[str, Any], starts: Sequence[dict[str, float]] | None
+) -> tuple[dict[str, float], float]:
     params = fam.params
 
     def values(t: np.ndarray) -> dict[str, float]:
