@@ -266,7 +266,9 @@ def _pct(x: float) -> str:
 def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) -> str:
     """The recovery table (one row per model × parameter, a coverage column per interval
     method with its Wilson 95 % interval) and the confusion matrix."""
-    methods = list(next(iter(next(iter(rec.values())).values()))["methods"]) if rec else []
+    methods = list(
+        dict.fromkeys(m for params in rec.values() for r in params.values() for m in r["methods"])
+    )
     head = " | ".join(f"{m} coverage [Wilson 95 %] · mean width" for m in methods)
     lines = [
         f"| model | parameter | truth | datasets | mean estimate | bias | sd | {head} | "
@@ -277,7 +279,10 @@ def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) 
         for k, r in params.items():
             cells = []
             for m in methods:
-                c = r["methods"][m]
+                c = r["methods"].get(m)
+                if c is None:
+                    cells.append("–")
+                    continue
                 lo, hi = c["coverage_ci95"]
                 flag = "**" if c["coverage"] < 0.8 else ""
                 cells.append(
@@ -303,13 +308,18 @@ def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) 
 
 
 def merge(folders: Sequence[str]) -> tuple[dict[str, dict], dict[str, dict[str, int]], dict]:
-    """The recovery and confusion of several runs' ``recovery.json`` (later runs win)."""
+    """The recovery and confusion of several runs' ``recovery.json`` (a later run's figures
+    win; its interval methods join an earlier run's for the same datasets)."""
     rec: dict[str, dict] = {}
     conf: dict[str, dict[str, int]] = {}
     meta: dict[str, Any] = {"runs": []}
     for folder in folders:
         got = json.loads((Path(folder) / "recovery.json").read_text())
-        rec.update(got.get("recovery", {}))
+        for human, params in got.get("recovery", {}).items():
+            for k, r in params.items():  # a later run's methods join an earlier run's
+                old = rec.setdefault(human, {}).get(k)
+                methods = {**old["methods"], **r["methods"]} if old else r["methods"]
+                rec[human][k] = {**r, "methods": methods}
         conf.update(got.get("confusion", {}))
         meta["runs"].append({k: v for k, v in got.items() if k not in ("recovery", "confusion")})
     return rec, conf, meta

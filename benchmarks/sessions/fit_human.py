@@ -40,7 +40,7 @@ from strol_gym.humans.fitting import (
 
 INTERVAL_NAMES = {
     "bca": "BCa bootstrap, widened for few people",
-    "sandwich": "person-clustered sandwich, t on G − 1 df",
+    "sandwich": "person-clustered sandwich, t on at most G − 1 df",
     "percentile": "percentile bootstrap",
 }
 
@@ -376,9 +376,10 @@ def add_parser(sub: Any) -> None:
         "--interval",
         choices=INTERVALS,
         default=DEFAULT_INTERVAL,
-        help="95 %% intervals over people: bca (bootstrap, bias-corrected and accelerated, "
-        "widened for few people; default), sandwich (person-clustered Wald, t on G - 1 df; no "
-        "resampling), percentile (plain bootstrap; under-covers with few people)",
+        help="95 %% intervals over people: sandwich (default: person-clustered Wald on the "
+        "fitting scale, t on at most G - 1 df; no resampling), bca (bootstrap over people, "
+        "bias-corrected and accelerated, widened for few people; --bootstrap resamples), "
+        "percentile (plain bootstrap; under-covers with 12 people: docs/humans.md)",
     )
     p.add_argument("--no-plots", action="store_true")
     plugin_option(p)

@@ -696,7 +696,7 @@ class Fit:
     loglik: float
     heldout_loglik: float | None
     note: str = ""
-    interval: str = "bca"
+    interval: str = "sandwich"
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -736,13 +736,14 @@ def usable(fam: Family, data: Corrections) -> tuple[Corrections, str]:
     return data.subset(np.flatnonzero(ok)), note
 
 
-INTERVALS = ("bca", "sandwich", "percentile")
+INTERVALS = ("sandwich", "bca", "percentile")
 """How ``fit`` makes its 95 % intervals (all with the person as the unit; docs/humans.md,
-"Intervals"): ``bca`` the bias-corrected and accelerated bootstrap over people with its tail
-probabilities widened for few people, ``sandwich`` a Wald interval from the person-clustered
-sandwich covariance with Student's t on G − 1 degrees of freedom, ``percentile`` the plain
-percentile bootstrap (kept to show why it was replaced: it under-covers with 12 people)."""
-DEFAULT_INTERVAL = "bca"
+"Intervals"): ``sandwich`` (the default) a Wald interval on the fitting scale from the
+person-clustered sandwich covariance with Student's t on at most G − 1 degrees of freedom,
+``bca`` the bias-corrected and accelerated bootstrap over people with its tail probabilities
+widened for few people, ``percentile`` the plain percentile bootstrap (kept to show why it was
+replaced: it under-covers with 12 people)."""
+DEFAULT_INTERVAL = "sandwich"
 """``fit``'s interval (the recovery's coverage: docs/humans.md)."""
 AT_BOUND = 20.0
 """A free-scale value beyond ±this is a parameter at its range's bound (logistic scale: within
@@ -783,28 +784,54 @@ def person_scores(
     return out
 
 
-def hessian(fam: Family, prep: dict[str, Any], t: np.ndarray, h: float = 1e-3) -> np.ndarray:
-    """The log-likelihood's Hessian (p, p) on the free scale, by central differences."""
+def person_hessians(
+    fam: Family, prep: dict[str, Any], data: Corrections, t: np.ndarray, h: float = 1e-3
+) -> np.ndarray:
+    """Each person's log-likelihood Hessian (G, p, p) on the free scale, by central
+    differences of the per-correction log-likelihood; their sum is the whole data's."""
+    return _group_hessians(fam, prep, t, person_rows(data), h)
+
+
+def _group_hessians(
+    fam: Family, prep: dict[str, Any], t: np.ndarray, groups: list[np.ndarray], h: float
+) -> np.ndarray:
     n = len(t)
 
-    def ll(x: np.ndarray) -> float:
-        return float(loglik_terms(fam, prep, _values(fam, x)).sum())
+    def terms(x: np.ndarray) -> np.ndarray:
+        return loglik_terms(fam, prep, _values(fam, x))
 
-    out = np.zeros((n, n))
-    f0 = ll(t)
+    per = np.zeros((len(terms(t)), n, n))
+    f0 = terms(t)
     for i in range(n):
         for j in range(i, n):
+            ei, ej = np.zeros(n), np.zeros(n)
+            ei[i], ej[j] = h, h
             if i == j:
-                e = np.zeros(n)
-                e[i] = h
-                out[i, i] = (ll(t + e) - 2 * f0 + ll(t - e)) / h**2
+                d = (terms(t + ei) - 2 * f0 + terms(t - ei)) / h**2
             else:
-                ei, ej = np.zeros(n), np.zeros(n)
-                ei[i], ej[j] = h, h
-                out[i, j] = out[j, i] = (
-                    ll(t + ei + ej) - ll(t + ei - ej) - ll(t - ei + ej) + ll(t - ei - ej)
-                ) / (4 * h * h)
-    return out
+                d = terms(t + ei + ej) - terms(t + ei - ej) - terms(t - ei + ej)
+                d = (d + terms(t - ei - ej)) / (4 * h * h)
+            per[:, i, j] = per[:, j, i] = d
+    return np.stack([per[g].sum(axis=0) for g in groups])
+
+
+def hessian(fam: Family, prep: dict[str, Any], t: np.ndarray, h: float = 1e-3) -> np.ndarray:
+    """The log-likelihood's Hessian (p, p) on the free scale, by central differences."""
+    return _group_hessians(fam, prep, t, [np.arange(len(prep["uh"]))], h)[0]
+
+
+def effective_people(inv: np.ndarray, per_person: np.ndarray) -> np.ndarray:
+    """Per parameter, the Satterthwaite degrees of freedom of the clustered variance,
+    (G−1)/G · (Σ_g λ_g)² / Σ_g λ_g², with λ_g = [H⁻¹ H_g H⁻¹]_jj each person's share of the
+    model's variance (Imbens & Kolesár 2016's idea for few clusters): G − 1 when the people
+    inform alike, fewer when a few carry the information (e.g. most of the others' corrections
+    sit on the action bound)."""
+    g = len(per_person)
+    lam = np.einsum("jk,gkl,lj->gj", inv, per_person, inv)
+    lam = np.maximum(lam, 0.0)
+    den = (lam**2).sum(axis=0)
+    df = np.divide(lam.sum(axis=0) ** 2, den, out=np.full(lam.shape[1], float(g)), where=den > 0)
+    return np.maximum(df * (g - 1) / g, 1.0)
 
 
 def _one_sided(fam: Family, prep: dict[str, Any], t: np.ndarray, j: int, level: float) -> float:
@@ -836,8 +863,8 @@ def sandwich_intervals(
     level: float = 0.95,
 ) -> dict[str, tuple[float, float]]:
     """Wald intervals on the free scale from the person-clustered sandwich covariance
-    H⁻¹ (Σ_g s_g s_gᵀ) H⁻¹ · G/(G − 1), Student's t on G − 1 degrees of freedom, mapped back
-    (so they stay in each parameter's range). A parameter at its bound gets a one-sided
+    H⁻¹ (Σ_g s_g s_gᵀ) H⁻¹ · G/(G − 1), Student's t on the :func:`effective_people` degrees of
+    freedom (at most G − 1), mapped back (so they stay in each parameter's range). A parameter at its bound gets a one-sided
     likelihood-ratio interval from the bound (``_one_sided``)."""
     from scipy.stats import t as student
 
@@ -847,18 +874,19 @@ def sandwich_intervals(
     free = np.flatnonzero(~bound)
     out: dict[str, tuple[float, float]] = {}
     if len(free) and g >= 2:
-        sub = np.ix_(free, free)
-        h = hessian(fam, prep, t)[sub]
+        per = -person_hessians(fam, prep, data, t)[:, free][:, :, free]
         s = person_scores(fam, prep, data, t)[:, free]
         meat = s.T @ s * g / (g - 1)
         try:
-            inv = np.linalg.inv(-h)
+            inv = np.linalg.inv(per.sum(axis=0))
             cov = inv @ meat @ inv
+            df = effective_people(inv, per)
         except np.linalg.LinAlgError:
             cov = np.full((len(free), len(free)), math.inf)
-        q = float(student.ppf(0.5 + level / 2, g - 1))
+            df = np.full(len(free), 1.0)
         for k, j in enumerate(free):
             se = math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) and cov[k, k] >= 0 else math.inf
+            q = float(student.ppf(0.5 + level / 2, df[k]))
             p = fam.params[j]
             lo = p.from_free(max(t[j] - q * se, -50.0))
             hi = p.from_free(min(t[j] + q * se, 50.0))
