@@ -146,7 +146,7 @@ def test_import_authors_updates_and_implied_theta0(tree, tmp_path):
     assert np.allclose(ep.theta_hat0, implied_theta0(final, corr, 2, "one"))
     # θ̂ per correction reconstructed: chained from θ̂0 to the logged final θ̂, said so
     hats = [ep.theta_hat0] + [np.asarray(c["theta_hat_after"]) for c in ep.corrections]
-    steps = [b - a for a, b in zip(hats, hats[1:], strict=False)]
+    steps = np.diff(np.array(hats), axis=0)
     assert np.allclose(hats[-1], final) and all(np.any(d != 0.0) for d in steps)
     assert s.header["extra"]["theta_hat"].startswith("reconstructed")
     assert "theta_hat0" not in s.header["extra"]["unknown"]

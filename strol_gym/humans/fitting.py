@@ -864,8 +864,9 @@ def sandwich_intervals(
 ) -> dict[str, tuple[float, float]]:
     """Wald intervals on the free scale from the person-clustered sandwich covariance
     H⁻¹ (Σ_g s_g s_gᵀ) H⁻¹ · G/(G − 1), Student's t on the :func:`effective_people` degrees of
-    freedom (at most G − 1), mapped back (so they stay in each parameter's range). A parameter at its bound gets a one-sided
-    likelihood-ratio interval from the bound (``_one_sided``)."""
+    freedom (at most G − 1), mapped back (so they stay in each parameter's range). A
+    parameter at its bound gets a one-sided likelihood-ratio interval from the bound
+    (``_one_sided``)."""
     from scipy.stats import t as student
 
     t = free_values(fam, mle)
