@@ -195,8 +195,8 @@ def recovery(
     per interval method the coverage of the truth (with its Wilson interval) and the mean
     width. The first method's figures are also the parameter's top-level ones."""
     est: dict[str, list[float]] = {k: [] for k in truth}
-    cover = {m: {k: [] for k in truth} for m in methods}
-    width = {m: {k: [] for k in truth} for m in methods}
+    cover: dict[str, dict[str, list[bool]]] = {m: {k: [] for k in truth} for m in methods}
+    width: dict[str, dict[str, list[float]]] = {m: {k: [] for k in truth} for m in methods}
     for d in range(datasets):
         data = simulate_people(task, human, n_people, seed + 1000 * d, robot=robot, **truth)
         mle, ivs = dataset_intervals(human, data, methods, n_boot, d)
@@ -208,7 +208,7 @@ def recovery(
                 width[m][k].append(hi - lo)
     out = {}
     for k, v in truth.items():
-        per = {}
+        per: dict[str, dict[str, Any]] = {}
         for m in methods:
             hits = int(np.sum(cover[m][k]))
             per[m] = {
@@ -344,8 +344,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.merge:
-        rec, conf, meta = merge(args.merge)
-        (out / "recovery.md").write_text(markdown(rec, conf, meta))
+        (out / "recovery.md").write_text(markdown(*merge(args.merge)))
         print(f"wrote {out / 'recovery.md'}")
         return 0
     methods = [m for m in args.intervals.split(",") if m]

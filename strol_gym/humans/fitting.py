@@ -894,7 +894,7 @@ def sandwich_intervals(
             out[p.name] = (lo, hi)
     for j in np.flatnonzero(bound):
         p = fam.params[j]
-        ends = sorted((p.from_free(t[j]), p.from_free(_one_sided(fam, prep, t, j, level))))
+        ends = sorted((p.from_free(t[j]), p.from_free(_one_sided(fam, prep, t, int(j), level))))
         out[p.name] = (ends[0], ends[1])
     for p in fam.params:
         out.setdefault(p.name, (math.nan, math.nan))
