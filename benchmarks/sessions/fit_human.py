@@ -11,7 +11,7 @@ lists ``theta_hat0`` (the imported study sessions: models that teach relative to
 left out, saying so). Never the seeds, the env's kwargs (σ, the human) or
 anything else of the header: a test strips them and gets the same estimate.
 
-Writes DIR/fit.json (the named model: estimates, 95 % bootstrap intervals over people,
+Writes DIR/fit.json (the named model: estimates, 95 % intervals over people (``--interval``),
 log-likelihood, held-out log-likelihood), DIR/fit.md, and with ``--compare`` DIR/compare.json,
 a table of held-out log-likelihoods and DIR/plots/ppc.png: the real corrections against draws
 of each fitted model at the same states, for the statistics the logs identify.
@@ -259,7 +259,8 @@ def fit_markdown(f: Fit, sources: Sequence[str]) -> str:
     lines = [
         f"# fit-human: `{f.model}`",
         "",
-        f"{f.n_people} people (bootstrap unit), {f.n_corrections} corrections, from "
+        f"{f.n_people} people (the intervals' and folds' unit), {f.n_corrections} corrections, "
+        f"from "
         f"{len(sources)} source(s). Maximum likelihood; 95 % intervals over people "
         f"({INTERVAL_NAMES[f.interval]}).",
         "",
@@ -361,7 +362,7 @@ def add_parser(sub: Any) -> None:
         help="fit a human model to correction logs; compare models by held-out likelihood",
         description="Fit a registered human model to session logs (a .jsonl, a folder of them, "
         "or a Minari dataset id): maximum likelihood with the action bound's clipping in the "
-        "likelihood, 95 %% bootstrap intervals over people, held-out log-likelihood over folds "
+        "likelihood, 95 %% intervals over people, held-out log-likelihood over folds "
         "of people. Reads only x, u_H, u_R, θ* and θ̂ where logged. Writes OUT/fit.json and "
         "fit.md; --compare adds compare.md/json and posterior-predictive plots.",
     )

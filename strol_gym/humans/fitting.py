@@ -1,5 +1,6 @@
 """Fitting human models to correction logs: the likelihood of each model, its maximum, the
-bootstrap and the held-out comparison (``strol-bench fit-human`` is the front end).
+intervals over people and the held-out comparison (``strol-bench fit-human`` is the front
+end).
 
 **What a fit sees.** A :class:`Corrections` holds only what a real person's log holds: per
 correction the state x, u_H, u_R, θ* (the preference the person was asked to teach), θ̂ before
@@ -28,8 +29,8 @@ so their choice is itself random, and the likelihood integrates over it on a fix
 - the wrong θ of ``mistaken`` is integrated over ``WRONG_THETAS`` draws of the Task's prior.
 
 Every parameter is estimated by maximum likelihood (L-BFGS-B on a transformed scale, several
-starts); the 95 % intervals are percentile bootstraps over the people (each person's corrections
-resampled together); the held-out log-likelihood sums, over folds of people, the log-likelihood
+starts); the 95 % intervals have the person as the unit (:data:`INTERVALS`: a person-clustered
+sandwich by default, or a bootstrap resampling each person's corrections together); the held-out log-likelihood sums, over folds of people, the log-likelihood
 of the held-out people under the fit to the others. Models whose choice needs θ̂ are fitted only
 to corrections whose θ̂ the log holds (or reconstructs: :attr:`Corrections.theta_hat_source`).
 """
