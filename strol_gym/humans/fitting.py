@@ -30,9 +30,10 @@ so their choice is itself random, and the likelihood integrates over it on a fix
 
 Every parameter is estimated by maximum likelihood (L-BFGS-B on a transformed scale, several
 starts); the 95 % intervals have the person as the unit (:data:`INTERVALS`: a person-clustered
-sandwich by default, or a bootstrap resampling each person's corrections together); the held-out log-likelihood sums, over folds of people, the log-likelihood
-of the held-out people under the fit to the others. Models whose choice needs θ̂ are fitted only
-to corrections whose θ̂ the log holds (or reconstructs: :attr:`Corrections.theta_hat_source`).
+sandwich by default, or a bootstrap resampling each person's corrections together); the
+held-out log-likelihood sums, over folds of people, the log-likelihood of the held-out people
+under the fit to the others. Models whose choice needs θ̂ are fitted only to corrections whose
+θ̂ the log holds (or reconstructs: :attr:`Corrections.theta_hat_source`).
 """
 
 from __future__ import annotations
