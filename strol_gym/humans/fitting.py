@@ -747,9 +747,11 @@ widened for few people, ``percentile`` the plain percentile bootstrap (kept to s
 replaced: it under-covers with 12 people)."""
 DEFAULT_INTERVAL = "sandwich"
 """``fit``'s interval (the recovery's coverage: docs/humans.md)."""
-AT_BOUND = 20.0
+AT_BOUND = 7.0
 """A free-scale value beyond ±this is a parameter at its range's bound (logistic scale: within
-2e-9 of the range; the optimiser stops at ±25)."""
+0.09 % of the range's end). There the likelihood is flat, its Hessian and scores both vanish
+and a Wald interval collapses onto the estimate (competence's p_good at 1 − 6e-8 gave
+[1 − 4e-7, 1 − 1e-8]), so the bound gets a profile-likelihood interval instead."""
 
 
 def free_values(fam: Family, v: dict[str, float]) -> np.ndarray:
@@ -836,25 +838,47 @@ def effective_people(inv: np.ndarray, per_person: np.ndarray) -> np.ndarray:
     return np.maximum(df * (g - 1) / g, 1.0)
 
 
+class _Fixed(Family):
+    """``base`` with parameter ``name`` held at ``value`` (the profile likelihood's inner fit)."""
+
+    def __init__(self, base: Family, name: str, value: float) -> None:
+        self.base, self.fixed_name, self.value = base, name, value
+        self.name = base.name
+        self.params = tuple(p for p in base.params if p.name != name)
+
+    def prepare(self, data):
+        return self.base.prepare(data)
+
+    def parts(self, prep, v):
+        return self.base.parts(prep, {**v, self.fixed_name: self.value})
+
+
 def _one_sided(fam: Family, prep: dict[str, Any], t: np.ndarray, j: int, level: float) -> float:
-    """For a parameter at its bound: the free value where the log-likelihood (the others at
-    their estimate) has fallen by χ²₁(2·level − 1)/2 (a one-sided likelihood-ratio bound)."""
+    """For a parameter at its bound: the free value where the profile log-likelihood (the
+    others refitted) has fallen by χ²₁(2·level − 1)/2 from its maximum (a one-sided
+    likelihood-ratio bound; the others held at their estimate fell far too fast where they
+    trade off with it, e.g. competence's p_good against p_bad)."""
     from scipy.stats import chi2
 
     drop = 0.5 * float(chi2.ppf(2 * level - 1, 1))
     inward = -np.sign(t[j]) if t[j] != 0 else 1.0
     base = float(loglik_terms(fam, prep, _values(fam, t)).sum())
+    param = fam.params[j]
+    mle = _values(fam, t)
+    others = {k: v for k, v in mle.items() if k != param.name}
 
     def gap(x: float) -> float:
-        s = t.copy()
-        s[j] = x
-        ll = float(loglik_terms(fam, prep, _values(fam, s)).sum())
+        inner = _Fixed(fam, param.name, param.from_free(x))
+        if not inner.params:
+            ll = float(loglik_terms(inner, prep, {}).sum())
+        else:
+            _, ll = maximise(inner, prep, starts=[others])
         return (base - ll if np.isfinite(ll) else math.inf) - drop
 
     far = t[j] + inward * 50.0
     if gap(far) < 0:
         return far
-    return float(optimize.brentq(gap, t[j], far, xtol=1e-6))
+    return float(optimize.brentq(gap, t[j], far, xtol=1e-3))
 
 
 def sandwich_intervals(
@@ -896,7 +920,8 @@ def sandwich_intervals(
             out[p.name] = (lo, hi)
     for j in np.flatnonzero(bound):
         p = fam.params[j]
-        ends = sorted((p.from_free(t[j]), p.from_free(_one_sided(fam, prep, t, int(j), level))))
+        edge = p.from_free(math.copysign(50.0, t[j]))  # the bound itself
+        ends = sorted((edge, p.from_free(_one_sided(fam, prep, t, int(j), level))))
         out[p.name] = (ends[0], ends[1])
     for p in fam.params:
         out.setdefault(p.name, (math.nan, math.nan))
