@@ -25,12 +25,12 @@ TASK = make_task("robot")
 
 
 def test_recovery_of_the_teacher_covers_its_parameters():
-    """5 datasets of 8 people (σ 0.35, ε 0.1, not the defaults), BCa from 30 bootstrap samples
+    """5 datasets of 8 people (σ 0.35, ε 0.1, not the defaults), BCa from 20 bootstrap samples
     and the sandwich on the same fits: each interval holds the truth in most datasets and the
     mean estimate sits within half an interval's width (the benchmark script measures 20
     datasets: docs/humans.md)."""
     truth = {"sigma": 0.35, "bias": 0.1}
-    out = recovery(TASK, "nominal", truth, 5, 8, 30, seed=11, robot=False, methods=INTERVALS[:2])
+    out = recovery(TASK, "nominal", truth, 5, 8, 20, seed=11, robot=False, methods=INTERVALS[:2])
     for name, r in out.items():
         assert r["datasets"] == 5 and set(r["methods"]) == {"bca", "sandwich"}
         for method, c in r["methods"].items():
@@ -42,10 +42,14 @@ def test_recovery_of_the_teacher_covers_its_parameters():
 
 def test_selection_by_heldout_likelihood_finds_the_generating_model():
     mistaken = {"mistaken": ("mistaken", {"sigma": 0.2, "rate": 0.35})}
-    conf = selection(TASK, mistaken, 1, 10, candidates=("nominal", "mistaken"), seed=5, robot=False)
+    conf = selection(
+        TASK, mistaken, 1, 8, candidates=("nominal", "mistaken"), seed=5, folds=3, robot=False
+    )
     assert conf["mistaken"] == {"nominal": 0, "mistaken": 1}, conf
     nominal = {"nominal": ("nominal", {"sigma": 0.3})}
-    conf = selection(TASK, nominal, 1, 10, candidates=("nominal", "myopic"), seed=5, robot=False)
+    conf = selection(
+        TASK, nominal, 1, 8, candidates=("nominal", "myopic"), seed=5, folds=3, robot=False
+    )
     assert conf["nominal"] == {"nominal": 1, "myopic": 0}, conf  # not the myopic's data
 
 
