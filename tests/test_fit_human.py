@@ -79,7 +79,7 @@ def _log(path, seed0: int = 0) -> None:
         extra={"note": "simulated", "sigma": 0.3},
     )
     task = env.unwrapped.task
-    for seed in range(seed0, seed0 + 6):
+    for seed in range(seed0, seed0 + 4):
         obs, _ = env.reset(seed=seed)
         done = False
         while not done:
@@ -106,7 +106,7 @@ def _strip(src, dst) -> None:
 
 @pytest.fixture(scope="module")
 def session_log(tmp_path_factory):
-    """One simulated log of 6 episodes (6 people: no participant named), shared."""
+    """One simulated log of 4 episodes (4 people: no participant named), shared."""
     path = tmp_path_factory.mktemp("logs") / "full.jsonl"
     _log(path)
     return path
@@ -123,7 +123,7 @@ def test_fit_ignores_the_headers_generating_parameters_and_seeds(session_log, tm
         outs.append(json.loads((out / "fit.json").read_text()))
     assert outs[0]["params"] == outs[1]["params"]
     assert outs[0]["loglik"] == outs[1]["loglik"]
-    assert outs[0]["n_people"] == 6 and outs[0]["n_corrections"] == 30
+    assert outs[0]["n_people"] == 4 and outs[0]["n_corrections"] == 20
     for p in outs[0]["params"].values():
         lo, hi = p["ci95"]
         assert lo - 1e-6 <= p["estimate"] <= hi + 1e-6  # (p ≈ 0 here: no skips to see)
@@ -210,7 +210,7 @@ def test_one_person_says_why_there_is_no_interval_or_heldout_score(session_log, 
 
 def test_competence_propensity_follows_the_margin():
     """Silences of the competence person happen at the rate 1 − p(m), m the margin."""
-    n = 800
+    n = 400
     rng = np.random.default_rng(1)
     x = TASK.sample_start(rng, n)
     u_r = TASK.robot_policy(x, np.zeros((n, TASK.dim)))
