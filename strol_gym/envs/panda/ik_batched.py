@@ -16,6 +16,7 @@ numbers of all the arms at once and an iteration is a fixed, small number of num
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -280,6 +281,7 @@ class BatchedPandaIK:
         o10, o12, o13, o15, o16, o18 = self._orient_l[1]
         o20, o22, o23, o25, o26, o28 = self._orient_l[2]
         q = ik.q.tolist()
+        q_new = [0.0] * N_ARM
         for _ in range(iters):
             x0, x1, x2 = x.tolist()
             e0, e1, e2 = tx - x0, ty - x1, tz - x2
@@ -297,11 +299,11 @@ class BatchedPandaIK:
                 og * (a * v0 + b * v1 + c * v2) + pg * (rj - qj)
                 for a, b, c, rj, qj in zip(*jr.tolist(), ref, q, strict=True)
             ]
-            q_new = _dls_step(q, j0, j1, j2, s, e0, e1, e2, damp)
-            blocked = [not lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
-            if any(blocked):
+            dls_step(q, j0, j1, j2, s, e0, e1, e2, damp, ALL_FREE, q_new)
+            free = [lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
+            if not all(free):
                 # Joints at a limit drop out (their columns of J and entries of s times 0).
-                q_new = _dls_step(q, j0, j1, j2, s, e0, e1, e2, damp, blocked)
+                dls_step(q, j0, j1, j2, s, e0, e1, e2, damp, free, q_new)
             q = [
                 hj if qj > hj else (lj if qj < lj else qj)
                 for qj, lj, hj in zip(q_new, lo, hi, strict=True)
@@ -436,37 +438,40 @@ class BatchedPandaIK:
         return dq
 
 
-def _dls_step(
-    q: list[float],
-    j0: list[float],
-    j1: list[float],
-    j2: list[float],
-    s: list[float],
+def dls_step(
+    q: Any,
+    j0: Any,
+    j1: Any,
+    j2: Any,
+    s: Any,
     e0: float,
     e1: float,
     e2: float,
     damp: float,
-    blocked: list[bool] | None = None,
-) -> list[float]:
-    """q + s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) for one arm, in plain floats (J by rows j0-j2);
-    the same operations, summed in the same order, as ``BatchedPandaIK._step``. ``blocked``
-    joints drop out: their columns of J and entries of s are left out of the sums (the batched
-    step's products by 0, which add nothing) and they stay where they are."""
-    if blocked is None:
-        blocked = _NONE_BLOCKED
+    free: Any,
+    out: Any,
+) -> None:
+    """q + s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) for one arm into ``out``, J by rows ``j0``-``j2``:
+    the operations of ``BatchedPandaIK._step``, summed in the same order, on one arm's numbers.
+    Joints whose ``free`` is false drop out: their columns of J and entries of s are left out of
+    the sums (the batched step's products by 0, which add nothing) and they stay where they are.
+
+    One source for two readers: CPython runs it on lists (``_restart``, where numpy's per-call
+    cost on 3 and 7 numbers dominates) and ``ik_kernel`` compiles it for arrays, so the batched
+    IK's algebra is written here and in ``_step`` only."""
     a00 = a11 = a22 = a10 = a20 = a21 = v0 = v1 = v2 = 0.0
-    for a, b, c, sj, off in zip(j0, j1, j2, s, blocked, strict=True):
-        if off:
-            continue
-        a00 += a * a
-        a11 += b * b
-        a22 += c * c
-        a10 += b * a
-        a20 += c * a
-        a21 += c * b
-        v0 += a * sj
-        v1 += b * sj
-        v2 += c * sj
+    for j in range(N_ARM):
+        if free[j]:
+            a, b, c, sj = j0[j], j1[j], j2[j], s[j]
+            a00 += a * a
+            a11 += b * b
+            a22 += c * c
+            a10 += b * a
+            a20 += c * a
+            a21 += c * b
+            v0 += a * sj
+            v1 += b * sj
+            v2 += c * sj
     l00 = math.sqrt(a00 + damp)
     l10, l20 = a10 / l00, a20 / l00
     l11 = math.sqrt(a11 + damp - l10 * l10)
@@ -477,10 +482,11 @@ def _dls_step(
     y2 = (e2 - v2 - l20 * z0 - l21 * z1) / l22 / l22
     y1 = (z1 - l21 * y2) / l11
     y0 = (z0 - l10 * y1 - l20 * y2) / l00
-    return [
-        qj if off else qj + (sj + (a * y0 + b * y1 + c * y2))
-        for qj, sj, a, b, c, off in zip(q, s, j0, j1, j2, blocked, strict=True)
-    ]
+    for j in range(N_ARM):
+        if free[j]:
+            out[j] = q[j] + (s[j] + (j0[j] * y0 + j1[j] * y1 + j2[j] * y2))
+        else:
+            out[j] = q[j]
 
 
-_NONE_BLOCKED = [False] * N_ARM
+ALL_FREE = [True] * N_ARM
