@@ -21,6 +21,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.envs.panda.ik import (
     IK_DAMPING,
     IK_ITERS,
@@ -133,7 +134,8 @@ class BatchedPandaIK:
             self._seed_low, self._seed_step = ik._seed_low, ik._seed_step
             self._seed_max = ik._seed_max
         self._orient = ik._orient.copy()
-        self._orient_l = self._orient[:, [0, 2, 3, 5, 6, 8]].tolist()
+        self._orient6 = self._orient[:, [0, 2, 3, 5, 6, 8]]
+        self._orient_l = self._orient6.tolist()
         if np.any(self._orient[:, [1, 4, 7]]):
             raise ValueError("the gripper-down term must not read xmat's entries 1, 4, 7")
         self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
@@ -146,7 +148,21 @@ class BatchedPandaIK:
         self._arms.q[:] = ik.q[:, None]
         self._q = self._arms.q  # (7, N)
         self.q = self._q.T  # (N, 7), a view: writing it moves the arms
+        self._compiled: bool | None = None
+        """Whether the compiled kernels run (None: as ``compiled_kernels`` says, at each call)."""
         self.forward()
+
+    def _kernels(self) -> Any:
+        """``strol_gym.envs.panda.ik_kernel`` when its N-arm kernels run here, else None."""
+        if self._compiled is False or (self._compiled is None and not compiled_kernels(self)):
+            return None
+        from strol_gym.envs.panda import ik_kernel
+
+        return ik_kernel
+
+    def _chain(self) -> tuple[np.ndarray, ...]:
+        """The chain's constants as ``ik_kernel``'s forward kinematics reads them."""
+        return self._base_cols, self._base_pos, self._links, self._site_link
 
     # ------------------------------------------------------------------ kinematics
     def _fk(self, arms: _Arms) -> None:
@@ -183,6 +199,12 @@ class BatchedPandaIK:
 
     def forward(self, rows: np.ndarray | slice = slice(None)) -> None:
         """Recompute the kinematics of arms ``rows`` from ``q``."""
+        kernels = self._kernels()
+        if kernels is not None:
+            a = self._arms
+            idx = np.arange(self.n)[rows]
+            kernels.batched_forward(a.q, a.site, a.cols, a.axes, a.anchors, idx, *self._chain())
+            return
         if (isinstance(rows, slice) and rows == slice(None)) or self._all_rows(rows):
             self._fk(self._arms)
             return
@@ -235,7 +257,7 @@ class BatchedPandaIK:
             ik = self._single
             for k in retry:
                 ik.set_q(ref[k])
-                err_ref = self._restart(world[k].tolist(), 8 * iters, tol, ref[k].tolist())
+                err_ref = self._restart(world[k], 8 * iters, tol, ref[k])
                 if err_ref < err[k]:
                     err[k] = err_ref
                     self._from_single(rows[k])
@@ -263,7 +285,7 @@ class BatchedPandaIK:
         arms.axes[..., r] = d.xaxis[:N_ARM]
         arms.anchors[..., r] = d.xanchor[:N_ARM]
 
-    def _restart(self, target: list[float], iters: int, tol: float, ref: list[float]) -> float:
+    def _restart(self, target: np.ndarray, iters: int, tol: float, ref: np.ndarray) -> float:
         """``PandaIK._solve`` for one arm, from the single IK's posture, towards world-frame
         ``target``: MuJoCo's kinematics and site Jacobian (as the single IK), the 3x7 algebra of
         ``_iterate`` in plain floats, one pass over the joints (numpy's per-call cost dominates
@@ -272,8 +294,17 @@ class BatchedPandaIK:
         ik = self._single
         m, d, site = ik.model, ik.data, ik.site
         x, xmat, jac_p, jac_r = d.site_xpos[site], d.site_xmat[site], ik._jp, ik._jr
+        kernels = self._kernels()
+        if kernels is not None:
+            fp = kernels.addresses()
+            og, pg, damp, lo, hi = IK_ORIENT_GAIN, IK_POSTURE_GAIN, self._damp2, self.lo, self.hi
+            return kernels.restart(
+                fp, m._address, d._address, site, x, xmat, ik.q, jac_p, jac_r, self._orient6,
+                target, iters, tol, ref, og, pg, damp, lo, hi,
+            )  # fmt: skip
         jp, jr = jac_p[:, :N_ARM], jac_r[:, :N_ARM]
-        tx, ty, tz = target
+        tx, ty, tz = target.tolist()
+        ref = ref.tolist()
         tol2, damp = tol * tol, self._damp2
         og, pg = IK_ORIENT_GAIN, IK_POSTURE_GAIN
         lo, hi = self._lo_l, self._hi_l
@@ -329,6 +360,16 @@ class BatchedPandaIK:
         converged ones held still, while enough of the set still iterates; below
         ``COMPACT`` of it, a smaller copy of just those goes on (a gather, and the others'
         state written back), so that few arms don't pay for many."""
+        kernels = self._kernels()
+        if kernels is not None:  # one arm at a time, to its end (the same numbers)
+            a, err = self._arms, np.empty(len(rows))
+            kernels.batched_solve(
+                a.q, a.site, a.cols, a.axes, a.anchors, np.asarray(rows, dtype=np.intp),
+                np.ascontiguousarray(target), iters, tol, np.ascontiguousarray(ref),
+                np.ascontiguousarray(has_ref), *self._chain(), self._orient_cols,
+                IK_ORIENT_GAIN, IK_POSTURE_GAIN, self._damp2, self.lo, self.hi, COMPACT, err,
+            )  # fmt: skip
+            return err
         tol2 = tol * tol
         idx: np.ndarray | None
         if self._all_rows(rows):
@@ -438,6 +479,53 @@ class BatchedPandaIK:
         return dq
 
 
+_AGREES: bool | None = None
+"""Whether the compiled N-arm kernels reach the plain path's bits in this process (checked once,
+by ``compiled_kernels``)."""
+
+
+def compiled_kernels(ik: BatchedPandaIK) -> bool:
+    """Whether ``ik``'s arms take the compiled kernels: the fast kernels are on, the single IK's
+    kernel runs here (MuJoCo's binding and symbols, this BLAS), and the N-arm kernels reach the
+    plain path's bits on 96 arms from random postures towards random targets, near and out of
+    reach (limit steps, both kinds of restart). Checked once per process."""
+    global _AGREES
+    if not use_fast():
+        return False
+    if _AGREES is None:
+        from strol_gym.envs.panda import ik_kernel
+
+        _AGREES = False  # while the check builds its own arms
+        _AGREES = ik_kernel.addresses() is not None and _agrees(ik._single)
+    return _AGREES
+
+
+def _agrees(single: PandaIK, n: int = 96) -> bool:
+    """The plain and the compiled N-arm IK on the same arms and targets: the same bytes?"""
+    q0 = single.q.copy()
+    rng = np.random.default_rng(0)
+    lo, hi = single.lo, single.hi
+    arms = [BatchedPandaIK(single, n) for _ in range(2)]
+    start = lo + (hi - lo) * rng.random((n, N_ARM))
+    results = []
+    for ik, fast in zip(arms, (False, True), strict=True):
+        ik._compiled = fast
+        ik.q[:] = start
+        ik.forward()
+        out = []
+        every, third = np.arange(n), np.arange(0, n, 3)
+        for spread, rows in ((0.15, every), (2.0, every), (2.0, third), (0.6, every)):
+            target = np.random.default_rng(len(out)).normal(0.0, spread, (len(rows), 3))
+            target += (0.45, 0.0, 0.35)
+            out.append(ik.solve(target, rows))
+        a = ik._arms
+        results.append(
+            b"".join(x.tobytes() for x in (*out, a.q, a.site, a.cols, a.axes, a.anchors))
+        )
+    single.set_q(q0)
+    return results[0] == results[1]
+
+
 def dls_step(
     q: Any,
     j0: Any,
@@ -450,11 +538,15 @@ def dls_step(
     damp: float,
     free: Any,
     out: Any,
+    alone: bool = False,
 ) -> None:
     """q + s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) for one arm into ``out``, J by rows ``j0``-``j2``:
     the operations of ``BatchedPandaIK._step``, summed in the same order, on one arm's numbers.
     Joints whose ``free`` is false drop out: their columns of J and entries of s are left out of
     the sums (the batched step's products by 0, which add nothing) and they stay where they are.
+
+    ``alone``: Jᵀ y sums as numpy's einsum does for a batch of one arm, (term 0 + term 2) +
+    term 1 (its contiguous inner loop), instead of in order.
 
     One source for two readers: CPython runs it on lists (``_restart``, where numpy's per-call
     cost on 3 and 7 numbers dominates) and ``ik_kernel`` compiles it for arrays, so the batched
@@ -483,10 +575,12 @@ def dls_step(
     y1 = (z1 - l21 * y2) / l11
     y0 = (z0 - l10 * y1 - l20 * y2) / l00
     for j in range(N_ARM):
-        if free[j]:
-            out[j] = q[j] + (s[j] + (j0[j] * y0 + j1[j] * y1 + j2[j] * y2))
-        else:
+        if not free[j]:
             out[j] = q[j]
+        elif alone:
+            out[j] = q[j] + (s[j] + ((0.0 + j0[j] * y0 + j2[j] * y2) + j1[j] * y1))
+        else:
+            out[j] = q[j] + (s[j] + (0.0 + j0[j] * y0 + j1[j] * y1 + j2[j] * y2))
 
 
 ALL_FREE = [True] * N_ARM

@@ -30,6 +30,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic as numba_intrinsic
 
+from strol_gym.envs.panda.ik_batched import dls_step
 from strol_gym.envs.panda.model import N_ARM
 
 # An @intrinsic is called without its first parameter (numba passes the typing context), which
@@ -296,3 +297,231 @@ def solver() -> Callable[..., float] | None:
     if fp is None or not _agrees():
         return None
     return functools.partial(_solve, fp)
+
+
+# ---------------------------------------------------------------------------- N arms
+# ``BatchedPandaIK``'s iterations, one arm at a time: its own forward kinematics and Jacobian
+# (numpy's products: a BLAS matrix product sums with one fused multiply-add per term, in order,
+# from 0; einsum and elementwise operations round each product and sum in order, from 0) and
+# the one-arm step ``dls_step`` compiled from the very source CPython runs.
+
+_dls = _jit(dls_step)
+
+
+@_jit
+def _gemm(a, b, out):
+    """out = a @ b as OpenBLAS's matrix product computes it: fused multiply-adds in order."""
+    for i in range(a.shape[0]):
+        for n in range(b.shape[1]):
+            acc = 0.0
+            for k in range(a.shape[1]):
+                acc = _fma(a[i, k], b[k, n], acc)
+            out[i, n] = acc
+
+
+@_jit
+def _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame):
+    """``BatchedPandaIK._fk`` of arm ``r``: its kinematics from its joint angles, in place."""
+    for k in range(3):
+        axes[0, k, r] = base_cols[2, k]
+        anchors[0, k, r] = base_pos[k]
+    f = base_cols
+    for j in range(N_ARM):
+        if j:
+            _gemm(links[j], rot, frame)
+            for k in range(3):
+                anchors[j, k, r] = anchors[j - 1, k, r] + frame[3, k]
+                axes[j, k, r] = frame[2, k]
+            f = frame
+        c, sn = np.cos(q[j, r]), np.sin(q[j, r])
+        nsn = -sn
+        for k in range(3):
+            # x' = c x + s y, y' = c y − s x, z' = z (the hinge about the body's z axis)
+            x0, y0 = f[0, k], f[1, k]
+            rot[0, k] = x0 * c + y0 * sn
+            rot[1, k] = y0 * c + x0 * nsn
+            rot[2, k] = axes[j, k, r]
+    _gemm(site_link, rot, frame)
+    for k in range(3):
+        for i in range(3):
+            cols[i, k, r] = frame[i, k]
+        site[k, r] = anchors[N_ARM - 1, k, r] + frame[3, k]
+
+
+@_jit
+def batched_forward(q, site, cols, axes, anchors, rows, base_cols, base_pos, links, site_link):
+    """``BatchedPandaIK._fk`` of arms ``rows``."""
+    rot, frame = np.empty((3, 3)), np.empty((4, 3))
+    for r in rows:
+        _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame)
+
+
+@_jit
+def batched_solve(
+    q, site, cols, axes, anchors, rows, target, iters, tol, ref, has_ref, base_cols, base_pos,
+    links, site_link, orient_cols, orient_gain, posture, damp2, lo, hi, compact, err,
+):  # fmt: skip
+    """``BatchedPandaIK._solve``: arms ``rows`` iterate towards world-frame ``target`` (3, B)
+    until within ``tol`` or ``iters``; their errors into ``err`` (B,).
+
+    The arms go in the plain path's lockstep (the set that iterates, its compaction below
+    ``compact``, the arms that hit a limit together), because numpy sums some products in
+    another order for a batch of one arm (``_one``), and the bits follow the batch's size."""
+    nb = rows.shape[0]
+    tol2 = tol * tol
+    rot, frame = np.empty((3, 3)), np.empty((4, 3))
+    jt, jf = np.empty((nb, 3, N_ARM)), np.empty((3, N_ARM))  # J by rows, per arm
+    s, sf, q_new = np.empty((nb, N_ARM)), np.empty(N_ARM), np.empty((nb, N_ARM))
+    e = np.empty((nb, 3))
+    ones = np.ones(N_ARM, dtype=np.bool_)
+    flat, v = np.empty(9), np.empty(3)
+    members = np.arange(nb)
+    moving, hit = np.ones(nb, dtype=np.bool_), np.zeros(nb, dtype=np.bool_)
+    size = nb
+    for _ in range(iters):
+        live = 0
+        for t in range(size):
+            b = members[t]
+            r = rows[b]
+            for i in range(3):
+                e[b, i] = target[i, b] - site[i, r]
+            e0, e1, e2 = e[b, 0] * e[b, 0], e[b, 1] * e[b, 1], e[b, 2] * e[b, 2]
+            n2 = _one(e0, e1, e2) if size == 1 else ((0.0 + e0) + e1) + e2
+            moving[b] = moving[b] and n2 >= tol2
+            live += moving[b]
+        if not live:
+            break
+        if live < compact * size:
+            k = 0
+            for t in range(size):
+                if moving[members[t]]:
+                    members[k] = members[t]
+                    k += 1
+            size = k
+        alone, n_hit = size == 1, 0
+        for t in range(size):
+            b = members[t]
+            if not moving[b]:
+                continue
+            r = rows[b]
+            # The position Jacobian's column j: axis_j × (site − anchor_j).
+            for j in range(N_ARM):
+                d0 = site[0, r] - anchors[j, 0, r]
+                d1 = site[1, r] - anchors[j, 1, r]
+                d2 = site[2, r] - anchors[j, 2, r]
+                jt[b, 0, j] = axes[j, 1, r] * d2 - axes[j, 2, r] * d1
+                jt[b, 1, j] = axes[j, 2, r] * d0 - axes[j, 0, r] * d2
+                jt[b, 2, j] = axes[j, 0, r] * d1 - axes[j, 1, r] * d0
+            for i in range(3):
+                for k in range(3):
+                    flat[3 * i + k] = cols[i, k, r]
+            for i in range(3):  # a matrix product; for one arm, a matrix-vector product
+                if alone:
+                    v[i] = _dot9(orient_cols, i, flat)
+                else:
+                    acc = 0.0
+                    for n in range(9):
+                        acc = _fma(orient_cols[i, n], flat[n], acc)
+                    v[i] = acc
+            for j in range(N_ARM):
+                p0, p1, p2 = axes[j, 0, r] * v[0], axes[j, 1, r] * v[1], axes[j, 2, r] * v[2]
+                sj = _one(p0, p1, p2) if alone else ((0.0 + p0) + p1) + p2
+                sj = sj * orient_gain
+                if has_ref[b]:
+                    sj = sj + posture * (ref[j, b] - q[j, r])
+                s[b, j] = sj
+            qa = q[:, r]
+            _dls(qa, jt[b, 0], jt[b, 1], jt[b, 2], s[b], e[b, 0], e[b, 1], e[b, 2], damp2,
+                 ones, q_new[b], alone)  # fmt: skip
+            hit[b] = False
+            for j in range(N_ARM):
+                hit[b] = hit[b] or q_new[b, j] < lo[j] or q_new[b, j] > hi[j]
+            n_hit += hit[b]
+        for t in range(size):
+            b = members[t]
+            if not (moving[b] and hit[b]):
+                continue
+            # Joints at a limit drop out (their columns of J and entries of s times 0).
+            for j in range(N_ARM):
+                f = 0.0 if q_new[b, j] < lo[j] or q_new[b, j] > hi[j] else 1.0
+                sf[j] = s[b, j] * f
+                for i in range(3):
+                    jf[i, j] = jt[b, i, j] * f
+            _dls(q[:, rows[b]], jf[0], jf[1], jf[2], sf, e[b, 0], e[b, 1], e[b, 2], damp2,
+                 ones, q_new[b], n_hit == 1)  # fmt: skip
+        for t in range(size):
+            b = members[t]
+            if not moving[b]:
+                continue
+            r = rows[b]
+            for j in range(N_ARM):
+                qn = q_new[b, j]
+                qn = qn if qn != qn or qn >= lo[j] else lo[j]  # np.maximum: NaN stays
+                q[j, r] = qn if qn != qn or qn <= hi[j] else hi[j]
+            _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame)
+    for b in range(nb):
+        r = rows[b]
+        e0, e1, e2 = target[0, b] - site[0, r], target[1, b] - site[1, r], target[2, b] - site[2, r]
+        err[b] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
+
+
+@_jit
+def _one(p0, p1, p2):
+    """A sum of 3 products as numpy's einsum adds them for a batch of one (its contiguous inner
+    loop): (p0 + p2) + p1."""
+    return (0.0 + p0 + p2) + p1
+
+
+@_jit
+def restart(
+    fp, m, d, site, xpos, xmat, q, jp_full, jr_full, orient6, target, iters, tol, ref, og, pg,
+    damp2, lo, hi,
+):  # fmt: skip
+    """``BatchedPandaIK._restart``: one arm on the single IK's model (MuJoCo's kinematics and
+    Jacobian) with the batched IK's step; the remaining error."""
+    tx, ty, tz = target[0], target[1], target[2]
+    tol2 = tol * tol
+    s, ql, q_new = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
+    free = np.empty(N_ARM, dtype=np.bool_)
+    site32 = np.int32(site)
+    for j in range(N_ARM):
+        ql[j] = q[j]
+    for _ in range(iters):
+        e0, e1, e2 = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+        if e0 * e0 + e1 * e1 + e2 * e2 < tol2:
+            break
+        _call_md(fp[COM], m, d)
+        _call_jac(fp[JAC], m, d, jp_full.ctypes.data, jr_full.ctypes.data, site32)
+        v = np.empty(3)
+        for i in range(3):
+            o = orient6[i]
+            v[i] = (
+                o[0] * xmat[0] + o[1] * xmat[2] + o[2] * xmat[3] + o[3] * xmat[5]
+                + o[4] * xmat[6] + o[5] * xmat[8]
+            )  # fmt: skip
+        for j in range(N_ARM):
+            a, b, c = jr_full[0, j], jr_full[1, j], jr_full[2, j]
+            s[j] = og * (a * v[0] + b * v[1] + c * v[2]) + pg * (ref[j] - ql[j])
+            free[j] = True
+        _dls(ql, jp_full[0], jp_full[1], jp_full[2], s, e0, e1, e2, damp2, free, q_new)
+        hit = False
+        for j in range(N_ARM):
+            free[j] = lo[j] <= q_new[j] <= hi[j]
+            hit = hit or not free[j]
+        if hit:
+            _dls(ql, jp_full[0], jp_full[1], jp_full[2], s, e0, e1, e2, damp2, free, q_new)
+        for j in range(N_ARM):
+            qn = q_new[j]
+            ql[j] = hi[j] if qn > hi[j] else (lo[j] if qn < lo[j] else qn)
+            q[j] = ql[j]
+        _call_md(fp[KIN], m, d)
+    e0, e1, e2 = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+    return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
+@functools.cache
+def addresses() -> np.ndarray | None:
+    """MuJoCo's function addresses for ``restart`` (None: as ``solver``'s, no kernel)."""
+    if not hasattr(mujoco.MjModel, "_address") or solver() is None:
+        return None
+    return _addresses()
