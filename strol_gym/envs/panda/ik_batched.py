@@ -40,6 +40,10 @@ runs until its slowest arm converges or 8x the iterations)."""
 COMPACT = 0.5
 """A set of arms iterates together (the converged ones held still) while at least this fraction
 of it still iterates; below, a compact copy of just those goes on."""
+HANDOFF = 192
+"""With the compiled kernels, a set of at most this many arms goes on in the compiled loop
+(``ik_kernel.batched_solve``, one arm at a time, ~1 µs an arm and iteration); a larger one in
+numpy (~0.1 ms an iteration plus ~0.4 µs an arm): the same numbers either way."""
 
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
@@ -199,16 +203,16 @@ class BatchedPandaIK:
 
     def forward(self, rows: np.ndarray | slice = slice(None)) -> None:
         """Recompute the kinematics of arms ``rows`` from ``q``."""
-        kernels = self._kernels()
+        idx = np.arange(self.n)[rows]
+        kernels = self._kernels() if len(idx) <= HANDOFF else None
         if kernels is not None:
             a = self._arms
-            idx = np.arange(self.n)[rows]
             kernels.batched_forward(a.q, a.site, a.cols, a.axes, a.anchors, idx, *self._chain())
             return
         if (isinstance(rows, slice) and rows == slice(None)) or self._all_rows(rows):
             self._fk(self._arms)
             return
-        arms = _Arms.empty(len(np.arange(self.n)[rows]))
+        arms = _Arms.empty(len(idx))
         arms.q[:] = self._q[:, rows]
         self._fk(arms)
         self._arms.put(rows, arms)
@@ -360,17 +364,8 @@ class BatchedPandaIK:
         converged ones held still, while enough of the set still iterates; below
         ``COMPACT`` of it, a smaller copy of just those goes on (a gather, and the others'
         state written back), so that few arms don't pay for many."""
-        kernels = self._kernels()
-        if kernels is not None:  # one arm at a time, to its end (the same numbers)
-            a, err = self._arms, np.empty(len(rows))
-            kernels.batched_solve(
-                a.q, a.site, a.cols, a.axes, a.anchors, np.asarray(rows, dtype=np.intp),
-                np.ascontiguousarray(target), iters, tol, np.ascontiguousarray(ref),
-                np.ascontiguousarray(has_ref), *self._chain(), self._orient_cols,
-                IK_ORIENT_GAIN, IK_POSTURE_GAIN, self._damp2, self.lo, self.hi, COMPACT, err,
-            )  # fmt: skip
-            return err
         tol2 = tol * tol
+        kernels = self._kernels()
         idx: np.ndarray | None
         if self._all_rows(rows):
             arms, idx = self._arms, None  # in place
@@ -380,7 +375,21 @@ class BatchedPandaIK:
         tgt = target
         # None: every arm has a reference posture
         ref_mask: np.ndarray | None = None if has_ref.all() else has_ref
-        for _ in range(iters):
+        for it in range(iters):
+            if kernels is not None and len(moving) <= HANDOFF:
+                # The compiled kernel goes on from here, in the same lockstep, on self._arms.
+                if idx is not None:
+                    self._arms.put(idx, arms)
+                a, here = self._arms, rows if idx is None else idx
+                kernels.batched_solve(
+                    a.q, a.site, a.cols, a.axes, a.anchors, np.asarray(here, dtype=np.intp),
+                    np.ascontiguousarray(tgt), iters - it, tol, np.ascontiguousarray(ref),
+                    np.ones(len(moving), dtype=bool) if ref_mask is None else ref_mask,
+                    moving, *self._chain(), self._orient_cols, IK_ORIENT_GAIN,
+                    IK_POSTURE_GAIN, self._damp2, self.lo, self.hi, COMPACT,
+                )  # fmt: skip
+                idx = None
+                break
             ep = tgt - arms.site
             moving &= np.einsum("ib,ib->b", ep, ep) >= tol2  # |e|², summed in order
             live = int(moving.sum())
@@ -487,8 +496,9 @@ by ``compiled_kernels``)."""
 def compiled_kernels(ik: BatchedPandaIK) -> bool:
     """Whether ``ik``'s arms take the compiled kernels: the fast kernels are on, the single IK's
     kernel runs here (MuJoCo's binding and symbols, this BLAS), and the N-arm kernels reach the
-    plain path's bits on 96 arms from random postures towards random targets, near and out of
-    reach (limit steps, both kinds of restart). Checked once per process."""
+    plain path's bits on 384 arms from random postures towards random targets, near and out of
+    reach (limit steps, both kinds of restart, numpy's lockstep handing over to the compiled
+    one). Checked once per process."""
     global _AGREES
     if not use_fast():
         return False
@@ -496,11 +506,14 @@ def compiled_kernels(ik: BatchedPandaIK) -> bool:
         from strol_gym.envs.panda import ik_kernel
 
         _AGREES = False  # while the check builds its own arms
-        _AGREES = ik_kernel.addresses() is not None and _agrees(ik._single)
+        try:
+            _AGREES = ik_kernel.addresses() is not None and _agrees(ik._single)
+        except Exception:  # a numba that cannot compile a kernel here: the plain path runs
+            _AGREES = False
     return _AGREES
 
 
-def _agrees(single: PandaIK, n: int = 96) -> bool:
+def _agrees(single: PandaIK, n: int = 2 * HANDOFF) -> bool:
     """The plain and the compiled N-arm IK on the same arms and targets: the same bytes?"""
     q0 = single.q.copy()
     rng = np.random.default_rng(0)

@@ -309,30 +309,24 @@ _dls = _jit(dls_step)
 
 
 @_jit
-def _gemm(a, b, out):
-    """out = a @ b as OpenBLAS's matrix product computes it: fused multiply-adds in order."""
-    for i in range(a.shape[0]):
-        for n in range(b.shape[1]):
-            acc = 0.0
-            for k in range(a.shape[1]):
-                acc = _fma(a[i, k], b[k, n], acc)
-            out[i, n] = acc
-
-
-@_jit
-def _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame):
-    """``BatchedPandaIK._fk`` of arm ``r``: its kinematics from its joint angles, in place."""
+def _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, f):
+    """``BatchedPandaIK._fk`` of arm ``r``: its kinematics from its joint angles, in place.
+    Its matrix products as OpenBLAS's: one fused multiply-add per term, in order, from 0."""
     for k in range(3):
+        for i in range(3):
+            f[i, k] = base_cols[i, k]
         axes[0, k, r] = base_cols[2, k]
         anchors[0, k, r] = base_pos[k]
-    f = base_cols
     for j in range(N_ARM):
-        if j:
-            _gemm(links[j], rot, frame)
+        if j:  # the next body's frame (rows 0-2) and its offset (row 3): links[j] @ rot
             for k in range(3):
-                anchors[j, k, r] = anchors[j - 1, k, r] + frame[3, k]
-                axes[j, k, r] = frame[2, k]
-            f = frame
+                r0, r1, r2 = rot[0, k], rot[1, k], rot[2, k]
+                for i in range(4):
+                    f[i, k] = _fma(
+                        links[j, i, 2], r2, _fma(links[j, i, 1], r1, _fma(links[j, i, 0], r0, 0.0))
+                    )
+                anchors[j, k, r] = anchors[j - 1, k, r] + f[3, k]
+                axes[j, k, r] = f[2, k]
         c, sn = np.cos(q[j, r]), np.sin(q[j, r])
         nsn = -sn
         for k in range(3):
@@ -341,11 +335,14 @@ def _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, 
             rot[0, k] = x0 * c + y0 * sn
             rot[1, k] = y0 * c + x0 * nsn
             rot[2, k] = axes[j, k, r]
-    _gemm(site_link, rot, frame)
     for k in range(3):
-        for i in range(3):
-            cols[i, k, r] = frame[i, k]
-        site[k, r] = anchors[N_ARM - 1, k, r] + frame[3, k]
+        r0, r1, r2 = rot[0, k], rot[1, k], rot[2, k]
+        for i in range(4):
+            x = _fma(site_link[i, 2], r2, _fma(site_link[i, 1], r1, _fma(site_link[i, 0], r0, 0.0)))
+            if i < 3:
+                cols[i, k, r] = x
+            else:
+                site[k, r] = anchors[N_ARM - 1, k, r] + x
 
 
 @_jit
@@ -358,11 +355,11 @@ def batched_forward(q, site, cols, axes, anchors, rows, base_cols, base_pos, lin
 
 @_jit
 def batched_solve(
-    q, site, cols, axes, anchors, rows, target, iters, tol, ref, has_ref, base_cols, base_pos,
-    links, site_link, orient_cols, orient_gain, posture, damp2, lo, hi, compact, err,
+    q, site, cols, axes, anchors, rows, target, iters, tol, ref, has_ref, moving, base_cols,
+    base_pos, links, site_link, orient_cols, orient_gain, posture, damp2, lo, hi, compact,
 ):  # fmt: skip
     """``BatchedPandaIK._solve``: arms ``rows`` iterate towards world-frame ``target`` (3, B)
-    until within ``tol`` or ``iters``; their errors into ``err`` (B,).
+    until within ``tol`` or ``iters``; ``moving`` (B,): those not yet within it, updated.
 
     The arms go in the plain path's lockstep (the set that iterates, its compaction below
     ``compact``, the arms that hit a limit together), because numpy sums some products in
@@ -370,13 +367,15 @@ def batched_solve(
     nb = rows.shape[0]
     tol2 = tol * tol
     rot, frame = np.empty((3, 3)), np.empty((4, 3))
-    jt, jf = np.empty((nb, 3, N_ARM)), np.empty((3, N_ARM))  # J by rows, per arm
-    s, sf, q_new = np.empty((nb, N_ARM)), np.empty(N_ARM), np.empty((nb, N_ARM))
+    jt = np.empty((nb, 3, N_ARM))  # J by rows, per arm
+    s, q_new = np.empty((nb, N_ARM)), np.empty((nb, N_ARM))
+    ja, jb, jc = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
+    sa, qa, qo = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
     e = np.empty((nb, 3))
     ones = np.ones(N_ARM, dtype=np.bool_)
     flat, v = np.empty(9), np.empty(3)
     members = np.arange(nb)
-    moving, hit = np.ones(nb, dtype=np.bool_), np.zeros(nb, dtype=np.bool_)
+    hit = np.zeros(nb, dtype=np.bool_)
     size = nb
     for _ in range(iters):
         live = 0
@@ -430,9 +429,17 @@ def batched_solve(
                 if has_ref[b]:
                     sj = sj + posture * (ref[j, b] - q[j, r])
                 s[b, j] = sj
-            qa = q[:, r]
-            _dls(qa, jt[b, 0], jt[b, 1], jt[b, 2], s[b], e[b, 0], e[b, 1], e[b, 2], damp2,
-                 ones, q_new[b], alone)  # fmt: skip
+            for j in range(N_ARM):  # one arm's numbers, contiguous, for the one-arm step
+                ja[j], jb[j], jc[j], sa[j], qa[j] = (
+                    jt[b, 0, j],
+                    jt[b, 1, j],
+                    jt[b, 2, j],
+                    s[b, j],
+                    q[j, r],
+                )
+            _dls(qa, ja, jb, jc, sa, e[b, 0], e[b, 1], e[b, 2], damp2, ones, qo, alone)
+            for j in range(N_ARM):
+                q_new[b, j] = qo[j]
             hit[b] = False
             for j in range(N_ARM):
                 hit[b] = hit[b] or q_new[b, j] < lo[j] or q_new[b, j] > hi[j]
@@ -442,13 +449,14 @@ def batched_solve(
             if not (moving[b] and hit[b]):
                 continue
             # Joints at a limit drop out (their columns of J and entries of s times 0).
+            r = rows[b]
             for j in range(N_ARM):
                 f = 0.0 if q_new[b, j] < lo[j] or q_new[b, j] > hi[j] else 1.0
-                sf[j] = s[b, j] * f
-                for i in range(3):
-                    jf[i, j] = jt[b, i, j] * f
-            _dls(q[:, rows[b]], jf[0], jf[1], jf[2], sf, e[b, 0], e[b, 1], e[b, 2], damp2,
-                 ones, q_new[b], n_hit == 1)  # fmt: skip
+                ja[j], jb[j], jc[j] = jt[b, 0, j] * f, jt[b, 1, j] * f, jt[b, 2, j] * f
+                sa[j], qa[j] = s[b, j] * f, q[j, r]
+            _dls(qa, ja, jb, jc, sa, e[b, 0], e[b, 1], e[b, 2], damp2, ones, qo, n_hit == 1)
+            for j in range(N_ARM):
+                q_new[b, j] = qo[j]
         for t in range(size):
             b = members[t]
             if not moving[b]:
@@ -459,10 +467,6 @@ def batched_solve(
                 qn = qn if qn != qn or qn >= lo[j] else lo[j]  # np.maximum: NaN stays
                 q[j, r] = qn if qn != qn or qn <= hi[j] else hi[j]
             _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame)
-    for b in range(nb):
-        r = rows[b]
-        e0, e1, e2 = target[0, b] - site[0, r], target[1, b] - site[1, r], target[2, b] - site[2, r]
-        err[b] = np.sqrt((e0 * e0 + e1 * e1) + e2 * e2)
 
 
 @_jit
