@@ -47,6 +47,8 @@ _SYMBOLS = (
 )
 """The C functions the kernel calls, in the order of its ``fp`` argument."""
 KIN, COM, JAC, CHOL, SOLVE, MUL_T = range(len(_SYMBOLS))
+_FP = np.zeros(len(_SYMBOLS), dtype=np.intp)
+"""The C functions' addresses, once ``solver()`` has found them."""
 
 _jit = njit(cache=True, nogil=True)
 
@@ -252,6 +254,49 @@ def _solve(
     return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
 
 
+@_jit
+def _solve_recover(
+    fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, target, lift, iters, tol,
+    seeds, seed_low, seed_step, seed_top, orient_gain, posture, damp2, lo, hi, recover, no_ref,
+):  # fmt: skip
+    """``PandaIK.solve`` in one call: the task-frame ``target`` to the world's, the seed
+    table's posture nearest it (``PandaIK.reference``; an empty table: none), ``_solve``, and
+    the restart from that posture when the error stays above ``recover`` x ``tol``."""
+    world = np.empty(3)
+    for i in range(3):
+        world[i] = target[i] + lift[i]
+    has_ref = seeds.shape[0] > 0
+    ref = no_ref
+    if has_ref:
+        idx = np.empty(3, dtype=np.intp)
+        for i in range(3):
+            k = int(np.rint((target[i] - seed_low[i]) / seed_step[i]))  # round(): half to even
+            idx[i] = min(max(k, 0), seed_top[i])
+        ref = seeds[idx[0], idx[1], idx[2]]
+        has_ref = not np.isnan(ref[0])
+        if not has_ref:
+            ref = no_ref
+    args = (orient_gain, posture, damp2, lo, hi)
+    err = _solve(
+        fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, world, iters, tol, ref,
+        has_ref, *args,
+    )  # fmt: skip
+    if err > recover * tol and has_ref:
+        q_prev = q.copy()
+        q[:] = ref
+        _call_md(fp[KIN], m, d)
+        err_ref = _solve(
+            fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, world, 8 * iters, tol,
+            ref, has_ref, *args,
+        )  # fmt: skip
+        if err_ref < err:
+            err = err_ref
+        else:
+            q[:] = q_prev
+            _call_md(fp[KIN], m, d)
+    return err
+
+
 def _addresses() -> np.ndarray | None:
     """The C functions' addresses in MuJoCo's shared library (the one the binding loaded), in
     ``_SYMBOLS``' order; None where there is no such library or a symbol is missing."""
@@ -293,10 +338,25 @@ def solver() -> Callable[..., float] | None:
     (``MjModel._address``), no library or symbols, or a BLAS that sums otherwise."""
     if not hasattr(mujoco.MjModel, "_address"):
         return None
+    global _FP
     fp = _addresses()
     if fp is None or not _agrees():
         return None
+    _FP = fp
     return functools.partial(_solve, fp)
+
+
+def solve_arm(ik: Any, target: Any, iters: int, tol: float) -> float:
+    """``PandaIK.solve`` (``ik``) by ``_solve_recover``; only where ``solver()`` is not None."""
+    from strol_gym.envs.panda.ik import IK_DAMPING, IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_RECOVER
+
+    d, site = ik.data, ik.site
+    return _solve_recover(
+        _FP, ik.model._address, d._address, site, d.site_xpos[site], d.site_xmat[site], ik.q,
+        ik._jp, ik._jr, ik._w9, ik._orient, np.asarray(target, dtype=np.float64), ik.lift,
+        iters, tol, *ik.seed_args, IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_DAMPING**2, ik.lo, ik.hi,
+        IK_RECOVER, ik._no_ref,
+    )  # fmt: skip
 
 
 # ---------------------------------------------------------------------------- N arms
