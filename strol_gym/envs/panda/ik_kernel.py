@@ -256,12 +256,18 @@ def _solve(
 
 @_jit
 def _solve_recover(
-    fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, target, lift, iters, tol,
-    seeds, seed_low, seed_step, seed_top, orient_gain, posture, damp2, lo, hi, recover, no_ref,
+    fp, ptr, xpos, xmat, q, jp_full, jr_full, w9, orient, target, iters, tol, consts, seeds,
+    seed_grid, seed_top, limits, no_ref,
 ):  # fmt: skip
     """``PandaIK.solve`` in one call: the task-frame ``target`` to the world's, the seed
     table's posture nearest it (``PandaIK.reference``; an empty table: none), ``_solve``, and
-    the restart from that posture when the error stays above ``recover`` x ``tol``."""
+    the restart from that posture when the error stays above IK_RECOVER x ``tol``. Few
+    arguments (numba's dispatch costs per argument): ``ptr`` = (model, data, site),
+    ``consts`` = (lift x3, gains, λ², IK_RECOVER), ``seed_grid`` = (low; step), ``limits`` =
+    (lo; hi)."""
+    m, d, site = ptr[0], ptr[1], ptr[2]
+    lift, seed_low, seed_step, lo, hi = consts[:3], seed_grid[0], seed_grid[1], limits[0], limits[1]
+    orient_gain, posture, damp2, recover = consts[3], consts[4], consts[5], consts[6]
     world = np.empty(3)
     for i in range(3):
         world[i] = target[i] + lift[i]
@@ -350,13 +356,20 @@ def solve_arm(ik: Any, target: Any, iters: int, tol: float) -> float:
     """``PandaIK.solve`` (``ik``) by ``_solve_recover``; only where ``solver()`` is not None."""
     from strol_gym.envs.panda.ik import IK_DAMPING, IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_RECOVER
 
-    d, site = ik.data, ik.site
-    return _solve_recover(
-        _FP, ik.model._address, d._address, site, d.site_xpos[site], d.site_xmat[site], ik.q,
-        ik._jp, ik._jr, ik._w9, ik._orient, np.asarray(target, dtype=np.float64), ik.lift,
-        iters, tol, *ik.seed_args, IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_DAMPING**2, ik.lo, ik.hi,
-        IK_RECOVER, ik._no_ref,
-    )  # fmt: skip
+    args = ik.__dict__.get("_kernel_args")
+    if args is None:  # once per arm: views of its MuJoCo data and its constants
+        d, site = ik.data, ik.site
+        ptr = np.array([ik.model._address, d._address, site], dtype=np.intp)
+        gains = [IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_DAMPING**2, IK_RECOVER]
+        table, low, step, top = ik.seed_args
+        args = ik._kernel_args = (
+            (ptr, d.site_xpos[site], d.site_xmat[site], ik.q, ik._jp, ik._jr, ik._w9, ik._orient),
+            (np.array([*ik.lift, *gains]), table, np.vstack([low, step]), top),
+            (np.vstack([ik.lo, ik.hi]), ik._no_ref),
+        )
+    arm, (consts, table, grid, top), (limits, no_ref) = args
+    target = np.asarray(target, dtype=np.float64)
+    return _solve_recover(_FP, *arm, target, iters, tol, consts, table, grid, top, limits, no_ref)
 
 
 # ---------------------------------------------------------------------------- N arms
