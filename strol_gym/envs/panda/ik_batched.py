@@ -525,7 +525,7 @@ def _agrees(single: PandaIK, n: int = 2 * HANDOFF) -> bool:
         ik._compiled = fast
         ik.q[:] = start
         ik.forward()
-        out = []
+        out: list[np.ndarray] = []
         every, third = np.arange(n), np.arange(0, n, 3)
         for spread, rows in ((0.15, every), (2.0, every), (2.0, third), (0.6, every)):
             target = np.random.default_rng(len(out)).normal(0.0, spread, (len(rows), 3))

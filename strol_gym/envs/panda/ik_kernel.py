@@ -50,7 +50,7 @@ KIN, COM, JAC, CHOL, SOLVE, MUL_T = range(len(_SYMBOLS))
 _FP = np.zeros(len(_SYMBOLS), dtype=np.intp)
 """The C functions' addresses, once ``solver()`` has found them."""
 
-_jit = njit(cache=True, nogil=True)
+_jit: Any = njit(cache=True, nogil=True)  # its functions are checked by numba, not mypy
 
 
 @intrinsic
