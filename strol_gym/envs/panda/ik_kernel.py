@@ -447,7 +447,7 @@ def batched_solve(
     e = np.empty((nb, 3))
     ones = np.ones(N_ARM, dtype=np.bool_)
     flat, v = np.empty(9), np.empty(3)
-    members = np.arange(nb)
+    members, act = np.arange(nb), np.empty(nb, dtype=np.intp)
     hit = np.zeros(nb, dtype=np.bool_)
     size = nb
     for _ in range(iters):
@@ -470,11 +470,12 @@ def batched_solve(
                     members[k] = members[t]
                     k += 1
             size = k
-        alone, n_hit = size == 1, 0
-        for t in range(size):
-            b = members[t]
-            if not moving[b]:
-                continue
+        alone, n_hit, n_act = size == 1, 0, 0
+        for t in range(size):  # the arms that move this iteration
+            if moving[members[t]]:
+                act[n_act] = members[t]
+                n_act += 1
+        for b in act[:n_act]:
             r = rows[b]
             # The position Jacobian's column j: axis_j × (site − anchor_j).
             for j in range(N_ARM):
@@ -517,9 +518,8 @@ def batched_solve(
             for j in range(N_ARM):
                 hit[b] = hit[b] or q_new[b, j] < lo[j] or q_new[b, j] > hi[j]
             n_hit += hit[b]
-        for t in range(size):
-            b = members[t]
-            if not (moving[b] and hit[b]):
+        for b in act[:n_act]:
+            if not hit[b]:
                 continue
             # Joints at a limit drop out (their columns of J and entries of s times 0).
             r = rows[b]
@@ -530,10 +530,7 @@ def batched_solve(
             _dls(qa, ja, jb, jc, sa, e[b, 0], e[b, 1], e[b, 2], damp2, ones, qo, n_hit == 1)
             for j in range(N_ARM):
                 q_new[b, j] = qo[j]
-        for t in range(size):
-            b = members[t]
-            if not moving[b]:
-                continue
+        for b in act[:n_act]:
             r = rows[b]
             for j in range(N_ARM):
                 qn = q_new[b, j]
