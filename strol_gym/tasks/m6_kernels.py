@@ -3,7 +3,7 @@
 
 Each loop repeats, number for number, the IEEE operations of the plain path (``RobotTask.g_planes``
 or ``HighwayTask.g`` followed by ``strol_gym.humans.choices.optimal_correction``), in the same
-order and without fast-math, so it picks the same candidate to the bit (tests/test_kernels.py).
+order and without fast-math, so it picks the same candidate to the bit (tests/test_compiled.py).
 Sine and cosine are the C library's in both paths; numpy's tangent and arctangent are its own
 (SIMD) ones, so the Highway's steering angle β = arctan(½ tan δ) comes in computed by numpy.
 """
