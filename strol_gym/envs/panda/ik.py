@@ -73,6 +73,8 @@ class PandaIK:
             self._seed_low_l = self._seed_low.tolist()
             self._seed_step_l = self._seed_step.tolist()
             self._seed_top = self._seed_max.tolist()
+        self.kernel_gains = (IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_DAMPING**2, IK_RECOVER)
+        """The constants the compiled solve reads (``ik_kernel.solve_arm``), in its order."""
         # The seed table as the compiled solve reads it (an empty one: no table).
         table = np.zeros((0, 1, 1, N_ARM)) if seeds is None else np.asarray(seeds, dtype=np.float64)
         self.seed_args = (

@@ -30,7 +30,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic as numba_intrinsic
 
-from strol_gym.envs.panda.ik_batched import dls_step
+from strol_gym.envs.panda.ik_step import dls_step
 from strol_gym.envs.panda.model import N_ARM
 
 # An @intrinsic is called without its first parameter (numba passes the typing context), which
@@ -354,17 +354,14 @@ def solver() -> Callable[..., float] | None:
 
 def solve_arm(ik: Any, target: Any, iters: int, tol: float) -> float:
     """``PandaIK.solve`` (``ik``) by ``_solve_recover``; only where ``solver()`` is not None."""
-    from strol_gym.envs.panda.ik import IK_DAMPING, IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_RECOVER
-
     args = ik.__dict__.get("_kernel_args")
     if args is None:  # once per arm: views of its MuJoCo data and its constants
         d, site = ik.data, ik.site
         ptr = np.array([ik.model._address, d._address, site], dtype=np.intp)
-        gains = [IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_DAMPING**2, IK_RECOVER]
         table, low, step, top = ik.seed_args
         args = ik._kernel_args = (
             (ptr, d.site_xpos[site], d.site_xmat[site], ik.q, ik._jp, ik._jr, ik._w9, ik._orient),
-            (np.array([*ik.lift, *gains]), table, np.vstack([low, step]), top),
+            (np.array([*ik.lift, *ik.kernel_gains]), table, np.vstack([low, step]), top),
             (np.vstack([ik.lo, ik.hi]), ik._no_ref),
         )
     arm, (consts, table, grid, top), (limits, no_ref) = args
