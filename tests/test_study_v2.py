@@ -59,7 +59,8 @@ def test_random_pushes_read_as_pushed():
             env.reset(seed=seed)
             run(env, start)
             env.apply_wrench(force, torque, duration=1.0)
-            ends = [i for i in run(env, 24) if i["is_correction"]]
+            # the push's 20 steps, the 0.4 s hold-off (8 steps), the step it ends
+            ends = [i for i in run(env, 32) if i["is_correction"]]
             if not ends:  # the speed reflex stopped the shove: no u_H (counted below)
                 lost += 1
                 continue
