@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from strol_gym.envs.panda.model import N_ARM
+from strol_gym.envs.study.admittance import REST, Admittance, rotation
 from strol_gym.envs.study.scene import JOINT_DAMPING
 from strol_gym.tasks.study import CONTROL_DT
 
@@ -72,6 +73,8 @@ _CONTROL_STATE = (
     "_lam",
     "_dyn_inv",
     "_jt_damp",
+    "_adm",
+    "_kmat",
 )
 """v1's controller state between steps (each rebound, never changed in place)."""
 MODEL_EVERY = 4
@@ -119,6 +122,8 @@ class ImpedanceController:
         _cup_geom: int
         _object_geoms: frozenset[int]
         _touched: bool
+        stiffness: float
+        rot_stiffness: float
 
         def _trip(self) -> None: ...
 
@@ -139,6 +144,10 @@ class ImpedanceController:
         self._reflex_vlim = (SPEED_REFLEX * VELOCITY_LIMIT).tolist()
         self._qacc = self.data.qacc[:N_ARM]
         self._tlim = TORQUE_LIMIT.tolist()
+        self._integral_max = self.version.integral_max or INTEGRAL_MAX
+        if self.version.admittance:
+            dt = HOLD * self.model.opt.timestep
+            self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
 
     def _control_state(self) -> dict[str, Any]:
         """The controller's state (v1's), to run the simulation again from here."""
@@ -154,6 +163,7 @@ class ImpedanceController:
         self._v_prev = _ZERO6
         self._model_age = 0
         self._v_feed: list[float] | None = None
+        self._adm = REST
 
     def _simulate(self, v_sp: Velocity) -> None:
         """One control step of physics with the version's controller."""
@@ -244,9 +254,14 @@ class ImpedanceController:
             mujoco.mj_fullM(self.model, self.data, self._mass)
             m_inv_jt = np.linalg.solve(self._mass[:N_ARM, :N_ARM], ja.T)
             lam = np.linalg.inv(ja.dot(m_inv_jt) + LAMBDA_REG)
-            vals, vecs = np.linalg.eigh(lam)
-            root = (vecs * np.sqrt(np.maximum(vals, 0.0))).dot(vecs.T)
-            jt_damp = ja.T.dot(root * self._sqrt_k + self._sqrt_k[:, None] * root)
+            band = self.version.track_bandwidth
+            if band:  # v2: K = ω² Λ, D = 2ωΛ: each direction tracks with bandwidth ω
+                self._kmat = (band * band) * lam
+                jt_damp = ja.T.dot((2.0 * band) * lam)
+            else:
+                vals, vecs = np.linalg.eigh(lam)
+                root = (vecs * np.sqrt(np.maximum(vals, 0.0))).dot(vecs.T)
+                jt_damp = ja.T.dot(root * self._sqrt_k + self._sqrt_k[:, None] * root)
             # The elbow's pull acts in the task's null space only (N = I − Jᵀ J̄ᵀ): v0's pull,
             # unprojected, turned the wrist off its setpoint by up to 0.05 rad.
             null = self._eye7 - ja.T.dot(lam.dot(m_inv_jt.T))
@@ -280,6 +295,7 @@ class ImpedanceController:
             self._hand_xfrc[:] = 0.0
             self._v_prev = _ZERO6
             self._model_age = 0
+            self._adm = REST
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
             self._time += CONTROL_DT
@@ -292,45 +308,86 @@ class ImpedanceController:
         vx, vy, vz, wx, wy, wz = v_sp
         integrate = not self._active
         dt_i = HOLD * self.model.opt.timestep
-        gp, gr = kp * K_INTEGRAL[0] * dt_i, kr * K_INTEGRAL[1] * dt_i
-        ip, ir = INTEGRAL_MAX
+        band = self.version.track_bandwidth
+        if band:  # v2: the integral of the stiffness wrench K e (K = ω² Λ)
+            gp, gr = (g * dt_i for g in self.version.integral_gain or K_INTEGRAL)
+        else:
+            gp, gr = kp * K_INTEGRAL[0] * dt_i, kr * K_INTEGRAL[1] * dt_i
+        ip, ir = self._integral_max
         vlim, half = self._vlim, self._half_vlim
         brake = self.version.joint_brake
-        pushed = brake and self._hand_xfrc.any()
+        adm = self.version.admittance
+        wext = self._wrench.tolist()
+        pushed = brake and (self._hand_xfrc.any() or (adm and self._adm is not REST))
         for i in range(self._n_sub // HOLD):
             mujoco.mj_jacSite(m, d, jp, jr, site)
             if i == 0:
                 self._model_terms(np.array(v_sp))
             x, y, z = xpos.tolist()
-            (_, r01, r02), (r10, _, r12), (r20, r21, _) = sp_r.dot(xmat_t).tolist()
+            ox = oy = oz = 0.0
+            target_r, feed, damp = sp_r, None, None
+            if adm and (self._adm is not REST or any(wext)):
+                # The admittance target over this chunk (its midpoint), its velocity and
+                # acceleration fed forward, the person's wrench cancelled (the target moves
+                # for it): the tracking law carries the cup along δ.
+                s0 = self._adm
+                s1 = self._adm = self._admit.step(s0, wext)
+                ox, oy, oz, rx, ry, rz = (0.5 * (a + b) for a, b in zip(s0, s1[:6], strict=False))
+                target_r = rotation(rx, ry, rz).dot(sp_r)
+                inv = 1.0 / dt_i
+                acc = [(b - a) * inv for a, b in zip(s0[6:], s1[6:], strict=True)]
+                feed = self._lam.dot(acc) - wext
+                vel = [(b - a) * inv for a, b in zip(s0[:6], s1[:6], strict=True)]
+                damp = self._jt_damp.dot(vel).tolist()
+            (_, r01, r02), (r10, _, r12), (r20, r21, _) = target_r.dot(xmat_t).tolist()
             # The setpoint where it is at this chunk's start (it moves linearly over the
             # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
             back = CONTROL_DT - i * dt_i
             e = (
-                spx - vx * back - x,
-                spy - vy * back - y,
-                spz - vz * back - z,
+                spx + ox - vx * back - x,
+                spy + oy - vy * back - y,
+                spz + oz - vz * back - z,
                 0.5 * (r21 - r12) - wx * back,
                 0.5 * (r02 - r20) - wy * back,
                 0.5 * (r10 - r01) - wz * back,
             )
             integ = self._integral
-            if integrate:
+            if band:
+                ke = self._kmat.dot(e)
+                if integrate:
+                    integ = [
+                        min(lim, max(-lim, a + g * b))
+                        for a, b, g, lim in zip(
+                            integ,
+                            ke.tolist(),
+                            (gp,) * 3 + (gr,) * 3,
+                            (ip,) * 3 + (ir,) * 3,
+                            strict=True,
+                        )
+                    ]
+                    self._integral = integ
+                w = ke + integ + self._acc_ff
+            elif integrate:
                 integ = [
                     min(ip, max(-ip, a + gp * b)) for a, b in zip(integ[:3], e[:3], strict=False)
                 ] + [min(ir, max(-ir, a + gr * b)) for a, b in zip(integ[3:], e[3:], strict=False)]
                 self._integral = integ
-            w = np.array(
-                [
-                    k * a + b + c
-                    for k, a, b, c in zip(
-                        (kp, kp, kp, kr, kr, kr), e, integ, self._acc_ff, strict=False
-                    )
-                ]
-            )
+            if not band:
+                w = np.array(
+                    [
+                        k * a + b + c
+                        for k, a, b, c in zip(
+                            (kp, kp, kp, kr, kr, kr), e, integ, self._acc_ff, strict=False
+                        )
+                    ]
+                )
+            if feed is not None:
+                w += feed
             rest = self._gain.dot(np.concatenate((q, qd))).tolist()
             joints = zip(w.dot(jac).tolist(), self._const, rest, strict=False)
             ctrl[:] = [t + c - g for t, c, g in joints]
+            if damp is not None:
+                ctrl[:] = [t + b for t, b in zip(ctrl.tolist(), damp, strict=True)]
             if brake:
                 self._step_braked(bool(pushed))
                 if self._braked:  # the speed reflex tripped: the brakes hold from here

@@ -20,6 +20,7 @@ from gymnasium import spaces
 from strol_gym import checks
 from strol_gym.envs.contract import CorrectionEnv, int_arg, render_metadata, vector_arg
 from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
+from strol_gym.envs.study.admittance import REST
 from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
 from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight, within_reach
 from strol_gym.envs.study.participant import Participant
@@ -402,6 +403,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         left it)."""
         self._set_plan(self.task.plan(self.theta_hat, self._x)[0], leg="plan")
         self._sp = self._x.copy()
+        self._adm = REST  # the admittance's displacement is now the setpoint's
         if self._oriented:
             self._sp_R = rpy_to_mat(self._sp[3:])
 
