@@ -61,6 +61,9 @@ BRAKE_FROM, BRAKE_FULL = 0.9, 0.95
 """v2's joint brake: from 0.9x a joint's speed limit its torque blends towards the full
 torque limit against the motion, reached at 0.95x (saturation: the motors' torque is all there
 is; ``qvel`` is never written)."""
+ADMITTANCE_SPEED = 0.5
+"""v2: the share of each joint's speed limit the admittance's motion may ask of it
+(``_cap_speed``); the plan's motion and the tracking come on top."""
 _CONTROL_STATE = (
     "_integral",
     "_v_prev",
@@ -145,6 +148,7 @@ class ImpedanceController:
         self._qacc = self.data.qacc[:N_ARM]
         self._tlim = TORQUE_LIMIT.tolist()
         self._integral_max = self.version.integral_max or INTEGRAL_MAX
+        self._cap_vlim = (ADMITTANCE_SPEED * VELOCITY_LIMIT).tolist()
         if self.version.admittance:
             dt = HOLD * self.model.opt.timestep
             self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
@@ -331,7 +335,7 @@ class ImpedanceController:
                 # acceleration fed forward, the person's wrench cancelled (the target moves
                 # for it): the tracking law carries the cup along δ.
                 s0 = self._adm
-                s1 = self._adm = self._admit.step(s0, wext)
+                s1 = self._adm = self._cap_speed(self._admit.step(s0, wext))
                 ox, oy, oz, rx, ry, rz = (0.5 * (a + b) for a, b in zip(s0, s1[:6], strict=False))
                 target_r = rotation(rx, ry, rz).dot(sp_r)
                 inv = 1.0 / dt_i
@@ -403,6 +407,17 @@ class ImpedanceController:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         self._time += CONTROL_DT
+
+    def _cap_speed(self, s: tuple[float, ...]) -> tuple[float, ...]:
+        """The admittance's state with its velocity scaled down (all six axes alike, so its
+        direction stays) until no joint needs more than ``ADMITTANCE_SPEED`` of its limit to
+        follow it (q̇ = J̄ δ̇, J̄ = M⁻¹ Jᵀ Λ): near a stretched or singular pose a push would
+        otherwise spin a joint into the speed reflex."""
+        need = self._dyn_inv.dot(s[6:]).tolist()
+        over = max(abs(a) / v for a, v in zip(need, self._cap_vlim, strict=True))
+        if over <= 1.0:
+            return s
+        return (*s[:6], *(b / over for b in s[6:]))
 
     def _step_braked(self, pushed: bool) -> None:
         """``HOLD`` physics steps with v2's joint brake (``BRAKE_FROM``): one ``mj_step`` at a
