@@ -507,7 +507,8 @@ def _keep_out_walk(
     yaw (B,) held.
 
     Each waypoint after x0, all at once: the hand (``lever`` m up the cup's axis) is pulled
-    into the shell ``inner`` ≤ distance ≤ ``radius`` around ``shoulder``; a cup inside a hull leaves it by the shorter way (out to its side, or up
+    into the shell ``inner`` ≤ distance ≤ ``radius`` around ``shoulder`` (alternating with the
+    box); a cup inside a hull leaves it by the shorter way (out to its side, or up
     over its top); back into the box ``low``-``high``; a cup the box put back into a hull is
     lifted over it; then the plans are walked at the step bound (``_walk_out``: the lift can
     lengthen a step at a hull's edge). Walking only the planner's result, not every iterate,
