@@ -367,7 +367,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         """The reflex's decision on the summed wrench (before the physics runs)."""
         fx, fy, fz, tx, ty, tz = w.tolist()
         force, torque = math.hypot(fx, fy, fz), math.hypot(tx, ty, tz)
-        if force > self.reflex_force or torque > self.reflex_torque:
+        if force > self.reflex_force or torque > self.reflex_torque or self._overloads(w):
             if not self._braked:
                 self._trip()
             self._release_at = math.inf
@@ -379,6 +379,17 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 self._release_at = self._time + self.reflex_recover - 1e-9
             elif self._time >= self._release_at:
                 self._release()
+
+    def _overloads(self, w: np.ndarray) -> bool:
+        """With the version's ``torque_reflex``: whether the wrench loads a joint beyond that
+        share of its motor's torque (Jᵀ w at the last physics chunk's Jacobian): the motor
+        cannot hold it, so the push would turn the arm about that joint, not move the cup as
+        pushed; the Panda's own controller stops on such external joint torques."""
+        share = self.version.torque_reflex
+        if not share or not w.any():
+            return False
+        load = self._jac[:, :N_ARM].T.dot(w).tolist()
+        return any(abs(t) > share * lim for t, lim in zip(load, self._tlim, strict=True))
 
     def pause(self, seconds: float) -> None:
         """Hold the setpoint where it is for ``seconds`` (the robot waits, then goes on)."""

@@ -77,6 +77,9 @@ class StudyVersion:
     (``stiffness``, ``rot_stiffness``, damping critical for Λ)."""
     integral_gain: tuple[float, float] | None = None
     """The integral's gains (1/s) as multiples of the stiffness; None: ``controller.K_INTEGRAL``."""
+    torque_reflex: float | None = None
+    """The reflex also trips when the person's wrench loads a joint beyond this share of its
+    torque limit (``StudyEnv._overloads``); None: force and torque thresholds only."""
     integral_max: tuple[float, float] | None = None
     """Bounds of the integral wrench per axis (N, N m); None: ``controller.INTEGRAL_MAX``."""
 
@@ -110,6 +113,7 @@ V2 = StudyVersion(
     track_bandwidth=14.0,
     integral_gain=(4.0, 4.0),
     integral_max=(20.0, 3.0),
+    torque_reflex=1.0,
 )
 """u_H by counterfactual, the joint limits at every physics step, the Task's reachable set and
 hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``."""
