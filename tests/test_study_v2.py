@@ -43,24 +43,47 @@ def unit(rng: np.random.Generator) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+CASES = 10
+"""Random pushes per Task in the property test (30 in all)."""
+MISS_RATE = 0.05
+"""Issue 33's targets: u_H's translation within 15° of the push, and (Tasks 2-3) its rotation
+within 30° of the torque's axis, in at least 95 % of pushes."""
+
+
+def allowed_misses(n: int, rate: float = MISS_RATE, alpha: float = 0.005) -> int:
+    """The most misses in n draws that a miss rate of ``rate`` leaves likely (a one-sided
+    binomial test at ``alpha``): more, and the rate is above the target (so a bound from the
+    target, not from what v2 measured; a v2 at exactly the target fails it 0.5 % of runs)."""
+    k, tail = n, 0.0
+    while k > 0:
+        p = math.comb(n, k) * rate**k * (1.0 - rate) ** (n - k)
+        if tail + p > alpha:
+            return k
+        tail += p
+        k -= 1
+    return 0
+
+
 def test_random_pushes_read_as_pushed():
-    """30 held-out pushes (10 per Task): a random study seed, 1-3 s into the episode, 20-60 N
-    in a random direction, on Tasks 2-3 with 1-3 N m about a random axis, for 1 s. The bounds
-    are what v2 reaches (benchmarks/speed/study_v2_pushes.py over 200 per Task; docs/study.md),
-    not all of issue 33's targets."""
+    """30 held-out pushes, 10 per Task in one episode at a random study seed (planning once per
+    episode, not once per push), each 1-3 s after the last one ended (the arm following its
+    plan, waiting, going home, or still springing back), 20-60 N in a random direction, on
+    Tasks 2-3 with 1-3 N m about a random axis, for 1 s, drawn from this run's entropy. Against issue 33's targets: misses
+    (translation beyond 15°, rotation beyond 30°) no more than a 5 % miss rate allows
+    (``allowed_misses``), none beyond 90°. A push that trips the reflex (it loads a joint beyond
+    its motor, or spins one to its speed limit) is no correction; at most half may."""
     rng = np.random.default_rng(ENTROPY)
     trans, rot, lost = [], [], 0
     for task in (1, 2, 3):
-        for _ in range(10):
-            env = make(task=task)
-            seed, start = int(rng.integers(20000, 30000)), int(rng.integers(20, 60))
+        env = make(task=task)
+        env.reset(seed=int(rng.integers(20000, 30000)))
+        for _ in range(CASES):
             force = unit(rng) * rng.uniform(20.0, 60.0)
             torque = unit(rng) * rng.uniform(1.0, 3.0) if task > 1 else np.zeros(3)
-            env.reset(seed=seed)
-            run(env, start)
+            run(env, int(rng.integers(20, 60)))
             env.apply_wrench(force, torque, duration=1.0)
-            ends = [i for i in run(env, 24) if i["is_correction"]]
-            if not ends:  # the speed reflex stopped the shove: no u_H (counted below)
+            ends = [i for i in run(env, 22) if i["is_correction"]]
+            if not ends:  # the reflex stopped the shove: no u_H (counted below)
                 lost += 1
                 continue
             u, x = ends[0]["u_h"], ends[0]["correction_state"]
@@ -69,13 +92,10 @@ def test_random_pushes_read_as_pushed():
                 turn = rotation_error(rpy_to_mat(x[3:] + u[3:]), rpy_to_mat(x[3:]))
                 rot.append(angle_deg(turn, torque))
     msg = f"entropy {ENTROPY}: translation {np.round(trans, 1)}, rotation {np.round(rot, 1)}"
-    # Over 200 pushes per Task: 15-20 % stopped by the speed reflex, translation within 15° in
-    # 88-96 % (never beyond 90°), rotation within 30° in 74-77 % (beyond 90° in 4-6 %). The
-    # bounds leave room for 30 draws' spread (about 3 standard deviations).
-    assert lost <= 12, msg
-    assert max(trans) <= 90.0, msg
-    assert np.mean(np.array(trans) <= 15.0) >= 0.75, msg
-    assert np.mean(np.array(rot) <= 30.0) >= 0.4, msg
+    assert lost <= 3 * CASES // 2, msg
+    assert max(trans + rot) <= 90.0, msg
+    assert np.sum(np.array(trans) > 15.0) <= allowed_misses(len(trans)), msg
+    assert np.sum(np.array(rot) > 30.0) <= allowed_misses(len(rot)), msg
 
 
 def test_a_30_newton_push_moves_the_cup_at_least_5_cm():
@@ -90,20 +110,16 @@ def test_a_30_newton_push_moves_the_cup_at_least_5_cm():
 
 @pytest.mark.parametrize("task", [1, 2, 3])
 def test_the_arm_reaches_its_setpoint_and_touches_nothing(task):
-    """After 2 s held, the cup near its setpoint (study seed 20001); following the plan,
-    waiting and going home, the cup never touches the pitcher, the plate or the table.
-    Issue 33's target is 2 mm and 0.01 rad on 95 % of seeds; v2 reaches it on 64-71 % of 200
-    random seeds per Task (docs/study.md), and on this seed in Task 1 only (Tasks 2-3: 2.9 mm
-    and 0.023 rad), so Tasks 2-3 are held to 5 mm and 0.05 rad here: a guard against losing
-    what v2 has, not the target."""
+    """After 2 s held, the cup within 2 mm and 0.01 rad of its setpoint (issue 33's bound; study
+    seed 20001); following the plan, waiting and going home, the cup never touches the pitcher,
+    the plate or the table."""
     env = make(task=task)
     env.reset(seed=20001)
     infos = run(env, 60)
     env.pause(2.0)
     infos += run(env, 40)
-    assert np.linalg.norm(env._sp[:3] - env._x[:3]) < (0.002 if task == 1 else 0.005)
-    turn = np.linalg.norm(rotation_error(env._sp_R, env._site_xmat))
-    assert turn < (0.01 if task == 1 else 0.05)
+    assert np.linalg.norm(env._sp[:3] - env._x[:3]) < 0.002
+    assert np.linalg.norm(rotation_error(env._sp_R, env._site_xmat)) < 0.01
     infos += run(env, 300)
     assert not any(i["contact"] for i in infos)
     assert infos[-1]["contacts"] == 0

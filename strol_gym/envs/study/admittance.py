@@ -22,9 +22,9 @@ reaches 98 % of F/K), and a 60 N push peaks at 0.44 m/s, a 3 N m torque at 0.66 
 (the joints' limits are 2.2-2.6 rad/s)."""
 ZETA = 1.0
 """Critically damped: the cup stops where the push leaves it, no overshoot."""
-SETTLED = 1e-7
-"""Below this (m, rad; per second for the speeds) with no wrench, δ is put to exactly zero, and
-the controller goes back to its unpushed path."""
+SETTLED = 1e-5
+"""Below this (m, rad; per second for the speeds) with no wrench, δ is put to exactly zero
+(a 0.01 mm step of the target), and the controller goes back to its unpushed path."""
 REST: tuple[float, ...] = (0.0,) * 12
 """δ (6) and δ̇ (6) at rest."""
 

@@ -322,7 +322,7 @@ class ImpedanceController:
         brake = self.version.joint_brake
         adm = self.version.admittance
         wext = self._wrench.tolist()
-        pushed = brake and (self._hand_xfrc.any() or (adm and self._adm is not REST))
+        pushed = brake and self._hand_xfrc.any()
         for i in range(self._n_sub // HOLD):
             mujoco.mj_jacSite(m, d, jp, jr, site)
             if i == 0:
