@@ -68,8 +68,9 @@ def test_random_pushes_read_as_pushed():
     """30 held-out pushes, 10 per Task in one episode at a random study seed (planning once per
     episode, not once per push), each 1-3 s after the last one ended (the arm following its
     plan, waiting, going home, or still springing back), 20-60 N in a random direction, on
-    Tasks 2-3 with 1-3 N m about a random axis, for 1 s, drawn from this run's entropy. Against issue 33's targets: misses
-    (translation beyond 15°, rotation beyond 30°) no more than a 5 % miss rate allows
+    Tasks 2-3 with 1-3 N m about a random axis, for 1 s, drawn from this run's entropy.
+    Against issue 33's targets: misses (translation beyond 15°, rotation beyond 30°) no more
+    than a 5 % miss rate allows
     (``allowed_misses``), none beyond 90°. A push that trips the reflex (it loads a joint beyond
     its motor, or spins one to its speed limit) is no correction; at most half may."""
     rng = np.random.default_rng(ENTROPY)
