@@ -16,7 +16,7 @@ import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.envs.study.controller import VELOCITY_LIMIT
 from strol_gym.envs.study.env import StudyEnvV2
 from strol_gym.envs.study.geometry import rotation_error
-from strol_gym.tasks.study import STUDY_TASKS_V2, rpy_to_mat
+from strol_gym.tasks.study import STUDY_TASKS_V2, WRIST_LEVER, rpy_to_mat
 
 ENV_ID = "StROL-Study-v2"
 ENTROPY = np.random.SeedSequence().entropy
@@ -191,3 +191,27 @@ def test_v2_uses_its_tasks_planner_and_v1s_ghat():
     )
     assert env.task.outside_hulls(plans).all()
     assert np.abs(np.diff(plans[..., :3], axis=1)).max() <= env.task.plan_pos_bound + 1e-12
+
+
+@pytest.mark.parametrize("task", [1, 2])
+def test_plans_stay_in_the_reachable_set_the_task_carries(task):
+    """Random θ's plans from home: the hand (``WRIST_LEVER`` up the cup's axis) within the
+    Task's outer radius from the shoulder and roll, pitch within its angle once the robot's pace
+    has brought them in (home lies outside Tasks 2-3's angle box); the set names the command
+    that derived it from the arm model."""
+    t = STUDY_TASKS_V2[task]()
+    assert t.reach_source.startswith("benchmarks/speed/study_reach.py")
+    theta = np.random.default_rng([ENTROPY, task]).uniform(-1, 1, (8, t.dim))
+    plans = t.plan(theta, np.tile(t.start, (8, 1)))[:, 10:]
+    if t.oriented:
+        rot = rpy_to_mat(plans[..., 3:].reshape(-1, 3)).reshape(*plans.shape[:2], 3, 3)
+        axis = rot[..., :, 2]
+        assert np.all(np.abs(plans[..., 3:5]) <= t.reach_angle + 1e-9)
+    else:
+        axis = np.array([0.0, 0.0, 1.0])
+    far = np.linalg.norm(plans[..., :3] + WRIST_LEVER * axis - t.reach_shoulder, axis=-1)
+    # within 1 cm: the lift over a hull and the robot's pace come after the shell (the walk
+    # around a hull, and past the shoulder, can cut inside the shell's inner radius: not held)
+    assert np.all(far <= t.reach_radius + 0.01)
+    assert np.all(plans[..., :3] >= t.reach_low - 1e-9)
+    assert np.all(plans[..., :3] <= t.reach_high + 1e-9)

@@ -445,15 +445,9 @@ FLOOR = CUP_CLEARANCE
 WRIST_LEVER = 0.26
 """m from the cup's centre up its axis to the hand (link 7's origin)."""
 REACH_LOW = np.array([0.25, -0.45, FLOOR])
-REACH_HIGH = np.array([0.75, 0.60, 0.60])
+"""The reachable sets' low corner (m): the planning box's, above the floor."""
 REACH_SHOULDER = np.array([0.0, 0.0, 0.333])
-REACH_RADIUS = 0.75
-REACH_ANGLE = 0.8
-"""The reachable set: positions in [REACH_LOW, REACH_HIGH] with the hand (``WRIST_LEVER`` up
-the cup's axis) within ``REACH_RADIUS`` of the shoulder (joint 2's axis), |roll|, |pitch| ≤
-``REACH_ANGLE`` (rad), computed offline from the
-arm model by ``benchmarks/study_reach.py`` (IK with every joint 0.05 rad inside its limits, the
-cup at the home yaw; docs/study.md gives the coverage it measured)."""
+"""Joint 2's axis (m), the centre of the reachable sets' shell."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -529,6 +523,14 @@ def _keep_out_walk(
         )
 
     def walk(pos: np.ndarray, bound: float) -> None:
+        if yaw is not None:  # roll and pitch into the box at the robot's pace, first: the
+            # hand's place below depends on them
+            turn = pos[..., 3:5]
+            way_turn = turn[..., 1:, :]
+            np.clip(way_turn, low[3:5] / angle_scale, high[3:5] / angle_scale, out=way_turn)
+            for t in range(1, turn.shape[-2]):
+                prev = turn[..., t - 1, :]
+                turn[..., t, :] = prev + np.clip(turn[..., t, :] - prev, -bound, bound)
         way = pos[..., 1:, :]
         p = way[..., :3]
         off = axis(way)
@@ -556,13 +558,6 @@ def _keep_out_walk(
         for k in range(len(rad)):
             inside = (np.hypot(x - cx[k], y - cy[k]) < rad[k]) & (z < top[k])
             z[:] = np.where(inside, top[k], z)
-        if yaw is not None:  # roll and pitch into the box, at the robot's pace from the start
-            turn = pos[..., 3:5]
-            way_turn = turn[..., 1:, :]
-            np.clip(way_turn, low[3:5] / angle_scale, high[3:5] / angle_scale, out=way_turn)
-            for t in range(1, turn.shape[-2]):
-                prev = turn[..., t - 1, :]
-                turn[..., t, :] = prev + np.clip(turn[..., t, :] - prev, -bound, bound)
         pos[...] = _walk_out(pos, hulls, bound)  # at the robot's pace
 
     return walk
@@ -605,16 +600,18 @@ class StudyTaskV2(StudyTask):
     """A study Task as StROL-Study-v2 plans it: the same features, θ*, prior and bounds, and a
     planner that keeps the cup where the arm reaches it (``reach_*``) and out of the objects'
     hulls (``keep_out``, ``floor``). Plain data: the Task knows no simulator; the numbers were
-    computed from the arm model offline (``benchmarks/study_reach.py``)."""
+    computed from the arm model offline (``reach_source``: ``benchmarks/speed/study_reach.py``)."""
 
     keep_out: np.ndarray = dataclasses.field(default_factory=KEEP_OUT.copy)
     floor: float = FLOOR
     reach_low: np.ndarray = dataclasses.field(default_factory=REACH_LOW.copy)
-    reach_high: np.ndarray = dataclasses.field(default_factory=REACH_HIGH.copy)
+    reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_UPRIGHT.high.copy())
     reach_shoulder: np.ndarray = dataclasses.field(default_factory=REACH_SHOULDER.copy)
-    reach_radius: float = REACH_RADIUS
-    reach_inner: float = 0.0
-    reach_angle: float = REACH_ANGLE
+    reach_radius: float = REACH_UPRIGHT.radius
+    reach_inner: float = REACH_UPRIGHT.inner
+    reach_angle: float = REACH_UPRIGHT.angle
+    reach_source: ClassVar[str] = REACH_SOURCE
+    """How the reachable set was derived (the command, its date and method)."""
 
     @property
     def low(self) -> np.ndarray:
@@ -678,11 +675,6 @@ class StudyTaskV2(StudyTask):
 @dataclasses.dataclass(frozen=True, eq=False)
 class StudyTask1V2(StudyTaskV2, StudyTask1V1):
     """Task 1 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup upright: ``REACH_UPRIGHT``)."""
-
-    reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_UPRIGHT.high.copy())
-    reach_inner: float = REACH_UPRIGHT.inner
-    reach_radius: float = REACH_UPRIGHT.radius
-    reach_angle: float = REACH_UPRIGHT.angle
 
     task_id: ClassVar[str] = "StROL-Study-v2-task1"
     version: ClassVar[int] = 2
