@@ -16,15 +16,17 @@ import contextlib
 import os
 from collections.abc import Iterator
 
-__all__ = ["CAPS", "SizeTypeError", "check_size", "lift", "lifted", "lifted_now"]
+from strol_gym import checks
+
+__all__ = ["CAPS", "check_size", "lift", "lifted", "lifted_now"]
 
 CAPS: dict[str, int] = {
     "n_candidates": 8_192,  # candidate actions per state (shipped: 64-512)
     "n_particles": 200_000,  # bayes posterior particles (default 2,000)
     "n_hypotheses": 100_000,  # MOF's hypotheses (default: a few hundred)
     "num_envs": 16_384,  # sub-envs of a native vector env (benchmarks: 1,024)
-    "block": 10_000,  # run seeds per unit of work (default 25)
-    "jobs": 1_024,  # worker processes (and never more than 8 per CPU)
+    "block": 1_024,  # run seeds per unit of work (default 25); ~3.5 GB with two Robot learners
+    "jobs": 1_024,  # worker processes (and never more than 4 per CPU: args.JOBS_PER_CPU)
     "threads": 1_024,  # torch threads of `train`
     "corrections": 10_000,  # correction steps per episode (`run`, `export`; paper: 5 and 10)
     "lambdas": 1_000,  # values in a --lambdas list
@@ -36,11 +38,6 @@ CAPS: dict[str, int] = {
 
 ENV_VAR = "STROL_GYM_ALLOW_LARGE"
 """Set to "1" by :func:`lift` so that worker processes (spawned, Ray, Slurm) inherit it."""
-
-
-class SizeTypeError(TypeError, ValueError):
-    """A size that is not an integer; a ValueError too, as every bad argument is (the CLI and
-    the learner registry pass ValueErrors through as they are)."""
 
 
 _LIFTED = [os.environ.get(ENV_VAR) == "1"]
@@ -73,14 +70,15 @@ def lifted() -> Iterator[None]:
 
 def check_size(name: str, value: object, cap: str | None = None, low: int = 1) -> int:
     """``value`` as an int in [low, CAPS[cap]] (cap defaults to ``name``), else ValueError (a
-    number out of range) or TypeError (not an integer) naming ``name`` and the valid range."""
+    number out of range) or ``checks.ArgumentTypeError`` (not a number: a TypeError that is
+    also a ValueError) naming ``name`` and the valid range."""
     key = cap or name.lstrip("-").replace("-", "_")
     top = CAPS[key]
     valid = f"an integer in [{low}, {top:,}] (a fixed cap; --allow-large or limits.lift() lifts it)"
     if isinstance(value, bool) or (
         not hasattr(value, "__index__") and not isinstance(value, float)
     ):
-        raise SizeTypeError(f"{name} must be {valid}, got {value!r}")
+        raise checks.ArgumentTypeError(f"{name} must be {valid}, got {value!r}")
     try:
         as_int = int(value)
     except (OverflowError, ValueError):  # inf, nan

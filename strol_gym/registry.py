@@ -25,7 +25,6 @@ from strol_gym import checks
 T = TypeVar("T")
 
 __all__ = [
-    "PieceError",
     "Registry",
     "call_piece",
     "import_spec",
@@ -96,22 +95,18 @@ def _callable_check(kind: str, signature: str) -> Callable[[str, Any], None]:
     return check
 
 
-class PieceError(TypeError, ValueError):
-    """A registered name or ``"module:attr"`` that is not a piece of its kind (``os:system``
-    as a Task); a ValueError too, so the CLI's refusal (exit 2) covers it."""
-
-
 def call_piece(kind: str, spec: Any, factory: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
     """``factory(*args, **kwargs)`` for the piece named ``spec``; a TypeError from the call (a
-    callable with another signature, such as ``os:system``) becomes a :class:`PieceError`
-    naming the spec and its kind, instead of a traceback from inside it."""
+    callable with another signature, such as ``os:system``) becomes a
+    ``checks.ArgumentTypeError`` (a ValueError too: the CLI's exit 2) naming the spec and its
+    kind, instead of a traceback from inside it."""
     try:
         return factory(*args, **kwargs)
     except checks.ArgumentTypeError:
         raise  # the piece was built and named a bad argument itself: its own words stand
     except TypeError as e:
         said = " ".join(str(e).split())[:200]
-        raise PieceError(
+        raise checks.ArgumentTypeError(
             f"{kind} {spec!r} is not a {kind} strol-gym can build: calling it failed "
             f"(TypeError: {said})"
         ) from None

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from cli_checks import cli_error
 
-from strol_gym import limits
+from strol_gym import checks, limits
 from strol_gym.benchmarks.engine.config import MAX_TOTAL_RUNS, paper_config
 from strol_gym.benchmarks.engine.results import META, ResultsDir, ResultsError
 from strol_gym.humans import make_human
@@ -42,8 +42,8 @@ def test_learner_and_human_sizes_are_capped_in_the_api_and_liftable():
         make_learner("mof", task, n_candidates=10**9)
     with pytest.raises(ValueError, match=r"^n_candidates must be"):
         make_human("nominal", task, np.zeros(task.dim), np.random.default_rng(0), n_candidates=1e9)
-    with pytest.raises(TypeError, match=r"^n_particles must be an integer"):
-        make_learner("bayes", task, n_particles="many")
+    with pytest.raises(checks.ArgumentTypeError, match=r"^n_particles must be an integer"):
+        make_learner("bayes", task, n_particles="many")  # the one vocabulary of strol_gym.checks
     with limits.lifted():  # lifted: the same size is built
         assert make_learner("bayes", task, n_particles=200_001).n_particles == 200_001
     with pytest.raises(ValueError, match="n_particles"):
@@ -58,7 +58,7 @@ def test_num_envs_is_capped_before_the_envs_are_built():
 @pytest.mark.parametrize(
     ("argv", "flag"),
     [
-        (["run", "--env", "robot", "--block", "20000"], "--block must be at most 10,000"),
+        (["run", "--env", "robot", "--block", "1025"], "--block must be at most 1,024"),
         (["run", "--env", "robot", "--jobs", "100000"], "--jobs must be at most"),
         (["lambda", "--lambdas", ",".join(["1"] * 1001)], "--lambdas must be at most 1,000"),
         (["train", "--task", "robot", "--threads", "100000"], "--threads must be at most 1,024"),
@@ -79,8 +79,15 @@ def test_num_envs_is_capped_before_the_envs_are_built():
             ["run", "--env", "robot", "--human-kwargs", '{"n_candidates": 1e9}'],
             "human_kwargs['n_candidates'] must be an integer in [1, 8,192]",
         ),
+        (  # train sets n_candidates itself (--candidates): once, not a traceback
+            ["train", "--task", "robot", "--human-kwargs", '{"n_candidates": 1e9}'],
+            "human_kwargs must not hold 'n_candidates' in training",
+        ),
     ],
-    ids=["block", "jobs", "lambdas", "threads", "export-corrections", "n_particles", "human"],
+    ids=[
+        *("block", "jobs", "lambdas", "threads", "export-corrections", "n_particles", "human"),
+        "train-human",
+    ],
 )
 def test_cli_sizes_are_refused_in_one_line(argv, flag, tmp_path, capsys):
     out = [] if argv[0] == "export" else ["--out", str(tmp_path / "o")]

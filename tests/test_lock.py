@@ -152,3 +152,47 @@ def test_temp_names_carry_host_and_pid_and_dead_writers_leftovers_go(tmp_path):
     other_host.write_text("{")
     assert lk.clean_leftovers(tmp_path) == [dead]
     assert tmp.exists() and other_host.exists()  # a live writer's and another host's stay
+
+
+def _folder_begun(path: Path, pid: int, start: int | None, extra: str | None = None) -> Path:
+    """A results folder as a run leaves it between taking the lock and writing meta.json."""
+    path.mkdir()
+    (path / "records").mkdir()
+    _write_lock(path, pid=pid, start=start)
+    if extra:
+        (path / extra).write_text("not ours")
+    return path
+
+
+def test_a_folder_being_created_names_its_run_not_a_foreign_folder(tmp_path, capsys):
+    """Three runs started at once on one --out: the losers said the folder was "not a
+    strol-bench results folder" (it had the winner's lock, no meta.json yet)."""
+    from cli_checks import cli_error
+
+    other = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        time.sleep(0.05)
+        out = _folder_begun(tmp_path / "r", other.pid, lk.start_time(other.pid))
+        line = cli_error(["run", "--env", "robot", "--runs", "1", "--out", str(out)], capsys)
+        assert f"in use by another strol-bench run (host {lk.host()}, pid {other.pid}" in line
+        assert not (out / "meta.json").exists()
+    finally:
+        other.kill()
+        other.wait()
+
+
+def test_a_folder_begun_by_a_gone_run_is_created_anew(tmp_path, capsys):
+    from strol_gym.benchmarks.engine.config import paper_config
+    from strol_gym.benchmarks.engine.results import ResultsDir, ResultsError
+
+    cfg = paper_config(["robot"], runs=1, learners=("gradient", "strol"), block=1)
+    out = _folder_begun(tmp_path / "r", _dead_pid(), None)
+    ResultsDir.open(out, cfg)
+    assert (out / "meta.json").exists() and "is gone" in capsys.readouterr().err
+    assert json.loads((out / lk.LOCK).read_text())["pid"] == os.getpid()
+    lk.release_folder(out)
+    foreign = _folder_begun(tmp_path / "f", _dead_pid(), None, extra="notes.txt")
+    with pytest.raises(ResultsError, match="not a strol-bench results folder"):
+        ResultsDir.open(foreign, cfg)  # something else is there: not taken
+    assert (foreign / "notes.txt").exists() and not (foreign / "meta.json").exists()
+    assert not (foreign / lk.LOCK).exists()  # the gone run's lock was taken over, then let go

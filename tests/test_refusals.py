@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 from cli_checks import cli_error
 
+from strol_gym import checks
 from strol_gym.benchmarks.engine.config import paper_config
 from strol_gym.benchmarks.engine.results import META, ResultsDir, ResultsError, write_csv
 from strol_gym.files import MAX_JSON_DEPTH, loads_json
+from strol_gym.humans import make_human
 from strol_gym.learners import checkpoint as ckpt
 from strol_gym.learners.registry import make_learner
 from strol_gym.tasks import make_task
@@ -43,6 +45,16 @@ def test_bayes_refuses_an_overflowing_update_and_stays_finite(name):
     np.testing.assert_array_equal(learner.theta, before)  # a refused update changes nothing
     after = learner.update(x, np.full(task.action_dim, 0.1))
     assert np.isfinite(after).all()
+
+
+@pytest.mark.parametrize("name", ["gradient", "strol", "bayes", "bayes-teacher"])
+def test_a_start_beyond_the_theta_range_is_refused(name):
+    """reset(θ̂0 = 1e308) was accepted; bayes then refused every update blaming x and u_h."""
+    task = make_task("highway")
+    learner = make_learner(name, task)
+    with pytest.raises(ValueError, match=r"^theta0 must be finite numbers in \[-1e\+06, 1e\+06\]"):
+        learner.reset(np.full(task.dim, 1e308))
+    assert np.isfinite(learner.reset(np.full(task.dim, 1e6))).all()  # the bound itself is a start
 
 
 def test_bayes_teacher_batch_update_after_a_single_one():
@@ -88,6 +100,14 @@ def test_cli_refuses_deep_json_and_non_pieces_in_one_line(argv, tmp_path, capsys
     out = ["--out", str(tmp_path / ("x.pt" if argv[0] == "train" else "res"))]
     line = cli_error([*argv, *out], capsys)
     assert "nested deeper" in line or "strol-gym can build" in line
+
+
+def test_a_non_piece_is_an_argument_type_error_from_python():
+    """``os:system`` as a Task or human: checks' one error (a TypeError and a ValueError)."""
+    with pytest.raises(checks.ArgumentTypeError, match=r"^task 'os:system' is not a task"):
+        make_task("os:system")
+    with pytest.raises(checks.ArgumentTypeError, match=r"^human 'os:system' is not a human"):
+        make_human("os:system", make_task("robot"), np.zeros(3), np.random.default_rng(0))
 
 
 def test_deep_sidecar_is_named(tmp_path):
@@ -316,6 +336,25 @@ def test_an_interrupted_train_does_not_promise_a_resume(monkeypatch, capsys):
     )
 
 
+def test_train_leaves_nothing_in_its_temporary_folder(tmp_path):
+    """``train`` turns on torch's deterministic kernels, whose first use imports torch's
+    compiler, which made ``$TMPDIR/torchinductor_<user>`` and left it (issue 31, item 12)."""
+    import os
+    import subprocess
+    import sys
+
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "TORCHINDUCTOR_CACHE_DIR"}
+    env["TMPDIR"] = str(tmp)
+    out = tmp_path / "g.safetensors"
+    args = ["train", "--steps", "1", "--batch", "4", "--heldout", "4", "--quiet", "--out", str(out)]
+    cmd = [sys.executable, "-m", "strol_gym.benchmarks", *args]
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert out.exists() and sorted(p.name for p in tmp.iterdir()) == []
+
+
 def test_a_killed_writers_temp_files_are_cleaned_and_do_not_block_force(tmp_path):
     import subprocess
     import sys
@@ -400,3 +439,52 @@ def test_study_v1_reflex_thresholds_must_be_finite_and_positive(value):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # v1 is deprecated
             gym.make("StROL-Study-v1", reflex_force=value)
+
+
+@pytest.mark.parametrize("version", ["v1", "v2"])
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"human": "boltzmann"}, "human"),
+        ({"beta": 5.0}, "beta"),
+        ({"human_kwargs": {"n_candidates": 8}}, "human_kwargs"),
+    ],
+)
+def test_study_observer_refuses_the_human_model_it_would_ignore(version, kwargs, named):
+    """v1's and v2's default participant ("observer") pushes θ*-greedy by itself: a human model
+    it was given would be ignored (issue 31, item 11), so it is refused, naming the argument."""
+    import gymnasium as gym
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # v1 is deprecated
+        with pytest.raises(ValueError, match=rf"^{named} must be .*participant='observer'"):
+            gym.make(f"StROL-Study-{version}", **kwargs)
+
+
+BOLTZMANN = {"human": "boltzmann", "beta": 5.0}
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs", "user"),
+    [
+        ("StROL-Study-v0", BOLTZMANN, "BoltzmannHuman"),
+        ("StROL-Study-v1", {**BOLTZMANN, "participant": "oracle"}, "BoltzmannHuman"),
+        ("StROL-Study-v2", {**BOLTZMANN, "participant": "oracle"}, "BoltzmannHuman"),
+        ("StROL-Study-v1", {"human": "nominal"}, "Participant"),  # the default still builds
+        ("StROL-Study-v2", {"human": None}, None),  # and so does no simulated user
+    ],
+)
+def test_study_human_model_is_honoured_where_it_is_used(env_id, kwargs, user):
+    """Where the simulated user chooses its pushes from a human model, it is the one given."""
+    import gymnasium as gym
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    got = env.unwrapped.human
+    if user == "BoltzmannHuman":
+        assert type(got.model).__name__ == user and got.model.beta == 5.0
+    else:
+        assert (got if got is None else type(got).__name__) == user
+    env.close()

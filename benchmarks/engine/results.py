@@ -115,7 +115,7 @@ class ResultsDir:
         meta_path = path / META
         if path.exists() and not path.is_dir():
             raise ResultsError(f"--out {path} exists and is not a folder")
-        if path.exists() and any(path.iterdir()):
+        if path.exists() and any(path.iterdir()) and not cls._begun_by_a_gone_run(path, force):
             if not meta_path.exists():
                 raise ResultsError(
                     f"{path} is not empty and has no {META}: it is not a strol-bench results "
@@ -168,6 +168,25 @@ class ResultsDir:
         (path / RECORDS).mkdir(exist_ok=True)
         write_json_atomic(meta_path, meta)
         return cls(path, config, chash, meta)
+
+    @staticmethod
+    def _begun_by_a_gone_run(path: Path, force: bool) -> bool:
+        """Whether ``path`` was begun by a run that is gone before it wrote its meta.json (only
+        its lock, an empty records/ and temporary files are there): then this process holds it
+        and creates it anew. A run still creating it is named (its lock), not called "not a
+        results folder"."""
+        if (path / META).exists() or not (path / LOCK).exists():
+            return False
+        _acquire_lock(path, force=force)  # a live run's: ResultsError naming it
+        if (path / META).exists():
+            return False  # finished by its creator meanwhile: resumed as any results folder
+        records = path / RECORDS
+        if any(p.name != LOCK for p in path.iterdir() if p != records) or (
+            records.is_dir() and any(records.iterdir())
+        ):
+            _release_lock(path)
+            return False
+        return True
 
     @staticmethod
     def _read_meta(path: Path) -> dict:

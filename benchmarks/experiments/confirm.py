@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -503,123 +503,125 @@ def _test_rows(result: dict, key: str) -> list[str]:
     ]
 
 
+TESTS_HEAD = (
+    "| metric | vs | Wilcoxon p (Holm) | R− / R+ | outcome | median diff [95 % CI] "
+    "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |"
+)
+
+
 def markdown(
     result: dict, label: str, seeds: list[int], meta: dict, protocol: str = "paper-conditions"
 ) -> list[str]:
-    from strol_gym.benchmarks.analysis.report import display
-
+    """The report of either protocol: verdicts, descriptives per learner, every test row."""
     if protocol == "held-out":
         return markdown_held_out(result, label, seeds, meta)
 
-    git = meta.get("git") or {}
-    lines = [
-        f"# Confirmatory Robot test — {label}",
-        "",
-        f"Run seeds {seeds[0]}–{seeds[1]} per condition; git {git.get('commit', '?')[:10]}"
-        f"{' (dirty tree)' if git.get('dirty') else ''}; code fingerprint "
-        f"{meta.get('extra', {}).get('code', '?')}.",
-        "",
-        "## Verdicts (primary: regret, two-sided Wilcoxon, Holm over 3 per condition)",
-        "",
-    ]
-    lines += _verdict_lines(result)
-    lines += [
-        "",
-        _sensitivity_line(result),
-        "",
-        "## Regret per learner (mean ± std; median; IQM [95 % CI]; runs with regret ≥ 0.3)",
-        "",
-        "| condition | " + " | ".join(display(learner) for learner in LEARNERS) + " |",
-        "|---|" + "---|" * len(LEARNERS),
-    ]
-    desc = {(x["condition"], x["learner"], x["metric"]): x for x in result["descriptives"]}
-    for cond in result["verdicts"]:
-        cells = []
-        for learner in LEARNERS:
-            x = desc[(cond, learner, PRIMARY)]
-            iqm = fmt_ci(x.get("iqm"), x.get("iqm_ci95_low"), x.get("iqm_ci95_high"))
-            cells.append(
-                f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])}; {iqm}; {x['n_switch']}"
-            )
-        lines.append(f"| {cond} | " + " | ".join(cells) + " |")
-    lines += [
-        "",
-        "## Tests (StROL − baseline; lower is better)",
-        "",
-        "| condition | metric | vs | Wilcoxon p (Holm) | R− / R+ | outcome | median diff [95 % CI] "
-        "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    lines += _test_rows(result, "condition")
-    lines += [
-        "",
-        f"Outcomes other than regret are secondary (no verdict). Ties: |d| ≤ {TIE_TOL:g} on "
-        f"regret. Bootstrap: {RESAMPLES} paired resamples, seed {BOOTSTRAP_SEED} (the IQM's: "
+    def cell(x: dict) -> str:
+        iqm = fmt_ci(x.get("iqm"), x.get("iqm_ci95_low"), x.get("iqm_ci95_high"))
+        return f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])}; {iqm}; {x['n_switch']}"
+
+    return _report(
+        result,
+        seeds,
+        meta,
+        title=f"Confirmatory Robot test — {label}",
+        key="condition",
+        primary="",
+        verdicts="primary: regret, two-sided Wilcoxon, Holm over 3 per condition",
+        table="Regret per learner (mean ± std; median; IQM [95 % CI]; runs with regret ≥ 0.3)",
+        metric=lambda _: PRIMARY,
+        cell=cell,
+        footer=f"Outcomes other than regret are secondary (no verdict). Ties: |d| ≤ {TIE_TOL:g} "
+        f"on regret. Bootstrap: {RESAMPLES} paired resamples, seed {BOOTSTRAP_SEED} (the IQM's: "
         f"{robust.default_resamples()}, its own generator per condition). Marks beside the "
         "Wilcoxon p (direction from R− / R+) and beside the paired t's p: "
         + stats.mark_legend("StROL", "wilcoxon").replace(" (Wilcoxon signed-rank, Holm", " (Holm")
         + ". "
         "IQM = interquartile mean (the mean of the middle 50 % of the runs).",
-    ]
-    return lines
+    )
 
 
 def markdown_held_out(result: dict, label: str, seeds: list[int], meta: dict) -> list[str]:
     """The held-out protocol's report: verdicts per cell, descriptives, every test row."""
     from strol_gym.benchmarks.analysis.base import METRIC_LABELS
+
+    prim = result["primary"]
+
+    def cell(x: dict) -> str:
+        return (
+            f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])} "
+            f"[{fmt(x['q1'])}, {fmt(x['q3'])}]"
+        )
+
+    return _report(
+        result,
+        seeds,
+        meta,
+        title=f"Confirmatory test with held-out humans — {label}",
+        key="cell",
+        primary=" Primary outcome: "
+        + ", ".join(f"{env} {METRIC_LABELS.get(m, m)}" for env, m in prim.items())
+        + ".",
+        verdicts="two-sided Wilcoxon, Holm over 3 per cell; H2 holds unless contradicted",
+        table="Primary outcome per learner (mean ± std; median [Q1, Q3])",
+        metric=lambda c: prim[c.split("/")[0]],
+        cell=cell,
+        footer=f"Outcomes other than each env's primary one are secondary (no verdict). Ties: "
+        f"|d| ≤ {TIE_TOL:g} on regret, exact equality otherwise. Bootstrap: {RESAMPLES} paired "
+        f"resamples, seed {BOOTSTRAP_SEED}.",
+    )
+
+
+def _report(
+    result: dict,
+    seeds: list[int],
+    meta: dict,
+    *,
+    title: str,
+    key: str,
+    primary: str,
+    verdicts: str,
+    table: str,
+    metric: Callable[[str], str],
+    cell: Callable[[dict], str],
+    footer: str,
+) -> list[str]:
+    """One report's lines; ``key`` names a row ("condition" or "cell"), ``metric(row)`` its
+    primary outcome and ``cell`` a learner's descriptives in the table."""
     from strol_gym.benchmarks.analysis.report import display
 
     git = meta.get("git") or {}
-    prim = result["primary"]
-    lines = [
-        f"# Confirmatory test with held-out humans — {label}",
+    desc = {(x[key], x["learner"], x["metric"]): x for x in result["descriptives"]}
+    return [
+        f"# {title}",
         "",
-        f"Run seeds {seeds[0]}–{seeds[1]} per cell; git {git.get('commit', '?')[:10]}"
+        f"Run seeds {seeds[0]}–{seeds[1]} per {key}; git {git.get('commit', '?')[:10]}"
         f"{' (dirty tree)' if git.get('dirty') else ''}; code fingerprint "
-        f"{meta.get('extra', {}).get('code', '?')}. Primary outcome: "
-        + ", ".join(f"{env} {METRIC_LABELS.get(m, m)}" for env, m in prim.items())
-        + ".",
+        f"{meta.get('extra', {}).get('code', '?')}.{primary}",
         "",
-        "## Verdicts (two-sided Wilcoxon, Holm over 3 per cell; H2 holds unless contradicted)",
+        f"## Verdicts ({verdicts})",
         "",
-    ]
-    lines += _verdict_lines(result)
-    lines += [
+        *_verdict_lines(result),
         "",
         _sensitivity_line(result),
         "",
-        "## Primary outcome per learner (mean ± std; median [Q1, Q3])",
+        f"## {table}",
         "",
-        "| cell | " + " | ".join(display(lr) for lr in LEARNERS) + " |",
+        f"| {key} | " + " | ".join(display(lr) for lr in LEARNERS) + " |",
         "|---|" + "---|" * len(LEARNERS),
-    ]
-    desc = {(x["cell"], x["learner"], x["metric"]): x for x in result["descriptives"]}
-    for cell in result["verdicts"]:
-        m = prim[cell.split("/")[0]]
-        cells = []
-        for lr in LEARNERS:
-            x = desc[(cell, lr, m)]
-            cells.append(
-                f"{fmt(x['mean'])} ± {fmt(x['std'])}; {fmt(x['median'])} "
-                f"[{fmt(x['q1'])}, {fmt(x['q3'])}]"
-            )
-        lines.append(f"| {cell} | " + " | ".join(cells) + " |")
-    lines += [
+        *(
+            f"| {row} | " + " | ".join(cell(desc[(row, lr, metric(row))]) for lr in LEARNERS) + " |"
+            for row in result["verdicts"]
+        ),
         "",
         "## Tests (StROL − baseline; lower is better)",
         "",
-        "| cell | metric | vs | Wilcoxon p (Holm) | R− / R+ | outcome | median diff [95 % CI] "
-        "| P(improvement) [95 % CI] | paired t: Δ [95 % CI], p (Holm), d_z |",
+        f"| {key} {TESTS_HEAD}",
         "|---|---|---|---|---|---|---|---|---|",
-    ]
-    lines += _test_rows(result, "cell")
-    lines += [
+        *_test_rows(result, key),
         "",
-        f"Outcomes other than each env's primary one are secondary (no verdict). Ties: "
-        f"|d| ≤ {TIE_TOL:g} on regret, exact equality otherwise. Bootstrap: {RESAMPLES} paired "
-        f"resamples, seed {BOOTSTRAP_SEED}.",
+        footer,
     ]
-    return lines
 
 
 def plot(result: dict, out: Path) -> list[Path]:

@@ -15,7 +15,7 @@ import numpy as np
 from strol_gym import checks
 from strol_gym.learners.protocol import (
     LinearRuleLearner,
-    _as_float_array,
+    as_theta,
     batch_inputs,
     checked_theta,
 )
@@ -150,7 +150,7 @@ class BayesLearner(LinearRuleLearner):
         task = self.task
         if theta0 is None:
             theta0 = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
-        theta0 = _as_float_array("theta0", theta0, task.dim).copy()
+        theta0 = as_theta("theta0", theta0, task.dim).copy()
         rng = np.random.default_rng(self.seed)
         self._updates = 0
         cloud = self.sample_prior(rng, self.n_particles)

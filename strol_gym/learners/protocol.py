@@ -13,6 +13,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from strol_gym import checks
+from strol_gym.priors import check_theta_range
 from strol_gym.tasks.base import Task
 
 
@@ -80,6 +81,15 @@ def _as_float_array(name: str, value: np.ndarray, width: int) -> np.ndarray:
     return arr
 
 
+def as_theta(name: str, value: np.ndarray, dim: int) -> np.ndarray:
+    """A learner's start θ̂0, (d,) or (B, d), within ±``MAX_THETA`` as a prior's and θ*'s are:
+    a larger one (1e308) only makes its updates overflow. (A restored state's θ̂ is only checked
+    finite: updates may carry an estimate past the bound, and a state must load back.)"""
+    arr = _as_float_array(name, value, dim)
+    check_theta_range(name, arr)
+    return arr
+
+
 def batch_inputs(
     task: Task, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None, theta: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
@@ -137,7 +147,7 @@ class LinearRuleLearner:
     def reset(self, theta0: np.ndarray | None = None) -> np.ndarray:
         if theta0 is None:
             theta0 = np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
-        self.theta = _as_float_array("theta0", theta0, self.task.dim).copy()
+        self.theta = as_theta("theta0", theta0, self.task.dim).copy()
         return self.theta.copy()
 
     def update(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray | None = None) -> np.ndarray:

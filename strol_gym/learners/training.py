@@ -33,6 +33,10 @@ Runs are seeded (numpy Generator for data, torch seed for the initial weights) a
 from __future__ import annotations
 
 import dataclasses
+import os
+import shutil
+import sys
+import tempfile
 import time
 from collections.abc import Collection, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -102,6 +106,11 @@ class TrainConfig:
         HUMANS.check_name(self.human)
         # the human's own kwargs: a dict of parameters it declares, never σ, ε or β
         check_human_kwargs(self.human, self.human_kwargs)
+        if "n_candidates" in (self.human_kwargs or {}):  # training sets it: one place for it
+            raise ValueError(
+                "human_kwargs must not hold 'n_candidates' in training: it is TrainConfig's "
+                "n_candidates (train --candidates)"
+            )
         choice("theta_sampling", THETA_SAMPLING)
         choice("robot_action", ROBOT_ACTIONS)
         choice("bound", BOUNDS)
@@ -207,13 +216,34 @@ def modified_rule(kind: str, g: Batch, g_hat: Batch) -> Batch:
     return g_hat if kind in REPLACING_KINDS else g + g_hat
 
 
+INDUCTOR_CACHE = "TORCHINDUCTOR_CACHE_DIR"
+"""torch's compiler cache folder (default ``$TMPDIR/torchinductor_<user>``)."""
+
+
+def _deterministic_kernels(on: bool) -> None:
+    """``torch.use_deterministic_algorithms(on)`` without the folder it leaves behind: its first
+    call imports torch's compiler, whose import makes its cache folder although nothing is
+    compiled. That import makes it in a temporary folder, removed at once; a cache folder the
+    caller chose (``TORCHINDUCTOR_CACHE_DIR``), or a compiler already imported, is left alone."""
+    if INDUCTOR_CACHE in os.environ or "torch._dynamo" in sys.modules:
+        torch.use_deterministic_algorithms(on)
+        return
+    aside = tempfile.mkdtemp(prefix="strol-gym-torch-")
+    os.environ[INDUCTOR_CACHE] = aside
+    try:
+        torch.use_deterministic_algorithms(on)
+    finally:  # torch reads the variable on use: a later torch.compile gets its default again
+        os.environ.pop(INDUCTOR_CACHE, None)
+        shutil.rmtree(aside, ignore_errors=True)
+
+
 @contextmanager
 def torch_determinism(seed: int, threads: int) -> Iterator[None]:
     """Seed torch, fix the thread count and use deterministic kernels; restore on exit."""
     prev_threads = torch.get_num_threads()
     prev_det = torch.are_deterministic_algorithms_enabled()
     torch.set_num_threads(threads)
-    torch.use_deterministic_algorithms(True)
+    _deterministic_kernels(True)
     try:
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)

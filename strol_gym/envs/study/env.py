@@ -29,6 +29,7 @@ from strol_gym.envs.study.scene import build_model, model_q
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, V2, StudyVersion
 from strol_gym.humans import Human
+from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec
 from strol_gym.priors import Prior
 from strol_gym.tasks import make_task
 from strol_gym.tasks.study import (
@@ -178,6 +179,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 raise ValueError(
                     f"participant must be one of {sorted(v.participants)}, got {participant!r}"
                 )
+        if participant == "observer":
+            _observer_takes_no_model(kwargs)
         self.participant = participant
         self.reflex_force = _within(
             "reflex_force", 100.0 if reflex_force is None else reflex_force, REFLEX_FORCE_RANGE
@@ -712,14 +715,44 @@ def _positive(name: str, value: Any) -> float:
     return float(checks.number(name, value, low=0, low_open=True, text=True))
 
 
+def _observer_takes_no_model(kwargs: dict[str, Any]) -> None:
+    """``participant="observer"`` chooses its pushes itself (θ*-greedy over the poses it sees,
+    with the env's σ and ε: ``participant``): a human model, its β or its ``human_kwargs`` would
+    be taken and never used, so they are refused (``participant="oracle"`` uses them)."""
+    spec = HumanSpec.from_args(
+        kwargs.get("human", DEFAULT_HUMAN),
+        beta=kwargs.get("beta", DEFAULT_BETA),
+        human_kwargs=kwargs.get("human_kwargs"),
+    )
+    if spec.name is None:  # no simulated participant: nothing to ignore
+        return
+    rest = "participant='observer' chooses its own pushes, with no human model; 'oracle' takes one"
+    if spec.name != DEFAULT_HUMAN:
+        raise ValueError(
+            f"human must be {DEFAULT_HUMAN!r} (the default: the participant pushes) or None "
+            f"(nobody does) with participant='observer', got {spec.name!r} ({rest})"
+        )
+    if spec.kwargs:
+        raise ValueError(
+            f"human_kwargs must be empty with participant='observer', got {spec.kwargs!r} ({rest})"
+        )
+    if spec.beta != DEFAULT_BETA:
+        raise ValueError(
+            f"beta must be left at {DEFAULT_BETA:g} with participant='observer', got "
+            f"{spec.beta!r} ({rest})"
+        )
+
+
 class StudyEnvV1(StudyEnv):
     """StROL-Study-v1: the study env with version ``V1``: u_H = the person's
     push, the Panda's joint limits and a Cartesian force reflex (``versions.V1``,
     ``docs/study.md``). It only names its version: the env is ``StudyEnv``.
 
     Extra arguments: ``participant`` ("observer", default, or "oracle"; ``PARTICIPANTS``; the
-    simulated person when ``human`` is not None), ``reflex_force`` (N, > 0, default 100),
-    ``reflex_torque`` (N m, > 0, default 10), ``reflex_recover`` (s, > 0, default 0.5).
+    simulated person when ``human`` is not None; "observer" takes no human model: ``human``
+    other than "nominal" or None, ``beta`` or ``human_kwargs`` raise ValueError),
+    ``reflex_force`` (N, > 0, default 100), ``reflex_torque`` (N m, > 0, default 10),
+    ``reflex_recover`` (s, > 0, default 0.5).
     Extra ``info``: ``reflex`` (the reflex tripped this step), ``braked``, ``reflexes`` (count
     this episode), ``lag`` (the cup's distance to its setpoint, m), ``gave_up`` (1.0 once the
     participant has given up, else 0.0). ``pause(seconds)`` holds
