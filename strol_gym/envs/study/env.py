@@ -786,18 +786,32 @@ class StudyEnvV2(StudyEnv):
       world-frame rotation R(x + u_H) R(x)⁻¹ is the turn the push produced, about the torque's
       axis for a pure torque. A wrench acts at the cup frame's origin (the cup's centre, the
       state's position).
+    - **The push moves the cup as pushed (an admittance layer):** the person's wrench (known:
+      the push API applies it; a real Panda reads it from its joint torque sensors) drives an
+      isotropic virtual mass-spring-damper per axis (``admittance``: ``stiffness`` N/m and
+      ``rot_stiffness`` N m/rad, 6 rad/s, critically damped), and the arm tracks its setpoint
+      displaced by it (position + δ_p, orientation exp(δ_r) R) with the wrench cancelled in
+      the torques: a force moves the cup along it, a torque turns it about its axis, whatever
+      the arm's inertia. The tracking law's gains are a bandwidth, K = ω²Λ and D = 2ωΛ
+      (ω = 14 rad/s, Λ the cup's task-space inertia), with a bounded integral frozen while a
+      push lasts. During a correction the arm yields (its target follows the push); the
+      setpoint itself is held, and the plan restarts from where the person left the cup.
     - **The arm reaches where it is sent:** the Task (``StudyTask{1,2,3}V2``) plans within
-      the reachable set and out of the objects' hulls, which it carries as data; the robot
+      the reachable set (``ReachSet``: a box, a shell around the shoulder, a roll and pitch
+      bound, derived from the arm model by ``benchmarks/speed/study_reach.py``, named in
+      ``reach_source``) and out of the objects' hulls, which it carries as data; the robot
       executes its plans as they are (no clipping: ``reach`` is None), and the regret uses the
       same planner.
     - **The Panda's limits at every physics step**, through the torques (``joint_brake``:
       from 0.9x a joint's speed limit its torque saturates against the motion); a push that
-      loads a joint beyond its motor trips a speed reflex (the brakes lock, ``info["reflex"]``)
-      before the joint passes its limit. ``reflex_force`` in [20, 150] N and ``reflex_torque``
-      in [2, 15] N m, else ValueError.
+      spins a joint towards its limit trips a speed reflex (the brakes lock,
+      ``info["reflex"]``) before the joint passes it, and one that loads a joint beyond its
+      motor's torque limit (Jᵀw) trips the reflex at once (``torque_reflex``): no torque can
+      hold it, so it would turn the arm about that joint, not move the cup as pushed.
+      ``reflex_force`` in [20, 150] N and ``reflex_torque`` in [2, 15] N m, else ValueError.
     - **Softer**: ``stiffness`` 300 N/m and ``rot_stiffness`` 10 N m/rad by default (v1: 400
-      and 30): a 30 N push for 1 s moves the cup 9-10.5 cm (the paper's participants: a median
-      11 cm per correction).
+      and 30), the admittance's: a 30 N push for 1 s moves the cup 9.8 cm (the paper's
+      participants: a median 11 cm per correction).
     - ``info["contact"]``: the cup touched the pitcher, the plate or the table this step
       (``info["contacts"]`` counts the steps).
 
@@ -806,8 +820,8 @@ class StudyEnvV2(StudyEnv):
 
     ## Version History
 
-    - v2: u_H by counterfactual, the Task's reachable set and hulls, joint limits at every
-      physics step, a softer arm, ``info["contact"]``.
+    - v2: u_H by counterfactual, an admittance layer, the Task's reachable set and hulls,
+      joint limits at every physics step, a softer arm, ``info["contact"]``.
     - v1: u_H measured against the held setpoint (deprecated).
     - v0: initial version (deprecated).
     """
