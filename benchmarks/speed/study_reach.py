@@ -31,8 +31,11 @@ from strol_gym.envs.study.scene import build_model, model_q
 from strol_gym.tasks.study import (
     FLOOR,
     REACH_SHOULDER,
+    REACH_TURNING,
+    REACH_UPRIGHT,
     STUDY_TASKS_V2,
     WRIST_LEVER,
+    ReachSet,
     rpy_to_mat,
 )
 
@@ -132,7 +135,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--samples", type=int, default=1500)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
-    chosen = {}
+    chosen: dict[int, ReachSet] = {}
+    shipped = {1: REACH_UPRIGHT, 2: REACH_TURNING}
     for n in (1, 2):
         s = sample(n, args.samples, np.random.default_rng([args.seed, n]))
         print(f"Task {n}'s arm: {s['ok'].mean():.1%} of {len(s['ok'])} drawn poses reachable")
@@ -153,10 +157,13 @@ def main(argv: list[str] | None = None) -> None:
         good, _, share, high, ri, r, a = rows[0]
         if not good:
             raise SystemExit("no candidate set is reachable enough")
-        chosen[n] = dict(reach_high=np.array(high), reach_inner=ri, reach_radius=r, reach_angle=a)
+        chosen[n] = c = ReachSet(OUTER_LOW.copy(), np.array(high), ri, r, a, "this run")
+        old = shipped[n]
+        same = np.allclose(old.high, c.high) and (old.inner, old.radius, old.angle) == (ri, r, a)
         print(
             f"  selected: reach_low={OUTER_LOW.round(3).tolist()}, reach_high={list(high)}, "
-            f"reach_inner={ri}, reach_radius={r}, reach_angle={a} ({share:.1%} reachable)"
+            f"reach_inner={ri}, reach_radius={r}, reach_angle={a} ({share:.1%} reachable); "
+            f"the shipped set is {'this one' if same else 'another'}"
         )
     for number in (1, 2, 3):
         task = STUDY_TASKS_V2[number]()
@@ -168,7 +175,15 @@ def main(argv: list[str] | None = None) -> None:
             reach_high=np.array([0.8, 0.6, 0.7]),
             reach_angle=1.3,
         )
-        mine = dataclasses.replace(task, reach_low=OUTER_LOW.copy(), **chosen[min(number, 2)])
+        c = chosen[min(number, 2)]
+        mine = dataclasses.replace(
+            task,
+            reach_low=c.low,
+            reach_high=c.high,
+            reach_inner=c.inner,
+            reach_radius=c.radius,
+            reach_angle=c.angle,
+        )
         theta = task.theta_star
         ret = [(t.features(t.plan(theta, t.start)[0][1:]) @ theta).sum() for t in (free, mine)]
         print(
