@@ -3,19 +3,19 @@
 
     .venv/bin/python benchmarks/speed/study_reach.py [--samples 2000] [--seed 0]
 
-Cup poses are drawn uniformly over an outer box (positions; Tasks 2-3 also roll and pitch in
-[−1, 1] rad at the home yaw; Task 1's cup at the home orientation, as its controller holds it)
-and each is solved by damped-least-squares IK on the scene's Panda from the Task's home joints,
-every joint kept ``MARGIN`` rad inside its limits (the elbow ``ELBOW`` more from stretched). A
-pose counts as reachable if the IK ends within 0.5 mm and 0.002 rad with the wrist ``WRIST``
-away from its singularity (joints 5 and 7 parallel: there a small turn of the cup spins both,
-and the arm can neither track it nor brake a push). Each candidate set (a position box, the
-hand in a shell around the shoulder, and |roll| ≤ a, −a ≤ pitch ≤ max(a, the home pitch)) is
-scored by the share of its samples reachable, over the set and over its outer ``BAND``; per arm
-(Task 1's upright cup; Tasks 2-3's, which turn it) the largest with ≥ ``SHARE`` reachable is
-the shipped one. Printed: the selection as the Task's numbers, the runners-up, and θ*'s plan's
-return per Task with the hulls alone and with the hulls and the selected set. The Task keeps
-only the numbers and this command (it knows no simulator).
+Cup poses are drawn uniformly over an outer box (positions; Tasks 2-3 also roll and pitch in [−1,
+1] rad at the home yaw; Task 1's cup at the home orientation, as its controller holds it) and each
+is solved by damped-least-squares IK on the scene's Panda from the Task's home joints, every joint
+kept ``MARGIN`` rad inside its limits (the elbow ``ELBOW`` more from stretched). A pose counts as
+reachable if the IK ends within 0.5 mm and 0.002 rad with the wrist ``WRIST`` away from its
+singularity (joints 5 and 7 parallel: there a small turn of the cup spins both, and the arm can
+neither track it nor brake a push). Each candidate set (a position box, the hand in a shell around
+the shoulder, and |roll| ≤ a, −a ≤ pitch ≤ max(a, the home pitch)) is scored by the share of its
+samples reachable, over the set and over its outer ``BAND``; per arm (Task 1's upright cup; Tasks
+2-3's, which turn it) the largest with ≥ ``SHARE`` reachable is the shipped one; the corners of it
+the IK does not reach are printed (``corners``). Printed: the selection as the Task's numbers, the
+runners-up, and θ*'s plan's return per Task with the hulls alone and with the hulls and the
+selected set. The Task keeps only the numbers and this command (it knows no simulator).
 """
 
 from __future__ import annotations
@@ -130,6 +130,38 @@ def inside(
     return box & (np.abs(roll) <= angle) & (pitch >= -angle) & (pitch <= top)
 
 
+def corners(number: int, high, inner: float, radius: float, angle: float) -> list[tuple]:
+    """The set's corners (the box's corners × roll, pitch at ±angle, each moved into the shell
+    as the planner moves a waypoint) the IK does not reach: the planner's plans end at the
+    set's corners, where a set reachable on average can still fail (reported, not selected
+    on: no candidate for Tasks 2-3 has every corner reachable)."""
+    m = build_model()
+    d = mujoco.MjData(m)
+    site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
+    lo, hi = m.jnt_range[:7, 0] + MARGIN, m.jnt_range[:7, 1] - MARGIN
+    hi[3] -= ELBOW
+    task = STUDY_TASKS_V2[number]()
+    q0 = model_q(task.home_q)
+    d.qpos[:7] = q0
+    mujoco.mj_forward(m, d)
+    home_rot = d.site_xmat[site].reshape(3, 3).copy()
+    turns = [(0.0, 0.0)] if not task.oriented else itertools.product((-angle, angle), repeat=2)
+    missed = []
+    for (roll, pitch), corner in itertools.product(
+        list(turns), itertools.product(*zip(OUTER_LOW, high, strict=True))
+    ):
+        rot = rpy_to_mat(np.array([roll, pitch, task.start[5]])) if task.oriented else home_rot
+        off, p = WRIST_LEVER * rot[:, 2], np.array(corner, dtype=float)
+        for _ in range(4):  # as the planner's walk: the shell, then the box
+            arm = p + off - REACH_SHOULDER
+            far = float(np.linalg.norm(arm))
+            p = REACH_SHOULDER - off + arm * min(max(1.0, inner / far), radius / far)
+            p = np.clip(p, OUTER_LOW, high)
+        if not (solve(m, d, site, q0, p, rot, lo, hi) and wrist_clear(m, d)):
+            missed.append((*np.round(p, 3).tolist(), roll, pitch))
+    return missed
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=1500)
@@ -157,6 +189,8 @@ def main(argv: list[str] | None = None) -> None:
         good, _, share, high, ri, r, a = rows[0]
         if not good:
             raise SystemExit("no candidate set is reachable enough")
+        missed = corners(n, np.array(high), ri, r, a)
+        print(f"  its corners the IK does not reach (x, y, z, roll, pitch): {missed}")
         chosen[n] = c = ReachSet(OUTER_LOW.copy(), np.array(high), ri, r, a, "this run")
         old = shipped[n]
         same = np.allclose(old.high, c.high) and (old.inner, old.radius, old.angle) == (ri, r, a)
