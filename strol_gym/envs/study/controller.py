@@ -311,11 +311,6 @@ class ImpedanceController:
         (spx, spy, spz), kp, kr = self._sp[:3].tolist(), self._k[0], 2.0 * self._k[1]
         vx, vy, vz, wx, wy, wz = v_sp
         integrate = not self._active
-        if self.version.track_bandwidth and any(v_sp):
-            # v2: the integral learns the static load only (the setpoint still): integrated
-            # over the plan's motion it wound up to its bound and pressed a cup arriving at
-            # the floor into the table (Tasks 2-3: 19 and 21 of 200 seeds)
-            integrate = False
         dt_i = HOLD * self.model.opt.timestep
         band = self.version.track_bandwidth
         if band:  # v2: the integral of the stiffness wrench K e (K = ω² Λ)
