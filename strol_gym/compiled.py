@@ -3,7 +3,7 @@ kernels (numba, the optional ``[fast]`` extra: ``pip install strol-gym[fast]``).
 
 Chosen once per process by the environment variable ``STROL_GYM_KERNELS``: ``plain``, ``fast``
 (numba required) or ``auto`` (the default: fast when numba imports). Both give the same bytes
-on one machine (tests/test_kernels.py); the plain path is the reference and the readable one.
+on one machine (tests/test_compiled.py); the plain path is the reference and the readable one.
 Kernels compile on first use and are cached on disk beside their module (``cache=True``), so a
 second process loads them instead of compiling.
 """

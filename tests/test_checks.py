@@ -39,7 +39,7 @@ ENV_ARGS: dict[str, list[str]] = {
     ],
     "StROL-Study-v2": [
         *("reflex_force", "reflex_torque", "reflex_recover", "force_threshold", "duration"),
-        "user_kwargs",
+        *("hold_off", "user_kwargs"),
     ],
 }
 LEARNER_ARGS: dict[str, list[str]] = {

@@ -168,6 +168,77 @@ def test_vector_envs_give_the_same_bytes_on_both_paths(path):
         assert out[0] == out[1], env_id
 
 
+def _batched_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """(start postures, targets, rows) for N = 300 arms: a large set (numpy, then the compiled
+    loop below HANDOFF), targets out of reach (more than SINGLE_RETRY restarts: the batched
+    restart; fewer: one arm at a time), postures at the joint limits, and one arm alone
+    (numpy's sums for a batch of one)."""
+    rng = np.random.default_rng(40)
+    n = 300
+    q = rng.uniform(ik.lo, ik.hi, (n, 7))
+    q[::4] = ik.hi - 1e-3
+    q[1::4] = ik.lo + 1e-3
+    near = rng.normal((0.45, 0.0, 0.35), 0.12, (n, 3))
+    far = rng.uniform([-0.3, -0.9, -0.3], [1.2, 0.8, 1.1], (n, 3))
+    every = np.arange(n)
+    return [
+        (q, near, every),
+        (q, far, every),
+        (q, far[:40], np.arange(0, 200, 5)),
+        (q, far[:1], np.array([7])),
+        (q, near[:1], np.array([3])),
+    ]
+
+
+def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch):
+    from strol_gym.envs.panda import ik_batched
+
+    env = gym.make("StROL-Robot-v0").unwrapped
+    restarts: list[int] = []
+    solve = ik_batched.BatchedPandaIK._solve
+
+    def counting(self, target, rows, iters, *args):
+        if iters > ik_batched.IK_ITERS:
+            restarts.append(len(rows))  # a batched restart
+        return solve(self, target, rows, iters, *args)
+
+    monkeypatch.setattr(ik_batched.BatchedPandaIK, "_solve", counting)
+    out = []
+    for fast in (False, True):
+        path(fast)
+        arms = ik_batched.BatchedPandaIK(env.ik, 300)
+        h = hashlib.sha256()
+        for q, target, rows in _batched_cases(env.ik):
+            arms.q[:] = q
+            arms.forward()
+            h.update(arms.solve(target, rows).tobytes())
+            a = arms._arms
+            h.update(b"".join(x.tobytes() for x in (a.q, a.site, a.cols, a.axes, a.anchors)))
+        out.append(h.hexdigest())
+        assert (arms._kernels() is not None) == fast
+    assert out[0] == out[1]
+    assert max(restarts) > ik_batched.SINGLE_RETRY  # the batched restart ran
+    env.close()
+
+
+def test_batched_kernels_that_miss_the_plain_bits_are_not_used(path, monkeypatch):
+    from strol_gym.envs.panda import ik_batched, ik_kernel
+
+    env = gym.make("StROL-Robot-v0").unwrapped
+    path(True)
+    monkeypatch.setattr(ik_batched, "_AGREES", None)
+    real = ik_kernel.batched_forward
+
+    def off_by_a_bit(q, site, *args):
+        real(q, site, *args)
+        site[0] = np.nextafter(site[0], np.inf)
+
+    monkeypatch.setattr(ik_kernel, "batched_forward", off_by_a_bit)
+    arms = ik_batched.BatchedPandaIK(env.ik, 4)
+    assert arms._kernels() is None  # the check saw it: the plain path runs
+    env.close()
+
+
 def test_the_ik_kernel_is_there_where_numba_and_this_mujoco_are(path):
     path(True)
     assert solver() is not None

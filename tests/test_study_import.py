@@ -144,9 +144,18 @@ def test_import_authors_updates_and_implied_theta0(tree, tmp_path):
     corr = [np.asarray(c, dtype=float).reshape(-1, 6) for c in raw["corrections"][0]]
     final = np.asarray(raw["theta_learned"][0][-1], dtype=float)
     assert np.allclose(ep.theta_hat0, implied_theta0(final, corr, 2, "one"))
-    # StROL's rule gives no implied θ̂0: the prior mean, marked as such
-    strol = read_session(out / "user_2_task_2_ours.jsonl").episodes[0]
+    # θ̂ per correction reconstructed: chained from θ̂0 to the logged final θ̂, said so
+    hats = [ep.theta_hat0] + [np.asarray(c["theta_hat_after"]) for c in ep.corrections]
+    steps = np.diff(np.array(hats), axis=0)
+    assert np.allclose(hats[-1], final) and all(np.any(d != 0.0) for d in steps)
+    assert s.header["extra"]["theta_hat"].startswith("reconstructed")
+    assert "theta_hat0" not in s.header["extra"]["unknown"]
+    # StROL's rule gives no implied θ̂0: the prior mean, marked as such, θ̂ unknown and why
+    strol_log = read_session(out / "user_2_task_2_ours.jsonl")
+    strol = strol_log.episodes[0]
     assert np.allclose(strol.theta_hat0, np.mean(STUDY_TASKS[2]().prior_modes, axis=0))
+    assert all(c["theta_hat_after"] is None for c in strol.corrections)
+    assert "ĝ" in strol_log.header["extra"]["theta_hat"]
 
 
 def test_import_refuses_existing_logs(tree, tmp_path, capsys):

@@ -89,7 +89,7 @@ def test_random_pushes_read_as_pushed():
             run(env, int(rng.integers(20, 60)))
             env.apply_wrench(force, torque, duration=1.0)
             hit, end = False, None
-            for _ in range(22):
+            for _ in range(32):  # the push's 20 steps, the 0.4 s hold-off, the step it ends
                 info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[4]
                 q = env.data.qpos[:7]
                 hit |= info["contact"] or bool(np.any(np.minimum(q - lo, hi - q) < 0.01))

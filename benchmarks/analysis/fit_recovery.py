@@ -27,7 +27,20 @@ from typing import Any
 import numpy as np
 
 from strol_gym.humans import human_model, teach
-from strol_gym.humans.fitting import Corrections, fit
+from strol_gym.humans.fitting import (
+    DEFAULT_INTERVAL,
+    INTERVALS,
+    Corrections,
+    bca_intervals,
+    bootstrap_draws,
+    family,
+    fit,
+    jackknife_draws,
+    maximise,
+    prepare,
+    sandwich_intervals,
+    usable,
+)
 from strol_gym.learners.registry import make_learner
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task
@@ -130,6 +143,43 @@ def matched_beta(task: Task, target: float, n_people: int, seed: int) -> float:
     return math.exp(0.5 * (lo + hi))
 
 
+def wilson(hits: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """The Wilson 95 % interval of a binomial proportion (a coverage from ``n`` datasets)."""
+    if n == 0:
+        return (math.nan, math.nan)
+    p = hits / n
+    mid = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return (max(0.0, mid - half), min(1.0, mid + half))
+
+
+def dataset_intervals(
+    human: str,
+    data: Corrections,
+    methods: Sequence[str],
+    n_boot: int,
+    seed: int,
+) -> tuple[dict[str, float], dict[str, dict[str, tuple[float, float]]]]:
+    """The MLE of ``human`` on ``data`` and its 95 % intervals by each of ``methods``
+    (``fitting.INTERVALS``); the bootstrap ones share one set of ``n_boot`` resamples."""
+    fam = family(human)
+    data, _ = usable(fam, data)
+    prep = prepare(fam, data)
+    mle, _ = maximise(fam, prep)
+    out: dict[str, dict[str, tuple[float, float]]] = {}
+    draws = jack = None
+    for m in methods:
+        if m == "sandwich":
+            out[m] = sandwich_intervals(fam, prep, data, mle)
+            continue
+        if draws is None:
+            draws = bootstrap_draws(fam, prep, data, mle, n_boot, np.random.default_rng(seed))
+        if m == "bca" and jack is None:
+            jack = jackknife_draws(fam, prep, data, mle)
+        out[m] = bca_intervals(fam, draws, jack if m == "bca" else None, mle, len(data.people))
+    return mle, out
+
+
 def recovery(
     task: Task,
     human: str,
@@ -139,30 +189,45 @@ def recovery(
     n_boot: int,
     seed: int = 0,
     robot: bool = True,
+    methods: Sequence[str] = (DEFAULT_INTERVAL,),
 ) -> dict[str, Any]:
-    """Coverage and bias of each parameter over ``datasets`` simulated datasets."""
+    """Per parameter, over ``datasets`` simulated datasets: the mean estimate and its bias, and
+    per interval method the coverage of the truth (with its Wilson interval) and the mean
+    width. The first method's figures are also the parameter's top-level ones."""
     est: dict[str, list[float]] = {k: [] for k in truth}
-    cover: dict[str, list[bool]] = {k: [] for k in truth}
-    width: dict[str, list[float]] = {k: [] for k in truth}
+    cover: dict[str, dict[str, list[bool]]] = {m: {k: [] for k in truth} for m in methods}
+    width: dict[str, dict[str, list[float]]] = {m: {k: [] for k in truth} for m in methods}
     for d in range(datasets):
         data = simulate_people(task, human, n_people, seed + 1000 * d, robot=robot, **truth)
-        f = fit(human, data, n_boot=n_boot, heldout_too=False, seed=d)
+        mle, ivs = dataset_intervals(human, data, methods, n_boot, d)
         for k, v in truth.items():
-            lo, hi = f.ci95[k]
-            est[k].append(f.estimate[k])
-            cover[k].append(lo <= v <= hi)
-            width[k].append(hi - lo)
+            est[k].append(mle[k])
+            for m in methods:
+                lo, hi = ivs[m][k]
+                cover[m][k].append(bool(lo <= v <= hi))
+                width[m][k].append(hi - lo)
     out = {}
     for k, v in truth.items():
+        per: dict[str, dict[str, Any]] = {}
+        for m in methods:
+            hits = int(np.sum(cover[m][k]))
+            per[m] = {
+                "coverage": hits / datasets,
+                "coverage_ci95": wilson(hits, datasets),
+                "mean_ci_width": float(np.mean(width[m][k])),
+            }
         bias = float(np.mean(est[k]) - v)
-        w = float(np.mean(width[k]))
+        first = per[methods[0]]
         out[k] = {
             "truth": v,
             "mean_estimate": float(np.mean(est[k])),
+            "sd_estimate": float(np.std(est[k], ddof=1)) if datasets > 1 else math.nan,
             "bias": bias,
-            "mean_ci_width": w,
-            "coverage": float(np.mean(cover[k])),
-            "bias_ok": abs(bias) < w / 4,
+            "mean_ci_width": first["mean_ci_width"],
+            "coverage": first["coverage"],
+            "bias_ok": abs(bias) < first["mean_ci_width"] / 4,
+            "datasets": datasets,
+            "methods": per,
         }
     return out
 
@@ -194,17 +259,39 @@ def selection(
     return out
 
 
+def _pct(x: float) -> str:
+    return f"{100 * x:.0f}"
+
+
 def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) -> str:
+    """The recovery table (one row per model × parameter, a coverage column per interval
+    method with its Wilson 95 % interval) and the confusion matrix."""
+    methods = list(
+        dict.fromkeys(m for params in rec.values() for r in params.values() for m in r["methods"])
+    )
+    head = " | ".join(f"{m} coverage [Wilson 95 %] · mean width" for m in methods)
     lines = [
-        "| model | parameter | truth | mean estimate | bias | mean 95 % width | coverage | "
+        f"| model | parameter | truth | datasets | mean estimate | bias | sd | {head} | "
         "\\|bias\\| < width/4 |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|" + "---|" * len(methods) + "---|",
     ]
     for human, params in rec.items():
         for k, r in params.items():
+            cells = []
+            for m in methods:
+                c = r["methods"].get(m)
+                if c is None:
+                    cells.append("–")
+                    continue
+                lo, hi = c["coverage_ci95"]
+                flag = "**" if c["coverage"] < 0.8 else ""
+                cells.append(
+                    f"{flag}{_pct(c['coverage'])} %{flag} [{_pct(lo)}, {_pct(hi)}] · "
+                    f"{c['mean_ci_width']:.3g}"
+                )
             lines.append(
-                f"| {human} | {k} | {r['truth']:g} | {r['mean_estimate']:.3f} | "
-                f"{r['bias']:+.3f} | {r['mean_ci_width']:.3f} | {100 * r['coverage']:.0f} % | "
+                f"| {human} | {k} | {r['truth']:g} | {r['datasets']} | {r['mean_estimate']:.3g} | "
+                f"{r['bias']:+.3g} | {r['sd_estimate']:.3g} | " + " | ".join(cells) + " | "
                 f"{'yes' if r['bias_ok'] else 'no'} |"
             )
     if conf:
@@ -220,47 +307,90 @@ def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) 
     return "\n".join(lines) + "\n"
 
 
+def merge(folders: Sequence[str]) -> tuple[dict[str, dict], dict[str, dict[str, int]], dict]:
+    """The recovery and confusion of several runs' ``recovery.json`` (a later run's figures
+    win; its interval methods join an earlier run's for the same datasets)."""
+    rec: dict[str, dict] = {}
+    conf: dict[str, dict[str, int]] = {}
+    meta: dict[str, Any] = {"runs": []}
+    for folder in folders:
+        got = json.loads((Path(folder) / "recovery.json").read_text())
+        for human, params in got.get("recovery", {}).items():
+            for k, r in params.items():  # a later run's methods join an earlier run's
+                old = rec.setdefault(human, {}).get(k)
+                methods = {**old["methods"], **r["methods"]} if old else r["methods"]
+                rec[human][k] = {**r, "methods": methods}
+        conf.update(got.get("confusion", {}))
+        meta["runs"].append({k: v for k, v in got.items() if k not in ("recovery", "confusion")})
+    return rec, conf, meta
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--task", default="robot")
     p.add_argument("--datasets", type=int, default=20)
-    p.add_argument("--people", type=int, default=20)
+    p.add_argument("--people", type=int, default=12)
     p.add_argument("--bootstrap", type=int, default=200)
     p.add_argument("--models", default=",".join(RECOVERY))
+    p.add_argument(
+        "--intervals",
+        default=DEFAULT_INTERVAL,
+        help=f"comma-separated interval methods to measure ({', '.join(INTERVALS)})",
+    )
     p.add_argument("--no-selection", action="store_true")
+    p.add_argument("--merge", nargs="+", metavar="DIR", help="only merge runs' recovery.json")
     p.add_argument("--out", default="results/fit-recovery")
     args = p.parse_args(argv)
-    task = make_task(args.task)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    if args.merge:
+        (out / "recovery.md").write_text(markdown(*merge(args.merge)))
+        print(f"wrote {out / 'recovery.md'}")
+        return 0
+    methods = [m for m in args.intervals.split(",") if m]
+    for m in methods:
+        if m not in INTERVALS:
+            p.error(f"--intervals: {m!r} is not one of {', '.join(INTERVALS)}")
+    task = make_task(args.task)
     t0 = time.perf_counter()
-    rec = {}
-    for human in [m for m in args.models.split(",") if m]:
-        t = time.perf_counter()
-        rec[human] = recovery(
-            task, human, RECOVERY[human], args.datasets, args.people, args.bootstrap
-        )
-        print(human, json.dumps(rec[human]), f"{time.perf_counter() - t:.0f} s", flush=True)
+    rec: dict[str, Any] = {}
     conf: dict[str, dict[str, int]] = {}
-    beta = None
-    if not args.no_selection:
-        target = mean_deviation(simulate_people(task, "nominal", args.people, 99, sigma=0.35))
-        beta = matched_beta(task, target, args.people, 99)
-        scen = dict(SELECTION)
-        scen["boltzmann (matched)"] = ("boltzmann", {"sigma": 0.0, "beta": beta})
-        conf = selection(task, scen, args.datasets, args.people)
-        print("confusion", json.dumps(conf), f"matched β {beta:.4g}", flush=True)
-    meta = {
+    meta: dict[str, Any] = {
         "task": args.task,
         "datasets": args.datasets,
         "people": args.people,
         "bootstrap": args.bootstrap,
-        "matched_beta": beta,
-        "seconds": round(time.perf_counter() - t0, 1),
+        "intervals": methods,
     }
-    (out / "recovery.json").write_text(
-        json.dumps({"recovery": rec, "confusion": conf, **meta}, indent=2) + "\n"
-    )
+
+    def write() -> None:
+        meta["seconds"] = round(time.perf_counter() - t0, 1)
+        (out / "recovery.json").write_text(
+            json.dumps({"recovery": rec, "confusion": conf, **meta}, indent=2) + "\n"
+        )
+
+    for human in [m for m in args.models.split(",") if m]:
+        t = time.perf_counter()
+        rec[human] = recovery(
+            task,
+            human,
+            RECOVERY[human],
+            args.datasets,
+            args.people,
+            args.bootstrap,
+            methods=methods,
+        )
+        print(human, json.dumps(rec[human]), f"{time.perf_counter() - t:.0f} s", flush=True)
+        write()
+    if not args.no_selection:
+        target = mean_deviation(simulate_people(task, "nominal", args.people, 99, sigma=0.35))
+        beta = matched_beta(task, target, args.people, 99)
+        meta["matched_beta"] = beta
+        scen = dict(SELECTION)
+        scen["boltzmann (matched)"] = ("boltzmann", {"sigma": 0.0, "beta": beta})
+        conf.update(selection(task, scen, args.datasets, args.people))
+        print("confusion", json.dumps(conf), f"matched β {beta:.4g}", flush=True)
+    write()
     (out / "recovery.md").write_text(markdown(rec, conf, meta))
     print(f"wrote {out / 'recovery.md'}")
     return 0

@@ -68,19 +68,31 @@ def sample_updates(poses: np.ndarray, number: int) -> tuple[np.ndarray, np.ndarr
     return poses[:-1], AUTHORS_GAIN * np.diff(poses, axis=0)
 
 
-def summed_updates(corrections: list[np.ndarray], number: int, rule: str) -> np.ndarray:
-    """Σ of the updates our ``rule`` learner makes on every logged sample pair, under the
-    authors' settings (each update is independent of θ̂, so the sum starts from 0)."""
+def update_steps(corrections: list[np.ndarray], number: int, rule: str) -> list[np.ndarray]:
+    """Per logged correction, the cumulative sum (n_k − 1, d) of the updates our ``rule`` learner
+    makes on its consecutive sample pairs, counted from the session's start (θ̂ − θ̂0 after each
+    sample) under the authors' settings; (0, d) for a correction of fewer than two poses (their
+    loop over consecutive pairs makes no update). No update depends on θ̂."""
     task = authors_task(number)
     learner = make_learner(rule, task=task)
     learner.reset(np.zeros(task.dim))
+    out = []
     for poses in corrections:
-        if len(poses) < 2:
-            continue  # their loop over consecutive pairs makes no update
-        x, u = sample_updates(poses, number)
-        for xk, uk in zip(x, u, strict=True):
-            learner.update(xk, uk, np.zeros_like(uk))
-    return np.asarray(learner.theta, dtype=np.float64)
+        steps = []
+        if len(poses) >= 2:
+            x, u = sample_updates(poses, number)
+            for xk, uk in zip(x, u, strict=True):
+                learner.update(xk, uk, np.zeros_like(uk))
+                steps.append(np.array(learner.theta, dtype=np.float64))
+        out.append(np.array(steps).reshape(len(steps), task.dim))
+    return out
+
+
+def summed_updates(corrections: list[np.ndarray], number: int, rule: str) -> np.ndarray:
+    """Σ of the updates our ``rule`` learner makes on every logged sample pair, under the
+    authors' settings (each update is independent of θ̂, so the sum starts from 0)."""
+    steps = [s for s in update_steps(corrections, number, rule) if len(s)]
+    return steps[-1][-1] if steps else np.zeros(authors_task(number).dim)
 
 
 def implied_theta0(
@@ -91,4 +103,24 @@ def implied_theta0(
     return np.asarray(final, dtype=np.float64) - summed_updates(corrections, number, rule)
 
 
-__all__ = ["AUTHORS_GAIN", "RULES", "authors_task", "implied_theta0", "sample_updates"]
+def reconstructed_theta_hats(
+    final: np.ndarray, corrections: list[np.ndarray], number: int, rule: str
+) -> list[np.ndarray]:
+    """θ̂ after each logged sample update of each correction (n_k − 1, d), from the implied θ̂0
+    forward under ``rule``: the θ̂ a One or MOF session's learner held (their log keeps only the
+    final one). The last row of the last non-empty correction is the logged final θ̂."""
+    steps = update_steps(corrections, number, rule)
+    nonempty = [s for s in steps if len(s)]
+    theta0 = np.asarray(final, dtype=np.float64) - (nonempty[-1][-1] if nonempty else 0.0)
+    return [theta0 + s for s in steps]
+
+
+__all__ = [
+    "AUTHORS_GAIN",
+    "RULES",
+    "authors_task",
+    "implied_theta0",
+    "reconstructed_theta_hats",
+    "sample_updates",
+    "update_steps",
+]

@@ -11,7 +11,7 @@ lists ``theta_hat0`` (the imported study sessions: models that teach relative to
 left out, saying so). Never the seeds, the env's kwargs (σ, the human) or
 anything else of the header: a test strips them and gets the same estimate.
 
-Writes DIR/fit.json (the named model: estimates, 95 % bootstrap intervals over people,
+Writes DIR/fit.json (the named model: estimates, 95 % intervals over people (``--interval``),
 log-likelihood, held-out log-likelihood), DIR/fit.md, and with ``--compare`` DIR/compare.json,
 a table of held-out log-likelihoods and DIR/plots/ppc.png: the real corrections against draws
 of each fitted model at the same states, for the statistics the logs identify.
@@ -27,7 +27,22 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans.fitting import Corrections, Fit, best_for_theta, fit, simulate
+from strol_gym.humans.fitting import (
+    DEFAULT_INTERVAL,
+    FEW_PEOPLE,
+    INTERVALS,
+    Corrections,
+    Fit,
+    best_for_theta,
+    fit,
+    simulate,
+)
+
+INTERVAL_NAMES = {
+    "bca": "BCa bootstrap, widened for few people",
+    "sandwich": "person-clustered sandwich, t on at most G − 1 df",
+    "percentile": "percentile bootstrap",
+}
 
 MAX_FILES = 10_000
 MAX_FILE_BYTES = 200_000_000
@@ -77,6 +92,13 @@ def _theta0_unknown(header: dict[str, Any]) -> bool:
     return isinstance(unknown, list) and "theta_hat0" in unknown
 
 
+def _theta_reconstructed(header: dict[str, Any]) -> bool:
+    """Whether the log's θ̂ is reconstructed rather than logged (``import-study --theta0
+    implied`` on a One or MOF session: the header's ``extra["theta_hat"]`` says so)."""
+    how = _extra(header).get("theta_hat")
+    return isinstance(how, str) and how.startswith("reconstructed")
+
+
 def load_corrections(sources: Sequence[str]) -> Corrections:
     """Every correction of ``sources`` (logs, folders, Minari ids) as a :class:`Corrections`;
     ValueError on a bad source, mixed Tasks, no θ* or too many corrections."""
@@ -88,7 +110,7 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
     rows: dict[str, list[Any]] = {k: [] for k in ("x", "u_h", "u_r", "star", "hat", "k", "ep")}
     people: dict[str, int] = {}
     person: list[int] = []
-    task, task_name, n_ep, unknown = None, None, 0, False
+    task, task_name, n_ep, unknown, rebuilt = None, None, 0, False, 0
     for src in _sources(sources):
         path = Path(src)
         if path.is_file() and path.stat().st_size > MAX_FILE_BYTES:
@@ -103,6 +125,7 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
             raise ValueError(f"SOURCE {src}: task {name!r}, the others {task_name!r}")
         no_theta0 = _theta0_unknown(session.header)
         unknown |= no_theta0
+        rebuilt += _theta_reconstructed(session.header)
         for e, ep in enumerate(session.episodes):
             if ep.theta_star is None:
                 continue
@@ -139,8 +162,16 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
         np.array(rows["ep"]),
         np.array(person),
         list(people),
-        "logged, partly unknown" if unknown else "logged",
+        _hat_source(unknown, rebuilt),
     )
+
+
+def _hat_source(unknown: bool, rebuilt: int) -> str:
+    """How the corrections' θ̂ came to be known (``Corrections.theta_hat_source``)."""
+    if rebuilt:
+        part = ", unknown in the others" if unknown else ""
+        return f"reconstructed (not logged) in {rebuilt} session(s){part}"
+    return "logged, partly unknown" if unknown else "logged"
 
 
 def _max_corrections() -> int:
@@ -215,27 +246,32 @@ def _usable(name: str, data: Corrections) -> Corrections:
 
 
 # ---------------------------------------------------------------------------- reports
-def _fmt(v: float) -> str:
-    return "nan" if not math.isfinite(v) else f"{v:.4g}"
+def _fmt(v: float | None) -> str:
+    return "–" if v is None or not math.isfinite(v) else f"{v:.4g}"
+
+
+def _interval(f: Fit, k: str) -> str:
+    lo, hi = f.ci95[k]
+    return "–" if not (math.isfinite(lo) and math.isfinite(hi)) else f"[{_fmt(lo)}, {_fmt(hi)}]"
 
 
 def fit_markdown(f: Fit, sources: Sequence[str]) -> str:
     lines = [
         f"# fit-human: `{f.model}`",
         "",
-        f"{f.n_people} people (bootstrap unit), {f.n_corrections} corrections, from "
-        f"{len(sources)} source(s). Maximum likelihood; 95 % percentile bootstrap over people.",
+        f"{f.n_people} people (the intervals' and folds' unit), {f.n_corrections} corrections, "
+        f"from "
+        f"{len(sources)} source(s). Maximum likelihood; 95 % intervals over people "
+        f"({INTERVAL_NAMES[f.interval]}).",
         "",
         "| parameter | estimate | 95 % interval |",
         "|---|---|---|",
     ]
     for k, v in f.estimate.items():
-        lo, hi = f.ci95[k]
-        lines.append(f"| {k} | {_fmt(v)} | [{_fmt(lo)}, {_fmt(hi)}] |")
+        lines.append(f"| {k} | {_fmt(v)} | {_interval(f, k)} |")
     lines += [
         "",
-        f"log-likelihood {f.loglik:.2f}; held-out (folds over people) "
-        f"{_fmt(f.heldout_loglik if f.heldout_loglik is not None else math.nan)}",
+        f"log-likelihood {f.loglik:.2f}; held-out (folds over people) {_fmt(f.heldout_loglik)}",
     ]
     if f.note:
         lines += ["", f"Note: {f.note}."]
@@ -252,10 +288,7 @@ def compare_markdown(fits: dict[str, Fit], skipped: dict[str, str]) -> str:
     ranked = sorted(fits.values(), key=lambda f: -(f.heldout_loglik or -math.inf))
     for f in ranked:
         held = f.heldout_loglik if f.heldout_loglik is not None else math.nan
-        params = ", ".join(
-            f"{k} {_fmt(v)} [{_fmt(f.ci95[k][0])}, {_fmt(f.ci95[k][1])}]"
-            for k, v in f.estimate.items()
-        )
+        params = ", ".join(f"{k} {_fmt(v)} {_interval(f, k)}" for k, v in f.estimate.items())
         lines.append(
             f"| {f.model} | {f.n_corrections} | {held:.2f} | {held / f.n_corrections:.3f} | "
             f"{f.loglik:.2f} | {params} |"
@@ -279,20 +312,27 @@ def run_fit_human(
     folds: int = 5,
     seed: int = 0,
     plots: bool = True,
+    interval: str = DEFAULT_INTERVAL,
 ) -> dict[str, Fit]:
-    """The command's work (module docstring); the fits by model name."""
+    """The command's work (module docstring); the fits by model name. ValueError where
+    ``compare`` is asked of fewer than 2 people (held-out needs folds of people)."""
     from strol_gym.humans.fitting import family
 
     for name in [human, *compare]:
         family(name)  # every name checked before any work
     data = load_corrections(sources)
+    if compare and len(data.people) < 2:
+        raise ValueError(
+            f"--compare ranks models by held-out log-likelihood: {FEW_PEOPLE}; SOURCE holds "
+            f"{len(data.people)} (give more logs)"
+        )
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     fits: dict[str, Fit] = {}
     skipped: dict[str, str] = {}
     for name in dict.fromkeys([human, *compare]):
         try:
-            fits[name] = fit(name, data, n_boot=n_boot, folds=folds, seed=seed)
+            fits[name] = fit(name, data, n_boot=n_boot, folds=folds, seed=seed, interval=interval)
         except ValueError as e:
             if name == human:
                 raise
@@ -322,7 +362,7 @@ def add_parser(sub: Any) -> None:
         help="fit a human model to correction logs; compare models by held-out likelihood",
         description="Fit a registered human model to session logs (a .jsonl, a folder of them, "
         "or a Minari dataset id): maximum likelihood with the action bound's clipping in the "
-        "likelihood, 95 %% bootstrap intervals over people, held-out log-likelihood over folds "
+        "likelihood, 95 %% intervals over people, held-out log-likelihood over folds "
         "of people. Reads only x, u_H, u_R, θ* and θ̂ where logged. Writes OUT/fit.json and "
         "fit.md; --compare adds compare.md/json and posterior-predictive plots.",
     )
@@ -333,6 +373,15 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--bootstrap", type=positive_int("--bootstrap", 10_000, low=0), default=200)
     p.add_argument("--folds", type=positive_int("--folds", 100, low=2), default=5)
     p.add_argument("--seed", type=positive_int("--seed", low=0), default=0)
+    p.add_argument(
+        "--interval",
+        choices=INTERVALS,
+        default=DEFAULT_INTERVAL,
+        help="95 %% intervals over people: sandwich (default: person-clustered Wald on the "
+        "fitting scale, t on at most G - 1 df; no resampling), bca (bootstrap over people, "
+        "bias-corrected and accelerated, widened for few people; --bootstrap resamples), "
+        "percentile (plain bootstrap; under-covers with 12 people: docs/humans.md)",
+    )
     p.add_argument("--no-plots", action="store_true")
     plugin_option(p)
 
@@ -348,14 +397,13 @@ def command(args: Any, parser: Any) -> int:
         args.folds,
         args.seed,
         plots=not args.no_plots,
+        interval=args.interval,
     )
     for f in fits.values():
-        params = ", ".join(
-            f"{k} {_fmt(v)} [{_fmt(f.ci95[k][0])}, {_fmt(f.ci95[k][1])}]"
-            for k, v in f.estimate.items()
-        )
-        held = _fmt(f.heldout_loglik) if f.heldout_loglik is not None else "-"
-        print(f"{f.model}: {params}; loglik {f.loglik:.2f}, held-out {held}")
+        params = ", ".join(f"{k} {_fmt(v)} {_interval(f, k)}" for k, v in f.estimate.items())
+        print(f"{f.model}: {params}; loglik {f.loglik:.2f}, held-out {_fmt(f.heldout_loglik)}")
+        if f.note:
+            print(f"  note: {f.note}")
     print(f"wrote {Path(args.out) / 'fit.json'}")
     return 0
 

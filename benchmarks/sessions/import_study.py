@@ -18,7 +18,9 @@ in the Study Task's frame and orientation convention (:mod:`authors_frame`):
   learner aliased one buffer), start/end/correction times and forces (null), θ̂0 (the episode's
   ``theta_hat0`` is the Task prior's mean, or with ``--theta0 implied`` the θ̂0 worked back from
   the final θ̂ with the session's rule where that rule allows it: ``theta_hat0_source`` says
-  which).
+  which). With ``--theta0 implied`` a One or MOF session's θ̂ before/after each correction is
+  reconstructed too (the implied θ̂0 and the same updates forward; the header's ``theta_hat``
+  says so); a StROL session's stays unknown (``NOT_RECONSTRUCTED`` says why).
 """
 
 from __future__ import annotations
@@ -38,7 +40,12 @@ from strol_gym.benchmarks.sessions.authors_frame import (
     pose_to_frame,
     rotation_angle,
 )
-from strol_gym.benchmarks.sessions.authors_rules import AUTHORS_GAIN, RULES, implied_theta0
+from strol_gym.benchmarks.sessions.authors_rules import (
+    AUTHORS_GAIN,
+    RULES,
+    implied_theta0,
+    reconstructed_theta_hats,
+)
 from strol_gym.benchmarks.sessions.plain_pickle import load_plain_pickle
 from strol_gym.provenance import package_versions
 from strol_gym.tasks.study import STUDY_TASKS, StudyTask, wrap_angle
@@ -60,6 +67,12 @@ UNKNOWN = (
     "u_R during a correction",
     "the order of the learners a participant met",
 )
+NOT_RECONSTRUCTED = {
+    "ours": "not reconstructed: StROL's update adds the authors' trained ĝ term, which this "
+    "project does not have, so neither θ̂0 nor θ̂ per correction can be worked back from the "
+    "final θ̂",
+}
+"""Why ``--theta0 implied`` leaves θ̂ unknown in a session (written to its header)."""
 _SESSION = re.compile(r"^user_(\d+)$")
 
 
@@ -196,11 +209,20 @@ def _path_index(path_pos: np.ndarray, start: int, pos: np.ndarray) -> tuple[int,
 
 
 def correction_lines(
-    raw: RawSession, fit: FrameFit, task: StudyTask, authors_updates: bool
+    raw: RawSession,
+    fit: FrameFit,
+    task: StudyTask,
+    authors_updates: bool,
+    hats: list[np.ndarray] | None = None,
+    theta0: np.ndarray | None = None,
 ) -> list[dict[str, Any]]:
-    """The ``correction`` records of one session (see the module docstring)."""
+    """The ``correction`` records of one session (see the module docstring); ``hats``, per
+    correction θ̂ after each logged sample (``authors_rules.reconstructed_theta_hats``), and
+    ``theta0`` fill θ̂ before/after each record where a One or MOF session's θ̂ is
+    reconstructed (``--theta0 implied``)."""
     lines: list[dict[str, Any]] = []
     where = 0
+    before = theta0 if hats is not None else None
     for k, poses in enumerate(raw.corrections):
         if len(poses) < 2:
             continue
@@ -215,8 +237,6 @@ def correction_lines(
             "path_sample": where,
             "path_samples": len(raw.path_poses),
             "path_match_mm": match_mm,
-            "theta_hat_before": None,
-            "theta_hat_after": None,
             "start_time": None,
             "end_time": None,
             "correction_time": None,
@@ -231,15 +251,21 @@ def correction_lines(
             ]
         else:
             steps = [(states[0], state_step(task, states[0], states[-1]), None)]
-        for x, u_h, sample in steps:
+        for i, (x, u_h, sample) in enumerate(steps):
+            after = None
+            if hats is not None:
+                after = hats[k][i] if authors_updates else hats[k][-1]
             rec = {
                 "index": len(lines),
                 "step": where,
                 "x": x,
                 "u_h": u_h,
                 "u_r": np.zeros_like(u_h),
+                "theta_hat_before": before,
+                "theta_hat_after": after,
                 **common,
             }
+            before = after
             if sample is not None:
                 rec["sample"] = sample
             lines.append(rec)
@@ -269,6 +295,18 @@ def write_session(
     from strol_gym.tasks import task_name
 
     path = out / f"user_{raw.user}_task_{raw.task}_{raw.alg}.jsonl"
+    th0, source = _theta0(raw, task, theta0)
+    hats, unknown, extra = None, list(UNKNOWN), {}
+    if source.startswith("implied") and raw.theta_final is not None:
+        rule = RULES[raw.alg]
+        hats = reconstructed_theta_hats(raw.theta_final, raw.corrections, raw.task, rule)
+        unknown = [u for u in unknown if u not in ("theta_hat per correction", "theta_hat0")]
+        extra["theta_hat"] = (
+            f"reconstructed: the implied θ̂0 and the authors' per-sample updates under {rule} "
+            "(authors_rules.reconstructed_theta_hats), not logged"
+        )
+    elif theta0 == "implied":
+        extra["theta_hat"] = NOT_RECONSTRUCTED.get(raw.alg, "not reconstructed: no final θ̂")
     header = {
         "created": None,
         "env_id": ENV_ID,
@@ -289,10 +327,10 @@ def write_session(
                 "turn_deg": fit.turn_deg,
                 "residual_mm": fit.residual_mm,
             },
-            "unknown": list(UNKNOWN),
+            "unknown": unknown,
+            **extra,
         },
     }
-    th0, source = _theta0(raw, task, theta0)
     x0 = to_state(fit, raw.path_poses[0], task)
     sizes = [len(c) for c in raw.corrections]
     writer = SessionWriter(path, header)
@@ -309,7 +347,7 @@ def write_session(
             corrections_one_pose=sizes.count(1),
             path_samples=len(raw.path_poses),
         )
-        lines = correction_lines(raw, fit, task, authors_updates)
+        lines = correction_lines(raw, fit, task, authors_updates, hats, th0)
         for rec in lines:
             writer.correction(**rec)
         writer.end(

@@ -76,7 +76,27 @@ def check_positive(name: str, value: Any, high: float) -> float:
     return v
 
 
-class CompetenceModel(NominalModel):
+class MarginSilenceModel(NominalModel):
+    """The eq. M6 teacher who corrects only with a probability ``p_correct(m)`` of the
+    correction's margin m (module docstring), else gives none (u_H = 0): the one choice block
+    of ``competence`` and ``hazard``, which differ only in p_correct. One uniform draw per
+    correction."""
+
+    def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+        return {"act": rng.random(n)}
+
+    def p_correct(self, m: np.ndarray) -> np.ndarray:
+        """P(correct) at margin m (each model's own)."""
+        raise NotImplementedError
+
+    def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
+        u = super().corrections(x, u_r, theta_star, draws, theta_hat, k)
+        pref = self.preference(theta_star, k)
+        m = margin(candidate_rewards(self.task, x, u_r, pref, draws.candidates))
+        return _silence(u, draws.extra["act"] >= self.p_correct(m))
+
+
+class CompetenceModel(MarginSilenceModel):
     """Competence-dependent propensity (arXiv 2501.03515): the eq. M6 teacher who corrects with
     probability p(m) = p_good + (p_bad − p_good)·m, where m is the correction's margin (module
     docstring: 0 when the robot's motion is already about the best, 1 when it does badly), and
@@ -99,21 +119,14 @@ class CompetenceModel(NominalModel):
         self.p_good = check_probability("p_good", p_good)
         self.p_bad = check_probability("p_bad", p_bad)
 
-    def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
-        return {"act": rng.random(n)}
-
-    def propensity(self, m: np.ndarray) -> np.ndarray:
+    def p_correct(self, m: np.ndarray) -> np.ndarray:
         """P(correct) at margin m."""
         return self.p_good + (self.p_bad - self.p_good) * m
 
-    def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
-        u = super().corrections(x, u_r, theta_star, draws, theta_hat, k)
-        pref = self.preference(theta_star, k)
-        m = margin(candidate_rewards(self.task, x, u_r, pref, draws.candidates))
-        return _silence(u, draws.extra["act"] >= self.propensity(m))
+    propensity = p_correct
 
 
-class HazardModel(NominalModel):
+class HazardModel(MarginSilenceModel):
     """A state-dependent timing hazard (issue 35 cites arXiv 2602.18603): at each step the
     person steps in with probability h = 1 − exp(−λ·exp(γ (m − 1))), a proportional hazard in
     the margin m (module docstring), else lets the robot be (u_H = 0). λ is the hazard where the
@@ -136,18 +149,11 @@ class HazardModel(NominalModel):
         self.rate = check_positive("rate", rate, 100.0)
         self.gamma = check_positive("gamma", gamma, 100.0)
 
-    def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
-        return {"act": rng.random(n)}
-
-    def hazard(self, m: np.ndarray) -> np.ndarray:
+    def p_correct(self, m: np.ndarray) -> np.ndarray:
         """P(step in) at margin m."""
         return -np.expm1(-self.rate * np.exp(self.gamma * (m - 1.0)))
 
-    def corrections(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
-        u = super().corrections(x, u_r, theta_star, draws, theta_hat, k)
-        pref = self.preference(theta_star, k)
-        m = margin(candidate_rewards(self.task, x, u_r, pref, draws.candidates))
-        return _silence(u, draws.extra["act"] >= self.hazard(m))
+    hazard = p_correct
 
 
 class MarginNoiseModel(NominalModel):
@@ -287,34 +293,34 @@ FITTED_STUDY: dict[str, Any] = {
     "params": {"sigma": 0.490, "bias": 0.050, "beta_rel": 8.02},
     "per_task": {
         "study-task1": {
-            "sigma": [0.552, 0.455, 0.656],
-            "bias": [-0.029, -0.213, 0.139],
-            "beta_rel": [6.80, 3.93, 11.11],
+            "sigma": [0.552, 0.445, 0.684],
+            "bias": [-0.029, -0.221, 0.163],
+            "beta_rel": [6.80, 3.99, 11.58],
             "heldout_loglik": 375.1,
         },
         "study-task2": {
-            "sigma": [0.451, 0.372, 0.516],
-            "bias": [0.121, 0.040, 0.210],
-            "beta_rel": [9.13, 6.70, 11.52],
+            "sigma": [0.451, 0.376, 0.540],
+            "bias": [0.121, 0.010, 0.230],
+            "beta_rel": [9.13, 6.40, 13.01],
             "heldout_loglik": 863.6,
         },
         "study-task3": {
-            "sigma": [0.467, 0.401, 0.522],
-            "bias": [0.057, -0.015, 0.094],
-            "beta_rel": [8.13, 6.44, 9.84],
+            "sigma": [0.467, 0.383, 0.569],
+            "bias": [0.057, -0.019, 0.132],
+            "beta_rel": [8.13, 5.48, 12.05],
             "heldout_loglik": 872.4,
         },
     },
     "source": "the authors' user study (github VT-Collab/StROL_RAL, data removed at d383bef): "
     "12 participants × 3 Tasks × 3 learners, imported with strol-bench import-study (issue 32, "
     "one update per correction, θ̂0 not logged)",
-    "command": "strol-bench fit-human OUT/user_*_task_J_*.jsonl --human myopic "
-    "--compare boltzmann,scale-free,nominal --bootstrap 30 --folds 4 --out DIR (J = 1, 2, 3)",
+    "command": "strol-bench fit-human OUT/user_*_task_J_*.jsonl --human scale-free "
+    "--compare boltzmann,myopic --folds 4 --out DIR (J = 1, 2, 3; sandwich intervals)",
     "date": "2026-11-25",
 }
 """The fit behind ``fitted-study`` (docs/humans.md, "Fitted to the twelve people"): per Task the
-estimate and its 95 % bootstrap interval over people [estimate, low, high]; ``params`` the mean
-of the three Tasks' estimates (σ, ε in units of a_max)."""
+estimate and its 95 % interval over people [estimate, low, high] (the person-clustered
+sandwich); ``params`` the mean of the three Tasks' estimates (σ, ε in units of a_max)."""
 
 
 class FittedStudyModel(ScaleFreeBoltzmannModel):
@@ -323,7 +329,8 @@ class FittedStudyModel(ScaleFreeBoltzmannModel):
     participants (pooled over the three Tasks: scale-free 2111.1, Boltzmann 2103.2, myopic
     1883.4; scale-free best in Tasks 2 and 3, Boltzmann in Task 1), with the mean of the Tasks'
     estimates: β = 8.0 (log-odds of the best candidate over the worst), σ = 0.49, ε = 0.05.
-    The eq. M6 teacher and its zoo could not be fitted there (θ̂ per correction was not logged).
+    The eq. M6 teacher and its zoo need θ̂, reconstructed only for the One and MOF sessions:
+    there the teacher fits worst and the teacher scaled down (``under``) best (docs/humans.md).
     In ``strol-bench robustness`` σ and ε are the grid's, as for every human; β is the fit's.
     Parameters as ``scale-free``."""
 
@@ -379,6 +386,7 @@ __all__ = [
     "FittedStudyModel",
     "HazardModel",
     "MarginNoiseModel",
+    "MarginSilenceModel",
     "ReversingModel",
     "ScaleFreeBoltzmannModel",
     "candidate_rewards",

@@ -1,5 +1,6 @@
 """Fitting human models to correction logs: the likelihood of each model, its maximum, the
-bootstrap and the held-out comparison (``strol-bench fit-human`` is the front end).
+intervals over people and the held-out comparison (``strol-bench fit-human`` is the front
+end).
 
 **What a fit sees.** A :class:`Corrections` holds only what a real person's log holds: per
 correction the state x, u_H, u_R, θ* (the preference the person was asked to teach), θ̂ before
@@ -28,17 +29,19 @@ so their choice is itself random, and the likelihood integrates over it on a fix
 - the wrong θ of ``mistaken`` is integrated over ``WRONG_THETAS`` draws of the Task's prior.
 
 Every parameter is estimated by maximum likelihood (L-BFGS-B on a transformed scale, several
-starts); the 95 % intervals are percentile bootstraps over the people (each person's corrections
-resampled together); the held-out log-likelihood sums, over folds of people, the log-likelihood
-of the held-out people under the fit to the others. Models whose choice needs θ̂ are fitted only
-to corrections whose θ̂ the log holds (or reconstructs: :attr:`Corrections.theta_hat_source`).
+starts); the 95 % intervals have the person as the unit (:data:`INTERVALS`: a person-clustered
+sandwich by default, or a bootstrap resampling each person's corrections together); the
+held-out log-likelihood sums, over folds of people, the log-likelihood of the held-out people
+under the fit to the others. Models whose choice needs θ̂ are fitted only to corrections whose
+θ̂ the log holds (or reconstructs: :attr:`Corrections.theta_hat_source`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -160,7 +163,9 @@ def order_weights(cost: np.ndarray, k: int) -> np.ndarray:
     (k/Q)(1 − F_c)^(k−1): the order statistic of k uniform draws."""
     m = cost.shape[1] - 1
     inner = cost[:, 1:]
-    ranks = np.argsort(np.argsort(inner, axis=1, kind="stable"), axis=1)
+    order = np.argsort(inner, axis=1, kind="stable")
+    ranks = np.empty_like(order)
+    np.put_along_axis(ranks, order, np.arange(m)[None, :], axis=1)
     f = (ranks + 0.5) / m
     better = inner < cost[:, :1]
     f0 = better.mean(axis=1)
@@ -595,10 +600,68 @@ def _take(prep: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
     return out
 
 
+_BLAS_SETTERS: list[tuple[Any, Any]] | None = None
+
+
+def _blas_setters() -> list[tuple[Any, Any]]:
+    """(get, set) thread-count functions of every OpenBLAS this process has loaded (Linux:
+    found in /proc/self/maps; elsewhere none)."""
+    global _BLAS_SETTERS
+    if _BLAS_SETTERS is None:
+        import ctypes
+
+        found: list[tuple[Any, Any]] = []
+        try:
+            with open("/proc/self/maps") as maps:
+                paths = {ln.split()[-1] for ln in maps if "openblas" in ln and "/" in ln}
+        except OSError:
+            paths = set()
+        for path in sorted(paths):
+            try:
+                lib = ctypes.CDLL(path)
+            except OSError:
+                continue
+            for pre in ("scipy_openblas", "openblas"):
+                for suf in ("64_", ""):
+                    get = getattr(lib, f"{pre}_get_num_threads{suf}", None)
+                    put = getattr(lib, f"{pre}_set_num_threads{suf}", None)
+                    if get is not None and put is not None:
+                        found.append((get, put))
+                        break
+                else:
+                    continue
+                break
+        _BLAS_SETTERS = found
+    return _BLAS_SETTERS
+
+
+@contextlib.contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """OpenBLAS on one thread while L-BFGS-B runs, restored after: its threads wake for a
+    problem of 2–4 parameters and, on a shared machine, wait for cores (measured: a 5-dataset
+    recovery 27.7 s → 4.4 s at load 5 on 2 cores). The results do not change."""
+    setters = _blas_setters()
+    before = [get() for get, _ in setters]
+    for _, put in setters:
+        put(1)
+    try:
+        yield
+    finally:
+        for (_, put), n in zip(setters, before, strict=True):
+            put(n)
+
+
 def maximise(
     fam: Family, prep: dict[str, Any], starts: Sequence[dict[str, float]] | None = None
 ) -> tuple[dict[str, float], float]:
     """The maximum-likelihood values and the maximum log-likelihood."""
+    with one_blas_thread():
+        return _maximise(fam, prep, starts)
+
+
+def _maximise(
+    fam: Family, prep: dict[str, Any], starts: Sequence[dict[str, float]] | None
+) -> tuple[dict[str, float], float]:
     params = fam.params
 
     def values(t: np.ndarray) -> dict[str, float]:
@@ -635,6 +698,7 @@ class Fit:
     loglik: float
     heldout_loglik: float | None
     note: str = ""
+    interval: str = "sandwich"
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -642,12 +706,19 @@ class Fit:
             "n_people": self.n_people,
             "n_corrections": self.n_corrections,
             "params": {
-                k: {"estimate": self.estimate[k], "ci95": list(self.ci95[k])} for k in self.estimate
+                k: {"estimate": self.estimate[k], "ci95": [_finite(x) for x in self.ci95[k]]}
+                for k in self.estimate
             },
+            "interval": self.interval,
             "loglik": self.loglik,
             "heldout_loglik": self.heldout_loglik,
             "note": self.note,
         }
+
+
+def _finite(x: float) -> float | None:
+    """A number for JSON: None where there is none (NaN is not JSON)."""
+    return float(x) if math.isfinite(x) else None
 
 
 def usable(fam: Family, data: Corrections) -> tuple[Corrections, str]:
@@ -667,6 +738,278 @@ def usable(fam: Family, data: Corrections) -> tuple[Corrections, str]:
     return data.subset(np.flatnonzero(ok)), note
 
 
+INTERVALS = ("sandwich", "bca", "percentile")
+"""How ``fit`` makes its 95 % intervals (all with the person as the unit; docs/humans.md,
+"Intervals"): ``sandwich`` (the default) a Wald interval on the fitting scale from the
+person-clustered sandwich covariance with Student's t on at most G − 1 degrees of freedom,
+``bca`` the bias-corrected and accelerated bootstrap over people with its tail probabilities
+widened for few people, ``percentile`` the plain percentile bootstrap (kept to show why it was
+replaced: it under-covers with 12 people)."""
+DEFAULT_INTERVAL = "sandwich"
+"""``fit``'s interval (the recovery's coverage: docs/humans.md)."""
+AT_BOUND = 7.0
+"""A free-scale value beyond ±this is a parameter at its range's bound (logistic scale: within
+0.09 % of the range's end). There the likelihood is flat, its Hessian and scores both vanish
+and a Wald interval collapses onto the estimate (competence's p_good at 1 − 6e-8 gave
+[1 − 4e-7, 1 − 1e-8]), so the bound gets a profile-likelihood interval instead."""
+
+
+def free_values(fam: Family, v: dict[str, float]) -> np.ndarray:
+    """Parameter values ``v`` on the optimiser's free scale (logistic or log)."""
+    return np.array([p.to_free(v[p.name]) for p in fam.params])
+
+
+def _values(fam: Family, t: np.ndarray) -> dict[str, float]:
+    return {p.name: p.from_free(x) for p, x in zip(fam.params, t, strict=True)}
+
+
+def _at_bound(fam: Family, t: np.ndarray) -> np.ndarray:
+    out = np.abs(t) > AT_BOUND
+    for j, p in enumerate(fam.params):
+        if p.log:  # a log scale's range is clamped in from_free
+            out[j] = not (p.low * (1 + 1e-6) < math.exp(t[j]) < p.high * (1 - 1e-6))
+    return out
+
+
+def person_scores(
+    fam: Family, prep: dict[str, Any], data: Corrections, t: np.ndarray, h: float = 1e-4
+) -> np.ndarray:
+    """Each person's score (G, p): ∂ Σ_{i ∈ person} log p_i / ∂t on the free scale, by
+    central differences of the per-correction log-likelihood."""
+    groups = person_rows(data)
+    out = np.zeros((len(groups), len(t)))
+    for j in range(len(t)):
+        up, down = t.copy(), t.copy()
+        up[j] += h
+        down[j] -= h
+        d = loglik_terms(fam, prep, _values(fam, up)) - loglik_terms(fam, prep, _values(fam, down))
+        d /= 2 * h
+        out[:, j] = [d[g].sum() for g in groups]
+    return out
+
+
+def person_hessians(
+    fam: Family, prep: dict[str, Any], data: Corrections, t: np.ndarray, h: float = 1e-3
+) -> np.ndarray:
+    """Each person's log-likelihood Hessian (G, p, p) on the free scale, by central
+    differences of the per-correction log-likelihood; their sum is the whole data's."""
+    return _group_hessians(fam, prep, t, person_rows(data), h)
+
+
+def _group_hessians(
+    fam: Family, prep: dict[str, Any], t: np.ndarray, groups: list[np.ndarray], h: float
+) -> np.ndarray:
+    n = len(t)
+
+    def terms(x: np.ndarray) -> np.ndarray:
+        return loglik_terms(fam, prep, _values(fam, x))
+
+    per = np.zeros((len(terms(t)), n, n))
+    f0 = terms(t)
+    for i in range(n):
+        for j in range(i, n):
+            ei, ej = np.zeros(n), np.zeros(n)
+            ei[i], ej[j] = h, h
+            if i == j:
+                d = (terms(t + ei) - 2 * f0 + terms(t - ei)) / h**2
+            else:
+                d = terms(t + ei + ej) - terms(t + ei - ej) - terms(t - ei + ej)
+                d = (d + terms(t - ei - ej)) / (4 * h * h)
+            per[:, i, j] = per[:, j, i] = d
+    return np.stack([per[g].sum(axis=0) for g in groups])
+
+
+def hessian(fam: Family, prep: dict[str, Any], t: np.ndarray, h: float = 1e-3) -> np.ndarray:
+    """The log-likelihood's Hessian (p, p) on the free scale, by central differences."""
+    return _group_hessians(fam, prep, t, [np.arange(len(prep["uh"]))], h)[0]
+
+
+def effective_people(inv: np.ndarray, per_person: np.ndarray) -> np.ndarray:
+    """Per parameter, the Satterthwaite degrees of freedom of the clustered variance,
+    (G−1)/G · (Σ_g λ_g)² / Σ_g λ_g², with λ_g = [H⁻¹ H_g H⁻¹]_jj each person's share of the
+    model's variance (Imbens & Kolesár 2016's idea for few clusters): G − 1 when the people
+    inform alike, fewer when a few carry the information (e.g. most of the others' corrections
+    sit on the action bound)."""
+    g = len(per_person)
+    lam = np.einsum("jk,gkl,lj->gj", inv, per_person, inv)
+    lam = np.maximum(lam, 0.0)
+    den = (lam**2).sum(axis=0)
+    df = np.divide(lam.sum(axis=0) ** 2, den, out=np.full(lam.shape[1], float(g)), where=den > 0)
+    return np.maximum(df * (g - 1) / g, 1.0)
+
+
+class _Fixed(Family):
+    """``base`` with parameter ``name`` held at ``value`` (the profile likelihood's inner fit)."""
+
+    def __init__(self, base: Family, name: str, value: float) -> None:
+        self.base, self.fixed_name, self.value = base, name, value
+        self.name = base.name
+        self.params = tuple(p for p in base.params if p.name != name)
+
+    def prepare(self, data):
+        return self.base.prepare(data)
+
+    def parts(self, prep, v):
+        return self.base.parts(prep, {**v, self.fixed_name: self.value})
+
+
+def _one_sided(fam: Family, prep: dict[str, Any], t: np.ndarray, j: int, level: float) -> float:
+    """For a parameter at its bound: the free value where the profile log-likelihood (the
+    others refitted) has fallen by χ²₁(2·level − 1)/2 from its maximum (a one-sided
+    likelihood-ratio bound; the others held at their estimate fell far too fast where they
+    trade off with it, e.g. competence's p_good against p_bad)."""
+    from scipy.stats import chi2
+
+    drop = 0.5 * float(chi2.ppf(2 * level - 1, 1))
+    inward = -np.sign(t[j]) if t[j] != 0 else 1.0
+    base = float(loglik_terms(fam, prep, _values(fam, t)).sum())
+    param = fam.params[j]
+    mle = _values(fam, t)
+    others = {k: v for k, v in mle.items() if k != param.name}
+
+    def gap(x: float) -> float:
+        inner = _Fixed(fam, param.name, param.from_free(x))
+        if not inner.params:
+            ll = float(loglik_terms(inner, prep, {}).sum())
+        else:
+            _, ll = maximise(inner, prep, starts=[others])
+        return (base - ll if np.isfinite(ll) else math.inf) - drop
+
+    far = t[j] + inward * 50.0
+    if gap(far) < 0:
+        return far
+    return float(optimize.brentq(gap, t[j], far, xtol=1e-3))
+
+
+def sandwich_intervals(
+    fam: Family,
+    prep: dict[str, Any],
+    data: Corrections,
+    mle: dict[str, float],
+    level: float = 0.95,
+) -> dict[str, tuple[float, float]]:
+    """Wald intervals on the free scale from the person-clustered sandwich covariance
+    H⁻¹ (Σ_g s_g s_gᵀ) H⁻¹ · G/(G − 1), Student's t on the :func:`effective_people` degrees of
+    freedom (at most G − 1), mapped back (so they stay in each parameter's range). A
+    parameter at its bound gets a one-sided likelihood-ratio interval from the bound
+    (``_one_sided``)."""
+    from scipy.stats import t as student
+
+    t = free_values(fam, mle)
+    g = len(data.people)
+    bound = _at_bound(fam, t)
+    free = np.flatnonzero(~bound)
+    out: dict[str, tuple[float, float]] = {}
+    if len(free) and g >= 2:
+        per = -person_hessians(fam, prep, data, t)[:, free][:, :, free]
+        s = person_scores(fam, prep, data, t)[:, free]
+        meat = s.T @ s * g / (g - 1)
+        try:
+            inv = np.linalg.inv(per.sum(axis=0))
+            cov = inv @ meat @ inv
+            df = effective_people(inv, per)
+        except np.linalg.LinAlgError:
+            cov = np.full((len(free), len(free)), math.inf)
+            df = np.full(len(free), 1.0)
+        for k, j in enumerate(free):
+            se = math.sqrt(cov[k, k]) if np.isfinite(cov[k, k]) and cov[k, k] >= 0 else math.inf
+            q = float(student.ppf(0.5 + level / 2, df[k]))
+            p = fam.params[j]
+            lo = p.from_free(max(t[j] - q * se, -50.0))
+            hi = p.from_free(min(t[j] + q * se, 50.0))
+            out[p.name] = (lo, hi)
+    for j in np.flatnonzero(bound):
+        p = fam.params[j]
+        edge = p.from_free(math.copysign(50.0, t[j]))  # the bound itself
+        ends = sorted((edge, p.from_free(_one_sided(fam, prep, t, int(j), level))))
+        out[p.name] = (ends[0], ends[1])
+    for p in fam.params:
+        out.setdefault(p.name, (math.nan, math.nan))
+    return out
+
+
+def bootstrap_draws(
+    fam: Family,
+    prep: dict[str, Any],
+    data: Corrections,
+    mle: dict[str, float],
+    n_boot: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """(n_boot, p) maximum-likelihood values on the free scale, refitted to resamples of the
+    people with replacement (each person's corrections together)."""
+    groups = person_rows(data)
+    draws = np.empty((n_boot, len(fam.params)))
+    for b in range(n_boot):
+        pick = rng.integers(0, len(groups), len(groups))
+        rows = np.concatenate([groups[i] for i in pick])
+        v, _ = maximise(fam, _take(prep, rows), starts=[mle])
+        draws[b] = free_values(fam, v)
+    return draws
+
+
+def jackknife_draws(
+    fam: Family, prep: dict[str, Any], data: Corrections, mle: dict[str, float]
+) -> np.ndarray:
+    """(G, p) free-scale estimates with each person left out in turn (BCa's acceleration)."""
+    groups = person_rows(data)
+    out = np.empty((len(groups), len(fam.params)))
+    for i in range(len(groups)):
+        rows = np.concatenate([g for j, g in enumerate(groups) if j != i])
+        v, _ = maximise(fam, _take(prep, rows), starts=[mle])
+        out[i] = free_values(fam, v)
+    return out
+
+
+def expanded_level(level: float, n_people: int) -> float:
+    """The two-sided level whose normal quantile is √(G/(G−1)) t_{G−1}: the bootstrap over G
+    people sees a spread (G−1)/G of the truth's and normal tails where Student's belong, so
+    its intervals are too narrow for few people (Hesterberg 2015, "expanded percentile")."""
+    from scipy.stats import norm
+    from scipy.stats import t as student
+
+    if n_people < 2:
+        return level
+    q = math.sqrt(n_people / (n_people - 1)) * float(student.ppf(0.5 + level / 2, n_people - 1))
+    return float(2 * norm.cdf(q) - 1)
+
+
+def bca_intervals(
+    fam: Family,
+    draws: np.ndarray,
+    jack: np.ndarray | None,
+    mle: dict[str, float],
+    n_people: int,
+    level: float = 0.95,
+) -> dict[str, tuple[float, float]]:
+    """BCa intervals (Efron 1987) from bootstrap ``draws`` on the free scale: the percentiles
+    moved by the bias correction z₀ (the share of draws below the estimate) and the acceleration
+    a (the jackknife's skewness), at the ``expanded_level`` for ``n_people``; ``jack`` None
+    gives the plain percentile interval at ``level``."""
+    from scipy.stats import norm
+
+    t = free_values(fam, mle)
+    out = {}
+    for j, p in enumerate(fam.params):
+        d = draws[:, j]
+        if jack is None:
+            lo_p, hi_p = 0.5 - level / 2, 0.5 + level / 2
+        else:
+            wide = expanded_level(level, n_people)
+            share = (np.sum(d < t[j]) + 0.5 * np.sum(d == t[j])) / len(d)
+            z0 = float(norm.ppf(min(max(share, 0.5 / len(d)), 1 - 0.5 / len(d))))
+            dev = jack[:, j].mean() - jack[:, j]
+            den = 6.0 * float(np.sum(dev**2)) ** 1.5
+            acc = float(np.sum(dev**3)) / den if den > 0 else 0.0
+            ends = []
+            for z in (norm.ppf(0.5 - wide / 2), norm.ppf(0.5 + wide / 2)):
+                ends.append(float(norm.cdf(z0 + (z0 + z) / (1 - acc * (z0 + z)))))
+            lo_p, hi_p = ends
+        lo, hi = np.quantile(d, [lo_p, hi_p])
+        out[p.name] = (p.from_free(float(lo)), p.from_free(float(hi)))
+    return out
+
+
 def bootstrap(
     fam: Family,
     prep: dict[str, Any],
@@ -674,20 +1017,24 @@ def bootstrap(
     mle: dict[str, float],
     n_boot: int,
     rng: np.random.Generator,
+    method: str = "bca",
 ) -> dict[str, tuple[float, float]]:
-    """Percentile 95 % intervals, resampling people with replacement."""
-    groups = person_rows(data)
-    draws: list[list[float]] = []
-    for _ in range(n_boot):
-        pick = rng.integers(0, len(groups), len(groups))
-        rows = np.concatenate([groups[i] for i in pick])
-        v, _ = maximise(fam, _take(prep, rows), starts=[mle])
-        draws.append([v[p.name] for p in fam.params])
-    arr = np.array(draws)
-    return {
-        p.name: (float(np.percentile(arr[:, j], 2.5)), float(np.percentile(arr[:, j], 97.5)))
-        for j, p in enumerate(fam.params)
-    }
+    """95 % intervals over people: ``method`` "bca" (default) or "percentile" from ``n_boot``
+    resamples of the people, "sandwich" without resampling (:data:`INTERVALS`)."""
+    if method not in INTERVALS:
+        raise ValueError(f"interval method must be one of {', '.join(INTERVALS)}, got {method!r}")
+    if method == "sandwich":
+        return sandwich_intervals(fam, prep, data, mle)
+    draws = bootstrap_draws(fam, prep, data, mle, n_boot, rng)
+    jack = jackknife_draws(fam, prep, data, mle) if method == "bca" else None
+    return bca_intervals(fam, draws, jack, mle, len(data.people))
+
+
+FEW_PEOPLE = (
+    "intervals over people and the held-out log-likelihood (folds of people) need at least 2 "
+    "people (participants, or episodes where the log names none)"
+)
+"""What a fit of one person says instead of a degenerate interval and a NaN held-out score."""
 
 
 def heldout(
@@ -698,12 +1045,13 @@ def heldout(
     rng: np.random.Generator,
     start: dict[str, float] | None = None,
 ) -> float:
-    """Σ over folds of people of the held-out people's log-likelihood under the others' fit."""
+    """Σ over folds of people of the held-out people's log-likelihood under the others' fit;
+    ValueError with fewer than 2 people or folds (:data:`FEW_PEOPLE`)."""
     groups = person_rows(data)
     n = len(groups)
     folds = min(folds, n)
     if folds < 2:
-        return math.nan
+        raise ValueError(f"held-out log-likelihood: {FEW_PEOPLE}; these logs hold {n}")
     order = rng.permutation(n)
     total = 0.0
     for f in range(folds):
@@ -722,20 +1070,29 @@ def fit(
     folds: int = 5,
     seed: int = 0,
     heldout_too: bool = True,
+    interval: str = DEFAULT_INTERVAL,
 ) -> Fit:
-    """Fit registered human ``name`` to ``data``: MLE, bootstrap intervals over people and
-    (``heldout_too``) the held-out log-likelihood over ``folds`` folds of people."""
+    """Fit registered human ``name`` to ``data``: MLE, 95 % intervals over people
+    (``interval``, :data:`INTERVALS`; the bootstrap ones from ``n_boot`` resamples, none when
+    it is 0) and (``heldout_too``) the held-out log-likelihood over ``folds`` folds of people.
+    With one person there are no intervals and no held-out score, and the note says why."""
     fam = family(name)
+    if interval not in INTERVALS:
+        raise ValueError(f"interval must be one of {', '.join(INTERVALS)}, got {interval!r}")
     data, note = usable(fam, data)
     prep = prepare(fam, data)
     mle, ll = maximise(fam, prep)
-    rng = np.random.default_rng(seed)
-    ci = bootstrap(fam, prep, data, mle, n_boot, rng) if n_boot else {}
+    few = len(data.people) < 2
+    ci: dict[str, tuple[float, float]] = {}
+    if not few and (n_boot or interval == "sandwich"):
+        ci = bootstrap(fam, prep, data, mle, n_boot, np.random.default_rng(seed), interval)
     ci = {k: ci.get(k, (math.nan, math.nan)) for k in mle}
     held = None
-    if heldout_too:
+    if heldout_too and not few:
         held = heldout(fam, prep, data, folds, np.random.default_rng(seed + 1), mle)
-    return Fit(name, len(data.people), len(data), mle, ci, ll, held, note)
+    if few:
+        note = (note + "; " if note else "") + f"one person: {FEW_PEOPLE}"
+    return Fit(name, len(data.people), len(data), mle, ci, ll, held, note, interval)
 
 
 # ---------------------------------------------------------------------------- predictive draws
@@ -763,22 +1120,31 @@ def simulate(
 
 
 __all__ = [
+    "FEW_PEOPLE",
+    "INTERVALS",
     "NOT_FITTABLE",
     "Corrections",
     "Family",
     "Fit",
     "Param",
+    "bca_intervals",
     "best_for_theta",
+    "bootstrap",
+    "bootstrap_draws",
+    "expanded_level",
     "families",
     "family",
     "fit",
+    "free_values",
     "heldout",
+    "jackknife_draws",
     "loglik_terms",
     "maximise",
     "order_weights",
     "person_rows",
     "prepare",
     "quadrature",
+    "sandwich_intervals",
     "simulate",
     "teacher_choice",
 ]

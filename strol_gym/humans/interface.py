@@ -156,17 +156,25 @@ class HumanModel:
         if type(task).candidate_actions is not Task.candidate_actions or not len(rngs):
             parts = [self.draw(rng, 1) for rng in rngs]
             return _stack(parts, a, k)
-        uniform = np.empty((len(rngs), k, a))
+        # As ``Task.candidate_actions``: U in [0, 1) filled in place per generator, then
+        # −1 + 2·U and the bound over the whole batch (the numbers rng.uniform(−1, 1) gives).
+        cand = np.empty((len(rngs), k + 1, a))
+        cand[:, 0] = 0.0
         z = np.empty((len(rngs), a))
+        own_extra = type(self).draw_extra is not HumanModel.draw_extra
         extras = []
         for b, rng in enumerate(rngs):
-            uniform[b] = rng.uniform(-1.0, 1.0, size=(k, a))
-            extras.append(self.draw_extra(rng, 1))
-            z[b] = rng.standard_normal((1, a))[0]
-        uniform *= task.action_bound
-        cand = np.zeros((len(rngs), k + 1, a))
-        cand[:, 1:] = uniform
-        extra = {key: np.concatenate([e[key] for e in extras]) for key in extras[0]}
+            rng.random(out=cand[b, 1:])
+            if own_extra:
+                extras.append(self.draw_extra(rng, 1))
+            rng.standard_normal(out=z[b])
+        u = cand[:, 1:]
+        u *= 2.0
+        u += -1.0
+        u *= task._candidate_scale
+        extra = (
+            {key: np.concatenate([e[key] for e in extras]) for key in extras[0]} if extras else {}
+        )
         return Draws(cand, z, extra)
 
     def corrections(

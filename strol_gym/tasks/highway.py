@@ -248,14 +248,17 @@ class HighwayTask(Task):
         candidates = np.asarray(candidates, dtype=np.float64)
         best = np.empty(len(candidates), dtype=np.int64)
         f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, theta_hat, theta_star)]
+        beta = np.tan(candidates[..., 1])  # arctan(½ tan δ), in one buffer
+        beta *= 0.5
+        np.arctan(beta, out=beta)
         highway_m6(
             f64[0],
             np.ascontiguousarray(u_r[:, 0]),
             np.ascontiguousarray(np.arctan(0.5 * np.tan(u_r[:, 1]))),
             f64[1],
             f64[2],
-            np.ascontiguousarray(candidates[..., 0]),
-            np.arctan(0.5 * np.tan(candidates[..., 1])),
+            candidates,
+            beta,
             self._kernel_params,
             best,
         )

@@ -3,7 +3,7 @@
 
 Each loop repeats, number for number, the IEEE operations of the plain path (``RobotTask.g_planes``
 or ``HighwayTask.g`` followed by ``strol_gym.humans.choices.optimal_correction``), in the same
-order and without fast-math, so it picks the same candidate to the bit (tests/test_kernels.py).
+order and without fast-math, so it picks the same candidate to the bit (tests/test_compiled.py).
 Sine and cosine are the C library's in both paths; numpy's tangent and arctangent are its own
 (SIMD) ones, so the Highway's steering angle β = arctan(½ tan δ) comes in computed by numpy.
 """
@@ -146,16 +146,17 @@ def highway_m6(
     beta_r: np.ndarray,
     th_hat: np.ndarray,
     th_star: np.ndarray,
-    acc_h: np.ndarray,
+    cand: np.ndarray,
     beta_h: np.ndarray,
     prm: np.ndarray,
     best: np.ndarray,
 ) -> None:
     """Eq. M6 on ``HighwayTask``: each person's chosen candidate index into ``best`` (B,).
-    ``acc_*``, ``beta_*``: the robot's (B,) and the candidates' (B, K) accelerations and
-    steering angles β; ``prm`` as ``HighwayTask._kernel_params``."""
+    ``acc_r``, ``beta_r``: the robot's (B,) acceleration and steering angle β; ``cand``: the
+    candidates (B, K, 2) (their accelerations read in place), ``beta_h`` their β (B, K);
+    ``prm`` as ``HighwayTask._kernel_params``."""
     alpha, dt, half, vmax, vmin = prm[9], prm[10], prm[11], prm[12], prm[13]
-    for b in range(acc_h.shape[0]):
+    for b in range(beta_h.shape[0]):
         r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], acc_r[b], beta_r[b], dt, half, vmax, vmin)
         z = _car(x[b, 4], x[b, 5], x[b, 6], x[b, 7], 0.0, 0.0, dt, half, vmax, vmin)
         ahead = _robot_ahead(r[0], r[1], r[2], r[3], prm[0])
@@ -163,9 +164,18 @@ def highway_m6(
         h0, h1, h2 = th_hat[b, 0], th_hat[b, 1], th_hat[b, 2]
         s0, s1, s2 = th_star[b, 0], th_star[b, 1], th_star[b, 2]
         pick, low = 0, math.inf
-        for k in range(acc_h.shape[1]):
+        for k in range(beta_h.shape[1]):
             c = _car(
-                x[b, 4], x[b, 5], x[b, 6], x[b, 7], acc_h[b, k], beta_h[b, k], dt, half, vmax, vmin
+                x[b, 4],
+                x[b, 5],
+                x[b, 6],
+                x[b, 7],
+                cand[b, k, 0],
+                beta_h[b, k],
+                dt,
+                half,
+                vmax,
+                vmin,
             )
             f = _phi(ahead, c[0], c[1], c[2], c[3], prm)
             q0 = s0 - ((f[0] - f0[0]) * alpha + h0)

@@ -73,6 +73,18 @@ class PandaIK:
             self._seed_low_l = self._seed_low.tolist()
             self._seed_step_l = self._seed_step.tolist()
             self._seed_top = self._seed_max.tolist()
+        self.kernel_gains = (IK_ORIENT_GAIN, IK_POSTURE_GAIN, IK_DAMPING**2, IK_RECOVER)
+        """The constants the compiled solve reads (``ik_kernel.solve_arm``), in its order."""
+        # The seed table as the compiled solve reads it (an empty one: no table).
+        table = np.zeros((0, 1, 1, N_ARM)) if seeds is None else np.asarray(seeds, dtype=np.float64)
+        self.seed_args = (
+            table,
+            *(
+                (np.zeros(3), np.ones(3), np.zeros(3, dtype=np.intp))
+                if seeds is None
+                else (self._seed_low, self._seed_step, self._seed_max.astype(np.intp))
+            ),
+        )
         self.data.qpos[N_ARM:] = FINGER_OPEN
         self.set_q(Q_HOME)
         # The rotation error to "gripper as in Q_HOME" is linear in the site's xmat (9,):
@@ -120,6 +132,10 @@ class PandaIK:
 
         Returns the remaining position error (m).
         """
+        if solver() is not None:  # the same steps in one compiled call
+            from strol_gym.envs.panda.ik_kernel import solve_arm
+
+            return solve_arm(self, target, iters, tol)
         world = [t + h for t, h in zip(np.asarray(target).tolist(), self._lift_l, strict=True)]
         ref = self.reference(target)
         err = self._solve(world, iters, tol, ref)

@@ -11,15 +11,21 @@ to rounding (~1e-15), except where a rounding difference flips a threshold test 
 Every array holds the arms along its last axis, so that each operation runs over contiguous
 numbers of all the arms at once and an iteration is a fixed, small number of numpy calls
 (their per-call cost, not the arithmetic, is what a batch of a few hundred arms pays).
+
+With the compiled kernels on (``strol_gym.compiled``), sets of at most ``HANDOFF`` arms and the
+restarts run in ``strol_gym.envs.panda.ik_kernel``, which repeats these numbers to the bit
+(checked once per process, ``compiled_kernels``).
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import mujoco
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.envs.panda.ik import (
     IK_DAMPING,
     IK_ITERS,
@@ -29,6 +35,7 @@ from strol_gym.envs.panda.ik import (
     IK_TOL,
     PandaIK,
 )
+from strol_gym.envs.panda.ik_step import ALL_FREE, dls_step
 from strol_gym.envs.panda.model import N_ARM
 
 SINGLE_RETRY = 64
@@ -38,6 +45,10 @@ runs until its slowest arm converges or 8x the iterations)."""
 COMPACT = 0.5
 """A set of arms iterates together (the converged ones held still) while at least this fraction
 of it still iterates; below, a compact copy of just those goes on."""
+HANDOFF = 192
+"""With the compiled kernels, a set of at most this many arms goes on in the compiled loop
+(``ik_kernel.batched_solve``, one arm at a time, ~1 µs an arm and iteration); a larger one in
+numpy (~0.1 ms an iteration plus ~0.4 µs an arm): the same numbers either way."""
 
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
@@ -132,7 +143,8 @@ class BatchedPandaIK:
             self._seed_low, self._seed_step = ik._seed_low, ik._seed_step
             self._seed_max = ik._seed_max
         self._orient = ik._orient.copy()
-        self._orient_l = self._orient[:, [0, 2, 3, 5, 6, 8]].tolist()
+        self._orient6 = self._orient[:, [0, 2, 3, 5, 6, 8]]
+        self._orient_l = self._orient6.tolist()
         if np.any(self._orient[:, [1, 4, 7]]):
             raise ValueError("the gripper-down term must not read xmat's entries 1, 4, 7")
         self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
@@ -145,7 +157,21 @@ class BatchedPandaIK:
         self._arms.q[:] = ik.q[:, None]
         self._q = self._arms.q  # (7, N)
         self.q = self._q.T  # (N, 7), a view: writing it moves the arms
+        self._compiled: bool | None = None
+        """Whether the compiled kernels run (None: as ``compiled_kernels`` says, at each call)."""
         self.forward()
+
+    def _kernels(self) -> Any:
+        """``strol_gym.envs.panda.ik_kernel`` when its N-arm kernels run here, else None."""
+        if self._compiled is False or (self._compiled is None and not compiled_kernels(self)):
+            return None
+        from strol_gym.envs.panda import ik_kernel
+
+        return ik_kernel
+
+    def _chain(self) -> tuple[np.ndarray, ...]:
+        """The chain's constants as ``ik_kernel``'s forward kinematics reads them."""
+        return self._base_cols, self._base_pos, self._links, self._site_link
 
     # ------------------------------------------------------------------ kinematics
     def _fk(self, arms: _Arms) -> None:
@@ -182,10 +208,16 @@ class BatchedPandaIK:
 
     def forward(self, rows: np.ndarray | slice = slice(None)) -> None:
         """Recompute the kinematics of arms ``rows`` from ``q``."""
+        idx = np.arange(self.n)[rows]
+        kernels = self._kernels() if len(idx) <= HANDOFF else None
+        if kernels is not None:
+            a = self._arms
+            kernels.batched_forward(a.q, a.site, a.cols, a.axes, a.anchors, idx, *self._chain())
+            return
         if (isinstance(rows, slice) and rows == slice(None)) or self._all_rows(rows):
             self._fk(self._arms)
             return
-        arms = _Arms.empty(len(np.arange(self.n)[rows]))
+        arms = _Arms.empty(len(idx))
         arms.q[:] = self._q[:, rows]
         self._fk(arms)
         self._arms.put(rows, arms)
@@ -234,7 +266,7 @@ class BatchedPandaIK:
             ik = self._single
             for k in retry:
                 ik.set_q(ref[k])
-                err_ref = self._restart(world[k].tolist(), 8 * iters, tol, ref[k].tolist())
+                err_ref = self._restart(world[k], 8 * iters, tol, ref[k])
                 if err_ref < err[k]:
                     err[k] = err_ref
                     self._from_single(rows[k])
@@ -262,7 +294,7 @@ class BatchedPandaIK:
         arms.axes[..., r] = d.xaxis[:N_ARM]
         arms.anchors[..., r] = d.xanchor[:N_ARM]
 
-    def _restart(self, target: list[float], iters: int, tol: float, ref: list[float]) -> float:
+    def _restart(self, target: np.ndarray, iters: int, tol: float, ref: np.ndarray) -> float:
         """``PandaIK._solve`` for one arm, from the single IK's posture, towards world-frame
         ``target``: MuJoCo's kinematics and site Jacobian (as the single IK), the 3x7 algebra of
         ``_iterate`` in plain floats, one pass over the joints (numpy's per-call cost dominates
@@ -271,8 +303,17 @@ class BatchedPandaIK:
         ik = self._single
         m, d, site = ik.model, ik.data, ik.site
         x, xmat, jac_p, jac_r = d.site_xpos[site], d.site_xmat[site], ik._jp, ik._jr
+        kernels = self._kernels()
+        if kernels is not None:
+            fp = kernels.addresses()
+            og, pg, damp, lo, hi = IK_ORIENT_GAIN, IK_POSTURE_GAIN, self._damp2, self.lo, self.hi
+            return kernels.restart(
+                fp, m._address, d._address, site, x, xmat, ik.q, jac_p, jac_r, self._orient6,
+                target, iters, tol, ref, og, pg, damp, lo, hi,
+            )  # fmt: skip
         jp, jr = jac_p[:, :N_ARM], jac_r[:, :N_ARM]
-        tx, ty, tz = target
+        tx, ty, tz = target.tolist()
+        ref = ref.tolist()
         tol2, damp = tol * tol, self._damp2
         og, pg = IK_ORIENT_GAIN, IK_POSTURE_GAIN
         lo, hi = self._lo_l, self._hi_l
@@ -280,6 +321,7 @@ class BatchedPandaIK:
         o10, o12, o13, o15, o16, o18 = self._orient_l[1]
         o20, o22, o23, o25, o26, o28 = self._orient_l[2]
         q = ik.q.tolist()
+        q_new = [0.0] * N_ARM
         for _ in range(iters):
             x0, x1, x2 = x.tolist()
             e0, e1, e2 = tx - x0, ty - x1, tz - x2
@@ -297,11 +339,11 @@ class BatchedPandaIK:
                 og * (a * v0 + b * v1 + c * v2) + pg * (rj - qj)
                 for a, b, c, rj, qj in zip(*jr.tolist(), ref, q, strict=True)
             ]
-            q_new = _dls_step(q, j0, j1, j2, s, e0, e1, e2, damp)
-            blocked = [not lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
-            if any(blocked):
+            dls_step(q, j0, j1, j2, s, e0, e1, e2, damp, ALL_FREE, q_new)
+            free = [lj <= qj <= hj for qj, lj, hj in zip(q_new, lo, hi, strict=True)]
+            if not all(free):
                 # Joints at a limit drop out (their columns of J and entries of s times 0).
-                q_new = _dls_step(q, j0, j1, j2, s, e0, e1, e2, damp, blocked)
+                dls_step(q, j0, j1, j2, s, e0, e1, e2, damp, free, q_new)
             q = [
                 hj if qj > hj else (lj if qj < lj else qj)
                 for qj, lj, hj in zip(q_new, lo, hi, strict=True)
@@ -328,6 +370,7 @@ class BatchedPandaIK:
         ``COMPACT`` of it, a smaller copy of just those goes on (a gather, and the others'
         state written back), so that few arms don't pay for many."""
         tol2 = tol * tol
+        kernels = self._kernels()
         idx: np.ndarray | None
         if self._all_rows(rows):
             arms, idx = self._arms, None  # in place
@@ -337,7 +380,21 @@ class BatchedPandaIK:
         tgt = target
         # None: every arm has a reference posture
         ref_mask: np.ndarray | None = None if has_ref.all() else has_ref
-        for _ in range(iters):
+        for it in range(iters):
+            if kernels is not None and len(moving) <= HANDOFF:
+                # The compiled kernel goes on from here, in the same lockstep, on self._arms.
+                if idx is not None:
+                    self._arms.put(idx, arms)
+                a, here = self._arms, rows if idx is None else idx
+                kernels.batched_solve(
+                    a.q, a.site, a.cols, a.axes, a.anchors, np.asarray(here, dtype=np.intp),
+                    np.ascontiguousarray(tgt), iters - it, tol, np.ascontiguousarray(ref),
+                    np.ones(len(moving), dtype=bool) if ref_mask is None else ref_mask,
+                    moving, *self._chain(), self._orient_cols, IK_ORIENT_GAIN,
+                    IK_POSTURE_GAIN, self._damp2, self.lo, self.hi, COMPACT,
+                )  # fmt: skip
+                idx = None
+                break
             ep = tgt - arms.site
             moving &= np.einsum("ib,ib->b", ep, ep) >= tol2  # |e|², summed in order
             live = int(moving.sum())
@@ -436,51 +493,52 @@ class BatchedPandaIK:
         return dq
 
 
-def _dls_step(
-    q: list[float],
-    j0: list[float],
-    j1: list[float],
-    j2: list[float],
-    s: list[float],
-    e0: float,
-    e1: float,
-    e2: float,
-    damp: float,
-    blocked: list[bool] | None = None,
-) -> list[float]:
-    """q + s + Jᵀ (J Jᵀ + λ²I)⁻¹ (e − J s) for one arm, in plain floats (J by rows j0-j2);
-    the same operations, summed in the same order, as ``BatchedPandaIK._step``. ``blocked``
-    joints drop out: their columns of J and entries of s are left out of the sums (the batched
-    step's products by 0, which add nothing) and they stay where they are."""
-    if blocked is None:
-        blocked = _NONE_BLOCKED
-    a00 = a11 = a22 = a10 = a20 = a21 = v0 = v1 = v2 = 0.0
-    for a, b, c, sj, off in zip(j0, j1, j2, s, blocked, strict=True):
-        if off:
-            continue
-        a00 += a * a
-        a11 += b * b
-        a22 += c * c
-        a10 += b * a
-        a20 += c * a
-        a21 += c * b
-        v0 += a * sj
-        v1 += b * sj
-        v2 += c * sj
-    l00 = math.sqrt(a00 + damp)
-    l10, l20 = a10 / l00, a20 / l00
-    l11 = math.sqrt(a11 + damp - l10 * l10)
-    l21 = (a21 - l20 * l10) / l11
-    l22 = math.sqrt(a22 + damp - l20 * l20 - l21 * l21)
-    z0 = (e0 - v0) / l00
-    z1 = (e1 - v1 - l10 * z0) / l11
-    y2 = (e2 - v2 - l20 * z0 - l21 * z1) / l22 / l22
-    y1 = (z1 - l21 * y2) / l11
-    y0 = (z0 - l10 * y1 - l20 * y2) / l00
-    return [
-        qj if off else qj + (sj + (a * y0 + b * y1 + c * y2))
-        for qj, sj, a, b, c, off in zip(q, s, j0, j1, j2, blocked, strict=True)
-    ]
+_AGREES: bool | None = None
+"""Whether the compiled N-arm kernels reach the plain path's bits in this process (checked once,
+by ``compiled_kernels``)."""
 
 
-_NONE_BLOCKED = [False] * N_ARM
+def compiled_kernels(ik: BatchedPandaIK) -> bool:
+    """Whether ``ik``'s arms take the compiled kernels: the fast kernels are on, the single IK's
+    kernel runs here (MuJoCo's binding and symbols, this BLAS), and the N-arm kernels reach the
+    plain path's bits on 384 arms from random postures towards random targets, near and out of
+    reach (limit steps, both kinds of restart, numpy's lockstep handing over to the compiled
+    one). Checked once per process."""
+    global _AGREES
+    if not use_fast():
+        return False
+    if _AGREES is None:
+        from strol_gym.envs.panda import ik_kernel
+
+        _AGREES = False  # while the check builds its own arms
+        try:
+            _AGREES = ik_kernel.addresses() is not None and _agrees(ik._single)
+        except Exception:  # a numba that cannot compile a kernel here: the plain path runs
+            _AGREES = False
+    return _AGREES
+
+
+def _agrees(single: PandaIK, n: int = 2 * HANDOFF) -> bool:
+    """The plain and the compiled N-arm IK on the same arms and targets: the same bytes?"""
+    q0 = single.q.copy()
+    rng = np.random.default_rng(0)
+    lo, hi = single.lo, single.hi
+    arms = [BatchedPandaIK(single, n) for _ in range(2)]
+    start = lo + (hi - lo) * rng.random((n, N_ARM))
+    results = []
+    for ik, fast in zip(arms, (False, True), strict=True):
+        ik._compiled = fast
+        ik.q[:] = start
+        ik.forward()
+        out: list[np.ndarray] = []
+        every, third = np.arange(n), np.arange(0, n, 3)
+        for spread, rows in ((0.15, every), (2.0, every), (2.0, third), (0.6, every)):
+            target = np.random.default_rng(len(out)).normal(0.0, spread, (len(rows), 3))
+            target += (0.45, 0.0, 0.35)
+            out.append(ik.solve(target, rows))
+        a = ik._arms
+        results.append(
+            b"".join(x.tobytes() for x in (*out, a.q, a.site, a.cols, a.axes, a.anchors))
+        )
+    single.set_q(q0)
+    return results[0] == results[1]

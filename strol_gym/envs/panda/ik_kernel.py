@@ -30,6 +30,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic as numba_intrinsic
 
+from strol_gym.envs.panda.ik_step import dls_step
 from strol_gym.envs.panda.model import N_ARM
 
 # An @intrinsic is called without its first parameter (numba passes the typing context), which
@@ -46,8 +47,10 @@ _SYMBOLS = (
 )
 """The C functions the kernel calls, in the order of its ``fp`` argument."""
 KIN, COM, JAC, CHOL, SOLVE, MUL_T = range(len(_SYMBOLS))
+_FP = np.zeros(len(_SYMBOLS), dtype=np.intp)
+"""The C functions' addresses, once ``solver()`` has found them."""
 
-_jit = njit(cache=True, nogil=True)
+_jit: Any = njit(cache=True, nogil=True)  # its functions are checked by numba, not mypy
 
 
 @intrinsic
@@ -251,6 +254,55 @@ def _solve(
     return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
 
 
+@_jit
+def _solve_recover(
+    fp, ptr, xpos, xmat, q, jp_full, jr_full, w9, orient, target, iters, tol, consts, seeds,
+    seed_grid, seed_top, limits, no_ref,
+):  # fmt: skip
+    """``PandaIK.solve`` in one call: the task-frame ``target`` to the world's, the seed
+    table's posture nearest it (``PandaIK.reference``; an empty table: none), ``_solve``, and
+    the restart from that posture when the error stays above IK_RECOVER x ``tol``. Few
+    arguments (numba's dispatch costs per argument): ``ptr`` = (model, data, site),
+    ``consts`` = (lift x3, gains, λ², IK_RECOVER), ``seed_grid`` = (low; step), ``limits`` =
+    (lo; hi)."""
+    m, d, site = ptr[0], ptr[1], ptr[2]
+    lift, seed_low, seed_step, lo, hi = consts[:3], seed_grid[0], seed_grid[1], limits[0], limits[1]
+    orient_gain, posture, damp2, recover = consts[3], consts[4], consts[5], consts[6]
+    world = np.empty(3)
+    for i in range(3):
+        world[i] = target[i] + lift[i]
+    has_ref = seeds.shape[0] > 0
+    ref = no_ref
+    if has_ref:
+        idx = np.empty(3, dtype=np.intp)
+        for i in range(3):
+            k = int(np.rint((target[i] - seed_low[i]) / seed_step[i]))  # round(): half to even
+            idx[i] = min(max(k, 0), seed_top[i])
+        ref = seeds[idx[0], idx[1], idx[2]]
+        has_ref = not np.isnan(ref[0])
+        if not has_ref:
+            ref = no_ref
+    args = (orient_gain, posture, damp2, lo, hi)
+    err = _solve(
+        fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, world, iters, tol, ref,
+        has_ref, *args,
+    )  # fmt: skip
+    if err > recover * tol and has_ref:
+        q_prev = q.copy()
+        q[:] = ref
+        _call_md(fp[KIN], m, d)
+        err_ref = _solve(
+            fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, world, 8 * iters, tol,
+            ref, has_ref, *args,
+        )  # fmt: skip
+        if err_ref < err:
+            err = err_ref
+        else:
+            q[:] = q_prev
+            _call_md(fp[KIN], m, d)
+    return err
+
+
 def _addresses() -> np.ndarray | None:
     """The C functions' addresses in MuJoCo's shared library (the one the binding loaded), in
     ``_SYMBOLS``' order; None where there is no such library or a symbol is missing."""
@@ -292,7 +344,255 @@ def solver() -> Callable[..., float] | None:
     (``MjModel._address``), no library or symbols, or a BLAS that sums otherwise."""
     if not hasattr(mujoco.MjModel, "_address"):
         return None
+    global _FP
     fp = _addresses()
     if fp is None or not _agrees():
         return None
+    _FP = fp
     return functools.partial(_solve, fp)
+
+
+def solve_arm(ik: Any, target: Any, iters: int, tol: float) -> float:
+    """``PandaIK.solve`` (``ik``) by ``_solve_recover``; only where ``solver()`` is not None."""
+    args = ik.__dict__.get("_kernel_args")
+    if args is None:  # once per arm: views of its MuJoCo data and its constants
+        d, site = ik.data, ik.site
+        ptr = np.array([ik.model._address, d._address, site], dtype=np.intp)
+        table, low, step, top = ik.seed_args
+        args = ik._kernel_args = (
+            (ptr, d.site_xpos[site], d.site_xmat[site], ik.q, ik._jp, ik._jr, ik._w9, ik._orient),
+            (np.array([*ik.lift, *ik.kernel_gains]), table, np.vstack([low, step]), top),
+            (np.vstack([ik.lo, ik.hi]), ik._no_ref),
+        )
+    arm, (consts, table, grid, top), (limits, no_ref) = args
+    target = np.asarray(target, dtype=np.float64)
+    return _solve_recover(_FP, *arm, target, iters, tol, consts, table, grid, top, limits, no_ref)
+
+
+# ---------------------------------------------------------------------------- N arms
+# ``BatchedPandaIK``'s iterations, one arm at a time: its own forward kinematics and Jacobian
+# (numpy's products: a BLAS matrix product sums with one fused multiply-add per term, in order,
+# from 0; einsum and elementwise operations round each product and sum in order, from 0) and
+# the one-arm step ``dls_step`` compiled from the very source CPython runs.
+
+_dls = _jit(dls_step)
+
+
+@_jit
+def _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, f):
+    """``BatchedPandaIK._fk`` of arm ``r``: its kinematics from its joint angles, in place.
+    Its matrix products as OpenBLAS's: one fused multiply-add per term, in order, from 0."""
+    for k in range(3):
+        for i in range(3):
+            f[i, k] = base_cols[i, k]
+        axes[0, k, r] = base_cols[2, k]
+        anchors[0, k, r] = base_pos[k]
+    for j in range(N_ARM):
+        if j:  # the next body's frame (rows 0-2) and its offset (row 3): links[j] @ rot
+            for k in range(3):
+                r0, r1, r2 = rot[0, k], rot[1, k], rot[2, k]
+                for i in range(4):
+                    f[i, k] = _fma(
+                        links[j, i, 2], r2, _fma(links[j, i, 1], r1, _fma(links[j, i, 0], r0, 0.0))
+                    )
+                anchors[j, k, r] = anchors[j - 1, k, r] + f[3, k]
+                axes[j, k, r] = f[2, k]
+        c, sn = np.cos(q[j, r]), np.sin(q[j, r])
+        nsn = -sn
+        for k in range(3):
+            # x' = c x + s y, y' = c y − s x, z' = z (the hinge about the body's z axis)
+            x0, y0 = f[0, k], f[1, k]
+            rot[0, k] = x0 * c + y0 * sn
+            rot[1, k] = y0 * c + x0 * nsn
+            rot[2, k] = axes[j, k, r]
+    for k in range(3):
+        r0, r1, r2 = rot[0, k], rot[1, k], rot[2, k]
+        for i in range(4):
+            x = _fma(site_link[i, 2], r2, _fma(site_link[i, 1], r1, _fma(site_link[i, 0], r0, 0.0)))
+            if i < 3:
+                cols[i, k, r] = x
+            else:
+                site[k, r] = anchors[N_ARM - 1, k, r] + x
+
+
+@_jit
+def batched_forward(q, site, cols, axes, anchors, rows, base_cols, base_pos, links, site_link):
+    """``BatchedPandaIK._fk`` of arms ``rows``."""
+    rot, frame = np.empty((3, 3)), np.empty((4, 3))
+    for r in rows:
+        _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame)
+
+
+@_jit
+def batched_solve(
+    q, site, cols, axes, anchors, rows, target, iters, tol, ref, has_ref, moving, base_cols,
+    base_pos, links, site_link, orient_cols, orient_gain, posture, damp2, lo, hi, compact,
+):  # fmt: skip
+    """``BatchedPandaIK._solve``: arms ``rows`` iterate towards world-frame ``target`` (3, B)
+    until within ``tol`` or ``iters``; ``moving`` (B,): those not yet within it, updated.
+
+    The arms go in the plain path's lockstep (the set that iterates, its compaction below
+    ``compact``, the arms that hit a limit together), because numpy sums some products in
+    another order for a batch of one arm (``_one``), and the bits follow the batch's size."""
+    nb = rows.shape[0]
+    tol2 = tol * tol
+    rot, frame = np.empty((3, 3)), np.empty((4, 3))
+    jt = np.empty((nb, 3, N_ARM))  # J by rows, per arm
+    s, q_new = np.empty((nb, N_ARM)), np.empty((nb, N_ARM))
+    ja, jb, jc = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
+    sa, qa, qo = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
+    e = np.empty((nb, 3))
+    ones = np.ones(N_ARM, dtype=np.bool_)
+    flat, v = np.empty(9), np.empty(3)
+    members, act = np.arange(nb), np.empty(nb, dtype=np.intp)
+    hit = np.zeros(nb, dtype=np.bool_)
+    size = nb
+    for _ in range(iters):
+        live = 0
+        for t in range(size):
+            b = members[t]
+            r = rows[b]
+            for i in range(3):
+                e[b, i] = target[i, b] - site[i, r]
+            e0, e1, e2 = e[b, 0] * e[b, 0], e[b, 1] * e[b, 1], e[b, 2] * e[b, 2]
+            n2 = _one(e0, e1, e2) if size == 1 else ((0.0 + e0) + e1) + e2
+            moving[b] = moving[b] and n2 >= tol2
+            live += moving[b]
+        if not live:
+            break
+        if live < compact * size:
+            k = 0
+            for t in range(size):
+                if moving[members[t]]:
+                    members[k] = members[t]
+                    k += 1
+            size = k
+        alone, n_hit, n_act = size == 1, 0, 0
+        for t in range(size):  # the arms that move this iteration
+            if moving[members[t]]:
+                act[n_act] = members[t]
+                n_act += 1
+        for b in act[:n_act]:
+            r = rows[b]
+            # The position Jacobian's column j: axis_j × (site − anchor_j).
+            for j in range(N_ARM):
+                d0 = site[0, r] - anchors[j, 0, r]
+                d1 = site[1, r] - anchors[j, 1, r]
+                d2 = site[2, r] - anchors[j, 2, r]
+                jt[b, 0, j] = axes[j, 1, r] * d2 - axes[j, 2, r] * d1
+                jt[b, 1, j] = axes[j, 2, r] * d0 - axes[j, 0, r] * d2
+                jt[b, 2, j] = axes[j, 0, r] * d1 - axes[j, 1, r] * d0
+            for i in range(3):
+                for k in range(3):
+                    flat[3 * i + k] = cols[i, k, r]
+            for i in range(3):  # a matrix product; for one arm, a matrix-vector product
+                if alone:
+                    v[i] = _dot9(orient_cols, i, flat)
+                else:
+                    acc = 0.0
+                    for n in range(9):
+                        acc = _fma(orient_cols[i, n], flat[n], acc)
+                    v[i] = acc
+            for j in range(N_ARM):
+                p0, p1, p2 = axes[j, 0, r] * v[0], axes[j, 1, r] * v[1], axes[j, 2, r] * v[2]
+                sj = _one(p0, p1, p2) if alone else ((0.0 + p0) + p1) + p2
+                sj = sj * orient_gain
+                if has_ref[b]:
+                    sj = sj + posture * (ref[j, b] - q[j, r])
+                s[b, j] = sj
+            for j in range(N_ARM):  # one arm's numbers, contiguous, for the one-arm step
+                ja[j], jb[j], jc[j], sa[j], qa[j] = (
+                    jt[b, 0, j],
+                    jt[b, 1, j],
+                    jt[b, 2, j],
+                    s[b, j],
+                    q[j, r],
+                )
+            _dls(qa, ja, jb, jc, sa, e[b, 0], e[b, 1], e[b, 2], damp2, ones, qo, alone)
+            for j in range(N_ARM):
+                q_new[b, j] = qo[j]
+            hit[b] = False
+            for j in range(N_ARM):
+                hit[b] = hit[b] or q_new[b, j] < lo[j] or q_new[b, j] > hi[j]
+            n_hit += hit[b]
+        for b in act[:n_act]:
+            if not hit[b]:
+                continue
+            # Joints at a limit drop out (their columns of J and entries of s times 0).
+            r = rows[b]
+            for j in range(N_ARM):
+                f = 0.0 if q_new[b, j] < lo[j] or q_new[b, j] > hi[j] else 1.0
+                ja[j], jb[j], jc[j] = jt[b, 0, j] * f, jt[b, 1, j] * f, jt[b, 2, j] * f
+                sa[j], qa[j] = s[b, j] * f, q[j, r]
+            _dls(qa, ja, jb, jc, sa, e[b, 0], e[b, 1], e[b, 2], damp2, ones, qo, n_hit == 1)
+            for j in range(N_ARM):
+                q_new[b, j] = qo[j]
+        for b in act[:n_act]:
+            r = rows[b]
+            for j in range(N_ARM):
+                qn = q_new[b, j]
+                qn = qn if qn != qn or qn >= lo[j] else lo[j]  # np.maximum: NaN stays
+                q[j, r] = qn if qn != qn or qn <= hi[j] else hi[j]
+            _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame)
+
+
+@_jit
+def _one(p0, p1, p2):
+    """A sum of 3 products as numpy's einsum adds them for a batch of one (its contiguous inner
+    loop): (p0 + p2) + p1."""
+    return (0.0 + p0 + p2) + p1
+
+
+@_jit
+def restart(
+    fp, m, d, site, xpos, xmat, q, jp_full, jr_full, orient6, target, iters, tol, ref, og, pg,
+    damp2, lo, hi,
+):  # fmt: skip
+    """``BatchedPandaIK._restart``: one arm on the single IK's model (MuJoCo's kinematics and
+    Jacobian) with the batched IK's step; the remaining error."""
+    tx, ty, tz = target[0], target[1], target[2]
+    tol2 = tol * tol
+    s, ql, q_new = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
+    free = np.empty(N_ARM, dtype=np.bool_)
+    site32 = np.int32(site)
+    for j in range(N_ARM):
+        ql[j] = q[j]
+    for _ in range(iters):
+        e0, e1, e2 = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+        if e0 * e0 + e1 * e1 + e2 * e2 < tol2:
+            break
+        _call_md(fp[COM], m, d)
+        _call_jac(fp[JAC], m, d, jp_full.ctypes.data, jr_full.ctypes.data, site32)
+        v = np.empty(3)
+        for i in range(3):
+            o = orient6[i]
+            v[i] = (
+                o[0] * xmat[0] + o[1] * xmat[2] + o[2] * xmat[3] + o[3] * xmat[5]
+                + o[4] * xmat[6] + o[5] * xmat[8]
+            )  # fmt: skip
+        for j in range(N_ARM):
+            a, b, c = jr_full[0, j], jr_full[1, j], jr_full[2, j]
+            s[j] = og * (a * v[0] + b * v[1] + c * v[2]) + pg * (ref[j] - ql[j])
+            free[j] = True
+        _dls(ql, jp_full[0], jp_full[1], jp_full[2], s, e0, e1, e2, damp2, free, q_new)
+        hit = False
+        for j in range(N_ARM):
+            free[j] = lo[j] <= q_new[j] <= hi[j]
+            hit = hit or not free[j]
+        if hit:
+            _dls(ql, jp_full[0], jp_full[1], jp_full[2], s, e0, e1, e2, damp2, free, q_new)
+        for j in range(N_ARM):
+            qn = q_new[j]
+            ql[j] = hi[j] if qn > hi[j] else (lo[j] if qn < lo[j] else qn)
+            q[j] = ql[j]
+        _call_md(fp[KIN], m, d)
+    e0, e1, e2 = tx - xpos[0], ty - xpos[1], tz - xpos[2]
+    return np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
+@functools.cache
+def addresses() -> np.ndarray | None:
+    """MuJoCo's function addresses for ``restart`` (None: as ``solver``'s, no kernel)."""
+    if not hasattr(mujoco.MjModel, "_address") or solver() is None:
+        return None
+    return _addresses()

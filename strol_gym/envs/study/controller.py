@@ -21,7 +21,7 @@ import numpy as np
 from strol_gym.envs.panda.model import N_ARM
 from strol_gym.envs.study.admittance import REST, Admittance, rotation
 from strol_gym.envs.study.scene import JOINT_DAMPING
-from strol_gym.tasks.study import CONTROL_DT
+from strol_gym.tasks.study import CONTROL_DT, mat_to_rpy, rpy_to_mat
 
 HOLD = 5
 """Physics steps per impedance update (the torque is held in between): 5 steps of 5 ms = 25 ms,
@@ -116,6 +116,8 @@ class ImpedanceController:
         _warning_stats: tuple[Any, ...]
         _sp: np.ndarray
         _sp_R: np.ndarray
+        _x: np.ndarray
+        _oriented: bool
         _time: float
         _wrench: np.ndarray
         _active: bool
@@ -168,6 +170,28 @@ class ImpedanceController:
         self._model_age = 0
         self._v_feed: list[float] | None = None
         self._adm = REST
+
+    def _yield_setpoint(
+        self, held: tuple[np.ndarray, np.ndarray], moved: tuple[np.ndarray, np.ndarray]
+    ) -> None:
+        """The arm yields to a person who let go: its setpoint is the held one (``held``: pose,
+        rotation) moved as the person moved the cup (``moved``: the pushed pose, then the
+        pose the held arm reaches without the push), so the arm neither springs back nor stops
+        its own motion where the push left it. Without orientation in the state (Task 1) the
+        rotation setpoint is the cup's rotation: released, a tilted cup righting itself would
+        drag the cup's position with it. The integral stays frozen (the correction is still
+        active). Called before a control step (``versions.StudyVersion.hold_off``)."""
+        pushed, unpushed = moved
+        # v2's admittance displacement is now the setpoint's (else the target would count the
+        # push twice); its spring-back would undo the yield
+        self._adm = REST
+        pos = held[0][:3] + (pushed[:3] - unpushed[:3])
+        if not self._oriented:
+            self._sp, self._sp_R = pos, self._site_xmat.copy()
+            return
+        turn = rpy_to_mat(pushed[3:]).dot(rpy_to_mat(unpushed[3:]).T)
+        self._sp_R = turn.dot(held[1])
+        self._sp = np.concatenate([pos, mat_to_rpy(self._sp_R)])
 
     def _simulate(self, v_sp: Velocity) -> None:
         """One control step of physics with the version's controller."""

@@ -26,6 +26,7 @@ from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight,
 from strol_gym.envs.study.participant import Participant
 from strol_gym.envs.study.people import HeldWrench, ScriptedWrench
 from strol_gym.envs.study.scene import build_model, model_q
+from strol_gym.envs.study.segment import HOLD_OFF_RANGE, PushSegmenter
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, V2, StudyVersion
 from strol_gym.humans import Human
@@ -121,7 +122,9 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
       ``min_correction``, ``tol``, ``ang_tol``, ``satisfied_regret``;
       ``strol_gym.envs.study.user``).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
-    - ``force_threshold`` (N, > 0, default 15), ``duration`` (s, > 0, default 60),
+    - ``force_threshold`` (N, > 0, default 15), ``hold_off`` (v2 only: s in [0, 0.5], default
+      0.4; how long the force must stay at or below the threshold for a correction to end),
+      ``duration`` (s, > 0, default 60),
       ``stiffness`` (N/m, > 0, default 400; v2: 300), ``rot_stiffness`` (N m/rad, > 0,
       default 30; v2: 10).
     - ``max_episode_steps`` (int ≥ 1 or None), ``render_mode`` (None | "rgb_array" |
@@ -161,16 +164,19 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         reflex_torque: float | None = None,
         reflex_recover: float | None = None,
         participant: str | None = None,
+        hold_off: float | None = None,
         **kwargs: Any,
     ) -> None:
-        """The arguments of the env's docstring; ``reflex_*`` and ``participant`` only where
-        the version has them (None: its default)."""
+        """The arguments of the env's docstring; ``reflex_*``, ``participant`` and
+        ``hold_off`` only where the version has them (None: its default)."""
         v = self.version
         extra = {"reflex_force": reflex_force, "reflex_torque": reflex_torque}
         extra |= {"reflex_recover": reflex_recover}
         given = sorted(k for k, x in extra.items() if x is not None) if not v.reflex else []
         if participant is not None and not v.participants:
             given.append("participant")
+        if hold_off is not None and v.hold_off is None:
+            given.append("hold_off")
         if given:
             raise ValueError(f"unknown argument(s) {given}; {self.env_id} has none of them")
         if v.participants:
@@ -182,6 +188,22 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         if participant == "observer":
             _observer_takes_no_model(kwargs)
         self.participant = participant
+        low, high = HOLD_OFF_RANGE
+        self.hold_off = (
+            0.0
+            if v.hold_off is None
+            else float(
+                checks.number(
+                    "hold_off",
+                    v.hold_off if hold_off is None else hold_off,
+                    low=low,
+                    high=high,
+                    text=True,
+                )
+            )
+        )
+        """Seconds the felt force must stay at or below the threshold for a correction to end
+        (``segment.PushSegmenter``; 0 on versions without a hold-off)."""
         self.reflex_force = _within(
             "reflex_force", 100.0 if reflex_force is None else reflex_force, REFLEX_FORCE_RANGE
         )
@@ -295,6 +317,11 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._held = HeldWrench()
         self._scripted: ScriptedWrench | None = None
         self._active = False
+        self._segment = PushSegmenter.for_hold_off(self.force_threshold, self.hold_off, CONTROL_DT)
+        self._held_sp: tuple[np.ndarray, np.ndarray] | None = None
+        """The setpoint (pose, rotation) held when the correction began (the arm yields)."""
+        self._resume = False
+        """A yielded correction just ended: the next step replans from where the cup is."""
         self._corr_start_x = self._x.copy()
         self._corr_t0 = 0.0
         self._trace: list[tuple[float, np.ndarray]] = []
@@ -420,6 +447,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._adm = REST  # the admittance's displacement is now the setpoint's
         if self._oriented:
             self._sp_R = rpy_to_mat(self._sp[3:])
+        else:  # upright (a yielded correction may have left it tilted)
+            self._sp_R = self._home_R
 
     def _plan_step(self, k0: float, k1: float) -> np.ndarray:
         """The plan's displacement from k0 to k1 waypoints along it (0 < k1 − k0 < 1): the
@@ -505,26 +534,30 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         return {**self._study_info(self._zeros, None), "theta_hat0": self._theta_hat0.copy()}
 
     def _transition(self, u_res: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool, dict]:
-        """The person's push decides the step: while the felt wrench exceeds the threshold a
-        correction lasts and the setpoint is held; when it ends, u_H is the pose change."""
+        """The person's push decides the step (``segment.PushSegmenter``): a correction lasts
+        while the felt wrench exceeds the threshold (and, with a hold-off, until it has stayed
+        below it that long), the setpoint held (or yielding, ``_yield``); when it ends, u_H is
+        the pose change (v2: against the counterfactual)."""
         self._reflex = False
         if self._unstable:
             raise RuntimeError("the episode ended unstable; call reset()")
-        if not self._active and self.theta_hat.tolist() != self._plan_theta:
-            self._replan()
+        if not self._active and (self._resume or self.theta_hat.tolist() != self._plan_theta):
+            self._replan()  # after a yielded correction, from where the person left the cup
+        self._resume = False
         self._wrench = self._external_wrench()
         fx, fy, fz, tx, ty, tz = self._wrench.tolist()
         felt = math.hypot(fx, fy, fz) + math.hypot(tx, ty, tz) / TORQUE_LEVER
-        pushing = self._pushing(felt)
+        event = self._segment.feed(felt, not self._braked)
         u_h, is_correction, record = self._zeros, False, None
-        if pushing and not self._active:
+        if event == "start":
             self._active, self._corr_t0 = True, self._time
             self._corr_start_x = self._correction_start()
             self._trace = []
+            self._held_sp = (self._sp, self._sp_R)
             if self.version.counterfactual:
                 mujoco.mj_copyData(self._cf_data, self.model, self.data)
                 self._cf_control, self._cf_steps = self._control_state(), 0
-        elif not pushing and self._active:
+        elif event == "end":
             if self.version.counterfactual:
                 self._corr_start_x = self._counterfactual()
             self._active = False
@@ -532,17 +565,22 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
             u_h = angle_delta(self._x, self._corr_start_x)[: self.task.action_dim]
             self._n_corr += 1
             record = self._record(u_h)
+        if self.version.hold_off is not None and event in ("release", "end"):
+            # The arm yields: let go, it stays where the person left it (the hold-off, the
+            # step the correction ends) and the robot replans from there afterwards.
+            self._yield(is_correction)
         if self._active or is_correction:
             u_r, v_sp = self._zeros, _STILL
         else:
             u_r, v_sp = self._move_setpoint(u_res)
+        pushed = self._segment.phase == "pushing"
         x_before = self._x
         self._touched = False
         self._simulate(v_sp)
         self.steps += 1
-        if self._active:
+        if self._active:  # the speed reflex may have ended it within the step
             self._cf_steps += 1
-            self._corr_time += CONTROL_DT
+            self._corr_time += CONTROL_DT if pushed else 0.0
             self._trace.append((self._time, self._wrench.copy()))
         stable = self._check_stable()
         if stable:
@@ -562,15 +600,21 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         if self.version.contact_info:
             self._n_contact += self._touched
             info.update(contact=self._touched, contacts=self._n_contact)
+        if self.version.hold_off is not None:
+            phase = "ended" if is_correction else self._segment.phase
+            info["correction_phase"] = phase if self._active or is_correction else "idle"
         return u_h, u_r, is_correction, info
 
     def _counterfactual(self) -> np.ndarray:
         """The pose the held arm reaches without the push: the simulation as it was when the
-        push began, run again over the same steps with no external wrench (the setpoint held,
-        the integral frozen, as during the push); then the pushed simulation is put back."""
+        push began, run again over the same steps (the whole correction, hold-off included)
+        with no external wrench (the setpoint held where it was when the push began, the
+        integral frozen, as during the push); then the pushed simulation is put back."""
         m, d = self.model, self.data
         mujoco.mj_copyData(self._cf_pushed, m, d)
         control, wrench, time = self._control_state(), self._wrench, self._time
+        setpoint = self._sp, self._sp_R
+        self._sp, self._sp_R = cast("tuple[np.ndarray, np.ndarray]", self._held_sp)
         mujoco.mj_copyData(d, m, self._cf_data)
         self._set_control_state(self._cf_control)
         self._wrench = np.zeros(6)
@@ -582,16 +626,23 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         mujoco.mj_copyData(d, m, self._cf_pushed)
         self._set_control_state(control)
         self._wrench, self._time, self._touched = wrench, time, touched
+        self._sp, self._sp_R = setpoint
         return unpushed
+
+    def _yield(self, ended: bool) -> None:
+        """The setpoint moves with the person's push so far (``_yield_setpoint``): the push's
+        displacement from the counterfactual (recomputed at a release; at the end it is
+        ``_corr_start_x``), or from the pose where it began without one."""
+        held = cast("tuple[np.ndarray, np.ndarray]", self._held_sp)
+        unpushed = self._corr_start_x
+        if not ended and self.version.counterfactual:
+            unpushed = self._counterfactual()
+        self._yield_setpoint(held, (self._x, unpushed))
+        self._resume = ended
 
     def _truncated(self) -> bool:
         """After ``duration`` seconds, at an instability, or at ``max_episode_steps``."""
         return self._unstable or super()._truncated() or self._time >= self.duration - 1e-9
-
-    def _pushing(self, felt: float) -> bool:
-        """Whether the felt wrench (N, torques at ``TORQUE_LEVER``) is a correction's (never
-        while braked: a shove is no correction)."""
-        return felt > self.force_threshold and not self._braked
 
     def _trip(self) -> None:
         self._braked, self._reflex = True, True
@@ -599,6 +650,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._brake_q = self._qpos.copy()
         self._qvel_all[:] = 0.0
         self._active = False  # the shove is no correction
+        self._segment.cancel()
         self._integral = [0.0] * 6
 
     def _release(self) -> None:
@@ -814,6 +866,14 @@ class StudyEnvV2(StudyEnv):
       participants: a median 11 cm per correction).
     - ``info["contact"]``: the cup touched the pitcher, the plate or the table this step
       (``info["contacts"]`` counts the steps).
+    - **One push, one correction.** A correction ends only once the felt force has stayed at
+      or below ``force_threshold`` for ``hold_off`` seconds (default 0.4, in [0, 0.5];
+      ``segment.PushSegmenter``): a push that eases off and comes back within it is the same
+      correction. Released, the arm yields: its setpoint is the held one moved by the push
+      so far, so it stays where the person left it through the hold-off, and afterwards the
+      robot replans from there. u_H's counterfactual covers the whole correction, hold-off
+      included; ``correction_time`` counts the seconds above the threshold.
+      ``info["correction_phase"]``: "idle", "pushing", "holding" (the hold-off) or "ended".
 
     The participant is v1's (``participant="observer"``); the ĝ are v1's
     (``StudyTaskV2.ghat_task``) until v2's are trained.
@@ -821,7 +881,8 @@ class StudyEnvV2(StudyEnv):
     ## Version History
 
     - v2: u_H by counterfactual, an admittance layer, the Task's reachable set and hulls,
-      joint limits at every physics step, a softer arm, ``info["contact"]``.
+      joint limits at every physics step, a softer arm, ``info["contact"]``, one push one
+      correction (the hold-off, the arm yielding).
     - v1: u_H measured against the held setpoint (deprecated).
     - v0: initial version (deprecated).
     """

@@ -20,6 +20,14 @@ PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
 ĝ was trained on its corrections); ``oracle``: v0's ``SimulatedUser`` with the human model
 (``human``, default eq. M6, the training human), satisfied by the plan's regret."""
+HOLD_OFF = 0.4
+"""s, v2's hold-off: a push whose force comes back within 0.4 s is the same push. Shorter would
+cut real pushes: ``strol-bench interact`` hands the env the viewer's perturbation, updated at
+least every 5th control step (0.25 s), and between updates the force sags as the arm moves
+towards the mouse (an xdotool drag sagged to 7 N for 0.25 s between 17 N and 29 N); a person
+who lets go to regrip takes a reaction time (0.2-0.25 s) and the hand's move. Longer would
+merge deliberate pushes and delay the learner's update after each release by as much; the
+arm yields through it, so u_H hardly depends on it (docs/study.md)."""
 REST_TRUST = 0.01
 """m: beyond this lag at a correction's start, u_H is measured from the cup's pose (v0's way)."""
 
@@ -82,6 +90,13 @@ class StudyVersion:
     torque limit (``StudyEnv._overloads``); None: force and torque thresholds only."""
     integral_max: tuple[float, float] | None = None
     """Bounds of the integral wrench per axis (N, N m); None: ``controller.INTEGRAL_MAX``."""
+    hold_off: float | None = None
+    """None: a correction ends at the first step the felt force is at or below the threshold,
+    the setpoint held throughout (the published rule). A number: the default hold-off (s; the
+    ``hold_off`` argument, ``segment.HOLD_OFF_RANGE``): a correction ends once the force has
+    stayed at or below the threshold that long (``segment.PushSegmenter``), and while it
+    lasts the arm yields: below the threshold the setpoint follows the cup, so the arm stays
+    where the person left it instead of springing back through the hold-off."""
 
 
 V0 = StudyVersion("v0", "StROL-Study-v0")
@@ -114,7 +129,9 @@ V2 = StudyVersion(
     integral_gain=(4.0, 4.0),
     integral_max=(20.0, 3.0),
     torque_reflex=1.0,
+    hold_off=HOLD_OFF,
 )
 """u_H by counterfactual, the joint limits at every physics step, the Task's reachable set and
-hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``."""
+hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``, one
+push one correction (the hold-off)."""
 VERSIONS = {v.name: v for v in (V0, V1, V2)}
