@@ -67,7 +67,10 @@ def settled(task: int, seed: int, **kw) -> StudyEnvV2:
 X, Y, Z = np.eye(3)
 
 
-@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61001, Y), (2, 61002, -X)])
+# Pushes towards the reachable set's inside: with v2's admittance arm, +Y from y = 0.58 (Task 1)
+# and two +Z pushes (Task 3) carried the cup past the arm's reach and the speed reflex stopped
+# the second piece (issue 33's merge); the segmentation is what these tests are about.
+@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61001, -Y), (2, 61002, -X)])
 def test_a_push_that_eases_off_and_comes_back_is_one_correction(task, seed, axis):
     """30 N for 0.8 s, 10 N (below the 15 N threshold) for 0.1 s, 30 N for 0.8 s: one
     correction, ending after the hold-off, whose u_H points along the push and is larger
@@ -94,7 +97,7 @@ def test_the_published_rule_cuts_the_same_push_in_two():
     assert len(ends(infos)) == 2
 
 
-@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61004, -Y), (3, 61005, Z)])
+@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61004, -Y), (3, 61005, -Z)])
 def test_two_pushes_a_second_apart_are_two_corrections(task, seed, axis):
     env = settled(task, seed)
     infos = pushes(env, [(30.0, 0.8), (0.0, 1.0), (30.0, 0.8)], axis)
