@@ -19,6 +19,7 @@ from test_interact_person import ARM_DRIVER, DRAG, needs_x
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.envs.study.env import StudyEnvV2
+from strol_gym.envs.study.people import TORQUE_LEVER
 from strol_gym.envs.study.segment import PushSegmenter
 from strol_gym.envs.study.versions import HOLD_OFF
 from strol_gym.tasks.study import CONTROL_DT
@@ -67,7 +68,10 @@ def settled(task: int, seed: int, **kw) -> StudyEnvV2:
 X, Y, Z = np.eye(3)
 
 
-@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61001, Y), (2, 61002, -X)])
+# Pushes towards the reachable set's inside: with v2's admittance arm, +Y from y = 0.58 (Task 1)
+# and two +Z pushes (Task 3) carried the cup past the arm's reach and the speed reflex stopped
+# the second piece (issue 33's merge); the segmentation is what these tests are about.
+@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61001, -Y), (2, 61002, -X)])
 def test_a_push_that_eases_off_and_comes_back_is_one_correction(task, seed, axis):
     """30 N for 0.8 s, 10 N (below the 15 N threshold) for 0.1 s, 30 N for 0.8 s: one
     correction, ending after the hold-off, whose u_H points along the push and is larger
@@ -94,7 +98,7 @@ def test_the_published_rule_cuts_the_same_push_in_two():
     assert len(ends(infos)) == 2
 
 
-@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61004, -Y), (3, 61005, Z)])
+@pytest.mark.parametrize(("task", "seed", "axis"), [(1, 61004, -Y), (3, 61005, -Z)])
 def test_two_pushes_a_second_apart_are_two_corrections(task, seed, axis):
     env = settled(task, seed)
     infos = pushes(env, [(30.0, 0.8), (0.0, 1.0), (30.0, 0.8)], axis)
@@ -225,13 +229,15 @@ SLOW_DRAG = DRAG.replace(
 
 
 @needs_x
-def test_one_mouse_drag_on_v2_is_one_correction_under_xvfb(tmp_path):
+def test_a_mouse_drag_on_v2_is_cut_only_where_its_force_rested_under_xvfb(tmp_path):
     """Ctrl + right-drag on the selected link, sent as X events, interact's session on v2: the
-    drag leaves one correction in the log, whose force trace went above 15 N, or (where the
-    viewer's force outgrew the reflex: the arm moves along its plan, so the click's distance
-    to the link, and the force, depend on the machine's load) a reflex and no correction; never
-    several. On v1 one such drag became 13 corrections: the viewer's force sags between its
-    updates and every sag below 15 N ended one."""
+    drag reaches the arm (a correction, or a reflex where the viewer's force outgrew it), and
+    every correction in the log ended only after its force had stayed at or below 15 N for the
+    whole hold-off (the trace's last ``hold_off / dt`` samples), with no rest that long inside
+    it. At idle this drag is one correction; on a loaded machine the mouse's events arrive in
+    bursts, the yielding arm catches up with the pointer between them and the force rests, so
+    the drag may be cut there, as a person's pause would cut it. On v1 one such drag became 13
+    corrections: every sag below 15 N ended one."""
     log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
     (tmp_path / "driver.py").write_text(DRAG_DRIVER)
     assert "on_v2" in DRAG_DRIVER and SLOW_DRAG != DRAG
@@ -248,8 +254,18 @@ def test_one_mouse_drag_on_v2_is_one_correction_under_xvfb(tmp_path):
     assert json.loads(log.read_text().splitlines()[0])["env_id"] == "StROL-Study-v2"
     corrections = [r for r in lines if r["type"] == "correction"]
     reflexes = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
-    assert len(corrections) == 1 or (reflexes and not corrections), (corrections, reflexes)
+    assert corrections or reflexes, "the drag never reached the arm"
+    rest = PushSegmenter.for_hold_off(15.0, HOLD_OFF, CONTROL_DT).hold_steps
     for c in corrections:
-        felt = np.linalg.norm(np.array(c["trace"]["force"]), axis=1)
-        assert felt.max() > 15.0 and np.linalg.norm(c["u_h"]) > 0.0
+        trace = c["trace"]
+        felt = np.linalg.norm(np.array(trace["force"]), axis=1)
+        felt += np.linalg.norm(np.array(trace["torque"]), axis=1) / TORQUE_LEVER
+        above = felt > 15.0
+        assert above.any() and np.linalg.norm(c["u_h"]) > 0.0
+        assert not above[-rest:].any() and above[-rest - 1], (felt.round(1), rest)
+        runs, n = [], 0
+        for a in above[: -rest - 1]:
+            n = 0 if a else n + 1
+            runs.append(n)
+        assert max(runs, default=0) < rest, (felt.round(1), rest)
     read_session(log)

@@ -16,7 +16,7 @@ import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.envs.study.controller import VELOCITY_LIMIT
 from strol_gym.envs.study.env import StudyEnvV2
 from strol_gym.envs.study.geometry import rotation_error
-from strol_gym.tasks.study import STUDY_TASKS_V2, rpy_to_mat
+from strol_gym.tasks.study import STUDY_TASKS_V2, WRIST_LEVER, rpy_to_mat
 
 ENV_ID = "StROL-Study-v2"
 ENTROPY = np.random.SeedSequence().entropy
@@ -43,40 +43,78 @@ def unit(rng: np.random.Generator) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
+CASES = 10
+"""Random pushes per Task in the property test (30 in all)."""
+MISS_RATE = 0.05
+"""Issue 33's targets: u_H's translation within 15° of the push, and (Tasks 2-3) its rotation
+within 30° of the torque's axis, in at least 95 % of pushes."""
+
+
+def allowed_misses(n: int, rate: float = MISS_RATE, alpha: float = 0.005) -> int:
+    """The most misses in n draws that a miss rate of ``rate`` leaves likely (a one-sided
+    binomial test at ``alpha``): more, and the rate is above the target (so a bound from the
+    target, not from what v2 measured; a v2 at exactly the target fails it 0.5 % of runs)."""
+    k, tail = n, 0.0
+    while k > 0:
+        p = math.comb(n, k) * rate**k * (1.0 - rate) ** (n - k)
+        if tail + p > alpha:
+            return k
+        tail += p
+        k -= 1
+    return 0
+
+
 def test_random_pushes_read_as_pushed():
-    """30 held-out pushes (10 per Task): a random study seed, 1-3 s into the episode, 20-60 N
-    in a random direction, on Tasks 2-3 with 1-3 N m about a random axis, for 1 s. The bounds
-    are what v2 reaches (benchmarks/speed/study_v2_pushes.py over 200 per Task; docs/study.md),
-    not all of issue 33's targets."""
+    """30 held-out pushes, 10 per Task in one episode at a random study seed (planning once per
+    episode, not once per push), each 1-3 s after the last one ended (the arm following its
+    plan, waiting, going home, or still springing back), 20-60 N in a random direction, on
+    Tasks 2-3 with 1-3 N m about a random axis, for 1 s, drawn from this run's entropy.
+
+    Against issue 33's targets where the push meets nothing: misses (translation beyond 15°,
+    rotation beyond 30°) no more than a 5 % miss rate allows (``allowed_misses``), none beyond
+    90°. A push that presses the cup into an object (``info["contact"]``) or a joint into its
+    limit is turned by that, not misread (over all pushes v2 misses the targets: 90-95 %, one
+    in ~150 beyond 90°; docs/study.md); at most half may. A push that trips the reflex (it
+    loads a joint beyond its motor, or spins one to its speed limit) is no correction; at most
+    half may."""
     rng = np.random.default_rng(ENTROPY)
-    trans, rot, lost = [], [], 0
+    trans, rot, lost, blocked = [], [], 0, 0
     for task in (1, 2, 3):
-        for _ in range(10):
-            env = make(task=task)
-            seed, start = int(rng.integers(20000, 30000)), int(rng.integers(20, 60))
+        env = make(task=task)
+        lo, hi = env.model.jnt_range[:7].T
+        env.reset(seed=int(rng.integers(20000, 30000)))
+        for _ in range(CASES):
             force = unit(rng) * rng.uniform(20.0, 60.0)
             torque = unit(rng) * rng.uniform(1.0, 3.0) if task > 1 else np.zeros(3)
-            env.reset(seed=seed)
-            run(env, start)
+            run(env, int(rng.integers(20, 60)))
             env.apply_wrench(force, torque, duration=1.0)
-            # the push's 20 steps, the 0.4 s hold-off (8 steps), the step it ends
-            ends = [i for i in run(env, 32) if i["is_correction"]]
-            if not ends:  # the speed reflex stopped the shove: no u_H (counted below)
+            hit, end = False, None
+            for _ in range(32):  # the push's 20 steps, the 0.4 s hold-off, the step it ends
+                info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[4]
+                q = env.data.qpos[:7]
+                hit |= info["contact"] or bool(np.any(np.minimum(q - lo, hi - q) < 0.01))
+                if info["is_correction"]:
+                    end = info
+                    break
+            if end is None:  # the reflex stopped the shove: no u_H (counted below)
                 lost += 1
                 continue
-            u, x = ends[0]["u_h"], ends[0]["correction_state"]
+            if hit:
+                blocked += 1
+                continue
+            u, x = end["u_h"], end["correction_state"]
             trans.append(angle_deg(u[:3], force))
             if task > 1:
                 turn = rotation_error(rpy_to_mat(x[3:] + u[3:]), rpy_to_mat(x[3:]))
                 rot.append(angle_deg(turn, torque))
-    msg = f"entropy {ENTROPY}: translation {np.round(trans, 1)}, rotation {np.round(rot, 1)}"
-    # Over 200 pushes per Task: 15-20 % stopped by the speed reflex, translation within 15° in
-    # 88-96 % (never beyond 90°), rotation within 30° in 74-77 % (beyond 90° in 4-6 %). The
-    # bounds leave room for 30 draws' spread (about 3 standard deviations).
-    assert lost <= 12, msg
-    assert max(trans) <= 90.0, msg
-    assert np.mean(np.array(trans) <= 15.0) >= 0.75, msg
-    assert np.mean(np.array(rot) <= 30.0) >= 0.4, msg
+    msg = (
+        f"entropy {ENTROPY}: translation {np.round(trans, 1)}, rotation {np.round(rot, 1)}, "
+        f"{lost} stopped by the reflex, {blocked} blocked"
+    )
+    assert lost <= 3 * CASES // 2 and blocked <= 3 * CASES // 2, msg
+    assert max(trans + rot) <= 90.0, msg
+    assert np.sum(np.array(trans) > 15.0) <= allowed_misses(len(trans)), msg
+    assert np.sum(np.array(rot) > 30.0) <= allowed_misses(len(rot)), msg
 
 
 def test_a_30_newton_push_moves_the_cup_at_least_5_cm():
@@ -91,20 +129,16 @@ def test_a_30_newton_push_moves_the_cup_at_least_5_cm():
 
 @pytest.mark.parametrize("task", [1, 2, 3])
 def test_the_arm_reaches_its_setpoint_and_touches_nothing(task):
-    """After 2 s held, the cup near its setpoint (study seed 20001); following the plan,
-    waiting and going home, the cup never touches the pitcher, the plate or the table.
-    Issue 33's target is 2 mm and 0.01 rad on 95 % of seeds; v2 reaches it on 64-71 % of 200
-    random seeds per Task (docs/study.md), and on this seed in Task 1 only (Tasks 2-3: 2.9 mm
-    and 0.023 rad), so Tasks 2-3 are held to 5 mm and 0.05 rad here: a guard against losing
-    what v2 has, not the target."""
+    """After 2 s held, the cup within 2 mm and 0.01 rad of its setpoint (issue 33's bound; study
+    seed 20001); following the plan, waiting and going home, the cup never touches the pitcher,
+    the plate or the table."""
     env = make(task=task)
     env.reset(seed=20001)
     infos = run(env, 60)
     env.pause(2.0)
     infos += run(env, 40)
-    assert np.linalg.norm(env._sp[:3] - env._x[:3]) < (0.002 if task == 1 else 0.005)
-    turn = np.linalg.norm(rotation_error(env._sp_R, env._site_xmat))
-    assert turn < (0.01 if task == 1 else 0.05)
+    assert np.linalg.norm(env._sp[:3] - env._x[:3]) < 0.002
+    assert np.linalg.norm(rotation_error(env._sp_R, env._site_xmat)) < 0.01
     infos += run(env, 300)
     assert not any(i["contact"] for i in infos)
     assert infos[-1]["contacts"] == 0
@@ -175,3 +209,28 @@ def test_v2_uses_its_tasks_planner_and_its_own_ghat():
     )
     assert env.task.outside_hulls(plans).all()
     assert np.abs(np.diff(plans[..., :3], axis=1)).max() <= env.task.plan_pos_bound + 1e-12
+
+
+@pytest.mark.parametrize("task", [1, 2])
+def test_plans_stay_in_the_reachable_set_the_task_carries(task):
+    """Random θ's plans from home: the hand (``WRIST_LEVER`` up the cup's axis) within the
+    Task's outer radius from the shoulder and roll, pitch within its angle once the robot's pace
+    has brought them in (home lies outside Tasks 2-3's angle box); the set names the command
+    that derived it from the arm model."""
+    t = STUDY_TASKS_V2[task]()
+    assert t.reach_source.startswith("benchmarks/speed/study_reach.py")
+    theta = np.random.default_rng([ENTROPY, task]).uniform(-1, 1, (8, t.dim))
+    plans = t.plan(theta, np.tile(t.start, (8, 1)))[:, 10:]
+    if t.oriented:
+        rot = rpy_to_mat(plans[..., 3:].reshape(-1, 3)).reshape(*plans.shape[:2], 3, 3)
+        axis = rot[..., :, 2]
+        assert np.all(np.abs(plans[..., 3:5]) <= t.reach_angle + 1e-9)
+    else:
+        axis = np.array([0.0, 0.0, 1.0])
+    far = np.linalg.norm(plans[..., :3] + WRIST_LEVER * axis - t.reach_shoulder, axis=-1)
+    # within 1 cm: the lift over a hull and the robot's pace come after the shell (the walk
+    # around a hull, and past the shoulder, can cut inside the shell's inner radius: not held)
+    assert np.all(far <= t.reach_radius + 0.01)
+    # the box within 1 cm too: a waypoint moved out of a hull sideways is not clipped again
+    assert np.all(plans[..., :3] >= t.reach_low - 0.01)
+    assert np.all(plans[..., :3] <= t.reach_high + 0.01)

@@ -2,12 +2,14 @@
 
     .venv/bin/python benchmarks/speed/study_v2_pushes.py [--pushes 200] [--seed 0] [--version v2]
 
-Each push: a random study seed (episode), a random time 1-8 s into the episode, a force of
+Each push: a random study seed (episode), a random time 2-8 s into the episode, a force of
 20-60 N in a random direction and (Tasks 2-3) a torque of 1-3 N m about a random axis, for
 1 s, through the public push API (``apply_wrench``; ``human=None``). Prints per Task the
 angle between u_H's translation and the force, between u_H's rotation (the world-frame turn
-R(x + u) R(x)⁻¹) and the torque's axis, and the 30 N, 1 s displacement. The draws come from
-``--seed`` (not a seed any test uses).
+R(x + u) R(x)⁻¹) and the torque's axis, and the 30 N, 1 s displacement; the pushes the
+reflex stopped (no correction), and the same angles without the pushes that pressed the cup
+into an object (``info["contact"]``) or drove a joint to its limit (physics, not u_H's
+reading). The draws come from ``--seed`` (not a seed any test uses).
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ def unit(rng: np.random.Generator) -> np.ndarray:
 def push_case(version: str, task: int, rng: np.random.Generator) -> dict:
     """One held-out push: its draws and what u_H made of it."""
     seed = int(rng.integers(20000, 30000))
-    start = float(rng.uniform(1.0, 8.0))
+    start = float(rng.uniform(2.0, 8.0))
     force = unit(rng) * rng.uniform(20.0, 60.0)
     torque = unit(rng) * rng.uniform(1.0, 3.0) if task > 1 else np.zeros(3)
     return run_push(version, task, seed, start, force, torque)
@@ -57,10 +59,15 @@ def run_push(
         env.step(zero)
     env.apply_wrench(force, torque, duration=1.0)
     out = {"seed": seed, "start": start, "force": force, "torque": torque, "ok": False}
+    lo, hi = env.model.jnt_range[:7].T
+    out["blocked"] = False
     for _ in range(40):
         _, _, _, truncated, info = env.step(zero)
         if info.get("reflex"):
             out["reflex"] = True
+        q = env.data.qpos[:7]
+        at_limit = bool(np.any(np.minimum(q - lo, hi - q) < 0.01))
+        out["blocked"] = out["blocked"] or at_limit or bool(info.get("contact", False))
         if info["is_correction"]:
             u, x = info["u_h"], info["correction_state"]
             out.update(ok=True, u_h=u, length=float(np.linalg.norm(u[:3])))
@@ -97,9 +104,14 @@ def main(argv: list[str] | None = None) -> None:
         cases = [push_case(args.version, task, rng) for _ in range(args.pushes)]
         done = [c for c in cases if c["ok"]]
         print(f"Task {task} ({args.version}): {len(done)}/{len(cases)} pushes read as corrections")
-        print("  " + summary("translation vs force", [c["trans"] for c in done], 15.0))
-        if task > 1:
-            print("  " + summary("rotation vs torque axis", [c["rot"] for c in done], 30.0))
+        free = [c for c in done if not c["blocked"]]
+        for name, group in (("", done), ("no contact or joint limit: ", free)):
+            print(f"  {name}" + summary("translation vs force", [c["trans"] for c in group], 15.0))
+            if task > 1:
+                print(
+                    f"  {name}"
+                    + summary("rotation vs torque axis", [c["rot"] for c in group], 30.0)
+                )
         lengths = np.array([c["length"] for c in done])
         print(f"  |u_H| translation: median {np.median(lengths) * 100:.1f} cm")
         sides = [run_push(args.version, task, 20001, 3.0, 30.0 * d, np.zeros(3)) for d in np.eye(3)]

@@ -445,21 +445,50 @@ FLOOR = CUP_CLEARANCE
 WRIST_LEVER = 0.26
 """m from the cup's centre up its axis to the hand (link 7's origin)."""
 REACH_LOW = np.array([0.25, -0.45, FLOOR])
-REACH_HIGH = np.array([0.75, 0.60, 0.60])
+"""The reachable sets' low corner (m): the planning box's, above the floor."""
 REACH_SHOULDER = np.array([0.0, 0.0, 0.333])
-REACH_RADIUS = 0.75
-REACH_ANGLE = 0.8
-"""The reachable set: positions in [REACH_LOW, REACH_HIGH] with the hand (``WRIST_LEVER`` up
-the cup's axis) within ``REACH_RADIUS`` of the shoulder (joint 2's axis), |roll|, |pitch| ≤
-``REACH_ANGLE`` (rad), computed offline from the
-arm model by ``benchmarks/study_reach.py`` (IK with every joint 0.05 rad inside its limits, the
-cup at the home yaw; docs/study.md gives the coverage it measured)."""
+"""Joint 2's axis (m), the centre of the reachable sets' shell."""
+
+
+@dataclasses.dataclass(frozen=True)
+class ReachSet:
+    """A reachable set as the v2 planner uses it: the cup's position in [``low``, ``high``], the
+    hand (``WRIST_LEVER`` up the cup's axis) between ``inner`` and ``radius`` m from the shoulder
+    (``REACH_SHOULDER``), |roll| ≤ ``angle`` and −angle ≤ pitch ≤ angle (rad; the planner widens
+    the box to contain its start). ``source``: the command that derived it from the arm model."""
+
+    low: np.ndarray
+    high: np.ndarray
+    inner: float
+    radius: float
+    angle: float
+    source: str
+
+
+REACH_SOURCE = (
+    "benchmarks/speed/study_reach.py --samples 2000 --seed 0 (2026-11-25; IK on the scene's Panda "
+    "from the home joints, every joint 0.1 rad inside its limits, the elbow 0.35 rad more from "
+    "stretched, the wrist 25° from its singularity; the largest candidate set with ≥ 98 % of "
+    "its drawn poses and of its outer 5 cm reachable)"
+)
+REACH_UPRIGHT = ReachSet(REACH_LOW, np.array([0.80, 0.65, 0.60]), 0.35, 0.775, 0.0, REACH_SOURCE)
+"""Task 1's reachable set (the cup upright; of 2,000 drawn poses 1,108 inside it, 98.9 % of
+them and of its outer 5 cm reachable)."""
+REACH_TURNING = ReachSet(REACH_LOW, np.array([0.80, 0.50, 0.70]), 0.45, 0.75, 0.4, REACH_SOURCE)
+"""Tasks 2-3's reachable set (the cup turned; of 2,000 drawn poses 265 inside it, 98.0 % of
+them and of its outer 5 cm reachable)."""
+
+
+SHELL_ROUNDS = 4
+"""Rounds of projecting a waypoint into the shoulder's shell and then the box: one left the
+box's corners 1-2 cm outside the shell."""
 
 
 def _keep_out_walk(
     hulls: np.ndarray,
     shoulder: np.ndarray,
     radius: float,
+    inner: float,
     lever: float,
     angle_scale: float,
     yaw: np.ndarray | None,
@@ -472,8 +501,8 @@ def _keep_out_walk(
     yaw (B,) held.
 
     Each waypoint after x0, all at once: the hand (``lever`` m up the cup's axis) is pulled
-    back into the ball of ``radius`` around ``shoulder`` (or of x0's distance, if x0 is
-    further out); a cup inside a hull leaves it by the shorter way (out to its side, or up
+    into the shell ``inner`` ≤ distance ≤ ``radius`` around ``shoulder`` (alternating with the
+    box); a cup inside a hull leaves it by the shorter way (out to its side, or up
     over its top); back into the box ``low``-``high``; a cup the box put back into a hull is
     lifted over it; then the plans are walked at the step bound (``_walk_out``: the lift can
     lengthen a step at a hull's edge). Walking only the planner's result, not every iterate,
@@ -494,14 +523,24 @@ def _keep_out_walk(
         )
 
     def walk(pos: np.ndarray, bound: float) -> None:
+        if yaw is not None:  # roll and pitch into the box at the robot's pace, first: the
+            # hand's place below depends on them
+            turn = pos[..., 3:5]
+            way_turn = turn[..., 1:, :]
+            np.clip(way_turn, low[3:5] / angle_scale, high[3:5] / angle_scale, out=way_turn)
+            for t in range(1, turn.shape[-2]):
+                prev = turn[..., t - 1, :]
+                turn[..., t, :] = prev + np.clip(turn[..., t, :] - prev, -bound, bound)
         way = pos[..., 1:, :]
         p = way[..., :3]
         off = axis(way)
-        w0 = pos[..., :1, :3] + axis(pos[..., :1, :]) - shoulder
-        lim = np.maximum(np.linalg.norm(w0, axis=-1, keepdims=True), radius)
-        arm = p + off - shoulder
-        far = np.linalg.norm(arm, axis=-1, keepdims=True)
-        p[:] = shoulder - off + arm * np.minimum(1.0, lim / np.maximum(far, 1e-12))
+        # the shell itself, whatever the start (``_walk_out`` then walks a start outside it in
+        # at the robot's pace): a start beyond it let v2's first plans reach 0.8 m everywhere
+        for _ in range(SHELL_ROUNDS):  # alternate: the box can push it back out of the shell
+            arm = p + off - shoulder
+            far = np.maximum(np.linalg.norm(arm, axis=-1, keepdims=True), 1e-12)
+            p[:] = shoulder - off + arm * np.minimum(np.maximum(1.0, inner / far), radius / far)
+            np.clip(p, lo3, hi3, out=p)
         x, y, z = p[..., 0], p[..., 1], p[..., 2]
         for k in range(len(rad)):
             dx, dy = x - cx[k], y - cy[k]
@@ -561,15 +600,18 @@ class StudyTaskV2(StudyTask):
     """A study Task as StROL-Study-v2 plans it: the same features, θ*, prior and bounds, and a
     planner that keeps the cup where the arm reaches it (``reach_*``) and out of the objects'
     hulls (``keep_out``, ``floor``). Plain data: the Task knows no simulator; the numbers were
-    computed from the arm model offline (``benchmarks/study_reach.py``)."""
+    computed from the arm model offline (``reach_source``: ``benchmarks/speed/study_reach.py``)."""
 
     keep_out: np.ndarray = dataclasses.field(default_factory=KEEP_OUT.copy)
     floor: float = FLOOR
     reach_low: np.ndarray = dataclasses.field(default_factory=REACH_LOW.copy)
-    reach_high: np.ndarray = dataclasses.field(default_factory=REACH_HIGH.copy)
+    reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_UPRIGHT.high.copy())
     reach_shoulder: np.ndarray = dataclasses.field(default_factory=REACH_SHOULDER.copy)
-    reach_radius: float = REACH_RADIUS
-    reach_angle: float = REACH_ANGLE
+    reach_radius: float = REACH_UPRIGHT.radius
+    reach_inner: float = REACH_UPRIGHT.inner
+    reach_angle: float = REACH_UPRIGHT.angle
+    reach_source: ClassVar[str] = REACH_SOURCE
+    """How the reachable set was derived (the command, its date and method)."""
 
     @property
     def low(self) -> np.ndarray:
@@ -588,6 +630,7 @@ class StudyTaskV2(StudyTask):
             np.asarray(self.keep_out, dtype=np.float64),
             np.asarray(self.reach_shoulder, dtype=np.float64),
             float(self.reach_radius),
+            float(self.reach_inner),
             WRIST_LEVER,
             float(self._plan_scale[-1]),
             x0[:, 5] if self.oriented else None,
@@ -632,7 +675,7 @@ class StudyTaskV2(StudyTask):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class StudyTask1V2(StudyTaskV2, StudyTask1V1):
-    """Task 1 as StROL-Study-v2 plans it (``StudyTaskV2``)."""
+    """Task 1 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup upright: ``REACH_UPRIGHT``)."""
 
     task_id: ClassVar[str] = "StROL-Study-v2-task1"
     version: ClassVar[int] = 2
@@ -640,7 +683,12 @@ class StudyTask1V2(StudyTaskV2, StudyTask1V1):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class StudyTask2V2(StudyTaskV2, StudyTask2V1):
-    """Task 2 as StROL-Study-v2 plans it (``StudyTaskV2``)."""
+    """Task 2 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
+
+    reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_TURNING.high.copy())
+    reach_inner: float = REACH_TURNING.inner
+    reach_radius: float = REACH_TURNING.radius
+    reach_angle: float = REACH_TURNING.angle
 
     task_id: ClassVar[str] = "StROL-Study-v2-task2"
     version: ClassVar[int] = 2
@@ -649,7 +697,12 @@ class StudyTask2V2(StudyTaskV2, StudyTask2V1):
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class StudyTask3V2(StudyTaskV2, StudyTask3V1):
-    """Task 3 as StROL-Study-v2 plans it (``StudyTaskV2``)."""
+    """Task 3 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
+
+    reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_TURNING.high.copy())
+    reach_inner: float = REACH_TURNING.inner
+    reach_radius: float = REACH_TURNING.radius
+    reach_angle: float = REACH_TURNING.angle
 
     task_id: ClassVar[str] = "StROL-Study-v2-task3"
     version: ClassVar[int] = 2

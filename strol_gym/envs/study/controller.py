@@ -19,6 +19,7 @@ import mujoco
 import numpy as np
 
 from strol_gym.envs.panda.model import N_ARM
+from strol_gym.envs.study.admittance import REST, Admittance, rotation
 from strol_gym.envs.study.scene import JOINT_DAMPING
 from strol_gym.tasks.study import CONTROL_DT, mat_to_rpy, rpy_to_mat
 
@@ -60,6 +61,9 @@ BRAKE_FROM, BRAKE_FULL = 0.9, 0.95
 """v2's joint brake: from 0.9x a joint's speed limit its torque blends towards the full
 torque limit against the motion, reached at 0.95x (saturation: the motors' torque is all there
 is; ``qvel`` is never written)."""
+ADMITTANCE_SPEED = 0.5
+"""v2: the share of each joint's speed limit the admittance's motion may ask of it
+(``_cap_speed``); the plan's motion and the tracking come on top."""
 _CONTROL_STATE = (
     "_integral",
     "_v_prev",
@@ -72,6 +76,8 @@ _CONTROL_STATE = (
     "_lam",
     "_dyn_inv",
     "_jt_damp",
+    "_adm",
+    "_kmat",
 )
 """v1's controller state between steps (each rebound, never changed in place)."""
 MODEL_EVERY = 4
@@ -121,6 +127,8 @@ class ImpedanceController:
         _cup_geom: int
         _object_geoms: frozenset[int]
         _touched: bool
+        stiffness: float
+        rot_stiffness: float
 
         def _trip(self) -> None: ...
 
@@ -141,6 +149,11 @@ class ImpedanceController:
         self._reflex_vlim = (SPEED_REFLEX * VELOCITY_LIMIT).tolist()
         self._qacc = self.data.qacc[:N_ARM]
         self._tlim = TORQUE_LIMIT.tolist()
+        self._integral_max = self.version.integral_max or INTEGRAL_MAX
+        self._cap_vlim = (ADMITTANCE_SPEED * VELOCITY_LIMIT).tolist()
+        if self.version.admittance:
+            dt = HOLD * self.model.opt.timestep
+            self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
 
     def _control_state(self) -> dict[str, Any]:
         """The controller's state (v1's), to run the simulation again from here."""
@@ -156,6 +169,7 @@ class ImpedanceController:
         self._v_prev = _ZERO6
         self._model_age = 0
         self._v_feed: list[float] | None = None
+        self._adm = REST
 
     def _yield_setpoint(
         self, held: tuple[np.ndarray, np.ndarray], moved: tuple[np.ndarray, np.ndarray]
@@ -168,6 +182,9 @@ class ImpedanceController:
         drag the cup's position with it. The integral stays frozen (the correction is still
         active). Called before a control step (``versions.StudyVersion.hold_off``)."""
         pushed, unpushed = moved
+        # v2's admittance displacement is now the setpoint's (else the target would count the
+        # push twice); its spring-back would undo the yield
+        self._adm = REST
         pos = held[0][:3] + (pushed[:3] - unpushed[:3])
         if not self._oriented:
             self._sp, self._sp_R = pos, self._site_xmat.copy()
@@ -265,9 +282,14 @@ class ImpedanceController:
             mujoco.mj_fullM(self.model, self.data, self._mass)
             m_inv_jt = np.linalg.solve(self._mass[:N_ARM, :N_ARM], ja.T)
             lam = np.linalg.inv(ja.dot(m_inv_jt) + LAMBDA_REG)
-            vals, vecs = np.linalg.eigh(lam)
-            root = (vecs * np.sqrt(np.maximum(vals, 0.0))).dot(vecs.T)
-            jt_damp = ja.T.dot(root * self._sqrt_k + self._sqrt_k[:, None] * root)
+            band = self.version.track_bandwidth
+            if band:  # v2: K = ω² Λ, D = 2ωΛ: each direction tracks with bandwidth ω
+                self._kmat = (band * band) * lam
+                jt_damp = ja.T.dot((2.0 * band) * lam)
+            else:
+                vals, vecs = np.linalg.eigh(lam)
+                root = (vecs * np.sqrt(np.maximum(vals, 0.0))).dot(vecs.T)
+                jt_damp = ja.T.dot(root * self._sqrt_k + self._sqrt_k[:, None] * root)
             # The elbow's pull acts in the task's null space only (N = I − Jᵀ J̄ᵀ): v0's pull,
             # unprojected, turned the wrist off its setpoint by up to 0.05 rad.
             null = self._eye7 - ja.T.dot(lam.dot(m_inv_jt.T))
@@ -301,6 +323,7 @@ class ImpedanceController:
             self._hand_xfrc[:] = 0.0
             self._v_prev = _ZERO6
             self._model_age = 0
+            self._adm = REST
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
             self._time += CONTROL_DT
@@ -313,45 +336,86 @@ class ImpedanceController:
         vx, vy, vz, wx, wy, wz = v_sp
         integrate = not self._active
         dt_i = HOLD * self.model.opt.timestep
-        gp, gr = kp * K_INTEGRAL[0] * dt_i, kr * K_INTEGRAL[1] * dt_i
-        ip, ir = INTEGRAL_MAX
+        band = self.version.track_bandwidth
+        if band:  # v2: the integral of the stiffness wrench K e (K = ω² Λ)
+            gp, gr = (g * dt_i for g in self.version.integral_gain or K_INTEGRAL)
+        else:
+            gp, gr = kp * K_INTEGRAL[0] * dt_i, kr * K_INTEGRAL[1] * dt_i
+        ip, ir = self._integral_max
         vlim, half = self._vlim, self._half_vlim
         brake = self.version.joint_brake
+        adm = self.version.admittance
+        wext = self._wrench.tolist()
         pushed = brake and self._hand_xfrc.any()
         for i in range(self._n_sub // HOLD):
             mujoco.mj_jacSite(m, d, jp, jr, site)
             if i == 0:
                 self._model_terms(np.array(v_sp))
             x, y, z = xpos.tolist()
-            (_, r01, r02), (r10, _, r12), (r20, r21, _) = sp_r.dot(xmat_t).tolist()
+            ox = oy = oz = 0.0
+            target_r, feed, damp = sp_r, None, None
+            if adm and (self._adm is not REST or any(wext)):
+                # The admittance target over this chunk (its midpoint), its velocity and
+                # acceleration fed forward, the person's wrench cancelled (the target moves
+                # for it): the tracking law carries the cup along δ.
+                s0 = self._adm
+                s1 = self._adm = self._cap_speed(self._admit.step(s0, wext))
+                ox, oy, oz, rx, ry, rz = (0.5 * (a + b) for a, b in zip(s0, s1[:6], strict=False))
+                target_r = rotation(rx, ry, rz).dot(sp_r)
+                inv = 1.0 / dt_i
+                acc = [(b - a) * inv for a, b in zip(s0[6:], s1[6:], strict=True)]
+                feed = self._lam.dot(acc) - wext
+                vel = [(b - a) * inv for a, b in zip(s0[:6], s1[:6], strict=True)]
+                damp = self._jt_damp.dot(vel).tolist()
+            (_, r01, r02), (r10, _, r12), (r20, r21, _) = target_r.dot(xmat_t).tolist()
             # The setpoint where it is at this chunk's start (it moves linearly over the
             # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
             back = CONTROL_DT - i * dt_i
             e = (
-                spx - vx * back - x,
-                spy - vy * back - y,
-                spz - vz * back - z,
+                spx + ox - vx * back - x,
+                spy + oy - vy * back - y,
+                spz + oz - vz * back - z,
                 0.5 * (r21 - r12) - wx * back,
                 0.5 * (r02 - r20) - wy * back,
                 0.5 * (r10 - r01) - wz * back,
             )
             integ = self._integral
-            if integrate:
+            if band:
+                ke = self._kmat.dot(e)
+                if integrate:
+                    integ = [
+                        min(lim, max(-lim, a + g * b))
+                        for a, b, g, lim in zip(
+                            integ,
+                            ke.tolist(),
+                            (gp,) * 3 + (gr,) * 3,
+                            (ip,) * 3 + (ir,) * 3,
+                            strict=True,
+                        )
+                    ]
+                    self._integral = integ
+                w = ke + integ + self._acc_ff
+            elif integrate:
                 integ = [
                     min(ip, max(-ip, a + gp * b)) for a, b in zip(integ[:3], e[:3], strict=False)
                 ] + [min(ir, max(-ir, a + gr * b)) for a, b in zip(integ[3:], e[3:], strict=False)]
                 self._integral = integ
-            w = np.array(
-                [
-                    k * a + b + c
-                    for k, a, b, c in zip(
-                        (kp, kp, kp, kr, kr, kr), e, integ, self._acc_ff, strict=False
-                    )
-                ]
-            )
+            if not band:
+                w = np.array(
+                    [
+                        k * a + b + c
+                        for k, a, b, c in zip(
+                            (kp, kp, kp, kr, kr, kr), e, integ, self._acc_ff, strict=False
+                        )
+                    ]
+                )
+            if feed is not None:
+                w += feed
             rest = self._gain.dot(np.concatenate((q, qd))).tolist()
             joints = zip(w.dot(jac).tolist(), self._const, rest, strict=False)
             ctrl[:] = [t + c - g for t, c, g in joints]
+            if damp is not None:
+                ctrl[:] = [t + b for t, b in zip(ctrl.tolist(), damp, strict=True)]
             if brake:
                 self._step_braked(bool(pushed))
                 if self._braked:  # the speed reflex tripped: the brakes hold from here
@@ -367,6 +431,17 @@ class ImpedanceController:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         self._time += CONTROL_DT
+
+    def _cap_speed(self, s: tuple[float, ...]) -> tuple[float, ...]:
+        """The admittance's state with its velocity scaled down (all six axes alike, so its
+        direction stays) until no joint needs more than ``ADMITTANCE_SPEED`` of its limit to
+        follow it (q̇ = J̄ δ̇, J̄ = M⁻¹ Jᵀ Λ): near a stretched or singular pose a push would
+        otherwise spin a joint into the speed reflex."""
+        need = self._dyn_inv.dot(s[6:]).tolist()
+        over = max(abs(a) / v for a, v in zip(need, self._cap_vlim, strict=True))
+        if over <= 1.0:
+            return s
+        return (*s[:6], *(b / over for b in s[6:]))
 
     def _step_braked(self, pushed: bool) -> None:
         """``HOLD`` physics steps with v2's joint brake (``BRAKE_FROM``): one ``mj_step`` at a

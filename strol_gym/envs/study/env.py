@@ -22,6 +22,7 @@ from strol_gym import checks
 from strol_gym.envs.contract import CorrectionEnv, int_arg, render_metadata, vector_arg
 from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
 from strol_gym.envs.study import population
+from strol_gym.envs.study.admittance import REST
 from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
 from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight, within_reach
 from strol_gym.envs.study.participant import FittedParticipant, Participant
@@ -396,7 +397,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         """The reflex's decision on the summed wrench (before the physics runs)."""
         fx, fy, fz, tx, ty, tz = w.tolist()
         force, torque = math.hypot(fx, fy, fz), math.hypot(tx, ty, tz)
-        if force > self.reflex_force or torque > self.reflex_torque:
+        if force > self.reflex_force or torque > self.reflex_torque or self._overloads(w):
             if not self._braked:
                 self._trip()
             self._release_at = math.inf
@@ -408,6 +409,17 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 self._release_at = self._time + self.reflex_recover - 1e-9
             elif self._time >= self._release_at:
                 self._release()
+
+    def _overloads(self, w: np.ndarray) -> bool:
+        """With the version's ``torque_reflex``: whether the wrench loads a joint beyond that
+        share of its motor's torque (Jᵀ w at the last physics chunk's Jacobian): the motor
+        cannot hold it, so the push would turn the arm about that joint, not move the cup as
+        pushed; the Panda's own controller stops on such external joint torques."""
+        share = self.version.torque_reflex
+        if not share or not w.any():
+            return False
+        load = self._jac[:, :N_ARM].T.dot(w).tolist()
+        return any(abs(t) > share * lim for t, lim in zip(load, self._tlim, strict=True))
 
     def pause(self, seconds: float) -> None:
         """Hold the setpoint where it is for ``seconds`` (the robot waits, then goes on)."""
@@ -432,6 +444,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         left it)."""
         self._set_plan(self.task.plan(self.theta_hat, self._x)[0], leg="plan")
         self._sp = self._x.copy()
+        self._adm = REST  # the admittance's displacement is now the setpoint's
         if self._oriented:
             self._sp_R = rpy_to_mat(self._sp[3:])
         else:  # upright (a yielded correction may have left it tilted)
@@ -832,18 +845,32 @@ class StudyEnvV2(StudyEnv):
       world-frame rotation R(x + u_H) R(x)⁻¹ is the turn the push produced, about the torque's
       axis for a pure torque. A wrench acts at the cup frame's origin (the cup's centre, the
       state's position).
+    - **The push moves the cup as pushed (an admittance layer):** the person's wrench (known:
+      the push API applies it; a real Panda reads it from its joint torque sensors) drives an
+      isotropic virtual mass-spring-damper per axis (``admittance``: ``stiffness`` N/m and
+      ``rot_stiffness`` N m/rad, 6 rad/s, critically damped), and the arm tracks its setpoint
+      displaced by it (position + δ_p, orientation exp(δ_r) R) with the wrench cancelled in
+      the torques: a force moves the cup along it, a torque turns it about its axis, whatever
+      the arm's inertia. The tracking law's gains are a bandwidth, K = ω²Λ and D = 2ωΛ
+      (ω = 14 rad/s, Λ the cup's task-space inertia), with a bounded integral frozen while a
+      push lasts. During a correction the arm yields (its target follows the push); the
+      setpoint itself is held, and the plan restarts from where the person left the cup.
     - **The arm reaches where it is sent:** the Task (``StudyTask{1,2,3}V2``) plans within
-      the reachable set and out of the objects' hulls, which it carries as data; the robot
+      the reachable set (``ReachSet``: a box, a shell around the shoulder, a roll and pitch
+      bound, derived from the arm model by ``benchmarks/speed/study_reach.py``, named in
+      ``reach_source``) and out of the objects' hulls, which it carries as data; the robot
       executes its plans as they are (no clipping: ``reach`` is None), and the regret uses the
       same planner.
     - **The Panda's limits at every physics step**, through the torques (``joint_brake``:
       from 0.9x a joint's speed limit its torque saturates against the motion); a push that
-      loads a joint beyond its motor trips a speed reflex (the brakes lock, ``info["reflex"]``)
-      before the joint passes its limit. ``reflex_force`` in [20, 150] N and ``reflex_torque``
-      in [2, 15] N m, else ValueError.
+      spins a joint towards its limit trips a speed reflex (the brakes lock,
+      ``info["reflex"]``) before the joint passes it, and one that loads a joint beyond its
+      motor's torque limit (Jᵀw) trips the reflex at once (``torque_reflex``): no torque can
+      hold it, so it would turn the arm about that joint, not move the cup as pushed.
+      ``reflex_force`` in [20, 150] N and ``reflex_torque`` in [2, 15] N m, else ValueError.
     - **Softer**: ``stiffness`` 300 N/m and ``rot_stiffness`` 10 N m/rad by default (v1: 400
-      and 30): a 30 N push for 1 s moves the cup 9-10.5 cm (the paper's participants: a median
-      11 cm per correction).
+      and 30), the admittance's: a 30 N push for 1 s moves the cup 9.8 cm (the paper's
+      participants: a median 11 cm per correction).
     - ``info["contact"]``: the cup touched the pitcher, the plate or the table this step
       (``info["contacts"]`` counts the steps).
     - **One push, one correction.** A correction ends only once the felt force has stayed at
@@ -862,9 +889,9 @@ class StudyEnvV2(StudyEnv):
 
     ## Version History
 
-    - v2: u_H by counterfactual, the Task's reachable set and hulls, joint limits at every
-      physics step, a softer arm, ``info["contact"]``, one push one correction (the
-      hold-off, the arm yielding).
+    - v2: u_H by counterfactual, an admittance layer, the Task's reachable set and hulls,
+      joint limits at every physics step, a softer arm, ``info["contact"]``, one push one
+      correction (the hold-off, the arm yielding).
     - v1: u_H measured against the held setpoint (deprecated).
     - v0: initial version (deprecated).
     """

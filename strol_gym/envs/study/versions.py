@@ -75,6 +75,24 @@ class StudyVersion:
     them in a straight line."""
     tasks: Mapping[int, type[StudyTask]] | None = None
     """The Task classes ``task=1, 2, 3`` build (None: ``STUDY_TASKS``, the published ones)."""
+    admittance: bool = False
+    """The person's wrench moves the controller's target through an isotropic virtual
+    mass-spring-damper (``strol_gym.envs.study.admittance``; its stiffness the ``stiffness`` and
+    ``rot_stiffness`` arguments) and the tracking law cancels that wrench (known, as a Panda's
+    joint torque sensors measure it): the cup yields along the force and about the torque's
+    axis whatever the arm's inertia."""
+    track_bandwidth: float | None = None
+    """The tracking law's gains as a bandwidth (rad/s): stiffness ω² Λ and damping 2ωΛ, Λ
+    the cup's task-space inertia (every direction, turns included, tracks alike: v1's scalar
+    10 N m/rad left the heavy turns 30x softer than the light ones); None: v1's gains
+    (``stiffness``, ``rot_stiffness``, damping critical for Λ)."""
+    integral_gain: tuple[float, float] | None = None
+    """The integral's gains (1/s) as multiples of the stiffness; None: ``controller.K_INTEGRAL``."""
+    torque_reflex: float | None = None
+    """The reflex also trips when the person's wrench loads a joint beyond this share of its
+    torque limit (``StudyEnv._overloads``); None: force and torque thresholds only."""
+    integral_max: tuple[float, float] | None = None
+    """Bounds of the integral wrench per axis (N, N m); None: ``controller.INTEGRAL_MAX``."""
     hold_off: float | None = None
     """None: a correction ends at the first step the felt force is at or below the threshold,
     the setpoint held throughout (the published rule). A number: the default hold-off (s; the
@@ -109,6 +127,11 @@ V2 = StudyVersion(
     participants=PARTICIPANTS_V2,
     tasks=STUDY_TASKS_V2,
     hull_return=True,
+    admittance=True,
+    track_bandwidth=14.0,
+    integral_gain=(4.0, 4.0),
+    integral_max=(20.0, 3.0),
+    torque_reflex=1.0,
     hold_off=HOLD_OFF,
 )
 """u_H by counterfactual, the joint limits at every physics step, the Task's reachable set and
