@@ -18,9 +18,14 @@ import pytest
 
 from strol_gym.benchmarks.cli import main
 from strol_gym.benchmarks.sessions.interact import run_interactive
+from strol_gym.envs.study.segment import PushSegmenter
+from strol_gym.envs.study.versions import HOLD_OFF
+from strol_gym.tasks.study import CONTROL_DT
 from strol_gym.wrappers.session_log import SessionLogError, read_session
 
 PUSH_START, PUSH_STEPS = 10, 20  # control steps (0.05 s): a 1 s push from t = 0.5 s
+HOLD_STEPS = PushSegmenter.for_hold_off(15.0, HOLD_OFF, CONTROL_DT).hold_steps
+"""v2 ends a correction after its force has rested at or below 15 N this many steps."""
 
 
 class FakeViewer:
@@ -97,7 +102,7 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     assert info["corrections"] == 1
     assert info["correction_time"] == pytest.approx(1.0, abs=0.051)
     s = read_session(log)
-    assert s.header["learner"] == "strol" and s.header["task"] == "study-task1-v1"
+    assert s.header["learner"] == "strol" and s.header["task"] == "study-task1-v2"
     assert s.header["env_kwargs"]["human"] is None
     (ep,) = s.episodes
     (c,) = ep.corrections
@@ -105,8 +110,10 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     lines = [json.loads(t) for t in log.read_text().splitlines()]
     rec = next(r for r in lines if r["type"] == "correction")
     force = np.array(rec["trace"]["force"])
-    assert len(rec["trace"]["t"]) == PUSH_STEPS
-    np.testing.assert_allclose(force, np.tile([0.0, 30.0, 0.0], (PUSH_STEPS, 1)))
+    # v2: the trace runs through the hold-off (the force at rest) that ended the correction
+    assert len(rec["trace"]["t"]) == PUSH_STEPS + HOLD_STEPS
+    np.testing.assert_allclose(force[:PUSH_STEPS], np.tile([0.0, 30.0, 0.0], (PUSH_STEPS, 1)))
+    np.testing.assert_allclose(force[PUSH_STEPS:], 0.0)
     assert not np.allclose(rec["theta_hat_before"], rec["theta_hat_after"])
     np.testing.assert_allclose(rec["theta_hat_before"], ep.theta_hat0)
     np.testing.assert_allclose(info["theta_hat"], rec["theta_hat_after"])
@@ -139,7 +146,7 @@ def test_panel_tells_how_to_push_what_to_teach_and_cues_the_correction(session):
     (c,) = read_session(log).episodes[0].corrections
     u_h = "CORRECTION RECORDED: u_H = (" + ", ".join(f"{v:+.3f}" for v in c["u_h"]) + ")"
     recorded = [k for k, c in enumerate(cues) if u_h in c]
-    assert recorded and recorded[0] == PUSH_START + PUSH_STEPS  # the step the push ended
+    assert recorded and recorded[0] == PUSH_START + PUSH_STEPS + HOLD_STEPS  # after the hold-off
     # the plan: drawn at reset, redrawn after the correction (θ̂ changed)
     assert len(viewer.plans) >= 2 and viewer.plans[0].shape[1] == 3
     assert not np.array_equal(viewer.plans[0], viewer.plans[-1])
@@ -226,7 +233,7 @@ def test_real_passive_viewer_under_xvfb(tmp_path):
 def test_t_key_shows_the_plan_for_theta_star(tmp_path):
     """With the T key's flag set, the plan for θ* (from the cup's pose) is drawn beside the
     robot's own plan."""
-    from strol_gym.tasks.study import StudyTask1
+    from strol_gym.tasks.study import StudyTask1V2
 
     viewers = []
 
@@ -245,7 +252,7 @@ def test_t_key_shows_the_plan_for_theta_star(tmp_path):
     )
     (viewer,) = viewers
     assert viewer.targets[0] is not None and viewer.targets[0].shape[1] == 3
-    task = StudyTask1()
+    task = StudyTask1V2()  # v2's Task: its planner walks the reachable set
     x0 = np.array(json.loads(log.read_text().splitlines()[1])["x0"])
     start = viewer.targets[0][0]  # the cup where the key was read (Task 1's state is x, y, z)
     assert np.linalg.norm(start - x0) < 0.01
@@ -265,8 +272,8 @@ def test_a_person_meets_the_task_and_g_hat_of_strol_bench_study(task):
     from strol_gym.benchmarks.sessions.interact import session_env
     from strol_gym.learners.registry import make_learner
 
-    # v1's study (its Task and ĝ): interact stays on v1 while the study's default is v2
-    (exp,) = study_config(tasks=(task,), users=1, version="v1").experiments
+    # the study's default version (v2), its Task and ĝ
+    (exp,) = study_config(tasks=(task,), users=1).experiments
     env = gym.make(exp.env_id, **exp.env_kwargs())
     study_learner = make_learner("strol", task=env.unwrapped.task)
     person = session_env(task, "strol")

@@ -162,7 +162,9 @@ wait $pid
 @needs_x
 def test_a_person_drags_the_arm_with_the_mouse_under_xvfb(tmp_path):
     """Ctrl + right-drag on the selected link, sent as X events: the log has the push, as a
-    correction (above 15 N) or as a reflex event (above 100 N) with its force."""
+    correction (above 15 N) or as a reflex event with its force (above 15 N: on v2 the brakes
+    lock above 100 N, and also when a push would load a joint beyond its motor's torque or
+    spin it to its speed limit, docs/study.md)."""
     log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
     (tmp_path / "driver.py").write_text(ARM_DRIVER)
     (tmp_path / "drag.sh").write_text(DRAG)
@@ -182,5 +184,5 @@ def test_a_person_drags_the_arm_with_the_mouse_under_xvfb(tmp_path):
         assert np.linalg.norm(np.array(r["trace"]["force"]), axis=1).max() > 15.0
         assert np.linalg.norm(r["u_h"]) > 0.0
     for r in reflexes:
-        assert np.linalg.norm(r["force"]) > 100.0
+        assert np.linalg.norm(r["force"]) > 15.0
     read_session(log)

@@ -16,7 +16,6 @@ import math
 import os
 import threading
 import time
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
@@ -339,16 +338,11 @@ def session_env(
     env id and Task, hence its ĝ), with no simulated person (``human=None``)."""
     from strol_gym.benchmarks.engine.conditions import env_preset
 
-    # strol-bench study's v1 preset (experiments.study.study_env(task, "v1"), which this layer
-    # may not import); tests/test_interact.py checks the two agree. The study's default is v2
-    # now; a person's session on v2 (its hold-off, its Task) is issue 36's to check first.
-    preset = env_preset(f"study{task}-v1")
+    # strol-bench study's default preset (experiments.study.study_env(task), which this layer
+    # may not import): v2, its Task and ĝ; tests/test_interact.py checks the two agree.
+    preset = env_preset(f"study{task}-v2")
     kwargs = {**(preset.make_kwargs or {}), "human": None, **(env_kwargs or {})}
-    with warnings.catch_warnings():
-        # v1 on purpose (v2's default person and ĝ are not ready: docs/study.md): gymnasium's
-        # "out of date" notice would be a second line where the session promises one.
-        warnings.filterwarnings("ignore", message=".*StROL-Study-v1 is out of date")
-        base = gym.make(preset.env_id, **kwargs)
+    base = gym.make(preset.env_id, **kwargs)
     return OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
 
 
