@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -159,24 +160,30 @@ wait $pid
 """
 
 
+def drag_session(tmp_path: Path, drag: str, max_steps: int) -> tuple[Path, list[dict]]:
+    """`strol-bench interact --task 1` with link 7 selected, under Xvfb, while the shell script
+    ``drag`` sends its X events: the session log's path and its records."""
+    log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
+    (tmp_path / "driver.py").write_text(ARM_DRIVER)
+    (tmp_path / "drag.sh").write_text(drag)
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    run = [sys.executable, str(tmp_path / "driver.py"), str(ready), "interact", "--task", "1"]
+    run += ["--max-steps", str(max_steps), "--log", str(log)]
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "bash", str(tmp_path / "drag.sh")]
+    done = subprocess.run(
+        [*cmd, str(ready), *run], capture_output=True, text=True, timeout=240, env=env
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return log, [json.loads(t) for t in log.read_text().splitlines()]
+
+
 @needs_x
 def test_a_person_drags_the_arm_with_the_mouse_under_xvfb(tmp_path):
     """Ctrl + right-drag on the selected link, sent as X events: the log has the push, as a
     correction (above 15 N) or as a reflex event with its force (above 15 N: on v2 the brakes
     lock above 100 N, and also when a push would load a joint beyond its motor's torque or
     spin it to its speed limit, docs/study.md)."""
-    log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
-    (tmp_path / "driver.py").write_text(ARM_DRIVER)
-    (tmp_path / "drag.sh").write_text(DRAG)
-    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
-    run = [sys.executable, str(tmp_path / "driver.py"), str(ready), "interact", "--task", "1"]
-    run += ["--max-steps", "140", "--log", str(log)]
-    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "bash", str(tmp_path / "drag.sh")]
-    done = subprocess.run(
-        [*cmd, str(ready), *run], capture_output=True, text=True, timeout=240, env=env
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    lines = [json.loads(t) for t in log.read_text().splitlines()]
+    log, lines = drag_session(tmp_path, DRAG, max_steps=140)
     corrections = [r for r in lines if r["type"] == "correction"]
     reflexes = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
     assert corrections or reflexes, "the drag left no trace in the log"

@@ -6,16 +6,12 @@ drag sent as X events to ``strol-bench interact`` on v2 under Xvfb."""
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import subprocess
-import sys
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from test_interact_person import ARM_DRIVER, DRAG, needs_x
+from test_interact_person import DRAG, drag_session, needs_x
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.envs.study.env import StudyEnvV2
@@ -205,22 +201,6 @@ def test_the_segmenter_on_its_own():
     assert [first_drop.feed(f) for f in (20.0, 10.0, 20.0)] == ["start", "end", "start"]
 
 
-ON_V2 = """
-import gymnasium as gym
-from strol_gym.wrappers import OnlineLearningWrapper
-
-
-def on_v2(task, learner="strol", learner_kwargs=None, env_kwargs=None):
-    # interact's session on StROL-Study-v2 (interact itself builds strol-bench study's preset)
-    base = gym.make("StROL-Study-v2", task=task, human=None, **(env_kwargs or {}))
-    return OnlineLearningWrapper(base, learner, learner_kwargs=learner_kwargs)
-
-
-interact.session_env = on_v2
-"""
-SELECT = "interact.passive_viewer = Selected"
-DRAG_DRIVER = ARM_DRIVER.replace(SELECT, ON_V2 + SELECT, 1)
-"""test_interact_person's driver (the real viewer, link 7 selected), its session on v2."""
 SLOW_DRAG = DRAG.replace(
     "$(seq 1 20); do xdotool mousemove_relative -- 4 -3",
     "$(seq 1 16); do xdotool mousemove_relative -- 2 -2",
@@ -238,20 +218,9 @@ def test_a_mouse_drag_on_v2_is_cut_only_where_its_force_rested_under_xvfb(tmp_pa
     bursts, the yielding arm catches up with the pointer between them and the force rests, so
     the drag may be cut there, as a person's pause would cut it. On v1 one such drag became 13
     corrections: every sag below 15 N ended one."""
-    log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
-    (tmp_path / "driver.py").write_text(DRAG_DRIVER)
-    assert "on_v2" in DRAG_DRIVER and SLOW_DRAG != DRAG
-    (tmp_path / "drag.sh").write_text(SLOW_DRAG)
-    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
-    run = [sys.executable, str(tmp_path / "driver.py"), str(ready), "interact", "--task", "1"]
-    run += ["--max-steps", "100", "--log", str(log)]
-    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "bash", str(tmp_path / "drag.sh")]
-    done = subprocess.run(
-        [*cmd, str(ready), *run], capture_output=True, text=True, timeout=240, env=env
-    )
-    assert done.returncode == 0, done.stderr[-3000:]
-    lines = [json.loads(t) for t in log.read_text().splitlines()]
-    assert json.loads(log.read_text().splitlines()[0])["env_id"] == "StROL-Study-v2"
+    assert SLOW_DRAG != DRAG
+    log, lines = drag_session(tmp_path, SLOW_DRAG, max_steps=100)
+    assert lines[0]["env_id"] == "StROL-Study-v2"  # interact builds strol-bench study's v2
     corrections = [r for r in lines if r["type"] == "correction"]
     reflexes = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
     assert corrections or reflexes, "the drag never reached the arm"
