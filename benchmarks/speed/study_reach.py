@@ -90,8 +90,10 @@ def wrist_clear(m, d) -> bool:
     return float(np.linalg.norm(np.cross(a5, a7))) >= np.sin(WRIST)
 
 
-def sample(number: int, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """n poses drawn for Task ``number`` and whether each is reachable."""
+def arm_at_home(number: int):
+    """The study arm at Task ``number``'s home (kinematics current), its cup site, the joint
+    range the IK may use (``MARGIN`` off the limits, the elbow ``ELBOW`` off straight), the
+    Task and its home joints."""
     m = build_model()
     d = mujoco.MjData(m)
     site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
@@ -101,6 +103,12 @@ def sample(number: int, n: int, rng: np.random.Generator) -> dict[str, np.ndarra
     q0 = model_q(task.home_q)
     d.qpos[:7] = q0
     mujoco.mj_forward(m, d)
+    return m, d, site, lo, hi, task, q0
+
+
+def sample(number: int, n: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """n poses drawn for Task ``number`` and whether each is reachable."""
+    m, d, site, lo, hi, task, q0 = arm_at_home(number)
     pos = rng.uniform(OUTER_LOW, OUTER_HIGH, (n, 3))
     ang = rng.uniform(-1.0, 1.0, (n, 2))
     if task.oriented:
@@ -135,15 +143,7 @@ def corners(number: int, high, inner: float, radius: float, angle: float) -> lis
     as the planner moves a waypoint) the IK does not reach: the planner's plans end at the
     set's corners, where a set reachable on average can still fail (reported, not selected
     on: no candidate for Tasks 2-3 has every corner reachable)."""
-    m = build_model()
-    d = mujoco.MjData(m)
-    site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
-    lo, hi = m.jnt_range[:7, 0] + MARGIN, m.jnt_range[:7, 1] - MARGIN
-    hi[3] -= ELBOW
-    task = STUDY_TASKS_V2[number]()
-    q0 = model_q(task.home_q)
-    d.qpos[:7] = q0
-    mujoco.mj_forward(m, d)
+    m, d, site, lo, hi, task, q0 = arm_at_home(number)
     home_rot = d.site_xmat[site].reshape(3, 3).copy()
     turns = [(0.0, 0.0)] if not task.oriented else itertools.product((-angle, angle), repeat=2)
     missed = []
