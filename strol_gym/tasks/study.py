@@ -682,31 +682,31 @@ class StudyTask1V2(StudyTaskV2, StudyTask1V1):
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class StudyTask2V2(StudyTaskV2, StudyTask2V1):
-    """Task 2 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
+class _TurningV2(StudyTaskV2):
+    """What v2's Tasks 2 and 3 share: the reachable set of a cup that turns and the 4-D prior."""
 
     reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_TURNING.high.copy())
     reach_inner: float = REACH_TURNING.inner
     reach_radius: float = REACH_TURNING.radius
     reach_angle: float = REACH_TURNING.angle
 
-    task_id: ClassVar[str] = "StROL-Study-v2-task2"
-    version: ClassVar[int] = 2
     prior: Prior = dataclasses.field(default_factory=_prior4)  # not StudyTaskV2's (Task 1's)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
-class StudyTask3V2(StudyTaskV2, StudyTask3V1):
-    """Task 3 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
+class StudyTask2V2(_TurningV2, StudyTask2V1):
+    """Task 2 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
 
-    reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_TURNING.high.copy())
-    reach_inner: float = REACH_TURNING.inner
-    reach_radius: float = REACH_TURNING.radius
-    reach_angle: float = REACH_TURNING.angle
+    task_id: ClassVar[str] = "StROL-Study-v2-task2"
+    version: ClassVar[int] = 2
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class StudyTask3V2(_TurningV2, StudyTask3V1):
+    """Task 3 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
 
     task_id: ClassVar[str] = "StROL-Study-v2-task3"
     version: ClassVar[int] = 2
-    prior: Prior = dataclasses.field(default_factory=_prior4)  # not StudyTaskV2's (Task 1's)
 
 
 STUDY_TASKS_V2: dict[int, type[StudyTaskV2]] = {1: StudyTask1V2, 2: StudyTask2V2, 3: StudyTask3V2}
