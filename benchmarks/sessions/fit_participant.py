@@ -38,7 +38,14 @@ import numpy as np
 
 from strol_gym.benchmarks.sessions.replay_folder import find_logs
 from strol_gym.benchmarks.sessions.study_card import _records
-from strol_gym.envs.study.population import FITTED, FORMAT, PRIORS, cosine, draw_corrections
+from strol_gym.envs.study.population import (
+    FITTED,
+    FORMAT,
+    PRIORS,
+    best_correction,
+    cosine,
+    draw_corrections,
+)
 from strol_gym.files import write_json_atomic
 from strol_gym.tasks.study import StudyTask
 from strol_gym.wrappers.session_log import read_session, session_task
@@ -70,13 +77,6 @@ class Session:
     share: list[float] = field(default_factory=list)
     best: list[np.ndarray] = field(default_factory=list)
     """θ*'s steepest ascent at each correction's pose, a_max units (for the aim's match)."""
-
-
-def best_correction(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """θ*'s steepest ascent at pose ``x`` in a_max units (a_max ⊙ ∇ₓ(θ*·φ))."""
-    bound = np.asarray(task.action_bound, dtype=np.float64)
-    grad = task.feature_jacobian(np.asarray(x, dtype=np.float64)).T @ theta_star
-    return grad[: task.action_dim] * bound
 
 
 def correction_sizes(task: StudyTask, u: np.ndarray, rotation_rad: float) -> tuple[float, float]:

@@ -33,11 +33,10 @@ from scipy import stats
 
 from strol_gym.benchmarks.sessions.fit_participant import (
     Session,
-    best_correction,
     correction_sizes,
     read_sessions,
 )
-from strol_gym.envs.study.population import cosine
+from strol_gym.envs.study.population import best_correction, cosine
 from strol_gym.tasks.study import StudyTask
 
 SEED = 39_100

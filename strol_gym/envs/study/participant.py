@@ -51,7 +51,7 @@ from strol_gym.envs.study.people import (  # noqa: F401  (THRESHOLD: here until 
     FittedParams,
     ParticipantParams,
 )
-from strol_gym.envs.study.population import draw_corrections
+from strol_gym.envs.study.population import best_correction, draw_corrections
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
 from strol_gym.tasks.study import StudyTask
@@ -269,15 +269,13 @@ class FittedParticipant(Participant):
         self.done_at: float | None = 0.0 if params.budget == 0 else None
         self._t_next = params.rest
         self._push_wrench = (np.zeros(3), np.zeros(3))
-        self._axes = task.action_dim
         self._started = 0.0
         self._pushed = 0.0
 
     def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: Any = None) -> np.ndarray:
         """A correction drawn at pose ``x`` from this person's fitted aim and sizes."""
         del u_r, theta_hat
-        x = np.asarray(x, dtype=np.float64)
-        best = (self.task.feature_jacobian(x).T @ self._theta_star)[: self._axes] * self._a_max
+        best = best_correction(self.task, self._theta_star, x)
         p = self.params
         u = draw_corrections(
             best,

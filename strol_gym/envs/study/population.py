@@ -216,6 +216,14 @@ def shipped() -> Population:
     return read_fit(FIT_FILE)
 
 
+def best_correction(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """θ*'s steepest ascent at one pose ``x`` in a_max units (a_max ⊙ ∇ₓ(θ*·φ)): the direction
+    the fit measures a person's aim against and the fitted participant aims from."""
+    bound = np.asarray(task.action_bound, dtype=np.float64)
+    grad = task.feature_jacobian(np.asarray(x, dtype=np.float64)).T @ theta_star
+    return grad[: task.action_dim] * bound
+
+
 def draw_corrections(
     best: np.ndarray,
     rng: np.random.Generator,
