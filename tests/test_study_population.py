@@ -215,3 +215,38 @@ def test_fitted_population_model_draws_the_fitted_sizes():
     assert size.max() > 1.0  # past a_max: the run-time scale, not clipped
     with pytest.raises(ValueError, match="study Task"):
         population.FittedPopulationModel(make_task("robot"))
+
+
+def test_fitted_population_model_reads_at_the_run_time_scale():
+    """read_scale multiplies the position and the rotation parts separately (the same draws),
+    and is checked."""
+    task = STUDY_TASKS_V2[2]()
+    n = 64
+    x = np.tile(task.start, (n, 1))
+    star = np.tile(task.theta_star, (n, 1))
+    meant = population.FittedPopulationModel(task).correct(
+        x, np.zeros((n, 6)), star, np.random.default_rng(3)
+    )
+    read = population.FittedPopulationModel(task, read_scale=(0.5, 2.0)).correct(
+        x, np.zeros((n, 6)), star, np.random.default_rng(3)
+    )
+    np.testing.assert_allclose(read[:, :3], 0.5 * meant[:, :3], rtol=1e-12)
+    np.testing.assert_allclose(read[:, 3:], 2.0 * meant[:, 3:], rtol=1e-12)
+    for bad in ((0.0, 1.0), (1.0, -1.0), (1.0, 11.0), (1.0,), "11", (math.nan, 1.0)):
+        with pytest.raises((ValueError, TypeError), match=r"read_scale"):
+            population.FittedPopulationModel(task, read_scale=bad)
+
+
+def test_best_correction_one_pose_is_a_batch_row():
+    """θ*'s best correction at one pose and in a batch: the same bits (one contraction), as the
+    participant and the ĝ training human use it."""
+    task = STUDY_TASKS_V2[3]()
+    rng = np.random.default_rng(5)
+    x = task.sample_start(rng, 200)
+    theta = rng.standard_normal((200, len(task.theta_star)))
+    batch = population.best_correction(task, theta, x)
+    rows = np.array([population.best_correction(task, theta[i], x[i]) for i in range(200)])
+    assert batch.shape == (200, task.action_dim)
+    assert np.array_equal(batch, rows)
+    shared = population.best_correction(task, task.theta_star, x)  # one θ* for every pose
+    assert np.array_equal(shared[7], population.best_correction(task, task.theta_star, x[7]))

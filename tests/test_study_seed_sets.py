@@ -38,3 +38,14 @@ def test_complete_users_counts_users_with_every_run():
     full = [{"seed": s} for s in (5, 6) for _ in range(15)]  # 3 Tasks × 5 learners each
     assert complete_users([*full, {"seed": 7}], 5) == 2
     assert complete_users(full, 6) == 1 and complete_users(full, 4) == 0
+
+
+def test_from_study_refuses_a_folder_that_is_not_a_study(tmp_path, capsys):
+    """--from-study reads a results folder or exits 2 with one line naming the option."""
+    from strol_gym.benchmarks.experiments.study_seed_sets import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--from-study", str(tmp_path / "none")])
+    assert e.value.code == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if "error:" in ln]
+    assert len(err) == 1 and "--from-study" in err[0]

@@ -1,13 +1,14 @@
-"""Calibrating StROL-Study-v1's participant on seeds outside the study's (900 on; the study's
-are 20000-29999): per Task and learner, its corrections, correction time (ours and the authors'
+"""Calibrating a study participant on seeds outside the study's (900 on; the study's are
+20000-29999): per Task and learner, its corrections, correction time (ours and the authors'
 way, per episode and per correction), give-up rate and regret, with the training human's
-noise (σ = 0.25).
+noise (σ = 0.25). ``--env-version v2`` (default): StROL-Study-v2 with its fitted population
+(the acceptance threshold is calibrated so corrections per session come near the real people's
+3.2 / 5.4 / 5.6); ``v1``: v1 with its hand-set participant.
 
     python benchmarks/experiments/study_calibration.py --users 4 --out results/study-calibration
 
 The paper's study: correction time (authors' way) 1.4–2.5 s per participant and Task; "some"
-participants gave up. The runs go through the study's runner (a resumable results folder).
-"""
+participants gave up. The runs go through the study's runner (a resumable results folder)."""
 
 from __future__ import annotations
 
@@ -53,15 +54,29 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--users", type=int, default=4, help="seeds per Task (4)")
     p.add_argument("--seed", type=int, default=SEED, help=f"first seed ({SEED})")
-    p.add_argument("--participant", choices=("observer", "oracle"), default="observer")
+    p.add_argument(
+        "--env-version",
+        choices=("v1", "v2"),
+        default="v2",
+        help="v2 (the fitted population) or v1 (its hand-set participant); default v2",
+    )
+    p.add_argument(
+        "--participant",
+        choices=("fitted", "observer", "oracle"),
+        default=None,
+        help="the simulated person (default: the version's own; fitted exists on v2 only)",
+    )
     p.add_argument("--out", default="results/study-calibration", help="results folder")
     p.add_argument("--jobs", type=int, default=1, help="worker processes (1)")
     args = p.parse_args(argv)
     if args.users < 1 or not 0 <= args.seed < 20_000 - args.users:
         p.error(f"--users must be >= 1 and the seeds below the study's 20000, got {args}")
-    config = study_config(
-        TASKS, args.users, args.seed, LEARNERS, version="v1", participant=args.participant
-    )
+    try:
+        config = study_config(
+            TASKS, args.users, args.seed, LEARNERS, args.env_version, args.participant
+        )
+    except ValueError as e:
+        p.error(str(e))
     t0, c0 = time.perf_counter(), time.process_time()
     rd = run_benchmark(config, Path(args.out), jobs=args.jobs, quiet=True)
     print(

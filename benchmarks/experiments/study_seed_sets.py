@@ -12,6 +12,14 @@ rounds between N processes (one CPU each).
 
     python benchmarks/experiments/study_seed_sets.py --users 40 --sets 5 --prefixes 20,28,32,40 \
         --out results/study-seed-sets
+
+Or, running nothing, split one ``strol-bench study --users S·U`` folder into its S disjoint
+sets of U users (set k: seeds 20000 + k·U on, the same users these rounds would run; set 0 is
+the study's own first U users):
+
+    strol-bench study --users 100 --out results/study-100
+    python benchmarks/experiments/study_seed_sets.py --users 20 --sets 5 --from-study \
+        results/study-100
 """
 
 from __future__ import annotations
@@ -26,7 +34,7 @@ from typing import Any
 
 from strol_gym.benchmarks.analysis.report import analyse
 from strol_gym.benchmarks.analysis.stats import ALPHA
-from strol_gym.benchmarks.engine.results import ResultsDir
+from strol_gym.benchmarks.engine.results import ResultsDir, ResultsError
 from strol_gym.benchmarks.engine.runner import run_benchmark
 from strol_gym.benchmarks.experiments.study import (
     BLOCK,
@@ -116,6 +124,13 @@ def main(argv: list[str] | None = None) -> int:
         help="v2 (the study's default: the fitted population), v1 (its hand-set participant) "
         "or v0 (the published results)",
     )
+    p.add_argument(
+        "--from-study",
+        default=None,
+        metavar="FOLDER",
+        help="read the sets from one `strol-bench study` folder of at least sets x users "
+        "users (from seed 20000) instead of running them",
+    )
     args = p.parse_args(argv)
     if args.users < 1 or args.sets < 1:
         p.error(f"--users and --sets must be >= 1, got {args.users} and {args.sets}")
@@ -130,7 +145,22 @@ def main(argv: list[str] | None = None) -> int:
     if any(not 0 <= k < args.sets for k in run_sets):
         p.error(f"--run-sets must lie in 0..--sets-1 ({args.sets - 1}), got {args.run_sets!r}")
     rounds = [(j, k) for j in range(0, args.users, BLOCK) for k in run_sets]
-    if not args.analyse_only:
+    if args.from_study is not None:
+        try:
+            study = ResultsDir.load(Path(args.from_study))
+        except (OSError, ValueError, ResultsError) as e:
+            p.error(f"--from-study: {e}")
+        exps = study.config.experiments
+        version = {e.env.split("-")[1] if "-" in e.env else "v0" for e in exps}
+        if version != {args.env_version} or any(e.seed != SEED for e in exps):
+            p.error(
+                f"--from-study must hold StROL-Study-{args.env_version} users from seed {SEED}, "
+                f"got {sorted(version)} from {sorted({e.seed for e in exps})}"
+            )
+        shared = study.read_records()
+        add_authors_regret(shared)  # once (it plans every run's θ̂ and θ*)
+        records = [shared] * args.sets
+    elif not args.analyse_only:
         for i, (j, k) in enumerate(rounds):
             if i % args.lanes != args.lane:
                 continue
@@ -144,9 +174,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"CPU {time.process_time() - c0:.1f} s, load {os.getloadavg()[0]:.1f}",
                 flush=True,
             )
-    records = [set_records(out / f"set{k}") for k in range(args.sets)]
-    for r in records:
-        add_authors_regret(r)  # once per set (it plans every run's θ̂ and θ*)
+    if args.from_study is None:
+        records = [set_records(out / f"set{k}") for k in range(args.sets)]
+        for r in records:
+            add_authors_regret(r)  # once per set (it plans every run's θ̂ and θ*)
     have = min(complete_users(r, f) for r, f in zip(records, firsts, strict=True))
     print(f"complete users in every set: {have}")
     for n in sorted({n for n in prefixes if n <= have} | ({have} if have >= 2 else set())):

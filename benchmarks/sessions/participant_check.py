@@ -119,12 +119,40 @@ def simulate(who: str, task: int, learner: str, seed: int) -> dict[str, Any]:
             rebounds += float(np.dot(u, last["u_h"])) < 0.0
         last = r
     env.close()
+    a_max = np.asarray(t.action_bound, dtype=np.float64)
+    reads = [np.asarray(r["u_h"]) / a_max for r in records]
+    meant = list(getattr(human, "intended", []))
     return {
         "session": s,
+        "sizes": {
+            "read": [_pos_rot(u) for u in reads],
+            "intended": [_pos_rot(u) for u in meant],
+        },
         "rebounds": rebounds,
         "reflexes": push_reflexes,
         "correction_time": float(info["correction_time"]),
     }
+
+
+def _pos_rot(u: np.ndarray) -> tuple[float, float]:
+    """|position part|, |rotation part| of a correction in a_max units (rotation 0 in Task 1)."""
+    return float(np.linalg.norm(u[:3])), float(np.linalg.norm(u[3:]))
+
+
+def read_scale(results: Sequence[dict[str, Any]]) -> list[float] | None:
+    """(position, rotation): the median read u_H over the median intended correction (a_max
+    units) of sessions' pushes (``FittedParticipant.intended``), what v2's arm makes of what a
+    person means (``FittedPopulationModel``'s ``read_scale``); None without intended pushes.
+    A rotation without turns (Task 1) is 1."""
+    read = np.array([v for r in results for v in r["sizes"]["read"]]).reshape(-1, 2)
+    meant = np.array([v for r in results for v in r["sizes"]["intended"]]).reshape(-1, 2)
+    if not len(read) or not len(meant):
+        return None
+    out = []
+    for axis in (0, 1):
+        m = float(np.median(meant[:, axis]))
+        out.append(float(np.median(read[:, axis])) / m if m > 0 else 1.0)
+    return out
 
 
 def _values(sessions: Sequence[Session], stat: str) -> dict[str, list[float]]:
@@ -211,6 +239,7 @@ def run(
                 "rebounds": reb,
                 "rebound_share": reb / n_corr if n_corr else math.nan,
                 "reflexes": sum(r["reflexes"] for r in rs if r["session"].task == t),
+                "read_scale": read_scale([r for r in rs if r["session"].task == t]),
                 "count_by_learner": {
                     lr: float(np.mean([s.count for s in sim if s.learner == lr])) for lr in LEARNERS
                 },
@@ -267,6 +296,17 @@ def markdown(result: dict[str, Any], who: Sequence[str], tasks: Sequence[int]) -
                 + f") | {p['rebounds']} of {p['corrections']} ({100 * p['rebound_share']:.1f} %) | "
                 f"{p['reflexes']} |"
             )
+    lines += [
+        "",
+        "| participant | Task | read scale: median read u_H / median intended (position, "
+        "rotation) |",
+        "|---|---|---|",
+    ]
+    for w in who:
+        for t in tasks:
+            sc = result["who"][w][str(t)]["read_scale"]
+            cell = "no intended pushes recorded" if sc is None else f"{sc[0]:.3f}, {sc[1]:.3f}"
+            lines.append(f"| {WHO[w][2]} | {t} | {cell} |")
     return "\n".join(lines) + "\n"
 
 

@@ -266,6 +266,9 @@ class FittedParticipant(Participant):
         self.params: FittedParams = params
         self.made = 0
         """Corrections pushed (released) so far this session."""
+        self.intended: list[np.ndarray] = []
+        """Every push's intended correction (a_max units), as drawn: what v2's arm reads of
+        them is measured against these (``participant_check``'s read scale)."""
         self.done_at: float | None = 0.0 if params.budget == 0 else None
         self._t_next = params.rest
         self._push_wrench = (np.zeros(3), np.zeros(3))
@@ -286,6 +289,7 @@ class FittedParticipant(Participant):
             turn=p.turn,
             turn_within=p.turn_within,
         )[0]
+        self.intended.append(u)
         return u * self._a_max
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:

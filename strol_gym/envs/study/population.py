@@ -31,6 +31,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,8 @@ FIT_FILE = Path(__file__).with_name("participant_fit.json")
 FORMAT = "strol-participant-fit"
 MAX_FIT_BYTES = 1_000_000
 """A fit file larger than this is refused before it is read."""
+MAX_READ_SCALE = 10.0
+"""The largest ``FittedPopulationModel`` ``read_scale`` accepted (read over intended)."""
 
 FITTED = (
     "size_log_mean",
@@ -217,11 +220,15 @@ def shipped() -> Population:
 
 
 def best_correction(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """θ*'s steepest ascent at one pose ``x`` in a_max units (a_max ⊙ ∇ₓ(θ*·φ)): the direction
-    the fit measures a person's aim against and the fitted participant aims from."""
+    """θ*'s steepest ascent at pose ``x`` in a_max units (a_max ⊙ ∇ₓ(θ*·φ)): the direction
+    the fit measures a person's aim against, the fitted participant aims from and the ĝ
+    training human corrects along. ``x`` one pose (s,) or a batch (n, s), ``theta_star`` (d,)
+    or one per pose (n, d); one contraction for both, so a pose's direction is the same bits
+    alone or in a batch."""
     bound = np.asarray(task.action_bound, dtype=np.float64)
-    grad = task.feature_jacobian(np.asarray(x, dtype=np.float64)).T @ theta_star
-    return grad[: task.action_dim] * bound
+    jac = task.feature_jacobian(np.asarray(x, dtype=np.float64))  # (..., d, s)
+    grad = np.einsum("...ds,...d->...s", jac, np.asarray(theta_star, dtype=np.float64))
+    return grad[..., : task.action_dim] * bound
 
 
 def draw_corrections(
@@ -293,8 +300,11 @@ class FittedPopulationModel(HumanModel):
     strol_gym.envs.study.population:FittedPopulationModel``, the v2 study ĝ's training human):
     each correction by its own person drawn from the shipped fit, in the participant's way
     (:func:`shape_corrections` at θ*'s steepest ascent), unclipped (v2 reads pushes past
-    a_max as they are, so ĝ sees the run-time scale). σ and ε add to it (default 0: the aim
-    is the fitted noise)."""
+    a_max as they are). ``read_scale`` (position, rotation) scales what the person meant to
+    what v2's arm reads of it (the learner's input at run time: the median read u_H over the
+    median intended correction, measured by ``participant_check``; docs/study.md), so that
+    ĝ trains at the run-time scale. σ and ε add to it (default 0: the aim is the fitted
+    noise)."""
 
     def __init__(
         self,
@@ -302,10 +312,15 @@ class FittedPopulationModel(HumanModel):
         sigma: float = 0.0,
         bias: float = 0.0,
         n_candidates: int = DEFAULT_CANDIDATES,
+        read_scale: Sequence[float] = (1.0, 1.0),
     ) -> None:
         if not isinstance(task, StudyTask):
             raise ValueError(f"task must be a study Task, got {type(task).__name__}")
         super().__init__(task, sigma, bias, n_candidates)
+        scale = checks.vector("read_scale", read_scale, 2)
+        for name, v in zip(("read_scale[0]", "read_scale[1]"), scale.tolist(), strict=True):
+            checks.number(name, v, low=0.0, high=MAX_READ_SCALE, low_open=True)
+        self.read_scale = (float(scale[0]), float(scale[1]))
         self.study_task: StudyTask = task
         self.fit = shipped()
 
@@ -324,8 +339,7 @@ class FittedPopulationModel(HumanModel):
     ) -> np.ndarray:
         task, f = self.study_task, self.fit.fitted
         bound = np.asarray(task.action_bound, dtype=np.float64)
-        jac = task.feature_jacobian(np.asarray(x, dtype=np.float64))  # (n, d, s)
-        best = np.einsum("nds,nd->ns", jac, theta_star)[:, : task.action_dim] * bound
+        best = best_correction(task, theta_star, x)
         z = draws.extra["person"]
         u = shape_corrections(
             best,
@@ -336,6 +350,8 @@ class FittedPopulationModel(HumanModel):
             turn=np.exp(f["turn_log_mean"] + f["turn_log_sd"] * z[:, 2]),
             turn_within=f["turn_within"],
         )
+        u[:, :3] *= self.read_scale[0]
+        u[:, 3:] *= self.read_scale[1]
         return u * bound
 
 
