@@ -13,13 +13,15 @@ rounds between N processes (one CPU each).
     python benchmarks/experiments/study_seed_sets.py --users 40 --sets 5 --prefixes 20,28,32,40 \
         --out results/study-seed-sets
 
-Or, running nothing, split one ``strol-bench study --users S·U`` folder into its S disjoint
-sets of U users (set k: seeds 20000 + k·U on, the same users these rounds would run; set 0 is
-the study's own first U users):
+Or, running nothing here, read the sets from ``strol-bench study`` folders (set k: seeds
+20000 + k·U on, the same users these rounds would run; set 0 is the study's own first U
+users), one folder per set or one holding them all; a set no folder completes is left out:
 
-    strol-bench study --users 100 --out results/study-100
-    python benchmarks/experiments/study_seed_sets.py --users 20 --sets 5 --from-study \
-        results/study-100
+    for k in 0 1 2 3 4; do
+        strol-bench study --users 20 --seed $((20000 + 20 * k)) --out results/study-set$k
+    done
+    python benchmarks/experiments/study_seed_sets.py --users 20 --sets 5 \
+        --from-study results/study-set0 ... --from-study results/study-set4
 """
 
 from __future__ import annotations
@@ -126,10 +128,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument(
         "--from-study",
+        action="append",
         default=None,
         metavar="FOLDER",
-        help="read the sets from one `strol-bench study` folder of at least sets x users "
-        "users (from seed 20000) instead of running them",
+        help="read the sets from `strol-bench study` folders instead of running them "
+        "(repeatable: e.g. one per set, --seed 20000 + k x users; a set every folder leaves "
+        "incomplete is left out and said so)",
     )
     args = p.parse_args(argv)
     if args.users < 1 or args.sets < 1:
@@ -146,18 +150,20 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--run-sets must lie in 0..--sets-1 ({args.sets - 1}), got {args.run_sets!r}")
     rounds = [(j, k) for j in range(0, args.users, BLOCK) for k in run_sets]
     if args.from_study is not None:
-        try:
-            study = ResultsDir.load(Path(args.from_study))
-        except (OSError, ValueError, ResultsError) as e:
-            p.error(f"--from-study: {e}")
-        exps = study.config.experiments
-        version = {e.env.split("-")[1] if "-" in e.env else "v0" for e in exps}
-        if version != {args.env_version} or any(e.seed != SEED for e in exps):
-            p.error(
-                f"--from-study must hold StROL-Study-{args.env_version} users from seed {SEED}, "
-                f"got {sorted(version)} from {sorted({e.seed for e in exps})}"
-            )
-        shared = study.read_records()
+        shared = []
+        for folder in args.from_study:
+            try:
+                study = ResultsDir.load(Path(folder))
+            except (OSError, ValueError, ResultsError) as e:
+                p.error(f"--from-study: {e}")
+            exps = study.config.experiments
+            version = {e.env.split("-")[1] if "-" in e.env else "v0" for e in exps}
+            if version != {args.env_version}:
+                p.error(
+                    f"--from-study {folder} holds StROL-Study-{sorted(version)}, not "
+                    f"{args.env_version}"
+                )
+            shared += study.read_records()
         add_authors_regret(shared)  # once (it plans every run's θ̂ and θ*)
         records = [shared] * args.sets
     elif not args.analyse_only:
@@ -178,7 +184,13 @@ def main(argv: list[str] | None = None) -> int:
         records = [set_records(out / f"set{k}") for k in range(args.sets)]
         for r in records:
             add_authors_regret(r)  # once per set (it plans every run's θ̂ and θ*)
-    have = min(complete_users(r, f) for r, f in zip(records, firsts, strict=True))
+    counts = [complete_users(r, f) for r, f in zip(records, firsts, strict=True)]
+    if args.from_study is not None:  # the sets the folders hold
+        kept = [k for k, c in enumerate(counts) if c >= args.users]
+        print(f"sets with all {args.users} users: {len(kept)} of {args.sets} ({kept})")
+        records, firsts = [records[k] for k in kept], [firsts[k] for k in kept]
+        counts = [counts[k] for k in kept]
+    have = min(counts, default=0)
     print(f"complete users in every set: {have}")
     for n in sorted({n for n in prefixes if n <= have} | ({have} if have >= 2 else set())):
         print(f"\n{n} users per set:")

@@ -290,7 +290,22 @@ class FittedParticipant(Participant):
             turn_within=p.turn_within,
         )[0]
         self.intended.append(u)
-        return u * self._a_max
+        return self._along_the_edge(x, u * self._a_max)
+
+    def _along_the_edge(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """``u`` with its position part turned along the planning box's edge where the box cuts
+        it (``task.dynamics`` clips the target): the person moves the cup as far as it meant,
+        sliding along the edge, rather than stopping at it (clipped, a third of the pushes
+        lost a fifth of their length and more; docs/study.md)."""
+        x = np.asarray(x, dtype=np.float64)
+        zero = np.zeros_like(u)
+        inside = (self.task.dynamics(x, u, zero) - x)[:3]
+        meant, got = float(np.linalg.norm(u[:3])), float(np.linalg.norm(inside))
+        if got >= meant - 1e-9 or got < 1e-6:
+            return u
+        slid = u.copy()
+        slid[:3] = inside * (meant / got)
+        return slid
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
         if self.made >= self.params.budget:

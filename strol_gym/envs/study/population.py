@@ -93,10 +93,13 @@ PRIORS: dict[str, dict[str, Any]] = {
         "again (above the 0.5 s hold-off that ends a correction)",
     },
     "push_force": {
-        "value": 60.0,
+        "value": 35.0,
         "unit": "N",
-        "source": "the most it pushes (v1's participant's force); a push's force is feel x "
-        "the intended displacement (the median 11 cm: 43 N); not fitted (no force logged)",
+        "source": "the most it pushes: a push's force is feel x the intended displacement (the "
+        "median 11 cm: 43 N), capped at 35 N: on v2's arm (300 N/m) that holds the cup up to "
+        "about 12 cm off its setpoint, and pushes of 40-60 N tripped v2's joint-torque reflex "
+        "(1 push in 5 lost; with the cap 1 in 20, Tasks 1-2, docs/study.md); v1's participant "
+        "pushed with 60 N. Not fitted (no force logged)",
     },
     "push_torque": {
         "value": 6.0,
