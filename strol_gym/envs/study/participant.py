@@ -293,18 +293,21 @@ class FittedParticipant(Participant):
         return self._along_the_edge(x, u * self._a_max)
 
     def _along_the_edge(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """``u`` with its position part turned along the planning box's edge where the box cuts
-        it (``task.dynamics`` clips the target): the person moves the cup as far as it meant,
-        sliding along the edge, rather than stopping at it (clipped, a third of the pushes
-        lost a fifth of their length and more; docs/study.md)."""
+        """``u`` with its position part slid along the planning box's faces where the box cuts
+        it (``task.dynamics`` clips the target): the cut axes stop at the face, the others
+        grow so the cup moves as far as the person meant (clipped, a third of the pushes lost
+        a fifth of their length and more; docs/study.md). A corner may still cut it."""
         x = np.asarray(x, dtype=np.float64)
-        zero = np.zeros_like(u)
-        inside = (self.task.dynamics(x, u, zero) - x)[:3]
-        meant, got = float(np.linalg.norm(u[:3])), float(np.linalg.norm(inside))
-        if got >= meant - 1e-9 or got < 1e-6:
+        inside = (self.task.dynamics(x, u, np.zeros_like(u)) - x)[:3]
+        pos = u[:3]
+        cut = np.abs(inside - pos) > 1e-12
+        meant = float(np.linalg.norm(pos))
+        free = float(np.linalg.norm(pos[~cut]))
+        if not cut.any() or free < 1e-9:
             return u
+        left = meant**2 - float(np.sum(inside[cut] ** 2))
         slid = u.copy()
-        slid[:3] = inside * (meant / got)
+        slid[:3] = np.where(cut, inside, pos * (math.sqrt(max(left, 0.0)) / free))
         return slid
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
