@@ -270,3 +270,18 @@ def test_best_correction_one_pose_is_a_batch_row():
     assert np.array_equal(batch, rows)
     shared = population.best_correction(task, task.theta_star, x)  # one θ* for every pose
     assert np.array_equal(shared[7], population.best_correction(task, task.theta_star, x[7]))
+
+
+def test_read_scale_is_the_median_read_over_the_median_meant():
+    """participant_check's read scale: per part, the median read |u_H| over the median meant
+    one, over every session's pushes (a push the arm lost counts as meant, not read)."""
+    from strol_gym.benchmarks.sessions.participant_check import read_scale
+
+    sessions = [
+        {"sizes": {"read": [(0.5, 0.2), (0.7, 0.4)], "intended": [(1.0, 0.4), (1.0, 0.4)]}},
+        {"sizes": {"read": [(0.6, 0.3)], "intended": [(1.0, 0.6), (3.0, 0.2)]}},
+    ]
+    assert read_scale(sessions) == pytest.approx([0.6 / 1.0, 0.3 / 0.4])
+    task1 = [{"sizes": {"read": [(0.5, 0.0)], "intended": [(1.0, 0.0)]}}]
+    assert read_scale(task1) == pytest.approx([0.5, 1.0])  # no turns: rotation left at 1
+    assert read_scale([{"sizes": {"read": [], "intended": []}}]) is None
