@@ -105,24 +105,13 @@ def test_release_keeps_the_push_direction():
     assert p.made == 1
 
 
-def test_a_push_the_box_cuts_slides_along_its_edge():
-    """A correction whose target lies past the planning box keeps its meant length along the
-    edge (the box's cut of it, lengthened), stays inside the box, and is recorded as meant."""
-    from strol_gym.tasks.study import POS_HIGH
-
+def test_the_participant_keeps_what_it_meant():
+    """Every push's correction as drawn (a_max units) is kept for the read scale."""
     task = STUDY_TASKS_V2[1]()
     p = FittedParticipant(task, task.theta_star, np.random.default_rng(0), params=FittedParams())
-    x = np.array([POS_HIGH[0] - 0.02, 0.0, 0.3])  # 2 cm from the box's +x face
-    u = np.array([0.06, 0.08, 0.0])  # 10 cm, 6 of them through the face
-    slid = p._along_the_edge(x, u)
-    assert np.linalg.norm(slid) == pytest.approx(0.1)
-    assert slid[0] == pytest.approx(0.02) and slid[1] == pytest.approx(math.sqrt(0.1**2 - 0.02**2))
-    np.testing.assert_allclose(task.dynamics(x, slid, np.zeros(3)), x + slid, atol=1e-12)
-    inside = np.array([-0.03, 0.04, 0.0])
-    assert np.array_equal(p._along_the_edge(x, inside), inside)  # uncut: as it was
-    u_act = p.act(task.start, np.zeros(3))  # mid-box: as drawn
+    u = p.act(task.start, np.zeros(3))
     assert len(p.intended) == 1 and p.intended[0].shape == (3,)
-    np.testing.assert_allclose(u_act, p.intended[0] * task.action_bound)
+    np.testing.assert_allclose(u, p.intended[0] * task.action_bound)
 
 
 def test_no_rebounds_on_v2():

@@ -18,6 +18,7 @@ import argparse
 import os
 import sys
 import warnings
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -37,7 +38,7 @@ V1_TASK = "strol_gym.tasks.study:StudyTask{}V1"
 SEED = 930
 
 
-def make_env(version: str, task: int, **kwargs: object) -> gym.Env:
+def make_env(version: str, task: int, **kwargs: Any) -> gym.Env:
     """StROL-Study-v1 (v1's Task, which finds v1's ĝ) or StROL-Study-v2 on Task ``task``."""
     if version == "v1":
         return gym.make("StROL-Study-v1", task=V1_TASK.format(task), **kwargs)

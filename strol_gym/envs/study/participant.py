@@ -290,25 +290,7 @@ class FittedParticipant(Participant):
             turn_within=p.turn_within,
         )[0]
         self.intended.append(u)
-        return self._along_the_edge(x, u * self._a_max)
-
-    def _along_the_edge(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """``u`` with its position part slid along the planning box's faces where the box cuts
-        it (``task.dynamics`` clips the target): the cut axes stop at the face, the others
-        grow so the cup moves as far as the person meant (clipped, a third of the pushes lost
-        a fifth of their length and more; docs/study.md). A corner may still cut it."""
-        x = np.asarray(x, dtype=np.float64)
-        inside = (self.task.dynamics(x, u, np.zeros_like(u)) - x)[:3]
-        pos = u[:3]
-        cut = np.abs(inside - pos) > 1e-12
-        meant = float(np.linalg.norm(pos))
-        free = float(np.linalg.norm(pos[~cut]))
-        if not cut.any() or free < 1e-9:
-            return u
-        left = meant**2 - float(np.sum(inside[cut] ** 2))
-        slid = u.copy()
-        slid[:3] = np.where(cut, inside, pos * (math.sqrt(max(left, 0.0)) / free))
-        return slid
+        return u * self._a_max
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
         if self.made >= self.params.budget:
