@@ -114,6 +114,19 @@ def test_the_participant_keeps_what_it_meant():
     np.testing.assert_allclose(u, p.intended[0] * task.action_bound)
 
 
+def test_a_face_the_cup_is_past_does_not_pull_the_target_back():
+    """At a pose outside the planning box (v2's arm reaches y 0.65 > 0.6), a push's target
+    is not dragged back inside: the box widened to hold the cup bounds it."""
+    task = STUDY_TASKS_V2[1]()
+    p = FittedParticipant(task, task.theta_star, np.random.default_rng(0), params=FittedParams())
+    x = np.array([0.25, 0.65, 0.30])
+    outward = p._target(x, np.array([0.0, 0.05, -0.05]))
+    np.testing.assert_allclose(outward, [0.25, 0.65, 0.25])  # held at the cup's y, not 0.6
+    inward = p._target(x, np.array([0.0, -0.05, 0.0]))
+    np.testing.assert_allclose(inward, [0.25, 0.60, 0.30])
+    assert np.array_equal(p._target(task.start, np.zeros(3)), task.dynamics(task.start, 0, 0))
+
+
 def test_no_rebounds_on_v2():
     """Fitted people pushing v2's arm: no correction starts < 0.3 s after the last one ended
     opposite to it (v1's participant: 22 % on Task 1)."""

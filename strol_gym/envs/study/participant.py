@@ -125,6 +125,11 @@ class Participant(SimulatedUser):
         noise = self.rng.normal(0.0, self.sigma, size=d.shape) if self.sigma else 0.0
         return d + (noise + self.bias) * self._a_max
 
+    def _target(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The pose it pushes the cup towards: the Task's step x + u (clipped to its planning
+        box, angles wrapped)."""
+        return self.task.dynamics(x, u, np.zeros_like(u))
+
     def score(self, x_then: np.ndarray, x_now: np.ndarray) -> float | None:
         """The observed motion's θ*-gain over the best gain of a move of the same size (None if
         the cup barely moved)."""
@@ -187,7 +192,7 @@ class Participant(SimulatedUser):
                 return None
             self._push_at = None
             u = self.act(x, np.zeros(self.task.action_dim))
-            return self.task.dynamics(x, u, np.zeros_like(u))
+            return self._target(x, u)
         if t + 1e-9 < self._t_next:
             return None
         self._t_next = t + self.params.decide_every
@@ -291,6 +296,18 @@ class FittedParticipant(Participant):
         )[0]
         self.intended.append(u)
         return u * self._a_max
+
+    def _target(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """x + u, its position kept within the planning box widened to hold the cup: a face
+        the cup is already past does not pull the target back (the Task's step would: at v2's
+        corner [0.25, 0.65, 0.08], outside the box's y ≤ 0.6, it turned pushes towards θ*'s
+        best into pushes away from it; docs/study.md)."""
+        x = np.asarray(x, dtype=np.float64)
+        target = self.task.dynamics(x, u, np.zeros_like(u))
+        low = np.minimum(np.asarray(self.task.low, dtype=np.float64)[:3], x[:3])
+        high = np.maximum(np.asarray(self.task.high, dtype=np.float64)[:3], x[:3])
+        target[:3] = np.clip(x[:3] + u[:3], low, high)
+        return target
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
         if self.made >= self.params.budget:
