@@ -42,12 +42,12 @@ def test_recovery_of_the_teacher_covers_its_parameters():
 
 def test_selection_by_heldout_likelihood_finds_the_generating_model():
     mistaken = {"mistaken": ("mistaken", {"sigma": 0.2, "rate": 0.35})}
-    conf = selection(
+    conf, _ = selection(
         TASK, mistaken, 1, 8, candidates=("nominal", "mistaken"), seed=5, folds=3, robot=False
     )
     assert conf["mistaken"] == {"nominal": 0, "mistaken": 1}, conf
     nominal = {"nominal": ("nominal", {"sigma": 0.3})}
-    conf = selection(
+    conf, _ = selection(
         TASK, nominal, 1, 8, candidates=("nominal", "myopic"), seed=5, folds=3, robot=False
     )
     assert conf["nominal"] == {"nominal": 1, "myopic": 0}, conf  # not the myopic's data
