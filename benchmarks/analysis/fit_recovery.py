@@ -63,10 +63,13 @@ RECOVERY: dict[str, dict[str, float]] = {
 }
 """Known, non-default parameters each model's datasets are simulated with."""
 FITTED_AS: dict[str, dict[str, Any]] = {
-    "margin-noise": {"sigma0": lambda t: t["sigma"] + t["kappa"]},
+    "margin-noise": {
+        "sigma0": lambda t: t["sigma"] + t["kappa"],
+        "sigma_half": lambda t: t["sigma"] + 0.5 * t["kappa"],
+    },
 }
-"""The truth of parameters a family fits in place of the model's own (``margin-noise`` fits
-the noise at margin 0, σ0 = σ + κ, and derives κ)."""
+"""The truth of parameters a family fits or derives besides the model's own (``margin-noise``
+fits the noise at margin 0, σ0 = σ + κ, and derives κ and the noise at margin ½)."""
 SELECTION: dict[str, tuple[str, dict[str, float]]] = {
     "nominal σ 0.35": ("nominal", {"sigma": 0.35}),
     "boltzmann (matched)": ("boltzmann", {"sigma": 0.0}),  # β set by matched_beta
@@ -224,6 +227,7 @@ def recovery(
                 "coverage": hits / datasets,
                 "coverage_ci95": wilson(hits, datasets),
                 "mean_ci_width": float(np.mean(width[m][k])),
+                "median_ci_width": float(np.median(width[m][k])),
             }
         bias = float(np.mean(est[k]) - v)
         first = per[methods[0]]
@@ -279,7 +283,7 @@ def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) 
     methods = list(
         dict.fromkeys(m for params in rec.values() for r in params.values() for m in r["methods"])
     )
-    head = " | ".join(f"{m} coverage [Wilson 95 %] · mean width" for m in methods)
+    head = " | ".join(f"{m} coverage [Wilson 95 %] · mean width (median)" for m in methods)
     lines = [
         f"| model | parameter | truth | datasets | mean estimate | bias | sd | {head} | "
         "\\|bias\\| < width/4 |",
@@ -295,9 +299,10 @@ def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) 
                     continue
                 lo, hi = c["coverage_ci95"]
                 flag = "**" if c["coverage"] < 0.8 else ""
+                median = c.get("median_ci_width", math.nan)
                 cells.append(
                     f"{flag}{_pct(c['coverage'])} %{flag} [{_pct(lo)}, {_pct(hi)}] · "
-                    f"{c['mean_ci_width']:.3g}"
+                    f"{c['mean_ci_width']:.3g} ({median:.3g})"
                 )
             lines.append(
                 f"| {human} | {k} | {r['truth']:g} | {r['datasets']} | {r['mean_estimate']:.3g} | "

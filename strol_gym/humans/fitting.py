@@ -41,7 +41,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import math
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -399,10 +399,13 @@ class Hazard(Silent):
 
 class MarginNoise(Silent):
     """Fitted as the noise at margin 1, σ (the model's own), and at margin 0, ``sigma0`` = σ + κ,
-    both on a log scale: σ_m = σ·m + σ0·(1 − m). The model's κ = σ0 − σ is derived, and may come
+    both on a log scale: σ_m = σ·m + σ0·(1 − m). Derived: the model's κ = σ0 − σ, which may come
     out negative (noise that falls where the options look alike, which the simulated person
-    cannot do). Fitting κ ≥ 0 itself put κ̂ at its bound 0 in 5 of 20 recovery datasets, where
-    σ's interval was then computed as if κ were known and missed (docs/humans.md, "Recovery")."""
+    cannot do), and ``sigma_half``, the noise at margin ½. People speak at margins between
+    ``equal`` and about 0.6 (in the Robot Task), so σ and σ0 are extrapolations with wide
+    intervals, while the noise in between is well determined. Fitting κ ≥ 0 itself put κ̂ at its
+    bound 0 in 5 of 20 recovery datasets, where σ's interval was then computed as if κ were
+    known, and missed (docs/humans.md, "Recovery")."""
 
     name = "margin-noise"
     params = (
@@ -416,7 +419,7 @@ class MarginNoise(Silent):
         return v["sigma"] * prep["m"] + v["sigma0"] * (1.0 - prep["m"])
 
     def derive(self, v):
-        return {"kappa": v["sigma0"] - v["sigma"]}
+        return {"kappa": v["sigma0"] - v["sigma"], "sigma_half": 0.5 * (v["sigma"] + v["sigma0"])}
 
     def log_q(self, prep, v):
         return special.log_expit((v["equal"] - prep["m"]) / SOFT_EQUAL)
@@ -1060,8 +1063,8 @@ def bca_intervals(
     gives the plain percentile interval at ``level``. A derived parameter (``Family.derive``)
     takes the same percentiles of its value at each draw."""
     t = free_values(fam, mle)
-    cols = [
-        (p.name, draws[:, j], t[j], None if jack is None else jack[:, j], p.from_free)
+    cols: list[tuple[str, np.ndarray, float, np.ndarray | None, Callable[[float], float]]] = [
+        (p.name, draws[:, j], float(t[j]), None if jack is None else jack[:, j], p.from_free)
         for j, p in enumerate(fam.params)
     ]
     derived = fam.derive(mle)
