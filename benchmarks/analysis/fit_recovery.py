@@ -339,7 +339,10 @@ def merge(folders: Sequence[str]) -> tuple[dict[str, dict], dict[str, dict[str, 
                 methods = {**old["methods"], **r["methods"]} if old else r["methods"]
                 rec[human][k] = {**r, "methods": methods}
         conf.update(got.get("confusion", {}))
-        meta["runs"].append({k: v for k, v in got.items() if k not in ("recovery", "confusion")})
+        plain = got.get("confusion_heldout_only", {})
+        meta.setdefault("confusion_heldout_only", {}).update(plain)
+        skip = ("recovery", "confusion", "confusion_heldout_only")
+        meta["runs"].append({k: v for k, v in got.items() if k not in skip})
     return rec, conf, meta
 
 
