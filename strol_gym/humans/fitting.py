@@ -32,7 +32,8 @@ Every parameter is estimated by maximum likelihood (L-BFGS-B on a transformed sc
 starts); the 95 % intervals have the person as the unit (:data:`INTERVALS`: a person-clustered
 sandwich by default, or a bootstrap resampling each person's corrections together); the
 held-out log-likelihood sums, over folds of people, the log-likelihood of the held-out people
-under the fit to the others. Models whose choice needs θ̂ are fitted only to corrections whose
+under the fit to the others; ``--compare`` picks one model by :data:`PARSIMONY_RULE`
+(:func:`select`). Models whose choice needs θ̂ are fitted only to corrections whose
 θ̂ the log holds (or reconstructs: :attr:`Corrections.theta_hat_source`).
 """
 
@@ -776,9 +777,9 @@ def usable(fam: Family, data: Corrections) -> tuple[Corrections, str]:
 INTERVALS = ("sandwich", "bca", "percentile")
 """How ``fit`` makes its 95 % intervals (all with the person as the unit; docs/humans.md,
 "Intervals"): ``sandwich`` (the default) a Wald interval on the fitting scale from the
-person-clustered sandwich covariance with Student's t on at most G − 1 degrees of freedom,
-``bca`` the bias-corrected and accelerated bootstrap over people with its tail probabilities
-widened for few people, ``percentile`` the plain percentile bootstrap (kept to show why it was
+person-clustered leave-one-out covariance (:func:`leave_one_out_covariance`) with Student's t
+on at most G − 1 degrees of freedom, ``bca`` the bias-corrected and accelerated bootstrap over
+people with its tail probabilities widened for few people, ``percentile`` the plain percentile bootstrap (kept to show why it was
 replaced: it under-covers with 12 people)."""
 DEFAULT_INTERVAL = "sandwich"
 """``fit``'s interval (the recovery's coverage: docs/humans.md)."""
