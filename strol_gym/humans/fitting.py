@@ -779,8 +779,8 @@ INTERVALS = ("sandwich", "bca", "percentile")
 "Intervals"): ``sandwich`` (the default) a Wald interval on the fitting scale from the
 person-clustered leave-one-out covariance (:func:`leave_one_out_covariance`) with Student's t
 on at most G − 1 degrees of freedom, ``bca`` the bias-corrected and accelerated bootstrap over
-people with its tail probabilities widened for few people, ``percentile`` the plain percentile bootstrap (kept to show why it was
-replaced: it under-covers with 12 people)."""
+people with its tail probabilities widened for few people, ``percentile`` the plain percentile
+bootstrap (kept to show why it was replaced: it under-covers with 12 people)."""
 DEFAULT_INTERVAL = "sandwich"
 """``fit``'s interval (the recovery's coverage: docs/humans.md)."""
 AT_BOUND = 7.0
