@@ -142,6 +142,16 @@ def test_the_arm_reaches_its_setpoint_and_touches_nothing(task):
     infos += run(env, 300)
     assert not any(i["contact"] for i in infos)
     assert infos[-1]["contacts"] == 0
+    assert infos[-1]["reflexes"] == 0  # nobody pushed: a reflex would be a false one
+
+
+@pytest.mark.parametrize(("task", "seed"), [(2, 20799), (3, 27520)])
+def test_the_turned_cup_stays_off_the_table_near_the_base(task, seed):
+    """Seeds whose plans went to the turning set's low corner near the base (roll and pitch 0.4
+    rad), where the arm stopped short and the cup met the table when the set's floor was 8 cm."""
+    env = make(task=task)
+    env.reset(seed=seed)
+    assert not any(i["contact"] for i in run(env, 400))
 
 
 @pytest.mark.parametrize("seed", [20553, 28273])

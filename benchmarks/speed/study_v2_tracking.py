@@ -7,7 +7,8 @@ episode's random θ̂0): after a random 0.5-9 s of the plan, ``pause(2)`` holds 
 the cup's distance (m) and rotation (rad) to its setpoint after the 2 s, and whether they are
 within 2 mm and 0.01 rad. Then the episode goes on to 20 s (the plan's end, the 2 s wait and
 the way home): the steps on which the cup touched the pitcher, the plate or the table
-(``info["contact"]``).
+(``info["contact"]``), and the steps the speed reflex fired on (no person pushes: each is a
+false reflex, ``info["reflexes"]``).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from strol_gym.envs.study.geometry import rotation_error
 STEPS = 400  # 20 s
 
 
-def one_seed(version: str, task: int, seed: int, pause_at: float) -> tuple[float, float, int]:
+def one_seed(version: str, task: int, seed: int, pause_at: float) -> tuple[float, float, int, int]:
     env: Any = gym.make(f"StROL-Study-{version}", task=task, human=None).unwrapped  # StudyEnv
     env.reset(seed=seed)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
@@ -41,7 +42,7 @@ def one_seed(version: str, task: int, seed: int, pause_at: float) -> tuple[float
             err = float(np.linalg.norm(env._sp[:3] - env._x[:3]))
             rot = float(np.linalg.norm(rotation_error(env._sp_R, env._site_xmat)))
     env.close()
-    return err, rot, touched
+    return err, rot, touched, int(info.get("reflexes", 0))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -57,7 +58,7 @@ def main(argv: list[str] | None = None) -> None:
             one_seed(args.version, task, int(rng.integers(20000, 30000)), rng.uniform(0.5, 9.0))
             for _ in range(args.seeds)
         ]
-        err, rot, touched = (np.array(c) for c in zip(*rows, strict=True))
+        err, rot, touched, reflex = (np.array(c) for c in zip(*rows, strict=True))
         ok = (err < 0.002) & (rot < 0.01)
         print(
             f"Task {task} ({args.version}, {len(rows)} seeds): after a 2 s hold within 2 mm and "
@@ -65,7 +66,8 @@ def main(argv: list[str] | None = None) -> None:
             f"{np.percentile(err, 95) * 1000:.2f} mm, max {err.max() * 1000:.2f} mm; rotation "
             f"median {np.median(rot):.4f}, p95 {np.percentile(rot, 95):.4f}, max {rot.max():.4f} "
             f"rad; steps with the cup touching an object: {int(touched.sum())} "
-            f"(seeds: {int((touched > 0).sum())})"
+            f"(seeds: {int((touched > 0).sum())}); speed reflexes {int(reflex.sum())} (seeds: "
+            f"{int((reflex > 0).sum())})"
         )
 
 
