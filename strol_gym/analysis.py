@@ -16,13 +16,12 @@ from typing import Any
 import numpy as np
 
 from strol_gym.humans import DEFAULT_CANDIDATES, check_fraction, human_model, teach
+from strol_gym.priors import check_theta_range
 from strol_gym.tasks.base import Task
 
 CONVERGED_TOL = 0.25
 """A cell *converges* when its final error ‖θ̂_K − θ*‖ is at most ``CONVERGED_TOL · ‖θ*‖``
 (a quarter of the preference's length: the estimate ends in θ*'s neighbourhood)."""
-MAX_THETA = 1e6
-"""Largest |θ*_i| a basin map takes: the prior modes are O(1); far beyond, errors overflow."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,10 +106,9 @@ def basin_map(
         ax0 = ax1 = _grid_axis("grid", grid, span)
     modes = np.asarray(task.prior_modes, dtype=np.float64)
     star = modes[0].copy() if theta_star is None else np.asarray(theta_star, dtype=np.float64)
-    if star.shape != (d,) or not (np.abs(star) <= MAX_THETA).all():
-        raise ValueError(
-            f"theta_star must be {d} numbers in [-{MAX_THETA:g}, {MAX_THETA:g}], got {theta_star!r}"
-        )
+    if star.shape != (d,):
+        raise ValueError(f"theta_star must be {d} numbers, got {theta_star!r}")
+    check_theta_range("theta_star", star)
     base = modes.mean(axis=0) if fixed is None else np.asarray(fixed, dtype=np.float64)
     if base.shape != (d,) or not np.isfinite(base).all():
         raise ValueError(f"fixed must be {d} finite numbers (all coordinates), got {fixed!r}")

@@ -302,7 +302,7 @@ def test_bayes_refuses_a_nan_posterior(name, key):
 def test_basin_refuses_a_theta_star_whose_errors_overflow(capsys, tmp_path):
     argv = ["basin", "--theta-star", "1e308,1e308", "--grid", "3", "--steps", "2"]
     line = cli_error([*argv, "--out", str(tmp_path / "b"), "--no-plots"], capsys)
-    assert "theta_star must be 2 numbers in [-1e+06, 1e+06]" in line
+    assert "theta_star must be finite numbers in [-1e+06, 1e+06]" in line
     assert not (tmp_path / "b").exists()
     m = basin_map(ROBOT, "gradient", 3, theta_star=[1e6, -1e6], steps=1)
     assert np.isfinite(m.error).all()

@@ -320,6 +320,24 @@ def test_a_shove_above_the_reflex_shows_on_the_panel_and_is_logged(tmp_path):
     assert not any("PUSH COUNTS" in c for c in cues)
 
 
+def test_a_push_a_joint_cannot_bear_brakes_below_the_force_reflex_and_the_panel_says_why(
+    tmp_path,
+):
+    """v2 (interact's env) also brakes on a push that would overload a joint: a 60 N push along
+    x at Task 1's start does, below the 100 N reflex, and the panel must not claim 60 N > 100 N."""
+    from strol_gym.benchmarks.sessions.interact import JOINT_LIMIT
+
+    viewers, factory, path = _run(tmp_path, "joint", force=(60.0, 0.0, 0.0), steps=6)
+    _, info = run_interactive(
+        task=1, log=path, max_steps=30, realtime=False, viewer_factory=factory
+    )
+    (viewer,) = viewers
+    assert info["corrections"] == 0 and info["reflexes"] == 1
+    assert JOINT_LIMIT in viewer.texts[0][2]
+    cue = "\n".join(t[2] for t in viewer.history[PUSH_START][1:])
+    assert "TOO HARD" in cue and "(60 N: a joint's limit)" in cue and "> 100 N" not in cue
+
+
 def test_blind_by_default_and_the_panel_toggles(tmp_path):
     """--blind (default) hides θ̂ and φ, --no-blind shows them; the log keeps θ̂ either way;
     with the panel key's flag off only a one-line hint stays."""

@@ -242,13 +242,15 @@ INSTRUCTIONS = (
     "HOW: double-click a link of the arm to select it,",
     "then Ctrl + right-drag to push it.",
     "A push above {threshold:.0f} N is a correction; above {reflex:.0f} N the arm brakes",
-    "(too hard: no correction). Blue dots: the robot's plan;",
+    "{joint}(too hard: no correction). Blue dots: the robot's plan;",
     "F8: the plan for what you teach (green). F9: hide this panel.",
     "Close the window to end.",
 )
 CUE_SECONDS = 2.0
 """How long (simulated s) the panel shows a recorded correction or a reflex."""
 TOO_HARD = "TOO HARD: the arm braked, no correction"
+JOINT_LIMIT = "or sooner where a joint cannot bear the push "
+"""The instructions' words where the version also brakes on a joint's torque (v2)."""
 PANEL_HIDDEN = "F9: show the panel"
 
 
@@ -260,6 +262,7 @@ def overlay(
     teach: str = "",
     threshold: float = 15.0,
     reflex_force: float = 100.0,
+    joint_reflex: bool = False,
     last_correction: tuple[float, np.ndarray] | None = None,
     last_reflex: tuple[float, float] | None = None,
     rtf: float | None = None,
@@ -269,7 +272,9 @@ def overlay(
     """Viewer text (ASCII: the viewer's font has no θ or φ) in the top corners only, so the
     table, the pitcher and the plate stay in view: state, how to push and what to teach top
     left (``panel`` false: one line saying how to show it), cues and the real-time factor top
-    right. ``blind`` (a participant's view) leaves θ̂ and φ out; the log keeps them."""
+    right. ``blind`` (a participant's view) leaves θ̂ and φ out; the log keeps them.
+    ``joint_reflex``: the arm also brakes on a push a joint cannot bear (v2), so a reflex may
+    come below ``reflex_force`` and the panel says so."""
     font = mujoco.mjtFontScale.mjFONTSCALE_100
     grid = mujoco.mjtGridPos
     texts: list[tuple] = []
@@ -287,7 +292,9 @@ def overlay(
             for name, t, p in zip(task.feature_names, theta, phi, strict=True):
                 labels.append(f"{name}: theta_hat / phi")
                 values.append(f"{t:+.3f} / {p:+.3f}")
-        how = "\n".join(INSTRUCTIONS).format(threshold=threshold, reflex=reflex_force)
+        how = "\n".join(INSTRUCTIONS).format(
+            threshold=threshold, reflex=reflex_force, joint=JOINT_LIMIT if joint_reflex else ""
+        )
         state = [f"{k}: {v}" for k, v in zip(labels, values, strict=True)]
         lines = [*state, "", *how.split("\n"), "TEACH: " + teach]
         texts.append((font, grid.mjGRID_TOPLEFT, "\n".join(lines), ""))
@@ -295,7 +302,8 @@ def overlay(
         texts.append((font, grid.mjGRID_TOPLEFT, PANEL_HIDDEN, ""))
     cues = []
     if last_reflex is not None and info["time"] - last_reflex[0] <= CUE_SECONDS:
-        cues.append(f"{TOO_HARD} ({last_reflex[1]:.0f} N > {reflex_force:.0f} N)")
+        why = f" > {reflex_force:.0f} N" if last_reflex[1] > reflex_force else ": a joint's limit"
+        cues.append(f"{TOO_HARD} ({last_reflex[1]:.0f} N{why})")
     elif felt > reflex_force:
         cues.append(f"{TOO_HARD} ({felt:.0f} N > {reflex_force:.0f} N)")
     elif info.get("braked", False):
@@ -389,6 +397,7 @@ def run_interactive(
     teach = teach_words(study.task.feature_names, study.task.theta_star)
     threshold = float(study.force_threshold)
     reflex_force = float(getattr(study, "reflex_force", math.inf))
+    joint_reflex = bool(study.version.torque_reflex)
     info: dict[str, Any] = {}
     pace = Pace(CONTROL_DT, realtime)
     try:
@@ -448,6 +457,7 @@ def run_interactive(
                         teach=teach,
                         threshold=threshold,
                         reflex_force=reflex_force,
+                        joint_reflex=joint_reflex,
                         last_correction=last_correction,
                         last_reflex=last_reflex,
                         rtf=factor,
@@ -482,8 +492,9 @@ def add_parser(sub: Any) -> None:
         help="push the study arm yourself in MuJoCo's viewer; the robot learns (needs a display)",
         description="Open MuJoCo's passive viewer on the study env strol-bench study runs (its "
         "Task and learner, no simulated user). Push the arm with Ctrl + right-drag (double-click "
-        "a link first to select it): a push above 15 N is a correction (above the 100 N reflex "
-        "the arm brakes and nothing counts); the learner updates and the robot replans. F8: the "
+        "a link first to select it): a push above 15 N is a correction (above the 100 N reflex, "
+        "or on v2 sooner where a joint cannot bear the push, the arm brakes and nothing "
+        "counts); the learner updates and the robot replans. F8: the "
         "plan for theta*; F9: hide or show the panel. The session is logged for strol-bench "
         "replay. Without a display: xvfb-run -a strol-bench interact.",
     )
