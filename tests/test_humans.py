@@ -148,3 +148,18 @@ def test_one_persons_perturbation_is_the_batchs_row_to_the_bit(task):
             for i in range(len(u))
         ]
         assert np.concatenate(rows).tobytes() == batch.tobytes()
+
+
+@pytest.mark.parametrize("task", [RobotTask(), HighwayTask()], ids=["robot", "highway"])
+def test_candidates_scale_by_a_max_as_a_broadcast_product_would(task):
+    """Candidates are scaled in place by a tiled bound (a view of each person's block), or by
+    broadcasting where the block is not contiguous: either way the products of ``u * a_max``."""
+    rng = np.random.default_rng(2)
+    u = rng.uniform(-1, 1, (5, 33, task.action_dim))
+    want = (u * np.asarray(task.action_bound)).tobytes()
+    block = u.copy()
+    task._scale_candidates(block)
+    strided = np.asfortranarray(u)
+    task._scale_candidates(strided)
+    assert block.tobytes() == want
+    assert np.ascontiguousarray(strided).tobytes() == want

@@ -206,9 +206,27 @@ class Task(ABC):
             u[...] = rng.random((n, k, self.action_dim))
         u *= 2.0
         u += -1.0
-        # One bound for every axis (the Robot's): a scalar product, the same numbers.
-        u *= self._candidate_scale
+        self._scale_candidates(u)
         return out
+
+    def _scale_candidates(self, u: np.ndarray) -> None:
+        """u (n, k, action_dim) *= a_max, in place. One bound for every axis (the Robot's): a
+        scalar product. Per axis (the Highway's): each person's block times the bound tiled k
+        times, the same products, without broadcasting's inner loops as short as an action."""
+        scale = self._candidate_scale
+        if isinstance(scale, float):
+            u *= scale
+            return
+        n, k, a = u.shape
+        try:
+            flat = np.reshape(u, (n, k * a), copy=False)  # refused where it would need a copy
+        except ValueError:
+            u *= scale
+            return
+        tiled = self.__dict__.setdefault("_tiled_scales", {}).get(k)
+        if tiled is None:
+            tiled = self.__dict__["_tiled_scales"][k] = np.tile(scale, k)
+        flat *= tiled
 
     @functools.cached_property
     def _candidate_scale(self) -> float | np.ndarray:
