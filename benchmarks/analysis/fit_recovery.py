@@ -39,6 +39,7 @@ from strol_gym.humans.fitting import (
     maximise,
     prepare,
     sandwich_intervals,
+    select,
     usable,
 )
 from strol_gym.learners.registry import make_learner
@@ -61,6 +62,14 @@ RECOVERY: dict[str, dict[str, float]] = {
     "reversing": {"sigma": 0.2, "bias": 0.0, "rate": 0.2},
 }
 """Known, non-default parameters each model's datasets are simulated with."""
+FITTED_AS: dict[str, dict[str, Any]] = {
+    "margin-noise": {
+        "sigma0": lambda t: t["sigma"] + t["kappa"],
+        "sigma_half": lambda t: t["sigma"] + 0.5 * t["kappa"],
+    },
+}
+"""The truth of parameters a family fits or derives besides the model's own (``margin-noise``
+fits the noise at margin 0, σ0 = σ + κ, and derives κ and the noise at margin ½)."""
 SELECTION: dict[str, tuple[str, dict[str, float]]] = {
     "nominal σ 0.35": ("nominal", {"sigma": 0.35}),
     "boltzmann (matched)": ("boltzmann", {"sigma": 0.0}),  # β set by matched_beta
@@ -166,6 +175,7 @@ def dataset_intervals(
     data, _ = usable(fam, data)
     prep = prepare(fam, data)
     mle, _ = maximise(fam, prep)
+    mle = {**mle, **fam.derive(mle)}
     out: dict[str, dict[str, tuple[float, float]]] = {}
     draws = jack = None
     for m in methods:
@@ -194,11 +204,13 @@ def recovery(
     """Per parameter, over ``datasets`` simulated datasets: the mean estimate and its bias, and
     per interval method the coverage of the truth (with its Wilson interval) and the mean
     width. The first method's figures are also the parameter's top-level ones."""
+    params = dict(truth)  # the model's own, simulated with
+    truth = {**truth, **{k: f(truth) for k, f in FITTED_AS.get(human, {}).items()}}
     est: dict[str, list[float]] = {k: [] for k in truth}
     cover: dict[str, dict[str, list[bool]]] = {m: {k: [] for k in truth} for m in methods}
     width: dict[str, dict[str, list[float]]] = {m: {k: [] for k in truth} for m in methods}
     for d in range(datasets):
-        data = simulate_people(task, human, n_people, seed + 1000 * d, robot=robot, **truth)
+        data = simulate_people(task, human, n_people, seed + 1000 * d, robot=robot, **params)
         mle, ivs = dataset_intervals(human, data, methods, n_boot, d)
         for k, v in truth.items():
             est[k].append(mle[k])
@@ -215,6 +227,7 @@ def recovery(
                 "coverage": hits / datasets,
                 "coverage_ci95": wilson(hits, datasets),
                 "mean_ci_width": float(np.mean(width[m][k])),
+                "median_ci_width": float(np.median(width[m][k])),
             }
         bias = float(np.mean(est[k]) - v)
         first = per[methods[0]]
@@ -241,22 +254,23 @@ def selection(
     seed: int = 0,
     folds: int = 5,
     robot: bool = True,
-) -> dict[str, dict[str, int]]:
-    """Confusion counts: scenario -> model chosen by held-out log-likelihood -> datasets."""
-    out: dict[str, dict[str, int]] = {}
+) -> tuple[dict[str, dict[str, int]], dict[str, dict[str, int]]]:
+    """Confusion counts (scenario -> model chosen -> datasets) under the parsimony rule
+    (``fitting.select``) and, for comparison, by the highest held-out log-likelihood alone."""
+    rule: dict[str, dict[str, int]] = {}
+    plain: dict[str, dict[str, int]] = {}
     for label, (human, params) in scenarios.items():
-        counts = dict.fromkeys(candidates, 0)
+        rule[label] = dict.fromkeys(candidates, 0)
+        plain[label] = dict.fromkeys(candidates, 0)
         for d in range(datasets):
             data = simulate_people(
                 task, human, n_people, seed + 7919 * (d + 1), robot=robot, **params
             )
-            held = {
-                c: fit(c, data, n_boot=0, folds=folds, seed=d).heldout_loglik for c in candidates
-            }
-            # heldout_loglik is None only without folds; folds are given here
-            counts[max(held, key=lambda c: held[c])] += 1  # type: ignore[arg-type, return-value]
-        out[label] = counts
-    return out
+            fits = {c: fit(c, data, n_boot=0, folds=folds, seed=d) for c in candidates}
+            chosen = select(fits)
+            rule[label][chosen.chosen] += 1
+            plain[label][chosen.by_heldout] += 1
+    return rule, plain
 
 
 def _pct(x: float) -> str:
@@ -269,7 +283,7 @@ def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) 
     methods = list(
         dict.fromkeys(m for params in rec.values() for r in params.values() for m in r["methods"])
     )
-    head = " | ".join(f"{m} coverage [Wilson 95 %] · mean width" for m in methods)
+    head = " | ".join(f"{m} coverage [Wilson 95 %] · mean width (median)" for m in methods)
     lines = [
         f"| model | parameter | truth | datasets | mean estimate | bias | sd | {head} | "
         "\\|bias\\| < width/4 |",
@@ -285,25 +299,29 @@ def markdown(rec: dict[str, dict], conf: dict[str, dict[str, int]], meta: dict) 
                     continue
                 lo, hi = c["coverage_ci95"]
                 flag = "**" if c["coverage"] < 0.8 else ""
+                median = c.get("median_ci_width", math.nan)
                 cells.append(
                     f"{flag}{_pct(c['coverage'])} %{flag} [{_pct(lo)}, {_pct(hi)}] · "
-                    f"{c['mean_ci_width']:.3g}"
+                    f"{c['mean_ci_width']:.3g} ({median:.3g})"
                 )
             lines.append(
                 f"| {human} | {k} | {r['truth']:g} | {r['datasets']} | {r['mean_estimate']:.3g} | "
                 f"{r['bias']:+.3g} | {r['sd_estimate']:.3g} | " + " | ".join(cells) + " | "
                 f"{'yes' if r['bias_ok'] else 'no'} |"
             )
-    if conf:
-        cands = list(next(iter(conf.values())))
+    plain = meta.get("confusion_heldout_only") or {}
+    for title, table in (("parsimony rule", conf), ("highest held-out alone", plain)):
+        if not table:
+            continue
+        cands = list(next(iter(table.values())))
         lines += [
             "",
-            "| data \\ chosen | " + " | ".join(cands) + " |",
+            f"| data \\ chosen ({title}) | " + " | ".join(cands) + " |",
             "|---|" + "---|" * len(cands),
         ]
-        for label, counts in conf.items():
+        for label, counts in table.items():
             lines.append(f"| {label} | " + " | ".join(str(counts[c]) for c in cands) + " |")
-    lines += ["", f"{meta}"]
+    lines += ["", f"{ {k: v for k, v in meta.items() if k != 'confusion_heldout_only'} }"]
     return "\n".join(lines) + "\n"
 
 
@@ -321,7 +339,10 @@ def merge(folders: Sequence[str]) -> tuple[dict[str, dict], dict[str, dict[str, 
                 methods = {**old["methods"], **r["methods"]} if old else r["methods"]
                 rec[human][k] = {**r, "methods": methods}
         conf.update(got.get("confusion", {}))
-        meta["runs"].append({k: v for k, v in got.items() if k not in ("recovery", "confusion")})
+        plain = got.get("confusion_heldout_only", {})
+        meta.setdefault("confusion_heldout_only", {}).update(plain)
+        skip = ("recovery", "confusion", "confusion_heldout_only")
+        meta["runs"].append({k: v for k, v in got.items() if k not in skip})
     return rec, conf, meta
 
 
@@ -388,8 +409,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         meta["matched_beta"] = beta
         scen = dict(SELECTION)
         scen["boltzmann (matched)"] = ("boltzmann", {"sigma": 0.0, "beta": beta})
-        conf.update(selection(task, scen, args.datasets, args.people))
-        print("confusion", json.dumps(conf), f"matched β {beta:.4g}", flush=True)
+        rule, plain = selection(task, scen, args.datasets, args.people)
+        conf.update(rule)
+        meta["confusion_heldout_only"] = plain
+        print("confusion", json.dumps(conf), "held-out only", json.dumps(plain), flush=True)
+        print(f"matched β {beta:.4g}", flush=True)
     write()
     (out / "recovery.md").write_text(markdown(rec, conf, meta))
     print(f"wrote {out / 'recovery.md'}")

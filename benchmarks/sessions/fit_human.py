@@ -12,7 +12,8 @@ left out, saying so). Never the seeds, the env's kwargs (σ, the human) or
 anything else of the header: a test strips them and gets the same estimate.
 
 Writes DIR/fit.json (the named model: estimates, 95 % intervals over people (``--interval``),
-log-likelihood, held-out log-likelihood), DIR/fit.md, and with ``--compare`` DIR/compare.json,
+log-likelihood, held-out log-likelihood; with ``--compare`` also the model the parsimony rule
+selects and why, ``fitting.select``), DIR/fit.md, and with ``--compare`` DIR/compare.json,
 a table of held-out log-likelihoods and DIR/plots/ppc.png: the real corrections against draws
 of each fitted model at the same states, for the statistics the logs identify.
 """
@@ -31,16 +32,19 @@ from strol_gym.humans.fitting import (
     DEFAULT_INTERVAL,
     FEW_PEOPLE,
     INTERVALS,
+    PARSIMONY_RULE,
     Corrections,
     Fit,
+    Selection,
     best_for_theta,
     fit,
+    select,
     simulate,
 )
 
 INTERVAL_NAMES = {
     "bca": "BCa bootstrap, widened for few people",
-    "sandwich": "person-clustered sandwich, t on at most G − 1 df",
+    "sandwich": "person-clustered sandwich (leave-one-person-out, CR3), t on at most G − 1 df",
     "percentile": "percentile bootstrap",
 }
 
@@ -278,7 +282,9 @@ def fit_markdown(f: Fit, sources: Sequence[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def compare_markdown(fits: dict[str, Fit], skipped: dict[str, str]) -> str:
+def compare_markdown(
+    fits: dict[str, Fit], skipped: dict[str, str], chosen: Selection | None = None
+) -> str:
     lines = [
         "# Held-out log-likelihood (folds over people; higher is better)",
         "",
@@ -300,6 +306,9 @@ def compare_markdown(fits: dict[str, Fit], skipped: dict[str, str]) -> str:
         "Models fitted to different corrections (θ̂-needing models drop those "
         "without θ̂) compare per correction only.",
     ]
+    if chosen is not None:
+        lines += ["", f"**Selected: `{chosen.chosen}`** by the parsimony rule ({PARSIMONY_RULE})."]
+        lines += [f"- {step}" for step in chosen.steps]
     return "\n".join(lines) + "\n"
 
 
@@ -338,16 +347,25 @@ def run_fit_human(
                 raise
             skipped[name] = str(e)
     main = fits[human]
-    (out / "fit.json").write_text(json.dumps(main.to_json(), indent=2) + "\n")
+    chosen = select(fits) if compare else None
+    record = main.to_json()
+    if chosen is not None:
+        record["selection"] = chosen.to_json()
+    (out / "fit.json").write_text(json.dumps(record, indent=2) + "\n")
     (out / "fit.md").write_text(fit_markdown(main, sources))
-    if compare:
+    if chosen is not None:
         (out / "compare.json").write_text(
             json.dumps(
-                {"fits": [f.to_json() for f in fits.values()], "left_out": skipped}, indent=2
+                {
+                    "fits": [f.to_json() for f in fits.values()],
+                    "left_out": skipped,
+                    "selection": chosen.to_json(),
+                },
+                indent=2,
             )
             + "\n"
         )
-        (out / "compare.md").write_text(compare_markdown(fits, skipped))
+        (out / "compare.md").write_text(compare_markdown(fits, skipped, chosen))
         if plots:
             ppc_plot(out / "plots" / "ppc.png", data, fits, seed)
     return fits
@@ -362,9 +380,12 @@ def add_parser(sub: Any) -> None:
         help="fit a human model to correction logs; compare models by held-out likelihood",
         description="Fit a registered human model to session logs (a .jsonl, a folder of them, "
         "or a Minari dataset id): maximum likelihood with the action bound's clipping in the "
-        "likelihood, 95 %% intervals over people, held-out log-likelihood over folds "
+        "likelihood, 95 % intervals over people, held-out log-likelihood over folds "
         "of people. Reads only x, u_H, u_R, θ* and θ̂ where logged. Writes OUT/fit.json and "
-        "fit.md; --compare adds compare.md/json and posterior-predictive plots.",
+        "fit.md; --compare adds compare.md/json and posterior-predictive plots, and selects "
+        'one model (fit.json\'s "selection": which and why) by the parsimony rule: '
+        + PARSIMONY_RULE
+        + ".",
     )
     p.add_argument("sources", nargs="+", metavar="SOURCE", help="session log, folder or dataset")
     p.add_argument("--human", required=True, help="the registered human model to fit")
@@ -378,7 +399,8 @@ def add_parser(sub: Any) -> None:
         choices=INTERVALS,
         default=DEFAULT_INTERVAL,
         help="95 %% intervals over people: sandwich (default: person-clustered Wald on the "
-        "fitting scale, t on at most G - 1 df; no resampling), bca (bootstrap over people, "
+        "fitting scale, leave-one-person-out covariance, t on at most G - 1 df; no "
+        "resampling), bca (bootstrap over people, "
         "bias-corrected and accelerated, widened for few people; --bootstrap resamples), "
         "percentile (plain bootstrap; under-covers with 12 people: docs/humans.md)",
     )

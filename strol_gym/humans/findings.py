@@ -293,21 +293,21 @@ FITTED_STUDY: dict[str, Any] = {
     "params": {"sigma": 0.490, "bias": 0.050, "beta_rel": 8.02},
     "per_task": {
         "study-task1": {
-            "sigma": [0.552, 0.445, 0.684],
-            "bias": [-0.029, -0.221, 0.163],
-            "beta_rel": [6.80, 3.99, 11.58],
+            "sigma": [0.552, 0.439, 0.693],
+            "bias": [-0.029, -0.232, 0.174],
+            "beta_rel": [6.80, 3.88, 11.92],
             "heldout_loglik": 375.1,
         },
         "study-task2": {
-            "sigma": [0.451, 0.376, 0.540],
-            "bias": [0.121, 0.010, 0.230],
-            "beta_rel": [9.13, 6.40, 13.01],
+            "sigma": [0.451, 0.367, 0.554],
+            "bias": [0.121, 0.002, 0.239],
+            "beta_rel": [9.13, 6.32, 13.18],
             "heldout_loglik": 863.6,
         },
         "study-task3": {
-            "sigma": [0.467, 0.383, 0.569],
-            "bias": [0.057, -0.019, 0.132],
-            "beta_rel": [8.13, 5.48, 12.05],
+            "sigma": [0.467, 0.372, 0.586],
+            "bias": [0.057, -0.018, 0.132],
+            "beta_rel": [8.13, 5.48, 12.07],
             "heldout_loglik": 872.4,
         },
     },
@@ -315,7 +315,8 @@ FITTED_STUDY: dict[str, Any] = {
     "12 participants × 3 Tasks × 3 learners, imported with strol-bench import-study (issue 32, "
     "one update per correction, θ̂0 not logged)",
     "command": "strol-bench fit-human OUT/user_*_task_J_*.jsonl --human scale-free "
-    "--compare boltzmann,myopic --folds 4 --out DIR (J = 1, 2, 3; sandwich intervals)",
+    "--compare boltzmann,myopic --folds 4 --out DIR (J = 1, 2, 3; sandwich intervals with the "
+    "leave-one-person-out covariance)",
     "date": "2026-11-25",
 }
 """The fit behind ``fitted-study`` (docs/humans.md, "Fitted to the twelve people"): per Task the
