@@ -15,6 +15,8 @@ from strol_gym.humans import (
     optimal_correction,
     perturb,
 )
+from strol_gym.humans.interface import Replayed
+from strol_gym.tasks.highway import HighwayTask
 from strol_gym.tasks.robot import RobotTask
 
 TASK = RobotTask()
@@ -131,3 +133,33 @@ def test_nominal_human_teaches_toward_theta_star():
         u = NominalHuman(TASK, ts, rng).act(x, u_r, th)
         after = np.linalg.norm(ts - (th + TASK.alpha * TASK.g(x, u, u_r)))
         assert after <= np.linalg.norm(ts - th) + 1e-12
+
+
+@pytest.mark.parametrize("task", [RobotTask(), HighwayTask()], ids=["robot", "highway"])
+def test_one_persons_perturbation_is_the_batchs_row_to_the_bit(task):
+    """One person's noise runs in plain floats: each row equals the batch's, bit for bit."""
+    rng = np.random.default_rng(5)
+    u = rng.uniform(-1, 1, (200, task.action_dim)) * task.action_bound
+    for sigma, bias in [(0.0, 0.0), (0.3, -0.2), (1.7, 0.45)]:
+        noise = rng.standard_normal(u.shape)
+        batch = perturb(task, u, sigma, bias, Replayed(noise))
+        rows = [
+            perturb(task, u[i : i + 1], sigma, bias, Replayed(noise[i : i + 1]))
+            for i in range(len(u))
+        ]
+        assert np.concatenate(rows).tobytes() == batch.tobytes()
+
+
+@pytest.mark.parametrize("task", [RobotTask(), HighwayTask()], ids=["robot", "highway"])
+def test_candidates_scale_by_a_max_as_a_broadcast_product_would(task):
+    """Candidates are scaled in place by a tiled bound (a view of each person's block), or by
+    broadcasting where the block is not contiguous: either way the products of ``u * a_max``."""
+    rng = np.random.default_rng(2)
+    u = rng.uniform(-1, 1, (5, 33, task.action_dim))
+    want = (u * np.asarray(task.action_bound)).tobytes()
+    block = u.copy()
+    task._scale_candidates(block)
+    strided = np.asfortranarray(u)
+    task._scale_candidates(strided)
+    assert block.tobytes() == want
+    assert np.ascontiguousarray(strided).tobytes() == want

@@ -91,12 +91,14 @@ def correcting(steps: Any, n_corrections: int) -> Any:
 def observation(
     x: np.ndarray, u_h: np.ndarray, theta_hat: np.ndarray, phi: np.ndarray
 ) -> dict[str, np.ndarray]:
-    """The contract's observation of one state (1-D arrays) or N (2-D), as float32 copies."""
+    """The contract's observation of one state (1-D arrays) or N (2-D), as float32 copies
+    (``np.array``: the cheapest spelling of the copy on a few numbers)."""
+    f32 = np.float32
     return {
-        "state": x.astype(np.float32),
-        "correction": np.asarray(u_h, dtype=np.float32),
-        "theta_hat": theta_hat.astype(np.float32),
-        "phi": np.asarray(phi, dtype=np.float32),
+        "state": np.array(x, dtype=f32),
+        "correction": np.array(u_h, dtype=f32),
+        "theta_hat": np.array(theta_hat, dtype=f32),
+        "phi": np.array(phi, dtype=f32),
     }
 
 
@@ -412,8 +414,13 @@ class CorrectionEnv:
         self._theta_star = np.asarray(value, dtype=np.float64)
 
     def initial_theta_hat(self) -> np.ndarray:
-        """θ̂0, an episode's first estimate: the mean of the Task's prior modes."""
-        return np.asarray(self.task.prior_modes, dtype=np.float64).mean(axis=0)
+        """θ̂0, an episode's first estimate: the mean of the Task's prior modes (a copy of the
+        mean taken once per Task: every reset asks)."""
+        memo = self.__dict__.get("_theta_hat0_memo")
+        if memo is None or memo[0] is not self.task:
+            modes = np.asarray(self.task.prior_modes, dtype=np.float64)
+            memo = self.__dict__["_theta_hat0_memo"] = (self.task, modes.mean(axis=0))
+        return memo[1].copy()
 
     def set_theta_hat(self, theta_hat: np.ndarray) -> None:
         """The robot's current estimate θ̂: the nominal human teaches relative to it, and the
@@ -492,7 +499,8 @@ class CorrectionEnv:
             return np.zeros(self.task.action_dim), False
         theta_hat = self.theta_hat if needs_theta_hat(self.human) else None
         u_h = np.asarray(self.human.act(x, u_r, theta_hat), dtype=np.float64)
-        if u_h.shape != (self.task.action_dim,) or not np.isfinite(u_h).all():
+        # finiteness in plain floats: numpy's per-call cost dominates on a few numbers
+        if u_h.shape != self._a_shape or not all(map(math.isfinite, u_h.tolist())):
             raise ValueError(
                 f"the human's correction must be {self.task.action_dim} finite numbers, got {u_h}"
             )

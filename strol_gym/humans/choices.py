@@ -35,6 +35,8 @@ def optimal_correction(
     if use_fast():
         best = task.m6_choice(x, u_r, theta_hat, theta_star, candidates)
         if best is not None:
+            if len(best) == 1:  # one person: a slice's copy, the same row as below
+                return candidates[:1, int(best[0])].copy()
             return candidates[np.arange(len(candidates)), best]
     g = task.g_planes(x[:, None, :], candidates, u_r[:, None, :])  # (d, B, K)
     # θ* − (θ̂ + α g) and its squared norm one feature at a time, on (B, K) planes: the
@@ -93,5 +95,15 @@ def perturb(
 ) -> np.ndarray:
     """u + δ with δ ~ N(ε·a_max, (σ·a_max)²) per component (σ may vary per row, (n, 1)).
     Draws even when σ = 0 (pairing)."""
-    a = task.action_bound
-    return u + bias * a + sigma * a * rng.standard_normal(u.shape)
+    z = rng.standard_normal(u.shape)
+    one = u.shape == (1, len(task.a_max_l)) and u.dtype == np.float64 == z.dtype
+    if one and type(sigma) is float and type(bias) is float:
+        # One person (the single env's every correction) in plain floats: the same IEEE
+        # operations in numpy's order, (u + ε a) + (σ a) z, so the same bits.
+        row = [
+            (ui + bias * ai) + (sigma * ai) * zi
+            for ui, ai, zi in zip(u[0].tolist(), task.a_max_l, z[0].tolist(), strict=True)
+        ]
+        return np.array([row])
+    a = task.a_max
+    return u + bias * a + sigma * a * z

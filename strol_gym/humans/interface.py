@@ -171,7 +171,7 @@ class HumanModel:
         u = cand[:, 1:]
         u *= 2.0
         u += -1.0
-        u *= task._candidate_scale
+        task._scale_candidates(u)
         extra = (
             {key: np.concatenate([e[key] for e in extras]) for key in extras[0]} if extras else {}
         )

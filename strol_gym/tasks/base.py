@@ -163,9 +163,29 @@ class Task(ABC):
 
     def _unchanged(self, cls: type, names: Sequence[str]) -> bool:
         """Whether this Task's ``names`` are ``cls``'s: a subclass that overrides one of them
-        changes what a kernel written for ``cls`` would compute."""
-        own = type(self)
-        return all(getattr(own, n) is getattr(cls, n) for n in names)
+        changes what a kernel written for ``cls`` would compute. Asked on every correction,
+        answered once per Task (its class does not change)."""
+        key = (cls, tuple(names))
+        memo = self.__dict__.setdefault("_unchanged_memo", {})  # a frozen dataclass: as
+        found = memo.get(key)  # functools.cached_property, straight into the instance dict
+        if found is None:
+            own = type(self)
+            found = memo[key] = all(getattr(own, n) is getattr(cls, n) for n in names)
+        return found
+
+    @functools.cached_property
+    def a_max(self) -> np.ndarray:
+        """``action_bound`` computed once (read-only): the humans' noise scales by it on every
+        correction, and a Task's fields do not change."""
+        bound = np.array(self.action_bound)
+        bound.flags.writeable = False
+        return bound
+
+    @functools.cached_property
+    def a_max_l(self) -> list[float]:
+        """``a_max`` as plain floats (one person's correction, where numpy's per-call cost
+        dominates on a few numbers)."""
+        return np.asarray(self.a_max, dtype=np.float64).tolist()
 
     def candidate_actions(self, rng: np.random.Generator, n: int, k: int) -> np.ndarray:
         """Candidate human actions for eq. M6, shape (n, k + 1, action_dim).
@@ -186,9 +206,27 @@ class Task(ABC):
             u[...] = rng.random((n, k, self.action_dim))
         u *= 2.0
         u += -1.0
-        # One bound for every axis (the Robot's): a scalar product, the same numbers.
-        u *= self._candidate_scale
+        self._scale_candidates(u)
         return out
+
+    def _scale_candidates(self, u: np.ndarray) -> None:
+        """u (n, k, action_dim) *= a_max, in place. One bound for every axis (the Robot's): a
+        scalar product. Per axis (the Highway's): each person's block times the bound tiled k
+        times, the same products, without broadcasting's inner loops as short as an action."""
+        scale = self._candidate_scale
+        if isinstance(scale, float):
+            u *= scale
+            return
+        n, k, a = u.shape
+        try:
+            flat = np.reshape(u, (n, k * a), copy=False)  # refused where it would need a copy
+        except ValueError:
+            u *= scale
+            return
+        tiled = self.__dict__.setdefault("_tiled_scales", {}).get(k)
+        if tiled is None:
+            tiled = self.__dict__["_tiled_scales"][k] = np.tile(scale, k)
+        flat *= tiled
 
     @functools.cached_property
     def _candidate_scale(self) -> float | np.ndarray:

@@ -254,23 +254,22 @@ class RobotTask(Task):
         from strol_gym.tasks.m6_kernels import robot_m6
 
         best = np.empty(len(candidates), dtype=np.int64)
-        x, u_r, theta_hat, theta_star = (
-            np.ascontiguousarray(a, dtype=np.float64) for a in (x, u_r, theta_hat, theta_star)
-        )
+        c = np.ascontiguousarray
         robot_m6(
-            x,
-            u_r,
-            theta_hat,
-            theta_star,
-            np.ascontiguousarray(candidates, dtype=np.float64),
-            float(self.alpha),
-            self.plate,
-            self.cup,
-            self.workspace_low,
-            self.workspace_high,
+            c(x, dtype=np.float64),
+            c(u_r, dtype=np.float64),
+            c(theta_hat, dtype=np.float64),
+            c(theta_star, dtype=np.float64),
+            c(candidates, dtype=np.float64),
+            *self._m6_params,
             best,
         )
         return best
+
+    @functools.cached_property
+    def _m6_params(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What ``robot_m6`` reads of the Task, in its order: α, plate, cup, the box's corners."""
+        return (float(self.alpha), self.plate, self.cup, self.workspace_low, self.workspace_high)
 
     @functools.cached_property
     def _box_planes(self) -> np.ndarray:
