@@ -231,7 +231,7 @@ class Task(ABC):
     @functools.cached_property
     def _candidate_scale(self) -> float | np.ndarray:
         """a_max as one number when every axis shares it, else per axis."""
-        bound = np.asarray(self.action_bound, dtype=np.float64)
+        bound = self.a_max
         return float(bound[0]) if (bound == bound[0]).all() else bound
 
     def with_prior(self, prior: Prior) -> Task:

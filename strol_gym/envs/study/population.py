@@ -228,10 +228,9 @@ def best_correction(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> n
     training human corrects along. ``x`` one pose (s,) or a batch (n, s), ``theta_star`` (d,)
     or one per pose (n, d); one contraction for both, so a pose's direction is the same bits
     alone or in a batch."""
-    bound = np.asarray(task.action_bound, dtype=np.float64)
     jac = task.feature_jacobian(np.asarray(x, dtype=np.float64))  # (..., d, s)
     grad = np.einsum("...ds,...d->...s", jac, np.asarray(theta_star, dtype=np.float64))
-    return grad[..., : task.action_dim] * bound
+    return grad[..., : task.action_dim] * task.a_max
 
 
 def draw_corrections(
@@ -341,7 +340,6 @@ class FittedPopulationModel(HumanModel):
         k: np.ndarray | int = 0,
     ) -> np.ndarray:
         task, f = self.study_task, self.fit.fitted
-        bound = np.asarray(task.action_bound, dtype=np.float64)
         best = best_correction(task, theta_star, x)
         z = draws.extra["person"]
         u = shape_corrections(
@@ -355,7 +353,7 @@ class FittedPopulationModel(HumanModel):
         )
         u[:, :3] *= self.read_scale[0]
         u[:, 3:] *= self.read_scale[1]
-        return u * bound
+        return u * task.a_max
 
 
 __all__ = [
