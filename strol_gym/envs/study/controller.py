@@ -66,6 +66,10 @@ the acceleration under the torque about to act) would pass 0.9x its limit gets t
 holds it at 0.9x, within its motor's range (saturation: the motors' torque is all there is;
 ``qvel`` is never written). A brake reading the present speed alone let a 7-8 N m twist, or
 the wrist springing back after one, pass the limit by up to 1.75x within a physics step."""
+EXACT_FROM = 0.7
+"""v2's joint brake reads the acceleration at the present state (one extra acceleration stage
+per physics step) once a joint's speed, or its next step's by the cheap look-ahead, passes
+0.7x its limit; below that it reads the last step's."""
 ADMITTANCE_SPEED = 0.5
 """v2: the share of each joint's speed limit the admittance's motion may ask of it
 (``_cap_speed``); the plan's motion and the tracking come on top."""
@@ -152,6 +156,7 @@ class ImpedanceController:
         self._vlim = VELOCITY_LIMIT.tolist()
         self._half_vlim = (0.5 * VELOCITY_LIMIT).tolist()
         self._brake_vlim = (BRAKE_FROM * VELOCITY_LIMIT).tolist()
+        self._exact_vlim = (EXACT_FROM * VELOCITY_LIMIT).tolist()
         self._watch_vlim = (WATCH_FROM * VELOCITY_LIMIT).tolist()
         self._reflex_vlim = (SPEED_REFLEX * VELOCITY_LIMIT).tolist()
         self._qacc = self.data.qacc[:N_ARM]
@@ -514,8 +519,25 @@ class ImpedanceController:
         for _ in range(HOLD):
             speeds = qd.tolist()
             base = [b + c * s for b, c, s in zip(base0, comp, speeds, strict=False)]
-            ctrl[:] = self._brake(base, start, tlim)
-            mujoco.mj_step(m, d)
+            near = zip(speeds, self._ahead(base, 1), self._exact_vlim, strict=False)
+            if any(abs(s) > e or abs(n) > e for s, n, e in near):
+                # Near the brake: the acceleration at this state, not the last one's (a contact
+                # made or broken between them jumped a wrist joint by a third of its limit in
+                # one step): the position and velocity stages, the acceleration under ``base``,
+                # then the brake's torques and the step's end (mj_step1 + mj_step2 = mj_step).
+                mujoco.mj_step1(m, d)
+                tau = base
+                for _ in range(3):  # a contact answers the brake's torque too: look again
+                    ctrl[:] = self._tau_last = tau
+                    mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 0)
+                    tau = self._brake(tau, start, tlim)
+                    if tau == self._tau_last:
+                        break
+                ctrl[:] = tau
+                mujoco.mj_step2(m, d)
+            else:
+                ctrl[:] = base
+                mujoco.mj_step(m, d)
             tau = self._tau_last = ctrl.tolist()
             self._note_contact()
             if self._rerun:
