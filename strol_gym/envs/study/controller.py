@@ -54,12 +54,13 @@ WATCH_FROM = 0.25
 """v2 steps one physics step at a time (braking if need be) while a wrench pushes or any joint
 is above 0.25x its speed limit (the arm springing back after a push)."""
 SPEED_REFLEX = 1.0
-"""v2's speed reflex: when a joint would pass its speed limit at the next physics step (its
-speed plus the last step's acceleration) even with its motor's full torque against the motion,
-the brakes lock the arm (``info["reflex"]``): a push that loads a joint beyond its motor's
-torque cannot be braked by the torques. The arm's own torques never trip it: the brake holds
-them (before, a reflex read the speed alone and the arm's own motion tripped it on some seeds
-with nobody pushing)."""
+"""v2's speed reflex (the brakes lock the arm, ``info["reflex"]``): while a person pushes, when
+a joint would pass its speed limit at the next physics step under the torques about to act
+(``_too_fast``: the push drives the arm faster than it may go); at any time, when a joint
+would pass it even with its motor's full torque against the motion (its speed plus the last
+step's acceleration): a load beyond its motor cannot be braked by the torques. The arm's own
+torques never trip it: the brake holds them (before, a reflex read the speed alone and the
+arm's own motion tripped it on some seeds with nobody pushing)."""
 BRAKE_FROM = 0.9
 """v2's joint brake: a joint whose speed at the next physics step (``_ahead``: the speed plus
 the acceleration under the torque about to act) would pass 0.9x its limit gets the torque that
