@@ -14,6 +14,7 @@ from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
 from strol_gym.envs.contract import CorrectionEnv, render_metadata
+from strol_gym.envs.highway.lanes import LaneLookup
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
 ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
@@ -145,8 +146,9 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         self.task: HighwayTask
         width, height = self.width, self.height
         freq = 1.0 / self.task.dt
+        # highway-env's straight road, its closest-lane lookup in plain floats (the same lanes)
         self._network = RoadNetwork.straight_road_network(
-            lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None
+            lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None, net=LaneLookup()
         )
         self.robot_vehicle: Vehicle | None = None
         self.human_vehicle: HumanVehicle | None = None
