@@ -168,10 +168,7 @@ class HumanModel:
             if own_extra:
                 extras.append(self.draw_extra(rng, 1))
             rng.standard_normal(out=z[b])
-        u = cand[:, 1:]
-        u *= 2.0
-        u += -1.0
-        task._scale_candidates(u)
+        task._unit_to_box(cand[:, 1:])
         extra = (
             {key: np.concatenate([e[key] for e in extras]) for key in extras[0]} if extras else {}
         )

@@ -18,6 +18,19 @@ from strol_gym.compiled import compiled
 
 
 @compiled
+def unit_to_box(u: np.ndarray, scale: np.ndarray) -> None:
+    """``Task._unit_to_box`` (u (n, k, a), any strides; ``scale`` a bound per axis): U·2 + (−1),
+    then times the axis' bound, rounded after each operation as numpy's three passes round
+    them (the first is exact)."""
+    for i in range(u.shape[0]):
+        for j in range(u.shape[1]):
+            for c in range(u.shape[2]):
+                v = u[i, j, c] * 2.0
+                v = v + -1.0
+                u[i, j, c] = v * scale[c]
+
+
+@compiled
 def _argmin_first(norm: float, k: int, best: int, best_norm: float) -> tuple[int, float, bool]:
     """One step of numpy's argmin (from pick 0 at +inf): the first minimum, or the first NaN
     (which ends the search)."""
