@@ -48,6 +48,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task, positive_field, vector_arg
 from strol_gym.tasks.driver import driver_correction
@@ -183,6 +184,12 @@ class HighwayTask(Task):
     def features(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
         if x.shape == (8,):
+            if use_fast() and self._unchanged(HighwayTask, ("_phi",)):
+                # compiled: the operations of ``_phi`` (its sine and cosine the C library's,
+                # as numpy's: what ``highway_m6`` relies on too)
+                from strol_gym.tasks.m6_kernels import highway_phi
+
+                return np.array(highway_phi(x, self._kernel_params))
             # One state (the env's every step) as numpy scalars: scalar arithmetic is the same
             # IEEE operations as on 0-d arrays, and the ufuncs the same loops, at less cost.
             return self._phi(*x)

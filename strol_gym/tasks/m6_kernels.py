@@ -126,6 +126,12 @@ def _phi(
 
 
 @compiled
+def highway_phi(x: np.ndarray, prm: np.ndarray) -> tuple[float, float, float]:
+    """``HighwayTask.features`` of one state x (8,); ``prm`` as ``HighwayTask._kernel_params``."""
+    return _phi(_robot_ahead(x[0], x[1], x[2], x[3], prm[0]), x[4], x[5], x[6], x[7], prm)
+
+
+@compiled
 def _car(
     px: float,
     py: float,
