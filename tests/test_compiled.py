@@ -222,10 +222,10 @@ def test_vector_envs_give_the_same_bytes_on_both_paths(path):
 
 
 def _batched_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """(start postures, targets, rows) for N = 300 arms: a large set (numpy, then the compiled
-    loop below HANDOFF), targets out of reach (more than SINGLE_RETRY restarts: the batched
-    restart; fewer: one arm at a time), postures at the joint limits, and one arm alone
-    (numpy's sums for a batch of one)."""
+    """(start postures, targets, rows) for N = 300 arms: a large set (all compiled, or numpy then
+    the compiled loop below a smaller handoff), targets out of reach (more than SINGLE_RETRY
+    restarts: the batched restart; fewer: one arm at a time), postures at the joint limits, and
+    one arm alone (numpy's sums for a batch of one)."""
     rng = np.random.default_rng(40)
     n = 300
     q = rng.uniform(ik.lo, ik.hi, (n, 7))
@@ -243,7 +243,8 @@ def _batched_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray, np.ndarray
     ]
 
 
-def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch):
+@pytest.mark.parametrize("handoff", [None, 192], ids=["compiled", "numpy-then-compiled"])
+def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, handoff):
     from strol_gym.envs.panda import ik_batched
 
     env = gym.make("StROL-Robot-v0").unwrapped
@@ -260,6 +261,8 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch):
     for fast in (False, True):
         path(fast)
         arms = ik_batched.BatchedPandaIK(env.ik, 300)
+        if handoff is not None:  # sets above it iterate in numpy, then hand over
+            arms._handoff = handoff
         h = hashlib.sha256()
         for q, target, rows in _batched_cases(env.ik):
             arms.q[:] = q
