@@ -6,6 +6,9 @@ or ``HighwayTask.g`` followed by ``strol_gym.humans.choices.optimal_correction``
 order and without fast-math, so it picks the same candidate to the bit (tests/test_compiled.py).
 Sine and cosine are the C library's in both paths; numpy's tangent and arctangent are its own
 (SIMD) ones, so the Highway's steering angle β = arctan(½ tan δ) comes in computed by numpy.
+
+Beside the searches: the candidates' scaling (``unit_to_box``) and the Highway's φ of one
+state (``highway_phi``), the same operations as their plain paths in one compiled call each.
 """
 
 from __future__ import annotations
