@@ -64,6 +64,59 @@ def test_a_nan_norm_is_chosen_first_as_numpys_argmin_does(task, path):
     assert (fast[0] == cand[0, 0]).all()
 
 
+def test_the_highway_search_skips_only_candidates_that_cannot_be_picked(path):
+    """``highway_m6`` skips a candidate by its speed term alone: ties keep the first minimum,
+    and a NaN or unbounded input (where a skipped norm could be NaN) turns the skip off."""
+    task = HighwayTask()
+    rng = np.random.default_rng(33)
+    x = task.sample_start(rng, 6)
+    u_r = rng.uniform(-1, 1, (6, 2)) * task.action_bound
+    theta_hat, theta_star = rng.standard_normal((2, 6, 3))
+    theta_hat[:, 1] = theta_star[:, 1]  # the speed term small: few skips, many near ties
+    cand = task.candidate_actions(rng, 6, 256)
+    cand[0, 200:] = cand[0, 100:157]  # exact repeats: the first of equal norms wins
+    cand[1, 180, 0] = np.nan  # a NaN candidate: numpy's argmin stops there
+    x[2, 6] = 1e200  # an unbounded speed: intermediates overflow
+    x[3, 0] = np.inf
+    cand[4, 90:, 1] = cand[4, 90, 1]  # equal steering: their norms differ by speed alone
+    path(False)
+    with np.errstate(all="ignore"):  # the overflows and the NaN are the point
+        plain = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+    path(True)
+    fast = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+    assert fast.tobytes() == plain.tobytes()
+    assert np.isnan(fast[1]).any()  # the NaN candidate was reached and chosen, as numpy does
+
+
+def test_highway_features_of_one_state_are_the_plain_bytes(path):
+    task = HighwayTask()
+    rng = np.random.default_rng(8)
+    states = np.concatenate([task.sample_start(rng, 300), rng.uniform(-1e3, 1e3, (300, 8))])
+    states[:5, 6] = np.nan
+    states[5:10, 3] = np.inf
+    with np.errstate(invalid="ignore"):
+        for x in states:
+            path(False)
+            plain = task.features(x)
+            path(True)
+            assert task.features(x).tobytes() == plain.tobytes()
+
+
+@pytest.mark.parametrize("task", [RobotTask(), HighwayTask()], ids=["robot", "highway"])
+def test_candidates_scale_in_one_compiled_pass_to_the_plain_bytes(task, path):
+    from strol_gym.humans.builtin import NominalModel
+
+    model = NominalModel(task)
+    out = []
+    for fast in (False, True):
+        path(fast)
+        one = task.candidate_actions(np.random.default_rng(2), 1, 512)
+        many = task.candidate_actions(np.random.default_rng(2), 9, 64)
+        each = model.draw_each([np.random.default_rng(s) for s in range(9)]).candidates
+        out.append(b"".join(a.tobytes() for a in (one, many, each)))
+    assert out[0] == out[1]
+
+
 def test_a_task_that_overrides_what_the_kernel_repeats_takes_the_plain_path(path):
     class Shifted(RobotTask):
         def features(self, x):
@@ -169,10 +222,10 @@ def test_vector_envs_give_the_same_bytes_on_both_paths(path):
 
 
 def _batched_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """(start postures, targets, rows) for N = 300 arms: a large set (numpy, then the compiled
-    loop below HANDOFF), targets out of reach (more than SINGLE_RETRY restarts: the batched
-    restart; fewer: one arm at a time), postures at the joint limits, and one arm alone
-    (numpy's sums for a batch of one)."""
+    """(start postures, targets, rows) for N = 300 arms: a large set (all compiled, or numpy then
+    the compiled loop below a smaller handoff), targets out of reach (more than SINGLE_RETRY
+    restarts: the batched restart; fewer: one arm at a time), postures at the joint limits, and
+    one arm alone (numpy's sums for a batch of one)."""
     rng = np.random.default_rng(40)
     n = 300
     q = rng.uniform(ik.lo, ik.hi, (n, 7))
@@ -190,7 +243,8 @@ def _batched_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray, np.ndarray
     ]
 
 
-def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch):
+@pytest.mark.parametrize("handoff", [None, 192], ids=["compiled", "numpy-then-compiled"])
+def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, handoff):
     from strol_gym.envs.panda import ik_batched
 
     env = gym.make("StROL-Robot-v0").unwrapped
@@ -207,6 +261,8 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch):
     for fast in (False, True):
         path(fast)
         arms = ik_batched.BatchedPandaIK(env.ik, 300)
+        if handoff is not None:  # sets above it iterate in numpy, then hand over
+            arms._handoff = handoff
         h = hashlib.sha256()
         for q, target, rows in _batched_cases(env.ik):
             arms.q[:] = q

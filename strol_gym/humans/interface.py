@@ -163,15 +163,13 @@ class HumanModel:
         z = np.empty((len(rngs), a))
         own_extra = type(self).draw_extra is not HumanModel.draw_extra
         extras = []
-        for b, rng in enumerate(rngs):
-            rng.random(out=cand[b, 1:])
+        # each person's rows as views made in one call each (cheaper than indexing per person)
+        for rng, block, noise in zip(rngs, list(cand[:, 1:]), list(z), strict=True):
+            rng.random(out=block)
             if own_extra:
                 extras.append(self.draw_extra(rng, 1))
-            rng.standard_normal(out=z[b])
-        u = cand[:, 1:]
-        u *= 2.0
-        u += -1.0
-        task._scale_candidates(u)
+            rng.standard_normal(out=noise)
+        task._unit_to_box(cand[:, 1:])
         extra = (
             {key: np.concatenate([e[key] for e in extras]) for key in extras[0]} if extras else {}
         )
@@ -284,7 +282,10 @@ class SimulatedHuman:
     def begin(self) -> np.ndarray:
         """Advance to the next correction: its index and the preference held for it."""
         k = self.n_acts
-        self.theta_star = self.model.preference(self.theta_initial[None], k)[0]
+        if type(self.model).preference is HumanModel.preference:  # θ* itself (asked per step)
+            self.theta_star = self.theta_initial
+        else:
+            self.theta_star = self.model.preference(self.theta_initial[None], k)[0]
         self.n_acts += 1
         return np.asarray(k)
 

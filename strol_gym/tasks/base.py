@@ -17,6 +17,7 @@ from typing import ClassVar
 import numpy as np
 
 from strol_gym import checks
+from strol_gym.compiled import use_fast
 from strol_gym.priors import Prior
 
 
@@ -204,10 +205,27 @@ class Task(ABC):
             rng.random(out=u[0])
         else:
             u[...] = rng.random((n, k, self.action_dim))
+        self._unit_to_box(u)
+        return out
+
+    def _unit_to_box(self, u: np.ndarray) -> None:
+        """U (n, k, action_dim) in [0, 1) to (−1 + 2U)·a_max, in place: the numbers
+        ``rng.uniform(−1, 1)`` times the bound gives. Compiled kernels on
+        (``strol_gym.compiled``): one pass (``m6_kernels.unit_to_box``, the same operations in
+        the same order); else numpy's three passes (``_scale_candidates``)."""
+        if use_fast() and u.dtype == np.float64 and u.ndim == 3:
+            from strol_gym.tasks.m6_kernels import unit_to_box
+
+            unit_to_box(u, self._axis_scale)
+            return
         u *= 2.0
         u += -1.0
         self._scale_candidates(u)
-        return out
+
+    @functools.cached_property
+    def _axis_scale(self) -> np.ndarray:
+        """a_max per action axis, float64 and contiguous (what ``unit_to_box`` reads)."""
+        return np.ascontiguousarray(self.a_max, dtype=np.float64)
 
     def _scale_candidates(self, u: np.ndarray) -> None:
         """u (n, k, action_dim) *= a_max, in place. One bound for every axis (the Robot's): a

@@ -48,6 +48,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task, positive_field, vector_arg
 from strol_gym.tasks.driver import driver_correction
@@ -105,6 +106,11 @@ def bicycle_step(s: np.ndarray, u: np.ndarray, dt: float, length: float = CAR_LE
     s, u = np.asarray(s, dtype=np.float64), np.asarray(u, dtype=np.float64)
     parts = _car_step(s[..., 0], s[..., 1], s[..., 2], s[..., 3], u[..., 0], u[..., 1], dt, length)
     return np.stack(np.broadcast_arrays(*parts), axis=-1)
+
+
+_M6_METHODS = ("g", "g_planes", "_phi", "_step_car", "dynamics")
+"""What ``highway_m6`` computes over again: a subclass overriding one of them takes the plain
+path."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -178,6 +184,12 @@ class HighwayTask(Task):
     def features(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
         if x.shape == (8,):
+            if use_fast() and self._unchanged(HighwayTask, ("_phi",)):
+                # compiled: the operations of ``_phi`` (its sine and cosine the C library's,
+                # as numpy's: what ``highway_m6`` relies on too)
+                from strol_gym.tasks.m6_kernels import highway_phi
+
+                return np.array(highway_phi(x, self._kernel_params))
             # One state (the env's every step) as numpy scalars: scalar arithmetic is the same
             # IEEE operations as on 0-d arrays, and the ufuncs the same loops, at less cost.
             return self._phi(*x)
@@ -244,23 +256,26 @@ class HighwayTask(Task):
         """Eq. M6 by ``strol_gym.tasks.m6_kernels.highway_m6`` (the numbers of ``g``). numpy
         computes the steering angles β = arctan(½ tan δ): its tangent and arctangent are its own
         SIMD ones, not the C library's that a kernel would call."""
-        if not self._unchanged(HighwayTask, ("g", "g_planes", "_phi", "_step_car", "dynamics")):
+        if not self._unchanged(HighwayTask, _M6_METHODS):
             return None
         from strol_gym.tasks.m6_kernels import highway_m6
 
-        u_r = np.asarray(u_r, dtype=np.float64)
-        candidates = np.asarray(candidates, dtype=np.float64)
+        c, f64 = np.ascontiguousarray, np.float64
+        u_r = np.asarray(u_r, dtype=f64)
+        candidates = np.asarray(candidates, dtype=f64)
         best = np.empty(len(candidates), dtype=np.int64)
-        f64 = [np.ascontiguousarray(a, dtype=np.float64) for a in (x, theta_hat, theta_star)]
         beta = np.tan(candidates[..., 1])  # arctan(½ tan δ), in one buffer
         beta *= 0.5
         np.arctan(beta, out=beta)
+        beta_r = np.tan(u_r[:, 1])  # the robot's, as well (½ t and t ½ are one product)
+        beta_r *= 0.5
+        np.arctan(beta_r, out=beta_r)
         highway_m6(
-            f64[0],
-            np.ascontiguousarray(u_r[:, 0]),
-            np.ascontiguousarray(np.arctan(0.5 * np.tan(u_r[:, 1]))),
-            f64[1],
-            f64[2],
+            c(x, dtype=f64),
+            c(u_r[:, 0]),
+            beta_r,
+            c(theta_hat, dtype=f64),
+            c(theta_star, dtype=f64),
             candidates,
             beta,
             self._kernel_params,

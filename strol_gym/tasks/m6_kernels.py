@@ -6,6 +6,9 @@ or ``HighwayTask.g`` followed by ``strol_gym.humans.choices.optimal_correction``
 order and without fast-math, so it picks the same candidate to the bit (tests/test_compiled.py).
 Sine and cosine are the C library's in both paths; numpy's tangent and arctangent are its own
 (SIMD) ones, so the Highway's steering angle β = arctan(½ tan δ) comes in computed by numpy.
+
+Beside the searches: the candidates' scaling (``unit_to_box``) and the Highway's φ of one
+state (``highway_phi``), the same operations as their plain paths in one compiled call each.
 """
 
 from __future__ import annotations
@@ -15,6 +18,19 @@ import math
 import numpy as np
 
 from strol_gym.compiled import compiled
+
+
+@compiled
+def unit_to_box(u: np.ndarray, scale: np.ndarray) -> None:
+    """``Task._unit_to_box`` (u (n, k, a), any strides; ``scale`` a bound per axis): U·2 + (−1),
+    then times the axis' bound, rounded after each operation as numpy's three passes round
+    them (the first is exact)."""
+    for i in range(u.shape[0]):
+        for j in range(u.shape[1]):
+            for c in range(u.shape[2]):
+                v = u[i, j, c] * 2.0
+                v = v + -1.0
+                u[i, j, c] = v * scale[c]
 
 
 @compiled
@@ -113,6 +129,12 @@ def _phi(
 
 
 @compiled
+def highway_phi(x: np.ndarray, prm: np.ndarray) -> tuple[float, float, float]:
+    """``HighwayTask.features`` of one state x (8,); ``prm`` as ``HighwayTask._kernel_params``."""
+    return _phi(_robot_ahead(x[0], x[1], x[2], x[3], prm[0]), x[4], x[5], x[6], x[7], prm)
+
+
+@compiled
 def _car(
     px: float,
     py: float,
@@ -139,6 +161,31 @@ def _car(
     )
 
 
+_BOUND = 1e15
+"""Magnitude below which every input of ``highway_m6`` keeps its intermediates finite (and
+above whose inverse its divisors stay): then no candidate's norm can be NaN, which lets the
+search skip a candidate by its speed term alone (``_finite_people``)."""
+
+
+@compiled
+def _bounded(v: float) -> bool:
+    """|v| <= ``_BOUND`` (False for NaN)."""
+    return abs(v) <= _BOUND
+
+
+@compiled
+def _params_bounded(prm: np.ndarray) -> bool:
+    """Every parameter bounded, and the divisors (lane width, gap and speed scales, half the car
+    length) at least 1 / ``_BOUND`` in magnitude."""
+    for i in range(prm.shape[0]):
+        if not _bounded(prm[i]):
+            return False
+    for i in (5, 6, 8, 11):
+        if not abs(prm[i]) >= 1.0 / _BOUND:
+            return False
+    return True
+
+
 @compiled
 def highway_m6(
     x: np.ndarray,
@@ -154,8 +201,17 @@ def highway_m6(
     """Eq. M6 on ``HighwayTask``: each person's chosen candidate index into ``best`` (B,).
     ``acc_r``, ``beta_r``: the robot's (B,) acceleration and steering angle β; ``cand``: the
     candidates (B, K, 2) (their accelerations read in place), ``beta_h`` their β (B, K);
-    ``prm`` as ``HighwayTask._kernel_params``."""
+    ``prm`` as ``HighwayTask._kernel_params``.
+
+    A candidate whose speed term alone, q1², is already at least the best norm so far cannot be
+    picked: the norm (q0² + q1²) + q2² of nonnegative squares rounds to no less than q1², and
+    numpy's argmin takes the first of equal minima. So its sines and cosines (five, most of the
+    cost) are skipped. That holds unless its norm would be NaN (where argmin stops), which
+    bounded inputs rule out: the skip runs only for a person whose numbers and this candidate's
+    are all within ``_BOUND`` (``_bounded``), the same pick to the bit."""
     alpha, dt, half, vmax, vmin = prm[9], prm[10], prm[11], prm[12], prm[13]
+    speed_ref, speed_scale = prm[7], prm[8]
+    params_ok = _params_bounded(prm)
     for b in range(beta_h.shape[0]):
         r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], acc_r[b], beta_r[b], dt, half, vmax, vmin)
         z = _car(x[b, 4], x[b, 5], x[b, 6], x[b, 7], 0.0, 0.0, dt, half, vmax, vmin)
@@ -163,8 +219,24 @@ def highway_m6(
         f0 = _phi(ahead, z[0], z[1], z[2], z[3], prm)
         h0, h1, h2 = th_hat[b, 0], th_hat[b, 1], th_hat[b, 2]
         s0, s1, s2 = th_star[b, 0], th_star[b, 1], th_star[b, 2]
+        may_skip = params_ok and _bounded(acc_r[b]) and _bounded(beta_r[b])
+        for i in range(8):
+            may_skip = may_skip and _bounded(x[b, i])
+        for i in range(3):
+            may_skip = may_skip and _bounded(th_hat[b, i]) and _bounded(th_star[b, i])
+        v = x[b, 6]
         pick, low = 0, math.inf
         for k in range(beta_h.shape[1]):
+            if may_skip and _bounded(cand[b, k, 0]) and _bounded(beta_h[b, k]):
+                # The speed term as ``_car`` and ``_phi`` compute it (the same operations).
+                acc = cand[b, k, 0]
+                if v > vmax:
+                    acc = min(acc, vmax - v)
+                elif v < vmin:
+                    acc = max(acc, vmin - v)
+                q1 = s1 - ((((v + acc * dt) - speed_ref) / speed_scale - f0[1]) * alpha + h1)
+                if q1 * q1 >= low:
+                    continue
             c = _car(
                 x[b, 4],
                 x[b, 5],

@@ -169,8 +169,12 @@ class RobotTask(Task):
         return diff
 
     def dynamics(self, x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> np.ndarray:
-        one = all(type(a) is np.ndarray and a.shape == (3,) for a in (x, u_h, u_r))
-        if one:
+        if (  # one state (the env's every step) in plain floats
+            type(x) is np.ndarray
+            and type(u_h) is np.ndarray
+            and type(u_r) is np.ndarray
+            and x.shape == u_h.shape == u_r.shape == (3,)
+        ):
             return np.array(self.dynamics_one(x.tolist(), u_h.tolist(), u_r.tolist()))
         return np.minimum(np.maximum(x + u_r + u_h, self.workspace_low), self.workspace_high)
 

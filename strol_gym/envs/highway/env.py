@@ -14,12 +14,13 @@ from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
 from strol_gym.envs.contract import CorrectionEnv, render_metadata
+from strol_gym.envs.highway.road import Car, LaneLookup
 from strol_gym.tasks.highway import N_LANES, HighwayTask
 
 ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
 
 
-class HumanVehicle(Vehicle):
+class HumanVehicle(Car):
     """A highway-env kinematic vehicle driven by the env's ``Human``.
 
     The env asks the human for u_H = (acceleration, steering) and sets it as the vehicle's
@@ -145,8 +146,9 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         self.task: HighwayTask
         width, height = self.width, self.height
         freq = 1.0 / self.task.dt
+        # highway-env's straight road, its closest-lane lookup in plain floats (the same lanes)
         self._network = RoadNetwork.straight_road_network(
-            lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None
+            lanes=N_LANES, length=ROAD_LENGTH, speed_limit=None, net=LaneLookup()
         )
         self.robot_vehicle: Vehicle | None = None
         self.human_vehicle: HumanVehicle | None = None
@@ -219,7 +221,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
             np_random=self.np_random,
             record_history=self.config["show_trajectories"],
         )
-        robot = Vehicle(self.road, x0[0:2], heading=float(x0[3]), speed=float(x0[2]))
+        robot = Car(self.road, x0[0:2], heading=float(x0[3]), speed=float(x0[2]))
         robot.color = VehicleGraphics.EGO_COLOR
         human = HumanVehicle(self.road, x0[4:6], heading=float(x0[7]), speed=float(x0[6]))
         human.color = VehicleGraphics.BLUE
@@ -229,19 +231,9 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
 
     def _read_state(self) -> np.ndarray:
         r, h = self._cars()
-        return np.array(
-            [
-                r.position[0],
-                r.position[1],
-                r.speed,
-                r.heading,
-                h.position[0],
-                h.position[1],
-                h.speed,
-                h.heading,
-            ],
-            dtype=np.float64,
-        )
+        # positions as plain floats: the same numbers, without indexing numpy four times
+        (r0, r1), (h0, h1) = r.position.tolist(), h.position.tolist()
+        return np.array([r0, r1, r.speed, r.heading, h0, h1, h.speed, h.heading], dtype=np.float64)
 
     # highway-env's hooks, kept meaningful for code that calls them
     def _reset(self) -> None:

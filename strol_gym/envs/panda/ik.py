@@ -5,6 +5,7 @@ shifted by ``lift``.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -132,10 +133,10 @@ class PandaIK:
 
         Returns the remaining position error (m).
         """
-        if solver() is not None:  # the same steps in one compiled call
-            from strol_gym.envs.panda.ik_kernel import solve_arm
-
-            return solve_arm(self, target, iters, tol)
+        if use_fast():  # the same steps in one compiled call, where the kernel can run here
+            arm = _solve_arm()
+            if arm is not None:
+                return arm(self, target, iters, tol)
         world = [t + h for t, h in zip(np.asarray(target).tolist(), self._lift_l, strict=True)]
         ref = self.reference(target)
         err = self._solve(world, iters, tol, ref)
@@ -275,6 +276,16 @@ def solver() -> Callable[..., float] | None:
     from strol_gym.envs.panda.ik_kernel import solver as compiled_solver
 
     return compiled_solver()
+
+
+@functools.cache
+def _solve_arm() -> Callable[..., float] | None:
+    """``ik_kernel.solve_arm`` where ``solver()`` finds the compiled kernel, else None: looked
+    up once (every env step asks)."""
+    from strol_gym.envs.panda.ik_kernel import solve_arm
+    from strol_gym.envs.panda.ik_kernel import solver as compiled_solver
+
+    return solve_arm if compiled_solver() is not None else None
 
 
 def _skew(v: np.ndarray) -> np.ndarray:

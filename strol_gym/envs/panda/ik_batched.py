@@ -12,9 +12,9 @@ Every array holds the arms along its last axis, so that each operation runs over
 numbers of all the arms at once and an iteration is a fixed, small number of numpy calls
 (their per-call cost, not the arithmetic, is what a batch of a few hundred arms pays).
 
-With the compiled kernels on (``strol_gym.compiled``), sets of at most ``HANDOFF`` arms and the
-restarts run in ``strol_gym.envs.panda.ik_kernel``, which repeats these numbers to the bit
-(checked once per process, ``compiled_kernels``).
+With the compiled kernels on (``strol_gym.compiled``), sets of at most ``HANDOFF`` arms (the
+vector env's 1,024) and the restarts run in ``strol_gym.envs.panda.ik_kernel``, which repeats
+these numbers to the bit (checked once per process, ``compiled_kernels``).
 """
 
 from __future__ import annotations
@@ -45,10 +45,14 @@ runs until its slowest arm converges or 8x the iterations)."""
 COMPACT = 0.5
 """A set of arms iterates together (the converged ones held still) while at least this fraction
 of it still iterates; below, a compact copy of just those goes on."""
-HANDOFF = 192
+HANDOFF = 1024
 """With the compiled kernels, a set of at most this many arms goes on in the compiled loop
-(``ik_kernel.batched_solve``, one arm at a time, ~1 µs an arm and iteration); a larger one in
-numpy (~0.1 ms an iteration plus ~0.4 µs an arm): the same numbers either way."""
+(``ik_kernel.batched_solve``, one arm at a time); a larger one in numpy until it is this small:
+the same numbers either way. Measured on the vector Robot env without a human at N = 1024, all
+arms compiled cost 1.2 chains a sub-env step against 1.7 with sets above 192 in numpy
+(``benchmarks/speed/chains.py``); larger sets were not measured."""
+AGREE_ARMS = 384
+"""How many arms ``compiled_kernels`` checks, handing over from numpy at half of them."""
 
 
 def _quat_mat(q: np.ndarray) -> np.ndarray:
@@ -159,6 +163,8 @@ class BatchedPandaIK:
         self.q = self._q.T  # (N, 7), a view: writing it moves the arms
         self._compiled: bool | None = None
         """Whether the compiled kernels run (None: as ``compiled_kernels`` says, at each call)."""
+        self._handoff = HANDOFF
+        """Sets of at most this many arms go in the compiled loop (``HANDOFF``)."""
         self.forward()
 
     def _kernels(self) -> Any:
@@ -209,7 +215,7 @@ class BatchedPandaIK:
     def forward(self, rows: np.ndarray | slice = slice(None)) -> None:
         """Recompute the kinematics of arms ``rows`` from ``q``."""
         idx = np.arange(self.n)[rows]
-        kernels = self._kernels() if len(idx) <= HANDOFF else None
+        kernels = self._kernels() if len(idx) <= self._handoff else None
         if kernels is not None:
             a = self._arms
             kernels.batched_forward(a.q, a.site, a.cols, a.axes, a.anchors, idx, *self._chain())
@@ -381,7 +387,7 @@ class BatchedPandaIK:
         # None: every arm has a reference posture
         ref_mask: np.ndarray | None = None if has_ref.all() else has_ref
         for it in range(iters):
-            if kernels is not None and len(moving) <= HANDOFF:
+            if kernels is not None and len(moving) <= self._handoff:
                 # The compiled kernel goes on from here, in the same lockstep, on self._arms.
                 if idx is not None:
                     self._arms.put(idx, arms)
@@ -518,7 +524,7 @@ def compiled_kernels(ik: BatchedPandaIK) -> bool:
     return _AGREES
 
 
-def _agrees(single: PandaIK, n: int = 2 * HANDOFF) -> bool:
+def _agrees(single: PandaIK, n: int = AGREE_ARMS) -> bool:
     """The plain and the compiled N-arm IK on the same arms and targets: the same bytes?"""
     q0 = single.q.copy()
     rng = np.random.default_rng(0)
@@ -528,6 +534,7 @@ def _agrees(single: PandaIK, n: int = 2 * HANDOFF) -> bool:
     results = []
     for ik, fast in zip(arms, (False, True), strict=True):
         ik._compiled = fast
+        ik._handoff = n // 2  # numpy first, then the compiled loop: the handover checked too
         ik.q[:] = start
         ik.forward()
         out: list[np.ndarray] = []
