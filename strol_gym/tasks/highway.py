@@ -108,6 +108,15 @@ def bicycle_step(s: np.ndarray, u: np.ndarray, dt: float, length: float = CAR_LE
     return np.stack(np.broadcast_arrays(*parts), axis=-1)
 
 
+def _slip_angles(steer: np.ndarray) -> np.ndarray:
+    """β = arctan(½ tan δ) of an array of steering angles, in one new buffer (½ t and t ½ are
+    one product: the numbers of ``_car_step``'s spelling)."""
+    beta = np.tan(steer)
+    beta *= 0.5
+    np.arctan(beta, out=beta)
+    return beta
+
+
 _M6_METHODS = ("g", "g_planes", "_phi", "_step_car", "dynamics")
 """What ``highway_m6`` computes over again: a subclass overriding one of them takes the plain
 path."""
@@ -264,16 +273,11 @@ class HighwayTask(Task):
         u_r = np.asarray(u_r, dtype=f64)
         candidates = np.asarray(candidates, dtype=f64)
         best = np.empty(len(candidates), dtype=np.int64)
-        beta = np.tan(candidates[..., 1])  # arctan(½ tan δ), in one buffer
-        beta *= 0.5
-        np.arctan(beta, out=beta)
-        beta_r = np.tan(u_r[:, 1])  # the robot's, as well (½ t and t ½ are one product)
-        beta_r *= 0.5
-        np.arctan(beta_r, out=beta_r)
+        beta = _slip_angles(candidates[..., 1])
         highway_m6(
             c(x, dtype=f64),
             c(u_r[:, 0]),
-            beta_r,
+            _slip_angles(u_r[:, 1]),
             c(theta_hat, dtype=f64),
             c(theta_star, dtype=f64),
             candidates,

@@ -478,17 +478,18 @@ class ImpedanceController:
         next step's speed (``_ahead``) would pass ``cap`` get the torques that bring them to
         it together (M⁻¹ couples them: capping one joint alone let its neighbour pass its
         limit), each within its motor's range: saturation, never a write of q̇."""
-        tau, held = base, []
+        free = self._ahead(base, 1)  # the speeds under ``base``: the first look and every cut's
+        dt = self.model.opt.timestep
+        tau = base
+        held: list[int] = []
         for _ in range(N_ARM):
-            nxt = self._ahead(tau, 1)
+            nxt = self._ahead(tau, 1) if held else free
             over = [j for j, (n, b) in enumerate(zip(nxt, cap, strict=False)) if abs(n) > b]
             new = [j for j in over if j not in held]
             if not new:
                 break
             held += new
-            nxt = self._ahead(base, 1)
-            dt = self.model.opt.timestep
-            want = [(math.copysign(cap[j], nxt[j]) - nxt[j]) / dt for j in held]
+            want = [(math.copysign(cap[j], free[j]) - free[j]) / dt for j in held]
             cut = np.linalg.solve(self._m_inv[np.ix_(held, held)], want).tolist()
             tau = list(base)
             for j, c in zip(held, cut, strict=True):
