@@ -510,9 +510,9 @@ def _keep_out_walk(
     box); a cup inside a hull leaves it by the shorter way (out to its side, or up
     over its top); back into the box ``low``-``high``; a cup the box put back into a hull is
     lifted over it; then the plans are walked at the step bound, in the box and out of the
-    hulls (``_walk_out``: the lift can lengthen a step at a hull's edge). Walking only the planner's result, not every iterate,
-    is 4x cheaper and loses most of θ*'s return in Task 1 (0.35 against 0.99): the ascent must
-    see the robot's pace near a hull."""
+    hulls (``_walk_out``: the lift can lengthen a step at a hull's edge). Walking only the
+    planner's result, not every iterate, is 4x cheaper and loses most of θ*'s return in Task 1
+    (0.35 against 0.99): the ascent must see the robot's pace near a hull."""
     cx, cy, rad, top = (hulls[:, i : i + 1] for i in range(4))  # (k, 1): against (…, T)
     lo3, hi3 = low[:3], high[:3]
 
