@@ -637,10 +637,9 @@ def _walk_out(
         q = np.minimum(np.maximum(plans[..., t, :3] - prev, -bound), bound)  # np.clip, faster
         q += prev
         np.minimum(np.maximum(q, lo, out=q), hi, out=q)
-        for _ in range(WALK_ROUNDS):
-            short = need - _dot3(n, (q - prev)[..., None, :])
-            if not (short > 0).any():
-                break
+        short = need - _dot3(n, (q - prev)[..., None, :])  # > 0: the step crosses it
+        pushed = 0
+        while pushed < WALK_ROUNDS and (short > 0).any():
             # back onto each half-space along its normal, less the coordinates held at a box
             # face the normal points out of: there the step slides along the face (beside the
             # pitcher, where it pokes out of the box, it rises instead of leaving the box)
@@ -653,16 +652,17 @@ def _walk_out(
             for k in range(len(rad)):  # hull by hull: the same bits in any batch
                 q += push[..., k, :]
             np.minimum(np.maximum(q, lo, out=q), hi, out=q)
-        # shorten the step towards prev: into the step box and each half-space prev is in
-        # (beyond rounding: the hull test below catches a waypoint rounded into a hull)
-        step = q - prev
-        scale = np.minimum(1.0, bound / np.maximum(np.abs(step).max(-1), 1e-12))
-        at_q = _dot3(n, step[..., None, :]) - need
-        cut = (need <= 0) & (at_q < -1e-12)
-        if cut.any():
-            frac = np.where(cut, -need / np.where(cut, -need - at_q, 1.0), 1.0)
-            scale = np.minimum(scale, frac.min(-1))
-        q = prev + step * scale[..., None]
+            short = need - _dot3(n, (q - prev)[..., None, :])
+            pushed += 1
+        if pushed:  # shorten the step towards prev: into the step box and each half-space
+            # prev is in (beyond rounding: the hull test below catches a waypoint rounded in)
+            step = q - prev
+            scale = np.minimum(1.0, bound / np.maximum(np.abs(step).max(-1), 1e-12))
+            cut = (need <= 0) & (short > 1e-12)
+            if cut.any():
+                frac = np.where(cut, -need / np.where(cut, short - need, 1.0), 1.0)
+                scale = np.minimum(scale, frac.min(-1))
+            q = prev + step * scale[..., None]
         # q is between prev and a point of the box: in the box within rounding. A waypoint
         # rounded into a hull that prev was outside of (q on its surface) stays at prev
         gone = q[..., None, :2] - centre
