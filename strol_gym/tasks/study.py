@@ -578,8 +578,9 @@ def _keep_out_walk(
 WALK_ROUNDS = 3
 """Rounds of pushing a step back onto the hulls' half-spaces along the box's free coordinates
 (``_walk_out``): each round can hold one more face, and a box has three axes. Over 25 random
-sets of 8 plans from random starts, one round lost return beside the faces (Task 2's mean
-6.544 against 6.557 with three, and 6.556 before the box; Task 1 6.882 / 6.884 / 6.883)."""
+sets of 8 plans from random starts (mean return / |θ|), one round lost return beside the
+faces: Task 2 6.544 against 6.555 with three (6.551 with two, 6.553 with five, 6.556 before
+the walk kept the box); Task 1 6.877 against 6.886 (6.892, 6.890; 6.883 before)."""
 
 
 def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
