@@ -40,6 +40,25 @@ VELOCITY_LIMIT = np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61])
 """The Panda's joint speed limits (rad/s, datasheet)."""
 TORQUE_LIMIT = np.array([87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0])
 """The Panda's joint torque limits (N m, datasheet)."""
+LIMIT_BAND = 0.5
+"""v2 (``joint_room``): rad from a position limit within which the null space's posture
+spring also pulls a twisting joint (1, 3, 5, 7: ``LIMIT_JOINTS``) back to the band's edge, with
+``K_LIMIT``. The arm's spare degree of freedom is all it uses, so the cup's pose is untouched:
+at a corner of Tasks 2-3's reachable set (the cup rolled and pitched near the base) joint 7
+sat 0.02-0.04 rad past its limit, the cup 3 cm short of its setpoint, and a twist there turned
+it about another axis (up to 137° off; 200 held-out pushes per Task, ``--seed 33``)."""
+K_LIMIT = 20.0
+"""N m/rad of the posture spring's pull off a limit (``LIMIT_BAND``); 40 and a 0.3 rad band
+read alike on the held-out pushes."""
+LIMIT_JOINTS = np.array([True, False, True, False, True, False, True])
+"""The joints the null space can turn without moving the cup much; the others' limits
+(the elbow stretched, the shoulder and wrist bent) are the cup's position, which the spring
+could only fight: with them in the band, 10 more pushes per 200 read off their direction."""
+POSITION_REFLEX = 0.02
+"""v2 (``joint_room``): rad from its position limit at which a joint that a person's push
+drives towards it trips the reflex (the Panda stops on its joint position limits): there the
+arm turns about the stopped joint, not as pushed (an elbow stretched to its limit read a push
+166° off)."""
 K_INTEGRAL = (10.0, 10.0)
 """Integral gains of the impedance law, as multiples of the stiffness (1/s): position, rotation."""
 INTEGRAL_MAX = (8.0, 0.8)
@@ -164,6 +183,8 @@ class ImpedanceController:
         self._tlim = TORQUE_LIMIT.tolist()
         self._integral_max = self.version.integral_max or INTEGRAL_MAX
         self._cap_vlim = (ADMITTANCE_SPEED * VELOCITY_LIMIT).tolist()
+        self._jnt_range = self.model.jnt_range[:N_ARM].T.copy()
+        self._jnt_low, self._jnt_high = (r.tolist() for r in self._jnt_range)
         if self.version.admittance:
             dt = HOLD * self.model.opt.timestep
             self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
@@ -308,8 +329,11 @@ class ImpedanceController:
             # unprojected, turned the wrist off its setpoint by up to 0.05 rad.
             null = self._eye7 - ja.T.dot(lam.dot(m_inv_jt.T))
             # τ = Jᵀ(K e + ∫ + Λ a_sp) + c − G [q; q̇]: G = [K_n N, Jᵀ D J + D_n N].
-            self._gain = np.hstack([K_NULL * null, jt_damp.dot(ja) + D_NULL * null])
-            self._pull_home = (K_NULL * null).dot(self._q_home)
+            stiff, pull = self._posture() if self.version.joint_room else (K_NULL, None)
+            self._gain = np.hstack([null * stiff, jt_damp.dot(ja) + D_NULL * null])
+            self._pull_home = (
+                null.dot(pull) if pull is not None else (stiff * null).dot(self._q_home)
+            )
             self._lam, self._dyn_inv, self._jt_damp = lam, m_inv_jt.dot(lam), jt_damp
             if self.version.joint_brake:
                 self._m_inv = np.linalg.inv(self._mass[:N_ARM, :N_ARM])
@@ -448,6 +472,17 @@ class ImpedanceController:
         mujoco.mj_comPos(m, d)
         self._time += CONTROL_DT
 
+    def _posture(self) -> tuple[np.ndarray, np.ndarray]:
+        """v2's posture spring (``joint_room``) per joint: its stiffness (``K_NULL``, plus
+        ``K_LIMIT`` for a twisting joint inside ``LIMIT_BAND``) and its pull at q = 0 (towards
+        home, and the band's edge): linear in q until the next model refresh."""
+        q = self._qpos[:N_ARM]
+        lo, hi = self._jnt_range
+        high, low = q > hi - LIMIT_BAND, q < lo + LIMIT_BAND
+        edge = np.where(high, hi - LIMIT_BAND, lo + LIMIT_BAND)
+        inside = (high | low) & LIMIT_JOINTS
+        return K_NULL + K_LIMIT * inside, K_NULL * self._q_home + K_LIMIT * inside * edge
+
     def _cap_speed(self, s: tuple[float, ...]) -> tuple[float, ...]:
         """The admittance's state with its velocity scaled down (all six axes alike, so its
         direction stays) until no joint needs more than ``ADMITTANCE_SPEED`` of its limit to
@@ -547,6 +582,9 @@ class ImpedanceController:
             self._note_contact()
             if self._rerun:
                 continue
+            if pushed and self.version.joint_room and self._at_limit():
+                self._trip()
+                return
             # The speed reflex: a joint that would pass its limit at the next step even with
             # its motor's full torque against the motion (the push loads it beyond what the
             # torques can hold) trips it: the brakes lock the arm now. The arm's own torques
@@ -559,6 +597,21 @@ class ImpedanceController:
                 if abs(s + dt * (a + m_inv[j, j] * brake)) > r:
                     self._trip()
                     return
+
+    def _at_limit(self) -> bool:
+        """Whether a joint is within ``POSITION_REFLEX`` of a position limit, moving towards
+        it (the position reflex while a person pushes)."""
+        r = POSITION_REFLEX
+        return any(
+            (q > hi - r and v > 0.0) or (q < lo + r and v < 0.0)
+            for q, v, lo, hi in zip(
+                self._qpos.tolist(),
+                self._qvel.tolist(),
+                self._jnt_low,
+                self._jnt_high,
+                strict=False,
+            )
+        )
 
     def _too_fast(self) -> bool:
         """The speed reflex while a person pushes: under the torques about to act (the

@@ -63,6 +63,10 @@ class StudyVersion:
     joint_brake: bool = False
     """The joint speed limits at every physics step through the torques (saturating against
     the motion from 0.9x the limit) instead of clipping ``qvel`` after a chunk of steps."""
+    joint_room: bool = False
+    """The joints' position limits kept: the null space's posture spring holds the twisting
+    joints off theirs (``controller.LIMIT_BAND``), and a push that drives any joint to its limit
+    trips the reflex (``controller.POSITION_REFLEX``), as the Panda's own controller stops."""
     contact_info: bool = False
     """``info["contact"]``: the cup touched the pitcher, the plate (or its riser) or the table
     during the step; ``info["contacts"]`` counts such steps."""
@@ -120,6 +124,7 @@ V2 = StudyVersion(
     controller="v1",
     counterfactual=True,
     joint_brake=True,
+    joint_room=True,
     contact_info=True,
     stiffness=300.0,
     rot_stiffness=10.0,
