@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study.controller import VELOCITY_LIMIT
+from strol_gym.envs.study.controller import POSITION_REFLEX, VELOCITY_LIMIT
 from strol_gym.envs.study.env import StudyEnvV2
 from strol_gym.envs.study.geometry import rotation_error, straight
 from strol_gym.tasks.study import STUDY_TASKS_V2, WRIST_LEVER, rpy_to_mat, wrap_angle
@@ -233,6 +233,58 @@ def test_a_strong_twist_below_the_reflex_keeps_the_wrist_within_its_speed_limit(
     env.reset(seed=28686)
     run(env, 57)
     assert _peak_speed(env, (-26.73, 24.69, 48.56), (0.18, 0.93, -7.64), steps=40) <= 1.0
+
+
+@pytest.mark.parametrize(("task", "seed", "steps"), [(2, 26167, 110), (3, 21844, 120)])
+def test_the_wrist_keeps_off_its_limit_where_the_cup_is_rolled_and_pitched(task, seed, steps):
+    """Seeds whose plans go to the turning set's corner near the base (cup rolled and pitched
+    0.4 rad): joint 7 sat 0.02-0.04 rad past its limit there, the cup 3 cm short, and a twist
+    turned it up to 137° off its axis. The null space's posture spring now holds the twisting
+    joints (1, 3, 5, 7) off their limits with the arm's spare degree of freedom, and the cup
+    reaches its setpoint."""
+    env = make(task=task)
+    env.reset(seed=seed)
+    run(env, steps)
+    env.pause(2.0)
+    run(env, 40)
+    lo, hi = env.model.jnt_range[:7].T
+    q = env.data.qpos[:7]
+    assert np.all(np.minimum(q - lo, hi - q)[::2] > 0.3), q
+    assert np.linalg.norm(env._sp[:3] - env._x[:3]) < 0.002
+    assert np.linalg.norm(rotation_error(env._sp_R, env._site_xmat)) < 0.01
+
+
+def test_a_push_that_stretches_the_elbow_to_its_limit_trips_the_reflex():
+    """Pushes of 35 N away from the base and up, one after the other, from a study seed this run
+    draws: the arm yields until its elbow nears the stretched limit, and the push that drives it
+    there trips the reflex (the Panda stops on its joint position limits) before any joint
+    passes its limit (beyond the solver's give); a push read with the elbow at its limit was
+    turned by the stopped joint, up to 166° off. Every push read before it kept every joint off
+    its limit."""
+    rng = np.random.default_rng([ENTROPY, 33])
+    env = make(task=1)
+    env.reset(seed=int(rng.integers(20000, 30000)))
+    run(env, 40)
+    lo, hi = env.model.jnt_range[:7].T
+    tripped, worst = False, np.inf
+    for _ in range(8):
+        out = np.array([env._x[0], env._x[1], 0.0])
+        env.apply_wrench(35.0 * (out / np.linalg.norm(out) + [0.0, 0.0, 0.5]), duration=1.0)
+        for info in run(env, 32):
+            q = env.data.qpos[:7]
+            worst = min(worst, float(np.min(np.minimum(q - lo, hi - q))))
+            if info["reflex"]:
+                tripped = True
+                break
+            if info["is_correction"]:
+                assert worst > POSITION_REFLEX, (ENTROPY, worst)
+                break
+        if tripped:
+            break
+    assert tripped, ENTROPY
+    # within the contact solver's give at a limit (the wrist's 0.02-0.05 rad before); another
+    # reflex (a joint's motor overloaded) may trip first, off the limit (1 of 20 entropies)
+    assert worst > -0.01, (ENTROPY, worst)
 
 
 @pytest.mark.parametrize("name", ["reflex_force", "reflex_torque"])
