@@ -868,7 +868,7 @@ class StudyEnvV2(StudyEnv):
       motor's torque limit (Jᵀw) trips the reflex at once (``torque_reflex``): no torque can
       hold it, so it would turn the arm about that joint, not move the cup as pushed. The
       position limits too (``joint_room``): the null space keeps the twisting joints (1, 3,
-      5, 7) off theirs, and a push that drives any joint to its limit trips the reflex.
+      5, 7) off theirs, and a push that drives one of them to its limit trips the reflex.
       ``reflex_force`` in [20, 150] N and ``reflex_torque`` in [2, 15] N m, else ValueError.
     - **Softer**: ``stiffness`` 300 N/m and ``rot_stiffness`` 10 N m/rad by default (v1: 400
       and 30), the admittance's: a 30 N push for 1 s moves the cup 9.8 cm (the paper's

@@ -65,8 +65,9 @@ class StudyVersion:
     the motion from 0.9x the limit) instead of clipping ``qvel`` after a chunk of steps."""
     joint_room: bool = False
     """The joints' position limits kept: the null space's posture spring holds the twisting
-    joints off theirs (``controller.LIMIT_BAND``), and a push that drives any joint to its limit
-    trips the reflex (``controller.POSITION_REFLEX``), as the Panda's own controller stops."""
+    joints off theirs (``controller.LIMIT_BAND``), and a push that drives one of them to its
+    limit trips the reflex (``controller.POSITION_REFLEX``), as the Panda's own controller
+    stops."""
     contact_info: bool = False
     """``info["contact"]``: the cup touched the pitcher, the plate (or its riser) or the table
     during the step; ``info["contacts"]`` counts such steps."""
