@@ -118,7 +118,7 @@ def test_random_pushes_read_as_pushed():
     (entropy 149369440610844501678806245813302656711: a free push read 92.7° off in rotation;
     a rare case, so asserting it made the suite fail at random). A push that presses the cup
     into an object (``info["contact"]``) or a joint into its limit is turned by that, not
-    misread (over all pushes v2 misses the targets: 94-99 %, about one in 100 beyond 90°;
+    misread (over all pushes v2 misses the targets: 92.8-99.4 %, 0-1 in 200 beyond 90°;
     docs/study.md); at most half may. A push that trips the reflex (it loads a joint beyond its
     motor, or spins one to its speed limit) is no correction; at most half may."""
     trans, rot, msg = _read_random_pushes(ENTROPY)
