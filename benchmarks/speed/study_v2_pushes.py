@@ -9,7 +9,8 @@ angle between u_H's translation and the force, between u_H's rotation (the world
 R(x + u) R(x)⁻¹) and the torque's axis, and the 30 N, 1 s displacement; the pushes the
 reflex stopped (no correction), and the same angles without the pushes that pressed the cup
 into an object (``info["contact"]``) or drove a joint to its limit (physics, not u_H's
-reading). The draws come from ``--seed`` (not a seed any test uses).
+reading), and the misses counted by what the push met (an object, a joint's limit, the
+wrist's singularity, nothing). The draws come from ``--seed`` (not a seed any test uses).
 """
 
 from __future__ import annotations
@@ -61,13 +62,25 @@ def run_push(
     out = {"seed": seed, "start": start, "force": force, "torque": torque, "ok": False}
     lo, hi = env.model.jnt_range[:7].T
     out["blocked"] = False
+    kinds: set[str] = set()
+    wrist = math.pi / 2
     for _ in range(40):
         _, _, _, truncated, info = env.step(zero)
         if info.get("reflex"):
             out["reflex"] = True
         q = env.data.qpos[:7]
-        at_limit = bool(np.any(np.minimum(q - lo, hi - q) < 0.01))
-        out["blocked"] = out["blocked"] or at_limit or bool(info.get("contact", False))
+        room = np.minimum(q - lo, hi - q)
+        if info.get("contact", False):
+            kinds.add("contact")
+        if np.any(room < 0.01):
+            kinds.add(f"joint {int(np.argmin(room)) + 1} at its limit")
+        wrist = min(wrist, abs(float(q[5]) - math.pi / 2))  # joints 5, 7 parallel at π/2
+        out["blocked"] = bool(kinds)
+        out["kind"] = ", ".join(sorted(kinds)) or (
+            f"wrist within {math.degrees(WRIST_NEAR):.0f}° of singular"
+            if wrist < WRIST_NEAR
+            else "free"
+        )
         if info["is_correction"]:
             u, x = info["u_h"], info["correction_state"]
             out.update(ok=True, u_h=u, length=float(np.linalg.norm(u[:3])))
@@ -81,6 +94,21 @@ def run_push(
             break
     env.close()
     return out
+
+
+WRIST_NEAR = math.radians(15.0)
+"""A push whose joint 6 came this close to π/2 (joints 5's and 7's axes parallel: the wrist's
+singularity) is labelled so among the misses: there a small turn spins both joints."""
+
+
+def misses_by_kind(cases: list[dict]) -> str:
+    """How many read pushes missed a target (translation beyond 15°, rotation beyond 30°), by
+    what the push met: an object, a joint's limit, the wrist's singularity, or nothing."""
+    counts: dict[str, int] = {}
+    for c in cases:
+        if c["trans"] > 15.0 or c.get("rot", 0.0) > 30.0:
+            counts[c["kind"]] = counts.get(c["kind"], 0) + 1
+    return ", ".join(f"{k} {n}" for k, n in sorted(counts.items())) or "none"
 
 
 def summary(name: str, values: list[float], bound: float) -> str:
@@ -112,6 +140,7 @@ def main(argv: list[str] | None = None) -> None:
                     f"  {name}"
                     + summary("rotation vs torque axis", [c["rot"] for c in group], 30.0)
                 )
+        print(f"  misses by what the push met: {misses_by_kind(done)}")
         lengths = np.array([c["length"] for c in done])
         print(f"  |u_H| translation: median {np.median(lengths) * 100:.1f} cm")
         sides = [run_push(args.version, task, 20001, 3.0, 30.0 * d, np.zeros(3)) for d in np.eye(3)]
