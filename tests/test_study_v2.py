@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study.controller import POSITION_REFLEX, VELOCITY_LIMIT
+from strol_gym.envs.study.controller import LIMIT_JOINTS, POSITION_REFLEX, VELOCITY_LIMIT
 from strol_gym.envs.study.env import StudyEnvV2
 from strol_gym.envs.study.geometry import rotation_error, straight
 from strol_gym.tasks.study import STUDY_TASKS_V2, WRIST_LEVER, rpy_to_mat, wrap_angle
@@ -36,6 +36,13 @@ def run(env: StudyEnvV2, n: int) -> list[dict]:
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     c = float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
     return math.degrees(math.acos(min(1.0, max(-1.0, c))))
+
+
+def limit_room(env: StudyEnvV2) -> np.ndarray:
+    """Each arm joint's distance (rad) to its nearer position limit (negative: past it)."""
+    lo, hi = env.model.jnt_range[:7].T
+    q = env.data.qpos[:7]
+    return np.minimum(q - lo, hi - q)
 
 
 def unit(rng: np.random.Generator) -> np.ndarray:
@@ -72,7 +79,6 @@ def _read_random_pushes(entropy: int) -> tuple[list[float], list[float], str]:
     trans, rot, lost, blocked = [], [], 0, 0
     for task in (1, 2, 3):
         env = make(task=task)
-        lo, hi = env.model.jnt_range[:7].T
         env.reset(seed=int(rng.integers(20000, 30000)))
         for _ in range(CASES):
             force = unit(rng) * rng.uniform(20.0, 60.0)
@@ -82,8 +88,7 @@ def _read_random_pushes(entropy: int) -> tuple[list[float], list[float], str]:
             hit, end = False, None
             for _ in range(32):  # the push's 20 steps, the 0.4 s hold-off, the step it ends
                 info = env.step(np.zeros(env.action_space.shape, dtype=np.float32))[4]
-                q = env.data.qpos[:7]
-                hit |= info["contact"] or bool(np.any(np.minimum(q - lo, hi - q) < 0.01))
+                hit |= info["contact"] or bool(np.any(limit_room(env) < 0.01))
                 if info["is_correction"]:
                     end = info
                     break
@@ -247,9 +252,7 @@ def test_the_wrist_keeps_off_its_limit_where_the_cup_is_rolled_and_pitched(task,
     run(env, steps)
     env.pause(2.0)
     run(env, 40)
-    lo, hi = env.model.jnt_range[:7].T
-    q = env.data.qpos[:7]
-    assert np.all(np.minimum(q - lo, hi - q)[::2] > 0.3), q
+    assert np.all(limit_room(env)[list(LIMIT_JOINTS)] > 0.3), env.data.qpos[:7]
     assert np.linalg.norm(env._sp[:3] - env._x[:3]) < 0.002
     assert np.linalg.norm(rotation_error(env._sp_R, env._site_xmat)) < 0.01
 
@@ -265,13 +268,11 @@ def test_twists_that_drive_the_wrist_to_its_limit_trip_the_reflex():
     env = make(task=2)
     env.reset(seed=int(rng.integers(20000, 30000)))
     run(env, 40)
-    lo, hi = env.model.jnt_range[:7].T
     tripped, worst = False, np.inf
     for _ in range(10):
         env.apply_wrench(np.zeros(3), (0.0, 0.0, -4.0), duration=1.0)
         for info in run(env, 32):
-            q = env.data.qpos[:7]
-            worst = min(worst, float(np.min(np.minimum(q - lo, hi - q)[::2])))
+            worst = min(worst, float(np.min(limit_room(env)[list(LIMIT_JOINTS)])))
             if info["reflex"]:
                 tripped = True
                 break

@@ -61,7 +61,6 @@ def run_push(
     env.apply_wrench(force, torque, duration=1.0)
     out = {"seed": seed, "start": start, "force": force, "torque": torque, "ok": False}
     lo, hi = env.model.jnt_range[:7].T
-    out["blocked"] = False
     kinds: set[str] = set()
     wrist = math.pi / 2
     for _ in range(40):
@@ -75,12 +74,6 @@ def run_push(
         if np.any(room < 0.01):
             kinds.add(f"joint {int(np.argmin(room)) + 1} at its limit")
         wrist = min(wrist, abs(float(q[5]) - math.pi / 2))  # joints 5, 7 parallel at π/2
-        out["blocked"] = bool(kinds)
-        out["kind"] = ", ".join(sorted(kinds)) or (
-            f"wrist within {math.degrees(WRIST_NEAR):.0f}° of singular"
-            if wrist < WRIST_NEAR
-            else "free"
-        )
         if info["is_correction"]:
             u, x = info["u_h"], info["correction_state"]
             out.update(ok=True, u_h=u, length=float(np.linalg.norm(u[:3])))
@@ -92,6 +85,12 @@ def run_push(
             break
         if truncated:
             break
+    out["blocked"] = bool(kinds)
+    out["kind"] = ", ".join(sorted(kinds)) or (
+        f"wrist within {math.degrees(WRIST_NEAR):.0f}° of singular"
+        if wrist < WRIST_NEAR
+        else "free"
+    )
     env.close()
     return out
 

@@ -332,11 +332,14 @@ class ImpedanceController:
             # unprojected, turned the wrist off its setpoint by up to 0.05 rad.
             null = self._eye7 - ja.T.dot(lam.dot(m_inv_jt.T))
             # τ = Jᵀ(K e + ∫ + Λ a_sp) + c − G [q; q̇]: G = [K_n N, Jᵀ D J + D_n N].
-            stiff, pull = self._posture() if self.version.joint_room else (K_NULL, None)
+            stiff: np.ndarray | float
+            if self.version.joint_room:  # the pull home plus the pull off the limits
+                stiff, pull = self._posture()
+                self._pull_home = null.dot(pull)
+            else:
+                stiff = K_NULL
+                self._pull_home = (K_NULL * null).dot(self._q_home)
             self._gain = np.hstack([null * stiff, jt_damp.dot(ja) + D_NULL * null])
-            self._pull_home = (
-                null.dot(pull) if pull is not None else (stiff * null).dot(self._q_home)
-            )
             self._lam, self._dyn_inv, self._jt_damp = lam, m_inv_jt.dot(lam), jt_damp
             if self.version.joint_brake:
                 self._m_inv = np.linalg.inv(self._mass[:N_ARM, :N_ARM])

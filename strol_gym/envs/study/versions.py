@@ -67,7 +67,7 @@ class StudyVersion:
     """The joints' position limits kept: the null space's posture spring holds the twisting
     joints off theirs (``controller.LIMIT_BAND``), and a push that drives one of them to its
     limit trips the reflex (``controller.POSITION_REFLEX``), as the Panda's own controller
-    stops."""
+    stops. The reflex is checked where ``joint_brake`` steps the physics one step at a time."""
     contact_info: bool = False
     """``info["contact"]``: the cup touched the pitcher, the plate (or its riser) or the table
     during the step; ``info["contacts"]`` counts such steps."""
