@@ -17,9 +17,11 @@ through ``Z_LOW`` until its floor corners keep the cup ``TABLE_GAP`` off the tab
 more where the IK does not reach them (``floor_gap``): no candidate has every corner reachable, and
 a floor corner out of reach (Tasks 2-3: the cup rolled and pitched near the base) put the cup on
 the table in 19-21 of 200 seeds. The corners of it the IK does not reach are printed
-(``corners``). Printed: the selection as the Task's numbers, the runners-up, and θ*'s plan's
-return per Task with the hulls alone and with the hulls and the selected set. The Task keeps only
-the numbers and this command (it knows no simulator).
+(``corners``). The set the Task ships is then the selection less ``PUSH_ROOM``: room for a
+person's push, which the IK's reach does not see (``push_room``). Printed: the selection as the
+Task's numbers, the runners-up, the set with its push room, and θ*'s plan's return per Task with
+the hulls alone and with the hulls and the shipped set. The Task keeps only the numbers and this
+command (it knows no simulator).
 """
 
 from __future__ import annotations
@@ -72,6 +74,52 @@ Z_HIGH = (0.50, 0.55, 0.60, 0.65, 0.70)
 INNER, RADII = (0.35, 0.40, 0.45, 0.50, 0.55), (0.65, 0.675, 0.70, 0.725, 0.75, 0.775)
 ANGLES = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
 """The candidate sets (the box's low corner is ``OUTER_LOW``)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PushRoom:
+    """What the shipped set gives up of the IK's for a person's push (m, rad): its shell's
+    radius, its box's high faces (x, y, z) and low z (raised to ``floor``), and the roll's
+    upper bound."""
+
+    radius: float
+    high: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    floor: float = 0.0
+    roll_high: float | None = None
+
+
+PUSH_ROOM = {
+    1: PushRoom(radius=0.055, floor=0.15),
+    2: PushRoom(radius=0.05, high=(0.06, 0.0, 0.08), floor=0.18, roll_high=0.1),
+}
+"""Measured with ``benchmarks/speed/study_v2_pushes.py`` at seed 36 (200 pushes per Task, 20-60 N
+and 1-3 N m for 1 s; seeds 37-39 held out). At the IK's rim a push outward stretched the elbow to
+its limit (joint 4, -0.4 rad in this model), on Task 1's floor (cup 1.6 cm off the table) a push
+with a downward part pressed the cup into the table, and low over the table with the cup rolled
+past 0.1 rad (and pitched) joints 5's and 7's axes came within 1-10° (the wrist's singularity,
+where the IK from home was already within 4-15°, its sampled set 98 % reachable around it): u_H
+then read the push 15-160° off. Task 1: the shell 0.775 -> 0.72 m, the floor 8 -> 15 cm (the
+cup's bottom 8.6 cm over the table): translation within 15° 91.5 -> 99.4 %. Tasks 2-3: the
+shell 0.75 -> 0.70 m, the far and high faces 0.80 -> 0.74 and 0.70 -> 0.62 m, roll ≤ 0.1 and
+the floor 12 -> 18 cm: rotation within 30° 96.6 / 93.8 -> 99.4 / 99.4 % (roll alone: 98.2 /
+98.8 %; at seed 38, then held out, the floor at 12 cm left 94.2 % on Task 3, pushes down into
+the table). A roll bound of 0.3 or 0.25 on both sides (not one) left the wrist's misses in
+place."""
+
+
+def push_room(c: ReachSet, room: PushRoom) -> ReachSet:
+    """``c`` less ``room`` (``PUSH_ROOM``)."""
+    low = c.low.copy()
+    low[2] = max(low[2], room.floor)
+    return ReachSet(
+        low,
+        c.high - np.array(room.high),
+        c.inner,
+        round(c.radius - room.radius, 6),
+        c.angle,
+        "this run, with its push room",
+        roll_high=room.roll_high,
+    )
 
 
 def solve(m, d, site: int, q0, pos, rot, lo, hi, iters: int = 200) -> bool:
@@ -253,17 +301,24 @@ def main(argv: list[str] | None = None) -> None:
             raise SystemExit("no floor keeps the cup off the table")
         missed = corners(n, np.array(high), ri, r, a, low)
         print(f"  its corners the IK does not reach (x, y, z, roll, pitch): {missed}")
-        chosen[n] = c = ReachSet(low, np.array(high), ri, r, a, "this run")
+        c = ReachSet(low, np.array(high), ri, r, a, "this run")
+        chosen[n] = c = push_room(c, PUSH_ROOM[n])
         old = shipped[n]
         same = (
             np.allclose(old.high, c.high)
             and np.allclose(old.low, c.low)
-            and (old.inner, old.radius, old.angle) == (ri, r, a)
+            and (old.inner, old.radius, old.angle, old.roll_high)
+            == (c.inner, c.radius, c.angle, c.roll_high)
         )
         print(
             f"  selected: reach_low={low.round(3).tolist()}, reach_high={list(high)}, "
-            f"reach_inner={ri}, reach_radius={r}, reach_angle={a} ({share:.1%} reachable); "
-            f"the shipped set is {'this one' if same else 'another'}"
+            f"reach_inner={ri}, reach_radius={r}, reach_angle={a} ({share:.1%} reachable)"
+        )
+        print(
+            f"  with its push room: reach_low={c.low.round(3).tolist()}, "
+            f"reach_high={c.high.round(3).tolist()}, reach_radius={c.radius}, "
+            f"roll ≤ {c.angle if c.roll_high is None else c.roll_high}; the shipped set is "
+            f"{'this one' if same else 'another'}"
         )
     for number in (1, 2, 3):
         task = STUDY_TASKS_V2[number]()
@@ -274,6 +329,7 @@ def main(argv: list[str] | None = None) -> None:
             reach_low=np.array([0.2, -0.6, task.floor]),
             reach_high=np.array([0.8, 0.6, 0.7]),
             reach_angle=1.3,
+            reach_roll_high=None,
         )
         c = chosen[min(number, 2)]
         mine = dataclasses.replace(
@@ -283,11 +339,12 @@ def main(argv: list[str] | None = None) -> None:
             reach_inner=c.inner,
             reach_radius=c.radius,
             reach_angle=c.angle,
+            reach_roll_high=c.roll_high,
         )
         theta = task.theta_star
         ret = [(t.features(t.plan(theta, t.start)[0][1:]) @ theta).sum() for t in (free, mine)]
         print(
-            f"Task {number}: θ*'s plan's return, hulls only {ret[0]:.3f}, hulls and the selected "
+            f"Task {number}: θ*'s plan's return, hulls only {ret[0]:.3f}, hulls and the shipped "
             f"set {ret[1]:.3f}"
         )
 

@@ -444,8 +444,6 @@ FLOOR = CUP_CLEARANCE
 """The lowest the cup's centre goes (m above the table top)."""
 WRIST_LEVER = 0.26
 """m from the cup's centre up its axis to the hand (link 7's origin)."""
-REACH_LOW = np.array([0.25, -0.45, FLOOR])
-"""The reachable sets' low corner (m): the planning box's, above the floor."""
 REACH_SHOULDER = np.array([0.0, 0.0, 0.333])
 """Joint 2's axis (m), the centre of the reachable sets' shell."""
 
@@ -454,8 +452,9 @@ REACH_SHOULDER = np.array([0.0, 0.0, 0.333])
 class ReachSet:
     """A reachable set as the v2 planner uses it: the cup's position in [``low``, ``high``], the
     hand (``WRIST_LEVER`` up the cup's axis) between ``inner`` and ``radius`` m from the shoulder
-    (``REACH_SHOULDER``), |roll| ≤ ``angle`` and −angle ≤ pitch ≤ angle (rad; the planner widens
-    the box to contain its start). ``source``: the command that derived it from the arm model."""
+    (``REACH_SHOULDER``), −angle ≤ roll ≤ ``roll_high`` (≤ angle) and −angle ≤ pitch ≤ angle
+    (rad; the planner widens the box to contain its start). ``source``: the command that derived
+    it from the arm model."""
 
     low: np.ndarray
     high: np.ndarray
@@ -463,6 +462,9 @@ class ReachSet:
     radius: float
     angle: float
     source: str
+    roll_high: float | None = None
+    """The roll's upper bound where it is tighter than ``angle`` (rad): the side on which the
+    arm's wrist turns towards its singularity; None: ``angle``."""
 
 
 REACH_SOURCE = (
@@ -470,18 +472,36 @@ REACH_SOURCE = (
     "from the home joints, every joint 0.1 rad inside its limits, the elbow 0.35 rad more from "
     "stretched, the wrist 25° from its singularity; the largest candidate set with ≥ 98 % of "
     "its drawn poses and of its outer 5 cm reachable, its floor raised until its floor corners "
-    "keep the cup 1.6 cm off the table, 3 cm more where the arm cannot reach them)"
+    "keep the cup 1.6 cm off the table, 3 cm more where the arm cannot reach them); then "
+    "(2026-11-26) room left for a person's push (study_reach.py's PUSH_ROOM: the shell's radius "
+    "5.5 / 5 cm in, the floor at 15 / 18 cm, Tasks 2-3's far and high faces 6 and 8 cm in "
+    "and the roll ≤ 0.1 rad), measured with benchmarks/speed/study_v2_pushes.py at seed 36"
 )
-REACH_UPRIGHT = ReachSet(REACH_LOW, np.array([0.80, 0.65, 0.60]), 0.35, 0.775, 0.0, REACH_SOURCE)
-"""Task 1's reachable set (the cup upright; of 2,000 drawn poses 1,108 inside it, 98.9 % of
-them and of its outer 5 cm reachable)."""
+REACH_UPRIGHT = ReachSet(
+    np.array([0.25, -0.45, 0.15]), np.array([0.80, 0.65, 0.60]), 0.35, 0.72, 0.0, REACH_SOURCE
+)
+"""Task 1's reachable set (the cup upright). The IK's set (of 2,000 drawn poses 1,108 inside it,
+98.9 % of them and of its outer 5 cm reachable) reached 0.775 m and the floor (8 cm): pushes there
+stretched the elbow to its limit or pressed the cup into the table, and u_H read them 15-34° off
+the push (12 of 153 at seed 36; 1 of 165 with the room left)."""
 REACH_TURNING = ReachSet(
-    np.array([0.25, -0.45, 0.12]), np.array([0.80, 0.50, 0.70]), 0.45, 0.75, 0.4, REACH_SOURCE
+    np.array([0.25, -0.45, 0.18]),
+    np.array([0.74, 0.50, 0.62]),
+    0.45,
+    0.70,
+    0.4,
+    REACH_SOURCE,
+    roll_high=0.1,
 )
-"""Tasks 2-3's reachable set (the cup turned; of 2,000 drawn poses 252 inside it, 98.0 % of
-them and of its outer 5 cm reachable). Its floor is 12 cm, not ``FLOOR``: at 8 cm the arm could
-not reach the corner (0.27, 0.5, 0.08) m with roll and pitch 0.4 rad, stopped short and put the
-cup on the table (19 and 21 of 200 seeds on Tasks 2 and 3)."""
+"""Tasks 2-3's reachable set (the cup turned). The IK's set (of 2,000 drawn poses 252 inside it,
+98.0 % of them and of its outer 5 cm reachable) had its floor at 12 cm, not ``FLOOR``: at 8 cm
+the arm could not reach the corner (0.27, 0.5, 0.08) m with roll and pitch 0.4 rad, stopped short
+and put the cup on the table (19 and 21 of 200 seeds on Tasks 2 and 3). With room for a push:
+the shell's radius 0.75 -> 0.70 m and the box's far and high faces 0.80 -> 0.74, 0.70 -> 0.62 m
+(the elbow at its limit), the roll ≤ 0.1 rad (low over the table the cup rolled and pitched both
+ways puts joints 5's and 7's axes within 1-10° of each other, the wrist's singularity, where a
+torque turns the cup about another axis) and the floor 12 -> 18 cm (a push down met the table):
+seed 36's rotation within 30° 96.6 / 93.8 % -> 99.4 / 99.4 % on Tasks 2 / 3."""
 
 
 SHELL_ROUNDS = 4
@@ -681,12 +701,13 @@ class StudyTaskV2(StudyTask):
 
     keep_out: np.ndarray = dataclasses.field(default_factory=KEEP_OUT.copy)
     floor: float = FLOOR
-    reach_low: np.ndarray = dataclasses.field(default_factory=REACH_LOW.copy)
+    reach_low: np.ndarray = dataclasses.field(default_factory=lambda: REACH_UPRIGHT.low.copy())
     reach_high: np.ndarray = dataclasses.field(default_factory=lambda: REACH_UPRIGHT.high.copy())
     reach_shoulder: np.ndarray = dataclasses.field(default_factory=REACH_SHOULDER.copy)
     reach_radius: float = REACH_UPRIGHT.radius
     reach_inner: float = REACH_UPRIGHT.inner
     reach_angle: float = REACH_UPRIGHT.angle
+    reach_roll_high: float | None = REACH_UPRIGHT.roll_high
     reach_source: ClassVar[str] = REACH_SOURCE
     """How the reachable set was derived (the command, its date and method)."""
 
@@ -699,7 +720,8 @@ class StudyTaskV2(StudyTask):
 
     @property
     def high(self) -> np.ndarray:
-        ang = [self.reach_angle, self.reach_angle, np.inf][: self.state_dim - 3]
+        roll = self.reach_angle if self.reach_roll_high is None else self.reach_roll_high
+        ang = [roll, self.reach_angle, np.inf][: self.state_dim - 3]
         return np.concatenate([self.reach_high, ang])
 
     def _plan_walk(self, x0: np.ndarray) -> Callable[[np.ndarray, float], None]:
@@ -771,6 +793,7 @@ class _TurningV2(StudyTaskV2):
     reach_inner: float = REACH_TURNING.inner
     reach_radius: float = REACH_TURNING.radius
     reach_angle: float = REACH_TURNING.angle
+    reach_roll_high: float | None = REACH_TURNING.roll_high
 
     prior: Prior = dataclasses.field(default_factory=_prior4)  # not StudyTaskV2's (Task 1's)
 
