@@ -92,19 +92,19 @@ PUSH_ROOM = {
     1: PushRoom(radius=0.055, floor=0.15),
     2: PushRoom(radius=0.05, high=(0.06, 0.0, 0.08), floor=0.18, roll_high=0.1),
 }
-"""Measured with ``benchmarks/speed/study_v2_pushes.py`` at seed 36 (200 pushes per Task, 20-60 N
-and 1-3 N m for 1 s; seeds 37-39 held out). At the IK's rim a push outward stretched the elbow to
-its limit (joint 4, -0.4 rad in this model), on Task 1's floor (cup 1.6 cm off the table) a push
-with a downward part pressed the cup into the table, and low over the table with the cup rolled
-past 0.1 rad (and pitched) joints 5's and 7's axes came within 1-10° (the wrist's singularity,
-where the IK from home was already within 4-15°, its sampled set 98 % reachable around it): u_H
-then read the push 15-160° off. Task 1: the shell 0.775 -> 0.72 m, the floor 8 -> 15 cm (the
-cup's bottom 8.6 cm over the table): translation within 15° 91.5 -> 99.4 %. Tasks 2-3: the
-shell 0.75 -> 0.70 m, the far and high faces 0.80 -> 0.74 and 0.70 -> 0.62 m, roll ≤ 0.1 and
-the floor 12 -> 18 cm: rotation within 30° 96.6 / 93.8 -> 99.4 / 99.4 % (roll alone: 98.2 /
-98.8 %; at seed 38, then held out, the floor at 12 cm left 94.2 % on Task 3, pushes down into
-the table). A roll bound of 0.3 or 0.25 on both sides (not one) left the wrist's misses in
-place."""
+"""Measured with ``benchmarks/speed/study_v2_pushes.py`` (200 pushes per Task, 20-60 N and 1-3 N m
+for 1 s) at seeds 36 and 38 (tuning; seeds 40-42 held out: docs/study.md). At the IK's rim a
+push outward stretched the elbow to its limit (joint 4, -0.4 rad in this model), on Task 1's
+floor (cup 1.6 cm off the table) a push with a downward part pressed the cup into the table,
+and low over the table with the cup rolled past 0.1 rad (and pitched) joints 5's and 7's axes
+came within 1-10° (the wrist's singularity, where the IK from home was already within 4-15°,
+its sampled set 98 % reachable around it): u_H then read the push 15-160° off. Task 1: the
+shell 0.775 -> 0.72 m, the floor 8 -> 15 cm (the cup's bottom 8.6 cm over the table):
+translation within 15° 91.5 -> 99.4 % (seed 36). Tasks 2-3: the shell 0.75 -> 0.70 m, the far
+and high faces 0.80 -> 0.74 and 0.70 -> 0.62 m, roll ≤ 0.1 and the floor 12 -> 18 cm: rotation
+within 30° 96.6 / 93.8 -> 99.4 / 99.4 % at seed 36 (the floor at 12 cm: 98.2 / 98.8 %; at seed
+38 it left 94.2 % on Task 3, pushes down into the table). A roll bound of 0.3 or 0.25 on both
+sides (not one) left the wrist's misses in place."""
 
 
 def push_room(c: ReachSet, room: PushRoom) -> ReachSet:

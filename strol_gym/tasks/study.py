@@ -475,7 +475,7 @@ REACH_SOURCE = (
     "keep the cup 1.6 cm off the table, 3 cm more where the arm cannot reach them); then "
     "(2026-11-26) room left for a person's push (study_reach.py's PUSH_ROOM: the shell's radius "
     "5.5 / 5 cm in, the floor at 15 / 18 cm, Tasks 2-3's far and high faces 6 and 8 cm in "
-    "and the roll ≤ 0.1 rad), measured with benchmarks/speed/study_v2_pushes.py at seed 36"
+    "and the roll ≤ 0.1 rad), measured with benchmarks/speed/study_v2_pushes.py at seeds 36 and 38"
 )
 REACH_UPRIGHT = ReachSet(
     np.array([0.25, -0.45, 0.15]), np.array([0.80, 0.65, 0.60]), 0.35, 0.72, 0.0, REACH_SOURCE
@@ -483,7 +483,7 @@ REACH_UPRIGHT = ReachSet(
 """Task 1's reachable set (the cup upright). The IK's set (of 2,000 drawn poses 1,108 inside it,
 98.9 % of them and of its outer 5 cm reachable) reached 0.775 m and the floor (8 cm): pushes there
 stretched the elbow to its limit or pressed the cup into the table, and u_H read them 15-34° off
-the push (12 of 153 at seed 36; 1 of 165 with the room left)."""
+the push (13 of 153 at seed 36; 1 of 165 with the room left)."""
 REACH_TURNING = ReachSet(
     np.array([0.25, -0.45, 0.18]),
     np.array([0.74, 0.50, 0.62]),
