@@ -312,9 +312,10 @@ def test_plans_stay_in_the_reachable_set_the_task_carries(task):
     From home, once the robot's pace has brought them in (home lies outside Tasks 2-3's angle
     box), the hand (``WRIST_LEVER`` up the cup's axis) within the Task's outer radius from the
     shoulder and roll, pitch within its angles (Tasks 2-3's roll ≤ 0.1 rad: rolled further
-    low over the table, the wrist meets its singularity). The set names the command that derived it from
-    the arm model. Before the walk kept the box, it left it beside Task 1's pitcher (up to
-    5.4 cm below its low x, 18 of 600 sets of 8 plans from home) and from random starts."""
+    low over the table, the wrist meets its singularity). The set names the command that
+    derived it from the arm model. Before the walk kept the box, it left it beside Task 1's
+    pitcher (up to 5.4 cm below its low x, 18 of 600 sets of 8 plans from home) and from
+    random starts."""
     t = STUDY_TASKS_V2[task]()
     assert t.reach_source.startswith("benchmarks/speed/study_reach.py")
     rng = np.random.default_rng([ENTROPY, task])
