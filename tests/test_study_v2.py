@@ -13,7 +13,12 @@ import numpy as np
 import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study.controller import LIMIT_JOINTS, POSITION_REFLEX, VELOCITY_LIMIT
+from strol_gym.envs.study.controller import (
+    LIMIT_JOINTS,
+    POSITION_REFLEX,
+    TORQUE_LIMIT,
+    VELOCITY_LIMIT,
+)
 from strol_gym.envs.study.env import StudyEnvV2
 from strol_gym.envs.study.geometry import rotation_error, straight
 from strol_gym.tasks.study import STUDY_TASKS_V2, WRIST_LEVER, rpy_to_mat, wrap_angle
@@ -284,6 +289,41 @@ def test_twists_that_drive_the_wrist_to_its_limit_trip_the_reflex():
     assert tripped, ENTROPY
     # within the contact solver's give at a limit (before: joint 7 0.02-0.05 rad past it)
     assert worst > -0.01, (ENTROPY, worst)
+
+
+def _cup_jacobian(env: StudyEnvV2) -> np.ndarray:
+    """The cup centre's positional Jacobian over the arm's joints (3, 7)."""
+    jp = np.zeros((3, env.model.nv))
+    mujoco.mj_jacSite(env.model, env.data, jp, None, env.model.site("cup").id)
+    return jp[:, :7]
+
+
+def test_a_push_that_leaves_a_motor_under_a_tenth_of_its_torque_trips_the_reflex():
+    """A push whose load on a joint passes 0.9 of its motor's torque limit (Jᵀw) trips the
+    reflex at once: the motor must keep torque to hold the arm (at 1.0, a 55 N push with
+    1.8 N m loaded the wrist to 0.99 of its limit, saturated its motor, and the cup turned 107°
+    off the torque's axis). A force along joint 6's column of the cup's Jacobian (the wrist's
+    bend, a 12 N m motor) loading it to 0.95 of its limit trips the reflex on the push's first
+    step; the same force scaled to 0.8 does not. Task, study seed and time drawn by this run,
+    both pushes from the same state."""
+    rng = np.random.default_rng([ENTROPY, 34])
+    task, seed = int(rng.integers(1, 4)), int(rng.integers(20000, 30000))
+    steps = int(rng.integers(20, 120))
+    tripped = {}
+    for share in (0.95, 0.8):
+        env = make(task=task)
+        env.reset(seed=seed)
+        run(env, steps)
+        jac = _cup_jacobian(env)
+        force = share * TORQUE_LIMIT[5] * jac[:, 5] / float(jac[:, 5] @ jac[:, 5])
+        load = np.abs(jac.T @ force) / TORQUE_LIMIT
+        assert load[5] == pytest.approx(share)
+        assert np.linalg.norm(force) < env.reflex_force, (ENTROPY, force)
+        if share < 0.9:  # no joint past 0.9: only joint 6's load decides
+            assert load.max() < 0.9, (ENTROPY, load)
+        env.apply_wrench(force, np.zeros(3), duration=1.0)
+        tripped[share] = run(env, 1)[0]["reflex"]
+    assert tripped == {0.95: True, 0.8: False}, (ENTROPY, task, seed, steps)
 
 
 @pytest.mark.parametrize("name", ["reflex_force", "reflex_torque"])

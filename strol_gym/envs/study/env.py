@@ -864,9 +864,9 @@ class StudyEnvV2(StudyEnv):
     - **The Panda's limits at every physics step**, through the torques (``joint_brake``:
       from 0.9x a joint's speed limit its torque saturates against the motion); a push that
       spins a joint towards its limit trips a speed reflex (the brakes lock,
-      ``info["reflex"]``) before the joint passes it, and one that loads a joint beyond its
-      motor's torque limit (Jᵀw) trips the reflex at once (``torque_reflex``): no torque can
-      hold it, so it would turn the arm about that joint, not move the cup as pushed. The
+      ``info["reflex"]``) before the joint passes it, and one that loads a joint beyond 0.9 of
+      its motor's torque limit (Jᵀw) trips the reflex at once (``torque_reflex``): the motor
+      could not also hold the arm, so it would turn about that joint, not move as pushed. The
       position limits too (``joint_room``): the null space keeps the twisting joints (1, 3,
       5, 7) off theirs, and a push that drives one of them to its limit trips the reflex.
       ``reflex_force`` in [20, 150] N and ``reflex_torque`` in [2, 15] N m, else ValueError.

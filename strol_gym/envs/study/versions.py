@@ -95,7 +95,9 @@ class StudyVersion:
     """The integral's gains (1/s) as multiples of the stiffness; None: ``controller.K_INTEGRAL``."""
     torque_reflex: float | None = None
     """The reflex also trips when the person's wrench loads a joint beyond this share of its
-    torque limit (``StudyEnv._overloads``); None: force and torque thresholds only."""
+    torque limit (``StudyEnv._overloads``); None: force and torque thresholds only. v2: 0.9,
+    the motor keeps a tenth of its torque to hold the arm (at 1.0 a push loading the wrist to
+    0.99 of its limit saturated it and the cup turned 107° off the torque's axis)."""
     integral_max: tuple[float, float] | None = None
     """Bounds of the integral wrench per axis (N, N m); None: ``controller.INTEGRAL_MAX``."""
     hold_off: float | None = None
@@ -137,7 +139,7 @@ V2 = StudyVersion(
     track_bandwidth=14.0,
     integral_gain=(4.0, 4.0),
     integral_max=(20.0, 3.0),
-    torque_reflex=1.0,
+    torque_reflex=0.9,
     hold_off=HOLD_OFF,
 )
 """u_H by counterfactual, the joint limits at every physics step, the Task's reachable set and
