@@ -327,6 +327,21 @@ def test_a_push_that_leaves_a_motor_under_a_tenth_of_its_torque_trips_the_reflex
     assert tripped == {0.95: True, 0.8: False}, (ENTROPY, task, seed, steps)
 
 
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("reach_roll_high", 0.5),
+        ("reach_roll_high", -0.41),
+        ("reach_roll_high", float("nan")),
+        ("reach_angle", -0.1),
+        ("reach_angle", float("inf")),
+    ],
+)
+def test_a_v2_task_refuses_turn_bounds_outside_its_set(field, value):
+    with pytest.raises(ValueError, match=field):
+        STUDY_TASKS_V2[2](**{field: value})
+
+
 @pytest.mark.parametrize("name", ["reflex_force", "reflex_torque"])
 @pytest.mark.parametrize("value", [float("nan"), float("inf"), 0.0, -5.0, 1e300, 1000.0])
 def test_reflex_settings_are_bounded(name, value):

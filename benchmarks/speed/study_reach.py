@@ -93,7 +93,8 @@ PUSH_ROOM = {
     2: PushRoom(radius=0.05, high=(0.06, 0.0, 0.08), floor=0.18, roll_high=0.1),
 }
 """Measured with ``benchmarks/speed/study_v2_pushes.py`` (200 pushes per Task, 20-60 N and 1-3 N m
-for 1 s) at seeds 36 and 38 (tuning; seeds 40-42 held out: docs/study.md). At the IK's rim a
+for 1 s) at seeds 36 and 38 (tuning; held out: seeds 40-42, and 43-45 with v2's torque
+reflex at 0.9: docs/study.md). At the IK's rim a
 push outward stretched the elbow to its limit (joint 4, -0.4 rad in this model), on Task 1's
 floor (cup 1.6 cm off the table) a push with a downward part pressed the cup into the table,
 and low over the table with the cup rolled past 0.1 rad (and pitched) joints 5's and 7's axes

@@ -26,6 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task
@@ -498,9 +499,10 @@ REACH_TURNING = ReachSet(
 the arm could not reach the corner (0.27, 0.5, 0.08) m with roll and pitch 0.4 rad, stopped short
 and put the cup on the table (19 and 21 of 200 seeds on Tasks 2 and 3). With room for a push:
 the shell's radius 0.75 -> 0.70 m and the box's far and high faces 0.80 -> 0.74, 0.70 -> 0.62 m
-(the elbow at its limit), the roll ≤ 0.1 rad (low over the table the cup rolled and pitched both
-ways puts joints 5's and 7's axes within 1-10° of each other, the wrist's singularity, where a
-torque turns the cup about another axis) and the floor 12 -> 18 cm (a push down met the table):
+(the elbow at its limit), the roll ≤ 0.1 rad (low over the table the cup rolled and pitched to
+their positive side puts joints 5's and 7's axes within 1-10° of each other, the wrist's
+singularity, where a torque turns the cup about another axis) and the floor 12 -> 18 cm (a push
+down met the table):
 seed 36's rotation within 30° 96.6 / 93.8 % -> 99.4 / 99.4 % on Tasks 2 / 3."""
 
 
@@ -710,6 +712,13 @@ class StudyTaskV2(StudyTask):
     reach_roll_high: float | None = REACH_UPRIGHT.roll_high
     reach_source: ClassVar[str] = REACH_SOURCE
     """How the reachable set was derived (the command, its date and method)."""
+
+    def __post_init__(self) -> None:
+        """The set's angles: a roll bound outside ±``reach_angle`` would leave the planner's
+        box empty or wider than the set; it fails here, naming the field."""
+        angle = checks.number("reach_angle", self.reach_angle, low=0.0)
+        if self.reach_roll_high is not None:
+            checks.number("reach_roll_high", self.reach_roll_high, low=-angle, high=angle)
 
     @property
     def low(self) -> np.ndarray:
