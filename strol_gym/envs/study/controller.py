@@ -482,7 +482,7 @@ class ImpedanceController:
         """v2's posture spring (``joint_room``) per joint: its stiffness (``K_NULL``, plus
         ``K_LIMIT`` for a twisting joint inside ``LIMIT_BAND``) and its pull at q = 0 (towards
         home, and the band's edge): linear in q until the next model refresh."""
-        q = self._qpos[:N_ARM]
+        q = self._qpos
         lo, hi = self._jnt_range
         high, low = q > hi - LIMIT_BAND, q < lo + LIMIT_BAND
         edge = np.where(high, hi - LIMIT_BAND, lo + LIMIT_BAND)
@@ -616,7 +616,7 @@ class ImpedanceController:
                 self._jnt_low,
                 self._jnt_high,
                 LIMIT_JOINTS,
-                strict=False,
+                strict=True,
             )
         )
 
