@@ -7,7 +7,9 @@ weights drawn here) and its own session pickles (``test_study_import``'s writer)
 
 from __future__ import annotations
 
+import csv
 import itertools
+import json
 import os
 import pickle
 
@@ -26,6 +28,7 @@ from strol_gym.benchmarks.sessions.authors_ghat import (
 )
 from strol_gym.benchmarks.sessions.authors_rules import authors_task, sample_updates
 from strol_gym.benchmarks.sessions.import_study import read_sessions
+from strol_gym.benchmarks.sessions.replay import replay_session
 from strol_gym.wrappers.session_log import read_session
 
 SEED = 48
@@ -109,16 +112,26 @@ def test_wrong_shape_missing_and_payload_refused(tmp_path):
 
 @pytest.fixture(scope="module")
 def tree(tmp_path_factory):
-    """user_1's Tasks 1 and 2 under StROL and One."""
+    """user_1 and user_2, Tasks 1 and 2, every algorithm."""
     root = tmp_path_factory.mktemp("paper") / "data"
     rng = np.random.default_rng(SEED)
-    for task in (1, 2):
-        for alg in ("b1", "ours"):
-            mv = [rng.uniform(-0.1, 0.1, 6) * [1, 1, 1, 0.5, 0.5, 0.5] for _ in range(2)]
-            if task == 1:
-                mv = [np.concatenate([v[:3], np.zeros(3)]) for v in mv]
-            _write(root, "user_1", task, alg, _session(task, rng, mv, [5, 0, 1, 3]))
+    for user in ("user_1", "user_2"):
+        for task in (1, 2):
+            for alg in ("b1", "b2", "ours"):
+                mv = [rng.uniform(-0.1, 0.1, 6) * [1, 1, 1, 0.5, 0.5, 0.5] for _ in range(2)]
+                if task == 1:
+                    mv = [np.concatenate([v[:3], np.zeros(3)]) for v in mv]
+                _write(root, user, task, alg, _session(task, rng, mv, [5, 0, 1, 3]))
     return root
+
+
+@pytest.fixture(scope="module")
+def logs(tree, gdir, tmp_path_factory):
+    """The tree imported with the implied θ̂0 and the ĝ written here."""
+    out = tmp_path_factory.mktemp("paper_logs") / "logs"
+    argv = ["import-study", str(tree), "--out", str(out), "--theta0", "implied"]
+    assert cli.main([*argv, "--authors-ghat", str(gdir)]) == 0
+    return out
 
 
 def test_import_reconstructs_strol_sessions(tree, gdir, tmp_path, capsys):
@@ -127,9 +140,9 @@ def test_import_reconstructs_strol_sessions(tree, gdir, tmp_path, capsys):
     assert cli.main([*argv, "--authors-ghat", str(gdir)]) == 0
     text = capsys.readouterr().out
     lines = [ln for ln in text.splitlines() if ln.startswith("implied θ̂0 inside [−1, 1]^d: ")]
-    assert [ln.rsplit(":", 1)[1].split()[0] for ln in lines] == ["One", "StROL"]
-    assert all(ln.endswith(" of 2") for ln in lines)
-    raws = {(r.task, r.alg): r for r in read_sessions(tree)}
+    assert [ln.rsplit(":", 1)[1].split()[0] for ln in lines] == ["One", "MOF", "StROL"]
+    assert all(ln.endswith(" of 4") for ln in lines)
+    raws = {(r.task, r.alg): r for r in read_sessions(tree) if r.user == 1}
     for task in (1, 2):
         log = read_session(out / f"user_1_task_{task}_ours.jsonl")
         ghat = log.header["extra"]["authors_ghat"]
@@ -168,3 +181,48 @@ def test_import_refuses_bad_ghat_before_writing(tree, tmp_path, capsys):
     )
     assert "--authors-ghat" in msg and "no model_t" in msg
     assert not out.exists()
+
+
+def test_replay_both_strols(tree, gdir, logs, tmp_path, capsys):
+    out = tmp_path / "replay"
+    argv = ["replay", str(logs), "--authors-ghat", str(gdir), "--no-plots", "--out", str(out)]
+    assert cli.main(argv) == 0  # default learners: the suite's four and strol-paper
+    text = capsys.readouterr().out
+    rows = [ln.split(" | ")[0].lstrip("| ") for ln in text.splitlines() if ln.startswith("| ")]
+    assert rows.count("StROL") == 2 and rows.count("StROL (paper's ĝ, authors' φ)") == 2
+    sha = load_authors_ghat(gdir, 1).sha256[:12]
+    assert f"authors' model_t1 ({sha})" in text and "regret n/a" in text
+    with open(out / "replay_sessions.csv", encoding="utf-8") as f:
+        per = list(csv.DictReader(f))
+    assert len(per) == 2 * 6 * 5
+    for r in per:
+        paper = r["learner"] == "strol-paper"
+        assert np.isfinite(float(r["cos_error"])) and paper == np.isnan(float(r["regret"]))
+    with open(out / "replay_stats.csv", encoding="utf-8") as f:
+        stats = list(csv.DictReader(f))
+    tested = {(r["metric"], r["baseline"]) for r in stats if r["test"] == "paired t"}
+    assert ("cos_error", "strol-paper") in tested and ("regret", "strol-paper") not in tested
+    # each session's own rule, replayed in the authors' space, ends at the logged final θ̂
+    raws = {(r.user, r.task, r.alg): r for r in read_sessions(tree)}
+    for user, task, alg in [(1, 1, "b2"), (2, 2, "b2"), (1, 2, "ours"), (2, 1, "ours")]:
+        name = "gradient@authors" if alg == "b2" else "strol-paper"
+        session = read_session(logs / f"user_{user}_task_{task}_{alg}.jsonl")
+        curve = replay_session(session, [name], authors_ghat=str(gdir))[name][0]
+        assert np.allclose(curve[-1], raws[(user, task, alg)].theta_final)
+
+
+def test_replay_paper_needs_flag_and_poses(gdir, logs, tmp_path, capsys):
+    argv = ["replay", str(logs), "--learners", "strol,strol-paper", "--out", str(tmp_path / "r")]
+    assert "--authors-ghat GDIR" in cli_error(argv, capsys)
+    assert "--authors-ghat" in cli_error([*argv, "--authors-ghat", str(tmp_path)], capsys)
+    assert not (tmp_path / "r").exists()
+    # a log without the authors' poses cannot feed a learner in their space
+    bare = tmp_path / "bare.jsonl"
+    lines = []
+    for line in (logs / "user_1_task_2_b1.jsonl").read_text().splitlines():
+        rec = json.loads(line)
+        rec.pop("authors_poses", None)
+        lines.append(json.dumps(rec))
+    bare.write_text("\n".join(lines) + "\n")
+    one = ["replay", str(bare), "--learners", "one@authors", "--no-plots"]
+    assert "no 'authors_poses'" in cli_error([*one, "--out", str(tmp_path / "b")], capsys)
