@@ -158,12 +158,14 @@ def group_stats(group: dict[str, Any], reference: str) -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = []
     for metric in METRICS:  # a learner without the metric (regret in the authors' φ) is left out
         names = [n for n, ms in group["metrics"].items() if np.isfinite(ms[metric]).any()]
-        if len(names) < 2 or reference not in names:
+        if len(names) < 2:
             continue
         y = np.column_stack([group["metrics"][n][metric] for n in names])
         keep = np.isfinite(y).all(axis=1)
         a = rm_anova(y[keep])
         rows.append({"metric": metric, "test": "rm-anova", "n": a.n, "F": a.F, "p_gg": a.p_gg})
+        if reference not in names:
+            continue
         for r in compare_to_reference(y[keep], names, reference):
             rows.append({"metric": metric, **r})
     return rows
@@ -193,8 +195,8 @@ def _cell(values: np.ndarray) -> str:
 
 
 def _p_cell(stats: list[dict[str, Any]], metric: str, name: str, reference: str) -> str:
-    if name == reference:
-        return "ref."
+    if name == reference:  # the reference of a metric it has no values of is no reference
+        return "ref." if any(r.get("baseline") and r["metric"] == metric for r in stats) else ""
     for r in stats:
         if r["metric"] == metric and r.get("baseline") == name:
             p = r["p_holm"]
