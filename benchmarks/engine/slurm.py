@@ -26,7 +26,7 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.results import ResultsError, write_json_atomic
-from strol_gym.files import temp_tag
+from strol_gym.files import read_regular, temp_tag
 
 SLURM_DIR = ".slurm"
 EXECUTORS = ("slurm", "local")
@@ -61,9 +61,7 @@ def _read_block(path: Path, unit: Unit, config_hash: str) -> list[dict] | None:
     """The records of a block file, or None if it is not a complete block of ``unit`` for this
     config (a leftover of another config, a torn copy): it is then ignored and recomputed."""
     try:
-        if path.stat().st_size > MAX_BLOCK_BYTES:
-            return None
-        payload = json.loads(path.read_bytes().decode("utf-8"))
+        payload = json.loads(read_regular(path, MAX_BLOCK_BYTES, "block file").decode("utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
     if not isinstance(payload, dict) or payload.get("config_hash") != config_hash:
