@@ -16,6 +16,8 @@ array with submitit's local executor (no cluster): how CI tests it.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import sys
 import time
@@ -109,19 +111,26 @@ def iter_slurm(
     yield from _collect(blocks, want, config_hash)  # an earlier array's finished tasks
     if not want:
         return
-    cluster = None if executor == "slurm" else "local"
-    ex = submitit.AutoExecutor(folder=base / "logs", cluster=cluster)
     params: dict[str, Any] = {"timeout_min": int(time_min), "cpus_per_task": 1}
     if executor == "slurm":
         params["slurm_array_parallelism"] = int(jobs)
         if partition:
             params["slurm_partition"] = partition
-    ex.update_parameters(name="strol-bench", **params)
     todo = list(want.values())
     n = len(todo)
     cfg, path = config.to_dict(), list(sys.path)
     where, make = [str(blocks)] * n, [make_worker] * n
-    submitted = ex.map_array(_array_task, [cfg] * n, [path] * n, todo, where, make)
+    echoed = io.StringIO()  # submitit echoes a failing sbatch's stderr: said once, below
+    try:
+        with contextlib.redirect_stderr(echoed):
+            # named, never None: AutoExecutor(cluster=None) would run every unit here instead
+            ex = submitit.AutoExecutor(folder=base / "logs", cluster=executor)
+            ex.update_parameters(name="strol-bench", **params)
+            submitted = ex.map_array(_array_task, [cfg] * n, [path] * n, todo, where, make)
+    except (RuntimeError, OSError) as e:  # no srun, sbatch failed (submitit's FailedJobError)
+        said = " ".join(str(e).split())
+        raise ResultsError(f"the Slurm array could not be submitted: {said[:400]}") from None
+    sys.stderr.write(echoed.getvalue())
     try:
         while want:
             yield from _collect(blocks, want, config_hash)
