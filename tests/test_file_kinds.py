@@ -23,7 +23,6 @@ import pytest
 from cli_checks import cli_error
 
 from strol_gym import files
-from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.sessions.plain_pickle import PickleRefused, load_plain_pickle
 
 
@@ -58,7 +57,7 @@ def _same(tmp_path: Path, made: dict[str, Path], modes: dict[str, int]) -> None:
 def test_the_one_writer_replaces_regular_files_only(tmp_path):
     made = _not_regular(tmp_path)
     modes = {k: os.lstat(p).st_mode for k, p in made.items()}
-    for name, path in made.items():
+    for path in made.values():
         with pytest.raises(files.NotAFile, match=rf"{path} is .*not a regular file"):
             files.write_json_atomic(path, {"a": 1})
         with pytest.raises(files.NotAFile, match=str(path)):
@@ -210,15 +209,16 @@ def _copy(exported: Path, tmp_path: Path) -> Path:
     return folder
 
 
-def test_replay_of_a_dataset_whose_hdf5_file_is_a_fifo_exits_2_at_once(
-    exported, tmp_path, capsys
-):
+def test_replay_of_a_dataset_whose_hdf5_file_is_a_fifo_exits_2_at_once(exported, tmp_path, capsys):
     folder = _copy(exported, tmp_path)
     data = folder / "data" / "main_data.hdf5"
     data.unlink()
     os.mkfifo(data)
     t0 = time.monotonic()
-    err = cli_error(["replay", str(folder), "--learners", "strol", "--out", str(tmp_path / "r"), "--no-plots"], capsys)
+    err = cli_error(
+        ["replay", str(folder), "--learners", "strol", "--out", str(tmp_path / "r"), "--no-plots"],
+        capsys,
+    )
     assert time.monotonic() - t0 < 10
     assert "main_data.hdf5 is a FIFO" in err
 
@@ -255,7 +255,10 @@ def test_hdf5_arrays_from_other_files_or_too_large_in_all_are_refused(
     }[how]
     with pytest.raises(ValueError, match=words):
         read_dataset(str(folder))
-    err = cli_error(["replay", str(folder), "--learners", "strol", "--out", str(tmp_path / "r"), "--no-plots"], capsys)
+    err = cli_error(
+        ["replay", str(folder), "--learners", "strol", "--out", str(tmp_path / "r"), "--no-plots"],
+        capsys,
+    )
     assert words in err
 
 
@@ -266,5 +269,7 @@ def test_a_memory_error_in_a_reader_is_one_line(exported, tmp_path, monkeypatch,
         raise MemoryError
 
     monkeypatch.setattr(export, "read_dataset", exhausted)
-    err = cli_error(["replay", str(exported), "--learners", "strol", "--out", str(tmp_path / "r")], capsys)
+    err = cli_error(
+        ["replay", str(exported), "--learners", "strol", "--out", str(tmp_path / "r")], capsys
+    )
     assert "out of memory" in err
