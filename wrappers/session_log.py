@@ -42,6 +42,7 @@ from typing import Any, Protocol, runtime_checkable
 import gymnasium as gym
 import numpy as np
 
+from strol_gym.files import open_regular
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.limits import CAPS, lifted_now
 from strol_gym.provenance import package_versions
@@ -319,7 +320,7 @@ def _lines(path: Path) -> Iterator[tuple[int, bytes]]:
     the cap (``strol_gym.limits``, ``session_line_bytes``) is refused before it is held whole."""
     cap = CAPS["session_line_bytes"] if not lifted_now() else None
     try:
-        with path.open("rb") as f:
+        with open_regular(path, "session log") as f:
             no = 0
             while True:
                 line = f.readline(-1 if cap is None else cap + 1)

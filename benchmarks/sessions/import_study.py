@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -54,6 +55,7 @@ from strol_gym.benchmarks.sessions.authors_rules import (
     reconstruct,
 )
 from strol_gym.benchmarks.sessions.plain_pickle import load_plain_pickle
+from strol_gym.files import check_input
 from strol_gym.provenance import package_versions
 from strol_gym.tasks.study import STUDY_TASKS, StudyTask, wrap_angle
 from strol_gym.wrappers.session_log import SessionWriter
@@ -177,6 +179,8 @@ def find_sessions(root: str | Path) -> list[tuple[Path, int, int, str]]:
                 p = user_dir / f"task_{task}" / alg / "data.pkl"
                 if p.is_file():
                     found.append((p, int(m[1]), task, alg))
+                elif os.path.lexists(p):  # a FIFO, a device, a dangling link: said, not skipped
+                    check_input(p, "study file")
                 if len(found) > MAX_SESSIONS:
                     raise ValueError(f"DIR {root}: more than {MAX_SESSIONS} sessions")
     if not found:

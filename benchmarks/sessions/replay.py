@@ -19,6 +19,7 @@ from strol_gym.benchmarks.sessions import authors_space
 from strol_gym.benchmarks.sessions.authors_ghat import FLAG, ghat_dir
 from strol_gym.benchmarks.sessions.authors_rules import PAPER
 from strol_gym.benchmarks.sessions.export import read_any
+from strol_gym.files import open_atomic, write_figure
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cos_error, error
@@ -111,7 +112,7 @@ def summary_rows(session: Session, results: dict[str, list[np.ndarray]]) -> list
 def write_csv(path: Path, session: Session, results: dict[str, list[np.ndarray]]) -> None:
     """One row per learner, episode and correction count: θ̂ and its errors to θ*."""
     d = len(session.header["task_describe"]["feature_names"])
-    with path.open("w", newline="", encoding="utf-8") as f:
+    with open_atomic(path, newline="") as f:
         w = csv.writer(f)
         w.writerow(
             ["learner", "episode", "correction"]
@@ -149,7 +150,7 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
         ax.set_xlabel("corrections")
     axes[0][0].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path, dpi=120)
     plt.close(fig)
 
 

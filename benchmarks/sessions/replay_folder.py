@@ -33,6 +33,7 @@ import numpy as np
 from strol_gym.benchmarks.analysis.stats import compare_to_reference, describe, rm_anova
 from strol_gym.benchmarks.sessions import authors_space
 from strol_gym.benchmarks.sessions.authors_ghat import AuthorsGhat
+from strol_gym.files import open_atomic, write_figure, write_text_atomic
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cos_error, episode_regret, error
@@ -241,7 +242,7 @@ def markdown_table(groups: dict[str, dict[str, Any]], reference: str) -> str:
 def write_outputs(folder: Path, groups: dict[str, dict[str, Any]], reference: str) -> list[Path]:
     """Per-session CSV, statistics CSV and the markdown table (into ``folder``)."""
     per = folder / "replay_sessions.csv"
-    with per.open("w", newline="", encoding="utf-8") as f:
+    with open_atomic(per, newline="") as f:
         w = csv.writer(f)
         w.writerow(["task", "session", "learner", *METRICS])
         for tname, g in groups.items():
@@ -252,14 +253,14 @@ def write_outputs(folder: Path, groups: dict[str, dict[str, Any]], reference: st
     stats = folder / "replay_stats.csv"
     keys = ["task", "metric", "test", "learner", "baseline", "n", "mean_diff", "p_raw"]
     keys += ["p_holm", "wilcoxon_p_holm", "effect_size", "F", "p_gg"]
-    with stats.open("w", newline="", encoding="utf-8") as f:
+    with open_atomic(stats, newline="") as f:
         dw = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         dw.writeheader()
         for tname, g in groups.items():
             for r in g["stats"]:
                 dw.writerow({"task": tname, **r})
     table = folder / "replay.md"
-    table.write_text(markdown_table(groups, reference), encoding="utf-8")
+    write_text_atomic(table, markdown_table(groups, reference))
     return [per, stats, table]
 
 
@@ -287,7 +288,7 @@ def plot_groups(path: Path, groups: dict[str, dict[str, Any]]) -> None:
             ax.tick_params(axis="x", labelrotation=60, labelsize=7)
             ax.set_title(f"{tname}: {LABELS[m]}", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
