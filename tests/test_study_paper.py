@@ -104,6 +104,10 @@ def test_wrong_shape_missing_and_payload_refused(tmp_path):
         load_authors_ghat(bad, 2)
     assert not marker.exists()
     (bad / "model_t2").unlink()
+    os.mkfifo(bad / "model_t2")  # a reader would wait on it for ever: refused unopened
+    with pytest.raises(ValueError, match=r"model_t2 is a FIFO.*not a regular file"):
+        load_authors_ghat(bad, 2)
+    (bad / "model_t2").unlink()
     with pytest.raises(ValueError, match=r"--authors-ghat .*no model_t2"):
         load_authors_ghat(bad, 1)
     with pytest.raises(ValueError, match=r"--authors-ghat .*not a folder"):

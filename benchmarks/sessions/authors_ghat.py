@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
+import io
 import itertools
 import warnings
 from pathlib import Path
@@ -82,24 +83,25 @@ def ghat_dir(gdir: str | Path) -> Path:
             f"{' and '.join(sorted(set(FILES.values())))})"
         )
     for name in sorted(set(FILES.values())):
-        if not (path / name).is_file():
+        if not (path / name).exists():
             raise ValueError(
                 f"{FLAG} {gdir}: no {name} in it (want a checkout's user_study/g_data)"
             )
     return path
 
 
-def _read_state(path: Path) -> dict[str, object]:
-    """The file through ``torch.load(weights_only=True)`` only; ValueError naming it otherwise."""
+def _read_state(path: Path) -> tuple[dict[str, object], str]:
+    """The file's bytes (a regular file, size capped) through ``torch.load(weights_only=True)``
+    only, and their SHA-256; ValueError naming the file otherwise."""
     import torch
 
-    size = path.stat().st_size
-    if size > MAX_BYTES:
-        raise ValueError(f"{FLAG}: {path}: {size:,} bytes, larger than {MAX_BYTES:,}")
+    from strol_gym.files import read_regular
+
+    data = read_regular(path, MAX_BYTES, what=f"{FLAG}:")
     try:
         with warnings.catch_warnings():  # its note on a file's pickle protocol is no error
             warnings.simplefilter("ignore", UserWarning)
-            state = torch.load(path, map_location="cpu", weights_only=True)
+            state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
     except Exception as e:  # an unpickler refusal, a damaged zip: all say "not plain tensors"
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         raise ValueError(
@@ -108,7 +110,7 @@ def _read_state(path: Path) -> dict[str, object]:
         ) from None
     if not isinstance(state, dict):
         raise ValueError(f"{FLAG}: {path}: want a state dict, got {type(state).__name__}")
-    return state
+    return state, hashlib.sha256(data).hexdigest()
 
 
 def check_layers(state: dict[str, object], number: int, where: str) -> list[np.ndarray]:
@@ -136,8 +138,8 @@ def check_layers(state: dict[str, object], number: int, where: str) -> list[np.n
 
 @functools.lru_cache(maxsize=8)
 def _load(path: Path, number: int) -> AuthorsGhat:
-    arrays = check_layers(_read_state(path), number, f"{FLAG}: {path}")
-    sha = hashlib.sha256(path.read_bytes()).hexdigest()
+    state, sha = _read_state(path)
+    arrays = check_layers(state, number, f"{FLAG}: {path}")
     pairs = tuple((arrays[k], arrays[k + 1]) for k in range(0, len(arrays), 2))
     return AuthorsGhat(number, path, sha, pairs)
 
