@@ -134,3 +134,57 @@ def test_site_builds_strictly_and_its_internal_links_resolve(tmp_path):
     broken, external = broken_links(site)
     assert not broken, "\n".join(broken)
     print("external links, listed, not fetched:", *external, sep="\n  ")
+
+
+# The site says what holds now; how a number was obtained (the runs, their dates, commits and
+# machine load) lives in lab/notes/. The pre-registered protocols stay frozen as committed.
+FROZEN = ("confirmatory.md", "confirmatory-held-out.md")
+AUTHORS_REFS = {"d383bef"}  # the authors' repository: the commit before their logs' removal
+HASH = r"(?=[0-9a-f]*\d)(?=[0-9a-f]*[a-f])([0-9a-f]{7,12})"  # hex with a digit and a letter
+NOTEBOOK = {
+    "an issue number": re.compile(r"\bissues?\s+#?\d+", re.I),
+    "a commit hash": re.compile(rf"\bcommits?\s+`?{HASH}\b|`{HASH}\^?`"),
+    "a load-average note": re.compile(
+        r"\bload(?: average)?\s*(?:of\s*)?[≈~]?\s*\d|\bload average\b", re.I
+    ),
+    "a lab-notebook stop": re.compile(
+        r"\b(?:first|second|third|fourth|fifth|last|previous)\s+stop\b", re.I
+    ),
+}
+
+
+def notebook_lines(text: str) -> list[tuple[int, str, str]]:
+    """(line number, what, line) for every line of a page that reads like a lab notebook."""
+    found = []
+    for number, line in enumerate(text.splitlines(), 1):
+        for what, pattern in NOTEBOOK.items():
+            for match in pattern.finditer(line):
+                if any(g in AUTHORS_REFS for g in match.groups()):
+                    continue
+                found.append((number, what, line.strip()))
+    return found
+
+
+def test_the_notebook_detector_finds_each_kind_and_spares_the_authors_ref():
+    text = (
+        "fixed in issue 33\nat commit `140c631`\ncode of `a413042` (clean)\n"
+        "load average 1.6\nunder load 12\nissue 33's fourth stop\n"
+        "git archive `d383bef^` of the authors\nthe robot stops at the plate\n"
+    )
+    kinds = [what for _, what, _ in notebook_lines(text)]
+    assert kinds.count("an issue number") == 2
+    assert kinds.count("a commit hash") == 2
+    assert kinds.count("a load-average note") == 2
+    assert kinds.count("a lab-notebook stop") == 1
+    assert all(n <= 6 for n, _, _ in notebook_lines(text))
+
+
+def test_no_page_reads_like_a_lab_notebook():
+    bad = [
+        f"{page.relative_to(DOCS)}:{n}: {what}: {line[:100]}"
+        for page in sorted(DOCS.rglob("*.md"))
+        if page.relative_to(DOCS).as_posix() not in FROZEN
+        and not page.relative_to(DOCS).as_posix().startswith("confirmatory/")
+        for n, what, line in notebook_lines(page.read_text(encoding="utf-8"))
+    ]
+    assert not bad, "move these to lab/notes/:\n" + "\n".join(bad)
