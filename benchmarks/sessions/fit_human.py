@@ -1,5 +1,6 @@
 """``strol-bench fit-human SOURCE... --human NAME [--compare A,B,C] --out DIR``: fit a human
-model to correction logs (the likelihood and its machinery: ``strol_gym.humans.fitting``).
+model to correction logs (the likelihood and its machinery:
+``strol_gym.benchmarks.sessions.fitting``).
 
 A SOURCE is a session log (.jsonl), a folder of them, or a Minari dataset (``strol-bench
 export``). The fit reads only what a person's log holds (``fitting.Corrections``): the header's
@@ -28,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans.fitting import (
+from strol_gym.benchmarks.sessions.fitting import (
     DEFAULT_INTERVAL,
     FEW_PEOPLE,
     INTERVALS,
@@ -179,7 +180,7 @@ def _hat_source(unknown: bool, rebuilt: int) -> str:
 
 
 def _max_corrections() -> int:
-    from strol_gym.humans.fitting import MAX_CORRECTIONS
+    from strol_gym.benchmarks.sessions.fitting import MAX_CORRECTIONS
 
     return MAX_CORRECTIONS
 
@@ -244,7 +245,7 @@ def ppc_plot(path: Path, data: Corrections, fits: dict[str, Fit], seed: int) -> 
 
 
 def _usable(name: str, data: Corrections) -> Corrections:
-    from strol_gym.humans.fitting import family, usable
+    from strol_gym.benchmarks.sessions.fitting import family, usable
 
     return usable(family(name), data)[0]
 
@@ -325,7 +326,7 @@ def run_fit_human(
 ) -> dict[str, Fit]:
     """The command's work (module docstring); the fits by model name. ValueError where
     ``compare`` is asked of fewer than 2 people (held-out needs folds of people)."""
-    from strol_gym.humans.fitting import family
+    from strol_gym.benchmarks.sessions.fitting import family
 
     for name in [human, *compare]:
         family(name)  # every name checked before any work
