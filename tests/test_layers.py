@@ -31,7 +31,7 @@ PACKAGES = {
 }
 BENCHMARK = "strol_gym.benchmarks"
 LAB = "lab"
-ROOTS = {"strol_gym", BENCHMARK, LAB}
+ROOTS = {"strol_gym", BENCHMARK}
 
 # The layers, lowest first (docs/layout.md). A module belongs to the unit with the longest
 # matching prefix; it may import its own unit and any unit of a lower layer, nothing else.
@@ -65,7 +65,8 @@ LAYERS: list[tuple[str, ...]] = [
     ("strol_gym.benchmarks.__main__", "strol_gym.benchmarks.speed"),
     ("strol_gym.benchmarks.examples",),
     ("strol_gym.benchmarks",),
-    # the lab (not installed): it may use the benchmark and the library, nothing uses it
+    # the lab (not installed): it may use the benchmark and the library, nothing uses it; its
+    # rooms, then the scripts at its top
     ("lab.speed", "lab.study", "lab.checks"),
     ("lab",),
 ]
