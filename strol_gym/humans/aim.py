@@ -42,17 +42,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import special
 
 from strol_gym import checks
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
 from strol_gym.humans.zoo import check_probability
+from strol_gym.lazy import LazyModule
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
+
+if TYPE_CHECKING:
+    from scipy import special
+else:  # scipy loads at the first density: importing strol_gym does not need it
+    special = LazyModule("scipy.special")
 
 MAX_AIM = 20.0
 """The largest τ accepted: beyond it the direction is uniform to within 0.3 % in density."""
