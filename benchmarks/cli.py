@@ -55,6 +55,9 @@ def build_parser() -> argparse.ArgumentParser:
     from strol_gym.benchmarks.sessions import fit_human
 
     fit_human.add_parser(sub)  # strol-bench fit-human (issue 35)
+    from strol_gym.benchmarks.sessions import check_human
+
+    check_human.add_parser(sub)  # strol-bench check-human
     from strol_gym.benchmarks.sessions import fit_participant
 
     fit_participant.add_parser(sub)  # strol-bench fit-participant (issue 39)
@@ -159,6 +162,12 @@ def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     return command(args, parser)
 
 
+def cmd_check_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.check_human import command
+
+    return command(args, parser)
+
+
 def cmd_fit_participant(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.fit_participant import command
 
@@ -173,6 +182,7 @@ def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) 
 
 COMMANDS = {
     "fit-human": cmd_fit_human,
+    "check-human": cmd_check_human,
     "fit-participant": cmd_fit_participant,
     "import-study": cmd_import_study,
     "replay": cmd_replay,
