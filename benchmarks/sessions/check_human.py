@@ -302,7 +302,7 @@ class StudyPopulation:
         task = real[0].task
         pool = [c for s in real for c in s.corrections]
         people: dict[str, Any] = {}
-        out = []
+        out: list[list[dict[str, Any]]] = []
         for s in real:
             person = people.get(s.user)
             if person is None:

@@ -533,7 +533,7 @@ class Aimed(Family):
     the Task's: they join ``params`` when the family meets its corrections (``prepare``)."""
 
     name = "aimed"
-    base_params = (
+    base_params: tuple[Param, ...] = (
         Param("aim", MIN_AIM, MAX_AIM, 1.0, log=True),
         Param("turn", 1e-2, MAX_TURN, 0.5, log=True),
         Param("size", 1e-3, 100.0, 1.2, log=True),
@@ -541,7 +541,7 @@ class Aimed(Family):
         Param("small_share", 0.0, 1.0, 0.2),
         Param("small_size", 1e-3, 100.0, 0.3, log=True),
     )
-    params = base_params
+    params: tuple[Param, ...] = base_params
 
     def prepare(self, data):
         task, d = data.task, data.task.dim
