@@ -33,6 +33,7 @@ OWN_COMMANDS: dict[str, str] = {
     "display)",
     "import-study": "the authors' user-study pickles as session logs (replay them with replay)",
     "fit-human": "fit a human model to correction logs; compare models by held-out likelihood",
+    "check-human": "posterior-predictive check of a simulated person against real session logs",
     "fit-participant": "fit the study population (StROL-Study-v2's participant) to imported "
     "study logs",
     "report": "re-render tables, summary.md and plots from a folder",
@@ -182,6 +183,12 @@ def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     return command(args, parser)
 
 
+def cmd_check_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.check_human import command
+
+    return command(args, parser)
+
+
 def cmd_fit_participant(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.fit_participant import command
 
@@ -196,6 +203,7 @@ def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) 
 
 COMMANDS = {
     "fit-human": cmd_fit_human,
+    "check-human": cmd_check_human,
     "fit-participant": cmd_fit_participant,
     "import-study": cmd_import_study,
     "replay": cmd_replay,

@@ -541,7 +541,7 @@ class Aimed(Family):
         Param("small_share", 0.0, 1.0, 0.2),
         Param("small_size", 1e-3, 100.0, 0.3, log=True),
     )
-    params = base_params
+    params: tuple[Param, ...] = base_params
 
     def prepare(self, data):
         task, d = data.task, data.task.dim
