@@ -190,9 +190,11 @@ RUNNER_CAPS = {
     "block": CAPS["block"],
     "jobs": min(CAPS["jobs"], JOBS_PER_CPU * (os.cpu_count() or 1)),
     "lambdas": CAPS["lambdas"],
+    "sigmas": CAPS["sigmas"],
 }
 """Every command that runs the runner: run seeds per unit, worker processes (at most 4 per CPU
-of this machine and 1,024), values in a ``--lambdas`` list (a list's length is checked)."""
+of this machine and 1,024), values in a ``--lambdas`` or ``--sigmas`` list (a list's length is
+checked)."""
 
 
 def add_allow_large(parser: argparse.ArgumentParser) -> None:
