@@ -223,6 +223,6 @@ def command(args: Any, parser: Any) -> int:
     if replay_folder.is_log_folder(args.log):
         return replay_folder.command(args, parser)
     check_learner_names(args.learners)
-    kwargs = learner_kwargs(args.learner_kwargs)
+    kwargs = learner_kwargs(args.learner_kwargs, args.learners)
     run_replay(args.log, args.learners, args.out, kwargs, plots=not args.no_plots)
     return 0
