@@ -1,5 +1,6 @@
 """``strol-bench fit-human SOURCE... --human NAME [--compare A,B,C] --out DIR``: fit a human
-model to correction logs (the likelihood and its machinery: ``strol_gym.humans.fitting``).
+model to correction logs (the likelihood and its machinery:
+``strol_gym.benchmarks.sessions.fitting``).
 
 A SOURCE is a session log (.jsonl), a folder of them, or a Minari dataset (``strol-bench
 export``). The fit reads only what a person's log holds (``fitting.Corrections``): the header's
@@ -28,8 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.files import write_figure, write_text_atomic
-from strol_gym.humans.fitting import (
+from strol_gym.benchmarks.sessions.fitting import (
     DEFAULT_INTERVAL,
     FEW_PEOPLE,
     INTERVALS,
@@ -42,6 +42,7 @@ from strol_gym.humans.fitting import (
     select,
     simulate,
 )
+from strol_gym.files import write_figure, write_text_atomic
 
 INTERVAL_NAMES = {
     "bca": "BCa bootstrap, widened for few people",
@@ -185,7 +186,7 @@ def _hat_source(unknown: bool, rebuilt: int) -> str:
 def _max_corrections() -> int:
     """The most corrections a fit reads: the caps table's ``fit_corrections`` (memory grows
     with them, ~0.4 MB each), or with the caps lifted the fitter's own bound."""
-    from strol_gym.humans.fitting import MAX_CORRECTIONS
+    from strol_gym.benchmarks.sessions.fitting import MAX_CORRECTIONS
     from strol_gym.limits import CAPS, lifted_now
 
     return MAX_CORRECTIONS if lifted_now() else CAPS["fit_corrections"]
@@ -251,7 +252,7 @@ def ppc_plot(path: Path, data: Corrections, fits: dict[str, Fit], seed: int) -> 
 
 
 def _usable(name: str, data: Corrections) -> Corrections:
-    from strol_gym.humans.fitting import family, usable
+    from strol_gym.benchmarks.sessions.fitting import family, usable
 
     return usable(family(name), data)[0]
 
@@ -332,7 +333,7 @@ def run_fit_human(
 ) -> dict[str, Fit]:
     """The command's work (module docstring); the fits by model name. ValueError where
     ``compare`` is asked of fewer than 2 people (held-out needs folds of people)."""
-    from strol_gym.humans.fitting import family
+    from strol_gym.benchmarks.sessions.fitting import family
 
     for name in [human, *compare]:
         family(name)  # every name checked before any work
