@@ -306,11 +306,12 @@ class Server:
             here.close()
         kind, body = box["end"]
         if kind == "end":
-            keep = ("reason", "corrections", "real_time_factor", "frames")
+            keep = ("reason", "corrections", "real_time_factor", "frames", "cpu_share")
             end = {k: body[k] for k in keep}
         else:
             why = f"failed: {body}" if kind == "error" else "the session's process died"
-            end = {"reason": why, "corrections": 0, "real_time_factor": None, "frames": 0}
+            end = {"reason": why, "corrections": 0, "real_time_factor": None, "frames": 0,
+                   "cpu_share": None}  # fmt: skip
         where = str(log.relative_to(self.out))
         self.participants.record(pid, spec, where, end["reason"], end["corrections"])
         return end

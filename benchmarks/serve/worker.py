@@ -210,6 +210,7 @@ def arm_panel(texts: Any, wrench: keymap.Wrench) -> dict[str, Any]:
 def run(conn: Any, spec: dict[str, Any], log: str, fps: float) -> None:
     """A session in this process (see the module docstring); ``log`` is the server's path."""
     inbox = Inbox(conn)
+    wall = time.perf_counter()
     try:
         if spec["kind"] == "arm":
             viewer: list[WebViewer] = []
@@ -239,6 +240,8 @@ def run(conn: Any, spec: dict[str, Any], log: str, fps: float) -> None:
                     "corrections": int(info.get("corrections", 0)),
                     "real_time_factor": float(info.get("real_time_factor", float("nan"))),
                     "frames": frames,
+                    # this process's CPU (every thread) per wall-clock second of the session
+                    "cpu_share": time.process_time() / (time.perf_counter() - wall),
                 },
             )
         )
