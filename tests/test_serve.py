@@ -254,3 +254,49 @@ def test_bad_input_is_refused_and_the_server_keeps_serving(server):
         "connection closed",
         "connection closed by the server",
     ]
+
+
+# ---------------------------------------------------------------------- the study as data
+def test_a_study_exports_as_minari_datasets_and_reads_back(tmp_path, monkeypatch):
+    pytest.importorskip("minari")
+    from strol_gym.benchmarks.serve.export import export_study
+    from strol_gym.benchmarks.serve.plan import SessionSpec
+    from strol_gym.benchmarks.sessions.drive import run_drive
+    from strol_gym.benchmarks.sessions.export import export_session, read_dataset
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    plan = StudyPlan(name="pilot", learners=("strol",), highway=True)
+    people = Participants(tmp_path / "out", plan)
+    logs = []
+    for k in range(2):  # two participants' car sessions (fast, no window), and a practice
+        pid, _, sessions = people.join()
+        (tmp_path / "out" / pid).mkdir()
+        for spec in (sessions[1], next(s for s in sessions if s.kind == "car" and not s.practice)):
+            log = tmp_path / "out" / pid / spec.log_name(k)
+            run_drive(learner="strol", seed=k, log=log, duration=1.0, realtime=False,
+                      keys=lambda: (1.0, 0.0), window=False)  # fmt: skip
+            people.record(pid, spec, str(log.relative_to(tmp_path / "out")), "truncated", 4)
+            logs.append((spec, log))
+    # a session whose process died before its header is skipped, not exported
+    broken = SessionSpec("car", "x", "strol", 0, 5.0, 9, False)
+    (tmp_path / "out" / pid / "09-car-highway-strol.jsonl").write_text("")
+    people.record(pid, broken, f"{pid}/09-car-highway-strol.jsonl", "failed: x", 0)
+    plan_file = _plan(tmp_path, name="pilot", learners=["strol"])
+    assert load_plan(plan_file) == plan
+    from strol_gym.benchmarks.cli import main
+
+    out = str(tmp_path / "out")
+    assert main(["serve", "--study", str(plan_file), "--out", out, "--export"]) == 0
+    with pytest.raises(ValueError, match="already exists"):  # never overwritten
+        export_study(tmp_path / "out", plan)
+    back = read_dataset("pilot/car-strol-v0")
+    study = [log for spec, log in logs if not spec.practice]
+    assert len(back.episodes) == 2
+    for episode, log in zip(back.episodes, study, strict=True):
+        assert len(episode.corrections) == len(read_session(log).episodes[0].corrections) > 0
+    # one dataset holds one setting: another learner's log is refused beside them
+    other = tmp_path / "gradient.jsonl"
+    run_drive(learner="gradient", seed=0, log=other, duration=1.0, realtime=False,
+              keys=lambda: (1.0, 0.0), window=False)  # fmt: skip
+    with pytest.raises(ValueError, match="learner differ"):
+        export_session([study[0], other], "pilot/mixed-v0")

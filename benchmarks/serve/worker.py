@@ -29,6 +29,7 @@ import numpy as np
 from strol_gym.benchmarks.sessions import keys as keymap
 from strol_gym.benchmarks.sessions.drive import run_drive
 from strol_gym.benchmarks.sessions.interact import LOOKAT, draw_plan, run_interactive
+from strol_gym.tasks.study import CONTROL_DT
 
 FRAME_SIZE = (480, 360)
 """The arm's frames (width, height, px)."""
@@ -225,7 +226,7 @@ def run(conn: Any, spec: dict[str, Any], log: str, fps: float) -> None:
                 seed=spec["seed"],
                 log=log,
                 duration=spec["duration"],
-                max_steps=round(spec["duration"] / 0.05),
+                max_steps=round(spec["duration"] / CONTROL_DT),
                 viewer_factory=factory,
                 blind=True,
             )

@@ -120,6 +120,7 @@ def main(argv: list[str] | None = None) -> None:
             f"{statistics.mean(r['fps'] for r in runs):8.2f}  {med:10.0f} {p95:10.0f}"
             f"            {statistics.mean(cpu):.2f}   (load {os.getloadavg()[0]:.1f})"
         )
+        print(f"    each session's RTF: {', '.join(f'{x:.3f}' for x in rtf)}")
         if min(rtf) >= TARGET_RTF:
             best = n
     print(

@@ -50,10 +50,12 @@ function send(obj) {
   if (ws && ws.readyState === WebSocket.OPEN) ws.send(JSON.stringify(obj));
 }
 
+let sessionFrames = 0;  // frames of the running session: latency counts once it shows
+
 function sendInput() {
   if (!running) return;
   seq += 1;
-  sentAt.set(seq, performance.now());
+  if (sessionFrames > 0) sentAt.set(seq, performance.now());
   if (sentAt.size > 200) sentAt.delete(sentAt.keys().next().value);
   send({ t: "input", n: seq, keys: [...held], pad: pad });
 }
@@ -70,6 +72,7 @@ function onFrame(buf) {
   if (frameUrl) URL.revokeObjectURL(frameUrl);
   frameUrl = url;
   stats.frames += 1;
+  sessionFrames += 1;
   fpsCount += 1;
   const now = performance.now();
   if (now - fpsSince > 1000) {
@@ -78,7 +81,8 @@ function onFrame(buf) {
     fpsSince = now;
     const lat = stats.latencyMs.slice(-20);
     const med = lat.length ? [...lat].sort((a, b) => a - b)[lat.length >> 1] : NaN;
-    $("stats").textContent = `${stats.fps.toFixed(1)} frames/s, key to picture ${med.toFixed(0)} ms`;
+    const shown = Number.isNaN(med) ? "" : `, key to picture ${med.toFixed(0)} ms`;
+    $("stats").textContent = `${stats.fps.toFixed(1)} frames/s${shown}`;
   }
 }
 
@@ -141,6 +145,8 @@ function connect() {
 
 function start() {
   held.clear();
+  sentAt.clear();
+  sessionFrames = 0;
   send({ t: "start" });
   running = true;
   show("run");
