@@ -300,3 +300,32 @@ def test_a_study_exports_as_minari_datasets_and_reads_back(tmp_path, monkeypatch
               keys=lambda: (1.0, 0.0), window=False)  # fmt: skip
     with pytest.raises(ValueError, match="learner differ"):
         export_session([study[0], other], "pilot/mixed-v0")
+
+
+def test_the_page_gamepad_and_keys_reach_the_session_by_the_shared_mapping():
+    import multiprocessing
+
+    from strol_gym.benchmarks.serve.worker import Inbox
+    from strol_gym.benchmarks.sessions import keys as keymap
+
+    here, there = multiprocessing.Pipe()
+    inbox = Inbox(there)
+    # a gamepad's left stick pushed right (standard mapping) and Up held on the keyboard
+    pad = {"axes": [1.0, 0.0, 0.0, 0.0], "buttons": [0.0] * 8}
+    here.send(("input", inputs.parse(json.dumps({"t": "input", "n": 7, "keys": ["ArrowUp"],
+                                                 "pad": pad}))))  # fmt: skip
+    deadline = time.monotonic() + 10
+    while inbox.ack != 7 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert inbox.ack == 7
+    want = keymap.pad_arm_intent(keymap.Pad.of(pad["axes"], pad["buttons"]))
+    assert inbox.arm_intent() == want and want.right == 1.0  # the stick wins over the keys
+    assert inbox.car_intent() == (1.0, 1.0)  # keys accelerate, the stick steers right
+    here.send(("input", {"t": "input", "n": 8, "keys": ["arrowup"], "pad": None}))
+    while inbox.ack != 8 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert inbox.arm_intent() == keymap.arm_intent(["arrowup"])  # no pad: the keys
+    here.close()  # the server went away: the session is told to end
+    while inbox.stop_reason is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert inbox.stop_reason == "connection closed"
