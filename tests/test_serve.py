@@ -329,3 +329,22 @@ def test_the_page_gamepad_and_keys_reach_the_session_by_the_shared_mapping():
     while inbox.stop_reason is None and time.monotonic() < deadline:
         time.sleep(0.01)
     assert inbox.stop_reason == "connection closed"
+
+
+def test_visitors_beyond_the_cap_are_asked_to_come_back(tmp_path):
+    from strol_gym.benchmarks.serve.app import Server, serve_in_thread
+
+    srv = Server(StudyPlan(practice=6.0), tmp_path, TOKEN, max_visits=1)
+
+    async def scenario(url: str) -> None:
+        first, _ = await _visit(url)
+        second = await websockets.connect(url.replace("http", "ws") + f"/ws?token={TOKEN}")
+        assert json.loads(await second.recv()) == {"t": "full"}
+        with pytest.raises(websockets.exceptions.ConnectionClosed):
+            await second.recv()
+        await first.close()
+
+    with serve_in_thread(srv) as url:
+        asyncio.run(scenario(url))
+    people = json.loads((tmp_path / "participants.json").read_text())["participants"]
+    assert len(people) == 1  # the one turned away got no id
