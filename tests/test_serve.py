@@ -348,3 +348,22 @@ def test_visitors_beyond_the_cap_are_asked_to_come_back(tmp_path):
         asyncio.run(scenario(url))
     people = json.loads((tmp_path / "participants.json").read_text())["participants"]
     assert len(people) == 1  # the one turned away got no id
+
+
+def test_the_panel_reaches_the_page_from_either_layout_of_interacts_overlay():
+    import mujoco
+
+    from strol_gym.benchmarks.serve.worker import arm_panel
+    from strol_gym.benchmarks.sessions import keys as keymap
+
+    grid = mujoco.mjtGridPos
+    push = keymap.ArmPush().step(keymap.Intent(right=1.0), 1.0, 150.0)
+    cues = (0, grid.mjGRID_TOPRIGHT, "TOO HARD: the arm braked\nreal-time factor 0.98", "")
+    top = grid.mjGRID_TOPLEFT
+    one_column = (0, top, "time: 1.0 s\ncorrections: 2\n\nHOW: drag\nTEACH: low", "")
+    two_columns = (0, top, "time\ncorrections\n\nHOW\nTEACH", "1.0 s\n2\n\ndrag\nlow")
+    for left in (one_column, two_columns):
+        panel = arm_panel([left, cues], push)
+        assert panel["state"] == ["time: 1.0 s", "corrections: 2"]  # the mouse's help left out
+        assert panel["teach"] == "low" and panel["cues"][0].startswith("TOO HARD")
+        assert panel["push"] == 40.0 and not panel["harder"]

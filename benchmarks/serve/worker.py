@@ -21,7 +21,7 @@ import copy
 import io
 import threading
 import time
-from typing import Any
+from typing import Any, NamedTuple
 
 import mujoco
 import numpy as np
@@ -106,6 +106,17 @@ def render_model(model: mujoco.MjModel) -> mujoco.MjModel:
     return m
 
 
+class PageDrag(NamedTuple):
+    """A mouse perturbation's fields (``mjvPerturb``) as a viewer reports them: a page's is
+    never active."""
+
+    select: int
+    active: int
+    refselpos: np.ndarray
+    refquat: np.ndarray
+    localpos: np.ndarray
+
+
 class WebViewer:
     """``interact``'s :class:`Viewer` for a page: pushes from the page's keys, frames to it."""
 
@@ -186,18 +197,41 @@ class WebViewer:
     def draw_plan(self, points: np.ndarray, target: np.ndarray | None = None) -> None:
         self.plan = (np.array(points), None if target is None else np.array(target))
 
+    # What a viewer that reports the keys themselves offers (the loop then pushes): the
+    # page's keys, the camera's azimuth, the cup selected and no mouse drag.
+    lost = ""
+    want_cup = False
+
+    def held_keys(self) -> frozenset[str]:
+        return frozenset(self.inbox.keys)
+
+    def azimuth(self) -> float:
+        return AZIMUTH
+
+    def select(self, body: int, localpos: np.ndarray) -> None:
+        self.selected = (int(body), np.array(localpos, dtype=np.float64))
+
+    def drag(self) -> PageDrag:
+        """The cup selected, never dragged (a page has no mouse push)."""
+        body, at = getattr(self, "selected", (self.body, np.zeros(3)))
+        return PageDrag(body, 0, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), at)
+
     def close(self) -> None:
         self.renderer.close()
 
 
 def arm_panel(texts: Any, wrench: keymap.Wrench) -> dict[str, Any]:
-    """``interact``'s panel (``overlay``) for the page: its state lines and what to teach (its
-    mouse instructions give way to the page's key help), its cues, and the push's size."""
-    left = next((t[2] for t in texts if t[1] == mujoco.mjtGridPos.mjGRID_TOPLEFT), "")
+    """``interact``'s panel (``overlay``) for the page: its state rows and what to teach (its
+    mouse instructions give way to the page's key help), its cues, and the push's size. The
+    top-left text is read as "label: value" lines, or as two columns (labels, values)."""
+    left = next((t for t in texts if t[1] == mujoco.mjtGridPos.mjGRID_TOPLEFT), None)
     right = next((t[2] for t in texts if t[1] == mujoco.mjtGridPos.mjGRID_TOPRIGHT), "")
-    lines = left.split("\n")
-    state = lines[: lines.index("")] if "" in lines else lines
-    teach = next((line[len("TEACH: ") :] for line in lines if line.startswith("TEACH: ")), "")
+    labels = left[2].split("\n") if left is not None else []
+    values = (left[3] or "").split("\n") if left is not None else []
+    values += [""] * (len(labels) - len(values))
+    rows = [f"{a}: {b}" if a and b else a or b for a, b in zip(labels, values, strict=False)]
+    state = rows[: rows.index("")] if "" in rows else rows
+    teach = next((r[len("TEACH: ") :] for r in rows if r.startswith("TEACH: ")), "")
     return {
         "state": state,
         "teach": teach,
