@@ -143,7 +143,10 @@ def _get(url: str) -> int:
 
 
 async def _visit(url: str, token: str = TOKEN) -> tuple[object, dict]:
-    ws = await websockets.connect(url.replace("http", "ws") + f"/ws?token={token}")
+    # no keepalive pings: on a loaded machine a late pong would end the test's connection
+    ws = await websockets.connect(
+        url.replace("http", "ws") + f"/ws?token={token}", ping_interval=None
+    )
     hello = json.loads(await ws.recv())
     assert hello["t"] == "hello"
     assert json.loads(await ws.recv())["t"] == "next"

@@ -109,6 +109,8 @@ class Server:
         self.visits = 0
         self.ctx = multiprocessing.get_context("forkserver")
         self.ctx.set_forkserver_preload(PRELOAD)
+        # the fork server's imports take seconds: begin them now, not when someone waits
+        threading.Thread(target=self._warm, daemon=True).start()
         static = resources.files("strol_gym.benchmarks.serve") / "static"
         self.pages = {
             route: (static.joinpath(name).read_bytes(), kind)
@@ -123,6 +125,11 @@ class Server:
                 WebSocketRoute("/ws", self.visit),
             ]
         )
+
+    def _warm(self) -> None:
+        proc = self.ctx.Process(target=_nothing, daemon=True)
+        proc.start()
+        proc.join()
 
     # ------------------------------------------------------------------ HTTP
     def _token_ok(self, query: Any) -> bool:
@@ -258,7 +265,7 @@ class Server:
             args=(there, dataclasses.asdict(spec), str(log), self.fps),
             daemon=True,
         )
-        proc.start()
+        await asyncio.to_thread(proc.start)  # blocks until the fork server has forked it
         there.close()
         loop = asyncio.get_running_loop()
         box: dict[str, Any] = {"frame": None, "texts": [], "end": None}
@@ -343,6 +350,10 @@ def serve_in_thread(server: Server, host: str = "127.0.0.1") -> Iterator[str]:
     finally:
         web.should_exit = True
         thread.join(timeout=30)
+
+
+def _nothing() -> None:
+    """A process that only starts the fork server."""
 
 
 def _next(index: int, spec: SessionSpec) -> dict[str, Any]:
