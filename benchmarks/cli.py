@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import os
 import signal
 import sys
@@ -228,10 +229,31 @@ def _quiet_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
 
 
+BENCH_MODULES = ("matplotlib", "tqdm")
+"""The import names of setup.cfg's ``[bench]`` extra (tables, plots, progress bars), which the
+core install leaves out (tests/test_release.py checks they agree)."""
+
+
+def missing_bench_extra() -> str | None:
+    """None when the ``[bench]`` extra is installed, else the reason to print: checked before
+    any command, so a core install gets one line naming the extra, not an ImportError mid-run."""
+    missing = [m for m in BENCH_MODULES if importlib.util.find_spec(m) is None]
+    if not missing:
+        return None
+    return (
+        f"strol-bench needs the [bench] extra ({', '.join(missing)} not installed): "
+        "pip install 'strol-gym[bench]'"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``strol-bench`` console script. Output piped into a reader that
     stops early (``strol-bench list | head``) ends quietly, with status 0: the output is flushed
     here, where a closed pipe can be caught, not at exit."""
+    problem = missing_bench_extra()
+    if problem:
+        print(f"strol-bench: error: {problem}", file=sys.stderr)
+        return 2
     try:
         try:
             status = _main(argv)
