@@ -33,7 +33,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from strol_gym.files import host, temp_tag
+from strol_gym.files import host, open_regular, temp_tag
 
 LOCK = ".lock"
 BREAK = ".lock.break"
@@ -112,11 +112,24 @@ class Owner:
             return True  # written before this host rebooted
         if not _pid_alive(self.pid):
             return True
+        if self.start is None and not _may_be_ours(self.pid):
+            return True  # no start time to compare (a bare pid): the process there is not ours
         now = start_time(self.pid)
         return self.start is not None and now is not None and now != self.start  # recycled
 
     def words(self) -> str:
         return f"host {self.host}, pid {self.pid}"
+
+
+def _may_be_ours(pid: int) -> bool:
+    """Whether the process ``pid`` may be a strol-bench run: a Python interpreter or
+    strol-bench by its command line (pid 1 is init on most hosts); True where /proc cannot
+    say (no /proc, or an empty command line: a process between fork and exec)."""
+    try:
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes()[:4096].lower()
+    except OSError:
+        return True
+    return not cmd or b"python" in cmd or b"strol" in cmd
 
 
 def _pid_alive(pid: int) -> bool:
@@ -132,7 +145,7 @@ def _pid_alive(pid: int) -> bool:
 def _read(lock: Path) -> tuple[Owner | None, os.stat_result, bytes] | None:
     """The lock's owner, stat and bytes; None if it does not exist."""
     try:
-        with open(lock, "rb") as f:
+        with open_regular(lock, "lock file") as f:
             st = os.fstat(f.fileno())
             data = f.read(_MAX_LOCK_BYTES + 1)
     except FileNotFoundError:

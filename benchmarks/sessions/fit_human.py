@@ -1,5 +1,6 @@
 """``strol-bench fit-human SOURCE... --human NAME [--compare A,B,C] --out DIR``: fit a human
-model to correction logs (the likelihood and its machinery: ``strol_gym.humans.fitting``).
+model to correction logs (the likelihood and its machinery:
+``strol_gym.benchmarks.sessions.fitting``).
 
 A SOURCE is a session log (.jsonl), a folder of them, or a Minari dataset (``strol-bench
 export``). The fit reads only what a person's log holds (``fitting.Corrections``): the header's
@@ -28,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.humans.fitting import (
+from strol_gym.benchmarks.sessions.fitting import (
     DEFAULT_INTERVAL,
     FEW_PEOPLE,
     INTERVALS,
@@ -41,6 +42,7 @@ from strol_gym.humans.fitting import (
     select,
     simulate,
 )
+from strol_gym.files import write_figure, write_text_atomic
 
 INTERVAL_NAMES = {
     "bca": "BCa bootstrap, widened for few people",
@@ -151,7 +153,10 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
                 hat = np.full_like(hat, np.nan) if after is None else after
             n_ep += 1
             if len(person) > _max_corrections():
-                raise ValueError(f"SOURCE: more than {_max_corrections()} corrections")
+                raise ValueError(
+                    f"SOURCE: more than {_max_corrections():,} corrections (the cap "
+                    "fit_corrections: a fit's memory grows with them; --allow-large lifts it)"
+                )
     if not person:
         raise ValueError("SOURCE: no correction with a logged θ* (the preference taught)")
     assert task is not None
@@ -179,9 +184,12 @@ def _hat_source(unknown: bool, rebuilt: int) -> str:
 
 
 def _max_corrections() -> int:
-    from strol_gym.humans.fitting import MAX_CORRECTIONS
+    """The most corrections a fit reads: the caps table's ``fit_corrections`` (memory grows
+    with them, ~0.4 MB each), or with the caps lifted the fitter's own bound."""
+    from strol_gym.benchmarks.sessions.fitting import MAX_CORRECTIONS
+    from strol_gym.limits import CAPS, lifted_now
 
-    return MAX_CORRECTIONS
+    return MAX_CORRECTIONS if lifted_now() else CAPS["fit_corrections"]
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -239,12 +247,12 @@ def ppc_plot(path: Path, data: Corrections, fits: dict[str, Fit], seed: int) -> 
     axes[0].legend(fontsize=7)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
 def _usable(name: str, data: Corrections) -> Corrections:
-    from strol_gym.humans.fitting import family, usable
+    from strol_gym.benchmarks.sessions.fitting import family, usable
 
     return usable(family(name), data)[0]
 
@@ -325,7 +333,7 @@ def run_fit_human(
 ) -> dict[str, Fit]:
     """The command's work (module docstring); the fits by model name. ValueError where
     ``compare`` is asked of fewer than 2 people (held-out needs folds of people)."""
-    from strol_gym.humans.fitting import family
+    from strol_gym.benchmarks.sessions.fitting import family
 
     for name in [human, *compare]:
         family(name)  # every name checked before any work
@@ -351,10 +359,11 @@ def run_fit_human(
     record = main.to_json()
     if chosen is not None:
         record["selection"] = chosen.to_json()
-    (out / "fit.json").write_text(json.dumps(record, indent=2) + "\n")
-    (out / "fit.md").write_text(fit_markdown(main, sources))
+    write_text_atomic(out / "fit.json", json.dumps(record, indent=2) + "\n")
+    write_text_atomic(out / "fit.md", fit_markdown(main, sources))
     if chosen is not None:
-        (out / "compare.json").write_text(
+        write_text_atomic(
+            out / "compare.json",
             json.dumps(
                 {
                     "fits": [f.to_json() for f in fits.values()],
@@ -363,9 +372,9 @@ def run_fit_human(
                 },
                 indent=2,
             )
-            + "\n"
+            + "\n",
         )
-        (out / "compare.md").write_text(compare_markdown(fits, skipped, chosen))
+        write_text_atomic(out / "compare.md", compare_markdown(fits, skipped, chosen))
         if plots:
             ppc_plot(out / "plots" / "ppc.png", data, fits, seed)
     return fits
@@ -373,7 +382,7 @@ def run_fit_human(
 
 # ---------------------------------------------------------------------------- CLI
 def add_parser(sub: Any) -> None:
-    from strol_gym.benchmarks.args import plugin_option, positive_int
+    from strol_gym.benchmarks.args import add_allow_large, plugin_option, positive_int
 
     p = sub.add_parser(
         "fit-human",
@@ -406,10 +415,16 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument("--no-plots", action="store_true")
     plugin_option(p)
+    add_allow_large(p)
 
 
 def command(args: Any, parser: Any) -> int:
+    from strol_gym.benchmarks.args import check_size_caps
+
+    check_size_caps(args, {})  # --allow-large lifts the cap on the corrections read
     compare = [c for c in args.compare.split(",") if c] if args.compare else []
+    if args.compare and not compare:
+        parser.error(f"--compare must name models (comma-separated), got {args.compare!r}")
     fits = run_fit_human(
         args.sources,
         args.human,
