@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # what a clean clone does not have: build products, caches, venvs and results
 NOT_IN_A_CLONE = shutil.ignore_patterns(
     ".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", ".pytest_cache",
-    ".ruff_cache", ".hypothesis", "results", "outputs",
+    ".ruff_cache", ".mypy_cache", ".hypothesis", "results", "outputs",
 )  # fmt: skip
 
 
