@@ -43,11 +43,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
     plugin_option(p)
 
-    from strol_gym.benchmarks.sessions import export, interact, replay
+    from strol_gym.benchmarks.sessions import export, interact_cli, replay
 
     replay.add_parser(sub)
     export.add_parser(sub)
-    interact.add_parser(sub)
+    interact_cli.add_parser(sub)
     from strol_gym.benchmarks.sessions import import_study
 
     import_study.add_parser(sub)
@@ -148,7 +148,7 @@ def cmd_export(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
 
 
 def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from strol_gym.benchmarks.sessions.interact import command
+    from strol_gym.benchmarks.sessions.interact_cli import command
 
     return command(args, parser)
 

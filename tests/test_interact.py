@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from strol_gym.benchmarks.cli import main
-from strol_gym.benchmarks.sessions.interact import run_interactive
+from strol_gym.benchmarks.sessions.interact import DRAG_STIFFNESS, Drag, run_interactive
 from strol_gym.envs.study.segment import PushSegmenter
 from strol_gym.envs.study.versions import HOLD_OFF
 from strol_gym.tasks.study import CONTROL_DT
@@ -29,13 +29,27 @@ HOLD_STEPS = PushSegmenter.for_hold_off(15.0, HOLD_OFF, CONTROL_DT).hold_steps
 
 
 class FakeViewer:
-    """Pushes the hand with ``force`` N during syncs [start, start + steps)."""
+    """Drags the cup with ``force`` N during syncs [start, start + steps): the drag's point is
+    put ``force / DRAG_STIFFNESS`` m from the cup, as a mouse leaves it; ``held``: keys."""
 
-    def __init__(self, model, data, force=(0.0, 30.0, 0.0), start=PUSH_START, steps=PUSH_STEPS):
-        self.data = data
-        self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
+    def __init__(
+        self,
+        model,
+        data,
+        force=(0.0, 30.0, 0.0),
+        start=PUSH_START,
+        steps=PUSH_STEPS,
+        held=(),
+        azimuth=150.0,
+        held_steps=None,
+    ):
+        self.model, self.data = model, data
+        self.site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "cup")
         self.force = np.asarray(force, dtype=float)
         self.window = range(start, start + steps)
+        self.held = frozenset(held)
+        self.held_steps = held_steps  # syncs during which ``held`` is held (None: always)
+        self.camera = azimuth
         self.syncs = 0
         self.texts = None
         self.history = []
@@ -44,12 +58,32 @@ class FakeViewer:
         self.show_target = False  # the F8 key
         self.show_panel = True  # the F9 key
         self.closed = False
+        self.lost = ""
+        self.selected = (0, np.zeros(3))
+        self.active, self.ref = 0, np.zeros(3)
 
     def sync(self) -> None:
         self.data.xfrc_applied[:] = 0.0
+        self.active = 0
         if self.syncs in self.window:
-            self.data.xfrc_applied[self.body, :3] = self.force
+            self.active = int(mujoco.mjtPertBit.mjPERT_TRANSLATE)
+            self.ref = self.data.site_xpos[self.site] + self.force / DRAG_STIFFNESS
         self.syncs += 1
+
+    def drag(self) -> Drag:
+        body, local = self.selected
+        return Drag(body, self.active, self.ref.copy(), np.array([1.0, 0, 0, 0]), local)
+
+    def select(self, body, localpos) -> None:
+        self.selected = (body, np.array(localpos))
+
+    def held_keys(self):
+        if self.held_steps is None or self.syncs in self.held_steps:
+            return self.held
+        return frozenset()
+
+    def azimuth(self) -> float:
+        return self.camera
 
     def is_running(self) -> bool:
         return not self.closed
@@ -174,7 +208,7 @@ def test_bad_log_names_file_and_line(session, tmp_path, capsys):
     log, _, _ = session
     lines = log.read_text().splitlines()
     bad = tmp_path / "bad.jsonl"
-    rec = json.loads(lines[2])
+    rec = next(json.loads(t) for t in lines if '"type": "correction"' in t)
     rec["u_h"] = [1.0, "x", 0.0]
     bad.write_text("\n".join([lines[0], lines[1], json.dumps(rec)]) + "\n")
     with pytest.raises(SessionLogError, match=rf"{bad}:3: 'u_h'"):
@@ -301,22 +335,26 @@ def _run(tmp_path, name, **kwargs):
 
 
 def test_a_shove_above_the_reflex_shows_on_the_panel_and_is_logged(tmp_path):
-    viewers, factory, path = _run(tmp_path, "shove", force=(0.0, 250.0, 0.0), steps=6)
+    """A long drag with Shift (harder) held: the drag's 250 N is capped at 1.25 x the reflex,
+    125 N, above the reflex: the arm brakes."""
+    viewers, factory, path = _run(
+        tmp_path, "shove", force=(0.0, 250.0, 0.0), steps=6, held={"shift"}
+    )
     _, info = run_interactive(
         task=1, log=path, max_steps=30, realtime=False, viewer_factory=factory
     )
     (viewer,) = viewers
     assert info["corrections"] == 0 and info["reflexes"] == 1
     lines = [json.loads(t) for t in path.read_text().splitlines()]
-    (event,) = [r for r in lines if r["type"] == "event"]
+    (event,) = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
     assert event["kind"] == "reflex" and event["reflex_force"] == 100.0
-    np.testing.assert_allclose(event["force"], [0.0, 250.0, 0.0])
+    np.testing.assert_allclose(event["force"], [0.0, 125.0, 0.0])
     assert event["step"] == PUSH_START
     assert not any(r["type"] == "correction" for r in lines)
     read_session(path)  # the reader takes event lines
     cues = ["\n".join(t[2] for t in texts[1:]) for texts in viewer.history]
     too_hard = [k for k, c in enumerate(cues) if "TOO HARD: the arm braked, no correction" in c]
-    assert too_hard[0] == PUSH_START and "(250 N > 100 N)" in cues[PUSH_START]
+    assert too_hard[0] == PUSH_START and "(125 N > 100 N)" in cues[PUSH_START]
     assert not any("PUSH COUNTS" in c for c in cues)
 
 
@@ -371,3 +409,86 @@ def test_our_keys_are_free_in_the_viewer():
     assert set("ABCDEFGHIJKLMNOPQRSTUVWXYZ") <= letters  # no letter is free
     glfw_f1 = 290
     assert {TARGET_KEY - glfw_f1 + 1, PANEL_KEY - glfw_f1 + 1} == {8, 9}  # F8, F9 (F1-F7 used)
+
+
+def _angle(a, b) -> float:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    cos = np.dot(a, b) / np.linalg.norm(a) / np.linalg.norm(b)
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+@pytest.mark.parametrize("azimuth", [150.0, 60.0])
+def test_a_key_push_is_one_correction_where_the_camera_looks(tmp_path, azimuth):
+    """W held 1.5 s: the push grows like a hand's to 40 N away from the camera (laid flat on the
+    table), the panel shows its size, and it becomes one correction whose u_H points within
+    30 degrees of W's direction, whichever way the camera looks."""
+    from strol_gym.benchmarks.sessions.keys import camera_axes
+
+    viewers, factory, path = _run(
+        tmp_path, "w", steps=0, held={"w"}, held_steps=range(5, 35), azimuth=azimuth
+    )
+    _, info = run_interactive(
+        task=1, log=path, max_steps=60, realtime=False, viewer_factory=factory
+    )
+    (c,) = read_session(path).episodes[0].corrections
+    away = camera_axes(azimuth)[:, 1]
+    assert _angle(c["u_h"], away) < 30.0, (c["u_h"], away)
+    lines = [json.loads(t) for t in path.read_text().splitlines()]
+    force = np.array(next(r for r in lines if r["type"] == "correction")["trace"]["force"])
+    sizes = np.linalg.norm(force, axis=1)
+    assert sizes.max() == pytest.approx(40.0) and sizes[0] < 40.0  # it grew to 40 N
+    assert all(_angle(f, away) < 1e-6 for f in force[sizes > 0])
+    panels = [texts[0][2] for texts in viewers[0].history]
+    assert any("key push: 40 N, 0.0 N m" in p for p in panels)
+    assert info["corrections"] == 1 and info["reflexes"] == 0
+
+
+def test_duration_is_the_step_limit_and_the_end_line_says_time_up(tmp_path):
+    """--duration 100 lasts 100 simulated seconds (the registered limit, 60 s, no longer ends it
+    first); the end line says "time up" with the simulated time."""
+    viewers, factory, path = _run(tmp_path, "d", steps=0)
+    _, info = run_interactive(
+        task=1, log=path, duration=100.0, realtime=False, viewer_factory=factory
+    )
+    end = json.loads(path.read_text().splitlines()[-1])
+    assert end["type"] == "end" and end["reason"] == "time up" and info["end_reason"] == "time up"
+    assert end["steps"] == 2000 and end["sim_time"] == pytest.approx(100.0)
+    assert "of 100 s" in viewers[0].texts[0][2]
+
+
+def test_sigterm_ends_the_session_with_its_reason_and_130(tmp_path, monkeypatch, capsys):
+    """SIGTERM (a terminal closed, a job stopped) writes the end line, as Ctrl-C does."""
+    import os
+    import signal
+
+    from strol_gym.benchmarks.sessions import interact
+
+    class Terminated(FakeViewer):
+        def sync(self):
+            super().sync()
+            if self.syncs == 5:
+                os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.setattr(interact, "passive_viewer", Terminated)
+    log = tmp_path / "t.jsonl"
+    assert cli(["interact", "--task", "1", "--fast", "--log", str(log)]) == 130
+    end = json.loads(log.read_text().splitlines()[-1])
+    assert end["reason"] == "terminated" and end["interrupted"] is True
+    assert end["steps"] >= 4 and end["sim_time"] == pytest.approx(end["steps"] * CONTROL_DT)
+    out = capsys.readouterr()
+    assert "session ended: terminated" in out.out and "interrupted:" in out.err
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # put back
+
+
+def test_each_mode_has_its_own_help(capsys):
+    for argv, words in (
+        (["interact", "--help"], "Push the study arm"),
+        (["interact", "arm", "--help"], "Push the study arm"),
+        (["interact", "car", "--help"], "Drive the blue (human) car"),
+        (["interact", "--env", "highway", "--help"], "Drive the blue (human) car"),
+    ):
+        assert cli(argv) == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert words in text and "END:" in text and "LOG:" in text, argv
+    assert cli(["interact", "car", "--env", "robot", "--task", "9"]) == 2
