@@ -59,6 +59,7 @@ class FakeViewer:
         self.show_panel = True  # the F9 key
         self.closed = False
         self.lost = ""
+        self.want_cup = False
         self.selected = (0, np.zeros(3))
         self.active, self.ref = 0, np.zeros(3)
 

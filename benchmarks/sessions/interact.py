@@ -94,6 +94,8 @@ class Viewer(Protocol):
 
     show_target: bool
     """Whether the person asked to see the plan for θ* (a key); the front end reads it."""
+    want_cup: bool
+    """Whether the person asked for the cup to be selected again (a key)."""
     lost: str
     """Why the window went away without closing ("" while it is there): "X error"."""
 
@@ -136,6 +138,7 @@ GLFW_NAMES: dict[int, str] = {
     265: "arrowup",
     266: "pageup",
     267: "pagedown",
+    268: "home",
     340: "shift",
     344: "shift",
 }
@@ -249,6 +252,7 @@ class _Passive(PassiveViewer):
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         self.show_target = False
         self.show_panel = True
+        self.want_cup = False
         self.lost = ""
         self.grab = KeyGrab()
         watch_x_errors(self._x_error, self._x_lost)
@@ -296,7 +300,9 @@ class _Passive(PassiveViewer):
 
     def _key(self, keycode: int) -> None:  # the viewer's thread: only flip a flag
         self.grab.on_first_key(keycode)
-        if keycode == TARGET_KEY:
+        if GLFW_NAMES.get(keycode) == keys.CUP_KEY:
+            self.want_cup = True
+        elif keycode == TARGET_KEY:
             self.show_target = not self.show_target
         elif keycode == PANEL_KEY:
             self.show_panel = not self.show_panel
@@ -469,7 +475,7 @@ TOO_HARD = "TOO HARD: the arm braked, no correction"
 JOINT_LIMIT = "or sooner where a joint cannot bear the push "
 """The instructions' words where the version also brakes on a joint's torque (v2)."""
 PANEL_HIDDEN = "F9: show the panel"
-NOTHING_SELECTED = "NOTHING SELECTED: a drag moves the camera; double-click the cup to push it"
+NOTHING_SELECTED = "NOTHING SELECTED: a drag moves the camera; Home selects the cup"
 
 
 def overlay(
@@ -776,6 +782,9 @@ def _session_loop(
             study.data.xfrc_applied[:] = 0.0  # what is left there is the env's own push
             viewer.sync()  # the viewer writes its own push there: ours replaces it
             study.data.xfrc_applied[:] = 0.0
+            if getattr(viewer, "want_cup", False):  # the cup key
+                viewer.want_cup = False
+                viewer.select(int(study.model.site_bodyid[site]), study.model.site_pos[site])
             drag = viewer.drag()
             if drag.select != selected:
                 selected = drag.select

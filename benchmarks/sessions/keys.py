@@ -82,11 +82,14 @@ ARM_KEYS: Mapping[str, tuple[str, float]] = {
 """Key name -> (axis, sign) for the arm. Two keys of one axis pressed together cancel."""
 HARDER_KEY = "shift"
 """Held with a push: push harder than the reflex allows (the arm brakes)."""
+CUP_KEY = "home"
+"""Pressed: the cup is what a mouse drag pushes again (after another link, or nothing, was
+selected)."""
 
 ARM_KEY_HELP = (
     "W/S (or Up/Down): push away / towards you; A/D (or Left/Right): left / right;",
     "E/Q (or Page Up/Down): up / down; I/K tilt, J/L turn, U/O roll the cup (Tasks 2-3);",
-    "hold Shift to push harder than the reflex allows (the arm brakes).",
+    "hold Shift to push harder than the reflex allows (the arm brakes); Home: select the cup.",
 )
 """The arm's keys in words, for a panel or a help page."""
 
@@ -425,6 +428,7 @@ __all__ = [
     "AXES",
     "CAR_KEYS",
     "CAR_KEY_HELP",
+    "CUP_KEY",
     "DEAD_ZONE",
     "HARDER_KEY",
     "ArmPush",
