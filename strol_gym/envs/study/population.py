@@ -39,7 +39,7 @@ import numpy as np
 
 from strol_gym import checks
 from strol_gym.envs.study.people import FittedParams
-from strol_gym.files import loads_json
+from strol_gym.files import loads_json, read_regular
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
@@ -211,9 +211,8 @@ def parse(obj: Any, what: str = "participant fit") -> Population:
 def read_fit(path: str | Path) -> Population:
     """The population of fit file ``path`` (size-capped, plain JSON, checked)."""
     path = Path(path)
-    if path.stat().st_size > MAX_FIT_BYTES:
-        raise ValueError(f"{path}: a participant fit file is at most {MAX_FIT_BYTES} bytes")
-    return parse(loads_json(path.read_bytes(), str(path)), str(path))
+    raw = read_regular(path, MAX_FIT_BYTES, "participant fit file")
+    return parse(loads_json(raw, str(path)), str(path))
 
 
 @functools.cache
