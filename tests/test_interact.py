@@ -493,3 +493,23 @@ def test_each_mode_has_its_own_help(capsys):
         text = " ".join(capsys.readouterr().out.split())
         assert words in text and "END:" in text and "LOG:" in text, argv
     assert cli(["interact", "car", "--env", "robot", "--task", "9"]) == 2
+
+
+def test_a_gamepad_push_is_one_correction(tmp_path):
+    """The left stick pushed forward (the standard mapping's axis 1 at -1) for 1.5 s: one
+    correction away from the camera, as W gives."""
+    from strol_gym.benchmarks.sessions.keys import Pad, camera_axes
+
+    steps = iter(range(10_000))
+
+    def pad():
+        k = next(steps)
+        return Pad.of([0.0, -1.0 if 5 <= k < 35 else 0.0, 0.0, 0.0], [0.0] * 17)
+
+    _, factory, path = _run(tmp_path, "pad", steps=0)
+    _, info = run_interactive(
+        task=1, log=path, max_steps=60, realtime=False, viewer_factory=factory, pad=pad
+    )
+    (c,) = read_session(path).episodes[0].corrections
+    assert _angle(c["u_h"], camera_axes(150.0)[:, 1]) < 30.0, c["u_h"]
+    assert info["corrections"] == 1
