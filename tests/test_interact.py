@@ -17,7 +17,12 @@ import numpy as np
 import pytest
 
 from strol_gym.benchmarks.cli import main
-from strol_gym.benchmarks.sessions.interact import DRAG_STIFFNESS, Drag, run_interactive
+from strol_gym.benchmarks.sessions.interact import (
+    DRAG_STIFFNESS,
+    Drag,
+    panel_text,
+    run_interactive,
+)
 from strol_gym.envs.study.segment import PushSegmenter
 from strol_gym.envs.study.versions import HOLD_OFF
 from strol_gym.tasks.study import CONTROL_DT
@@ -154,9 +159,9 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     np.testing.assert_allclose(info["theta_hat"], rec["theta_hat_after"])
     assert lines[-1]["type"] == "end" and lines[-1]["reason"] == "max_steps"
     # the overlay shows the correction time; blind (the default), no θ̂ or φ
-    text = viewer.texts[0]
-    assert "correction time: 1.00 s" in text[2]
-    assert "theta_hat" not in text[2] and "pitcher:" not in text[2]
+    shown = "\n".join(t[2] + t[3] for t in viewer.texts)
+    assert "correction time 1.00 s" in panel_text(viewer.texts)
+    assert "theta_hat" not in shown and "pitcher:" not in shown
     assert lines[-1]["interrupted"] is False
 
 
@@ -165,10 +170,12 @@ def test_panel_tells_how_to_push_what_to_teach_and_cues_the_correction(session):
     from strol_gym.tasks.study import StudyTask1
 
     log, _, viewer = session
-    how = viewer.texts[0][2]
+    how = panel_text(viewer.texts)
     task = StudyTask1()
-    assert "Ctrl + right-drag" in how and "15 N" in how and "100 N the arm brakes" in how
-    assert how.endswith("TEACH: " + teach_words(task.feature_names, task.theta_star))
+    assert "Ctrl + right-drag" in how and ">15 N a correction" in how and ">100 N" in how
+    assert "W/S A/D E/Q push away/back" in how and "END close the window" in how
+    assert how.endswith("TEACH " + teach_words(task.feature_names, task.theta_star))
+    assert all(len(t[2]) <= 500 and len(t[3]) <= 500 for t in viewer.texts)  # mjMAXOVERLAY
     # the panel stays in the top corners: the table, pitcher and plate below stay in view
     grids = {t[1] for texts in viewer.history for t in texts}
     assert grids <= {mujoco.mjtGridPos.mjGRID_TOPLEFT, mujoco.mjtGridPos.mjGRID_TOPRIGHT}
@@ -372,7 +379,7 @@ def test_a_push_a_joint_cannot_bear_brakes_below_the_force_reflex_and_the_panel_
     )
     (viewer,) = viewers
     assert info["corrections"] == 0 and info["reflexes"] == 1
-    assert JOINT_LIMIT in viewer.texts[0][2]
+    assert JOINT_LIMIT in panel_text(viewer.texts)
     cue = "\n".join(t[2] for t in viewer.history[PUSH_START][1:])
     assert "TOO HARD" in cue and "(60 N: a joint's limit)" in cue and "> 100 N" not in cue
 
@@ -387,8 +394,8 @@ def test_blind_by_default_and_the_panel_toggles(tmp_path):
         run_interactive(
             task=1, log=path, max_steps=3, realtime=False, viewer_factory=factory, blind=blind
         )
-        panel = viewers[0].texts[0][2]
-        assert ("theta_hat / phi" in panel) is (not blind)
+        shown = "\n".join(t[2] for t in viewers[0].texts)
+        assert ("theta_hat" in shown and " / phi " in shown) is (not blind)
         assert read_session(path).episodes[0].theta_hat0 is not None
         assert json.loads(path.read_text().splitlines()[0])["extra"]["interact"]["blind"] is blind
     viewers, factory, path = _run(tmp_path, "hidden", steps=0)
@@ -439,8 +446,8 @@ def test_a_key_push_is_one_correction_where_the_camera_looks(tmp_path, azimuth):
     sizes = np.linalg.norm(force, axis=1)
     assert sizes.max() == pytest.approx(40.0) and sizes[0] < 40.0  # it grew to 40 N
     assert all(_angle(f, away) < 1e-6 for f in force[sizes > 0])
-    panels = [texts[0][2] for texts in viewers[0].history]
-    assert any("key push: 40 N, 0.0 N m" in p for p in panels)
+    panels = [panel_text(texts) for texts in viewers[0].history]
+    assert any("key push 40 N, 0.0 N m" in p for p in panels)
     assert info["corrections"] == 1 and info["reflexes"] == 0
 
 
@@ -454,7 +461,7 @@ def test_duration_is_the_step_limit_and_the_end_line_says_time_up(tmp_path):
     end = json.loads(path.read_text().splitlines()[-1])
     assert end["type"] == "end" and end["reason"] == "time up" and info["end_reason"] == "time up"
     assert end["steps"] == 2000 and end["sim_time"] == pytest.approx(100.0)
-    assert "of 100 s" in viewers[0].texts[0][2]
+    assert "time 100.0 s of 100 s" in panel_text(viewers[0].texts)
 
 
 def test_sigterm_ends_the_session_with_its_reason_and_130(tmp_path, monkeypatch, capsys):

@@ -67,7 +67,7 @@ class ScriptedPerson(interact._Passive):
 
     def set_texts(self, texts):
         super().set_texts(texts)
-        out["texts"].append([t[2] for t in self.texts])  # read back from the front end
+        out["texts"].append([interact.panel_text(self.texts)] + [t[2] for t in self.texts[1:]])
 
     def draw_plan(self, points, target=None):
         super().draw_plan(points, target)
@@ -116,7 +116,7 @@ def test_scripted_person_sees_the_panel_the_plan_and_the_correction_cue(tmp_path
     task = StudyTask1V2()
     how = seen["texts"][0][0]
     assert "Ctrl + right-drag" in how
-    assert how.endswith("TEACH: " + teach_words(task.feature_names, task.theta_star))
+    assert how.endswith("TEACH " + teach_words(task.feature_names, task.theta_star))
     cues = ["\n".join(t[1:]) for t in seen["texts"]]
     assert [k for k, t in enumerate(cues) if "PUSH COUNTS: 30 N" in t] == list(
         range(PUSH_START, PUSH_START + PUSH_STEPS)

@@ -51,14 +51,19 @@ def main() -> None:
             translate = int(mujoco.mjtPertBit.mjPERT_TRANSLATE)
             return interact.Drag(d.select, translate, ref, d.refquat, d.localpos)
 
+        def grab_window(self):
+            """The viewer's window (at the screen's corner: Xvfb has no window manager)."""
+            view = self.handle.viewport
+            return ImageGrab.grab(bbox=(0, 0, view.width, view.height))
+
         def set_texts(self, texts):
             super().set_texts(texts)
             self.handle.set_texts(texts)  # this step's panel drawn before the grab
             super().sync()
-            if self.k == PUSH_START + PUSH_STEPS + 4:
-                ImageGrab.grab().save(out / "interactive_panel.png")
+            if self.k == PUSH_START + PUSH_STEPS + 12:  # after the 0.4 s hold-off
+                self.grab_window().save(out / "interactive_panel.png")
             if self.k % args.every == 0:
-                shot = ImageGrab.grab()
+                shot = self.grab_window()
                 h = round(shot.height * args.width / shot.width)
                 frames.append(
                     shot.resize((args.width, h)).convert("P", palette=Image.Palette.ADAPTIVE)

@@ -459,21 +459,23 @@ def teach_words(
     return lead + ", ".join(words) if words else "anything goes (θ* is about 0)"
 
 
-INSTRUCTIONS = (
-    "KEYS: " + keys.ARM_KEY_HELP[0],
-    *keys.ARM_KEY_HELP[1:],
-    "MOUSE: Ctrl + right-drag pushes the selected link (the cup at the start; double-click a",
-    "link to select another): 10 cm of drag = {drag:.0f} N.",
-    "A push above {threshold:.0f} N is a correction; above {reflex:.0f} N the arm brakes",
-    "{joint}(too hard: no correction). Blue dots: the robot's plan;",
-    "F8: the plan for what you teach (green). F9: hide this panel.",
-    "END: close the window (or Ctrl-C in the terminal); time is up after {duration:.0f} s.",
+HELP = (
+    ("KEYS", "W/S A/D E/Q push away/back, left/right, up/down;"),
+    ("", "I/K J/L U/O tilt/turn/roll; Shift harder; Home: cup"),
+    ("MOUSE", "Ctrl + right-drag: {drag:.0f} N per 10 cm of drag"),
+    ("COUNTS", ">{threshold:.0f} N a correction; >{reflex:.0f} N {joint}brakes"),
+    ("PLAN", "blue; F8: yours in green; F9: hide this"),
+    ("END", "close the window; time is up at {duration:.0f} s"),
 )
+"""The panel's help: (label, words) rows (the viewer draws at most 500 characters a column:
+state and help share the panel's two columns)."""
+OVERLAY_CHARS = 500
+"""The most characters MuJoCo's viewer draws of one overlay column (``mjMAXOVERLAY``)."""
 CUE_SECONDS = 2.0
 """How long (simulated s) the panel shows a recorded correction or a reflex."""
 TOO_HARD = "TOO HARD: the arm braked, no correction"
-JOINT_LIMIT = "or sooner where a joint cannot bear the push "
-"""The instructions' words where the version also brakes on a joint's torque (v2)."""
+JOINT_LIMIT = "(or a joint's limit) "
+"""The help's words where the version also brakes on a joint's torque (v2)."""
 PANEL_HIDDEN = "F9: show the panel"
 NOTHING_SELECTED = "NOTHING SELECTED: a drag moves the camera; Home selects the cup"
 
@@ -498,44 +500,42 @@ def overlay(
 ) -> list[tuple]:
     """Viewer text (ASCII: the viewer's font has no θ or φ) in the top corners only, so the
     table, the pitcher and the plate stay in view: state, how to push and what to teach top
-    left (``panel`` false: one line saying how to show it), cues and the real-time factor top
-    right. ``blind`` (a participant's view) leaves θ̂ and φ out; the log keeps them.
+    left, in two columns (labels, words; ``panel`` false: one line saying how to show it),
+    cues and the real-time factor top right. ``blind`` (a participant's view) leaves θ̂ and φ
+    out (else they follow the cues); the log keeps them.
     ``joint_reflex``: the arm also brakes on a push a joint cannot bear (v2), so a reflex may
     come below ``reflex_force`` and the panel says so. ``push``: the keys' (or gamepad's)
     push this step; ``selected``: what a drag pushes ("" for nothing: the cue says so)."""
     font = mujoco.mjtFontScale.mjFONTSCALE_100
     grid = mujoco.mjtGridPos
     texts: list[tuple] = []
+    extra: list[str] = []  # θ̂ and φ (not blind): below the cues
     if panel:
         key_push = "none"
         if push is not None and (push.size > 0 or push.torque_size > 0):
             key_push = f"{push.size:.0f} N, {push.torque_size:.1f} N m"
             key_push += " (HARDER)" if push.harder else ""
-        labels = ["time", "pushing", "key push", "drag pushes", "corrections", "correction time"]
-        values = [
-            f"{info['time']:.1f} s of {duration:.0f} s",
-            f"{felt:.1f} N" + (" (correcting)" if info["correction_active"] else ""),
-            key_push,
-            selected or "nothing",
-            str(info["corrections"]),
-            f"{info['correction_time']:.2f} s",
+        rows = [
+            ("time", f"{info['time']:.1f} s of {duration:.0f} s"),
+            ("pushing", f"{felt:.1f} N" + (" (correcting)" if info["correction_active"] else "")),
+            ("key push", key_push),
+            ("drag pushes", selected or "nothing"),
+            ("corrections", str(info["corrections"])),
+            ("correction time", f"{info['correction_time']:.2f} s"),
+            ("", ""),
         ]
+        words = {"threshold": threshold, "reflex": reflex_force, "duration": duration}
+        words |= {"joint": JOINT_LIMIT if joint_reflex else "", "drag": DRAG_STIFFNESS * 0.1}
+        rows += [(label, text.format(**words)) for label, text in HELP]
+        rows.append(("TEACH", teach))
+        labels, values = zip(*rows, strict=True)
+        column = "\n".join(values)[:OVERLAY_CHARS]  # the viewer would cut it anyway
+        texts.append((font, grid.mjGRID_TOPLEFT, "\n".join(labels), column))
         if not blind:
             theta = np.asarray(info["theta_hat"])
             phi = np.asarray(info["phi"])
             for name, t, p in zip(task.feature_names, theta, phi, strict=True):
-                labels.append(f"{name}: theta_hat / phi")
-                values.append(f"{t:+.3f} / {p:+.3f}")
-        how = "\n".join(INSTRUCTIONS).format(
-            threshold=threshold,
-            reflex=reflex_force,
-            joint=JOINT_LIMIT if joint_reflex else "",
-            drag=DRAG_STIFFNESS * 0.1,
-            duration=duration,
-        )
-        state = [f"{k}: {v}" for k, v in zip(labels, values, strict=True)]
-        lines = [*state, "", *how.split("\n"), "TEACH: " + teach]
-        texts.append((font, grid.mjGRID_TOPLEFT, "\n".join(lines), ""))
+                extra.append(f"{name}: theta_hat {t:+.3f} / phi {p:+.3f}")
     else:
         texts.append((font, grid.mjGRID_TOPLEFT, PANEL_HIDDEN, ""))
     cues = []
@@ -557,9 +557,18 @@ def overlay(
         cues.append(f"real-time factor {rtf:.2f}")
         if rtf < 0.9:
             cues.append("WARNING: below 0.9, the arm runs slower than real time")
+    cues += extra
     if cues:
         texts.append((font, grid.mjGRID_TOPRIGHT, "\n".join(cues), ""))
     return texts
+
+
+def panel_text(texts: list[tuple]) -> str:
+    """The top-left panel of ``overlay``'s texts as plain lines, "label words" (what a person
+    reads across its two columns)."""
+    labels, words = texts[0][2].split("\n"), (texts[0][3] or "").split("\n")
+    words += [""] * (len(labels) - len(words))
+    return "\n".join(f"{a} {b}".strip() for a, b in zip(labels, words, strict=False))
 
 
 class RealTimeFactor:
@@ -866,7 +875,7 @@ def _body_words(model: mujoco.MjModel, body: int, site: int) -> str:
     if body <= 0:
         return ""
     name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body {body}"
-    return f"the cup ({name})" if body == int(model.site_bodyid[site]) else name
+    return "the cup" if body == int(model.site_bodyid[site]) else name
 
 
 __all__ = [
@@ -878,6 +887,7 @@ __all__ = [
     "drag_wrench",
     "draw_plan",
     "overlay",
+    "panel_text",
     "passive_viewer",
     "run_interactive",
     "session_env",
