@@ -524,7 +524,8 @@ def overlay(
             ("correction time", f"{info['correction_time']:.2f} s"),
             ("", ""),
         ]
-        words = {"threshold": threshold, "reflex": reflex_force, "duration": duration}
+        words: dict[str, Any] = {"threshold": threshold, "reflex": reflex_force}
+        words["duration"] = duration
         words |= {"joint": JOINT_LIMIT if joint_reflex else "", "drag": DRAG_STIFFNESS * 0.1}
         rows += [(label, text.format(**words)) for label, text in HELP]
         rows.append(("TEACH", teach))
