@@ -22,7 +22,7 @@ needs_x = pytest.mark.skipif(
     reason="xvfb-run or xdotool is not installed (apt-get install xvfb xdotool)",
 )
 
-PERSON = """
+START = """
 log="$1"; shift
 "$@" &
 pid=$!
@@ -33,12 +33,19 @@ for i in $(seq 1 1200); do
   sleep 0.1
 done
 xdotool mousemove 512 384
+"""
+"""The person's script starts the session (its arguments) and waits for its window."""
+
+PERSON = (
+    START
+    + """
 sleep 1.2
 xdotool keydown Up; sleep 1.2; xdotool keyup Up
 sleep 1.2
 xdotool keydown Left; sleep 1.2; xdotool keyup Left
 wait $pid
 """
+)
 
 
 @needs_x
@@ -72,16 +79,9 @@ def test_a_person_drives_the_car_with_keys_under_xvfb(tmp_path):
     )
 
 
-CRASH = """
-log="$1"; shift
-"$@" &
-pid=$!
-for i in $(seq 1 1200); do
-  grep -q '"type": "episode"' "$log" 2>/dev/null && break
-  sleep 0.1
-done
-xdotool mousemove 512 384
-sleep 1.0
+CRASH = (
+    START
+    + """sleep 1.0
 # full throttle, then steer right into the robot car's lane as well, until the session ends
 xdotool keydown Up; sleep 1.3; xdotool keydown Right
 wait $pid
@@ -89,6 +89,7 @@ status=$?
 xdotool keyup Right keyup Up
 exit $status
 """
+)
 
 
 @needs_x

@@ -683,13 +683,18 @@ def run_interactive(
     options |= {"mode": "interactive", "duration": duration}
     env = SessionLogger(learning, path, extra={"interact": options}, auto_end=False)
     ending = _Ending(env)
-    teach = teach_words(study.task.feature_names, study.task.theta_star)
-    threshold = float(study.force_threshold)
     reflex_force = float(getattr(study, "reflex_force", math.inf))
+    look: dict[str, Any] = {  # what the panel says whatever the step
+        "teach": teach_words(study.task.feature_names, study.task.theta_star),
+        "threshold": float(study.force_threshold),
+        "reflex_force": reflex_force,
+        "joint_reflex": bool(study.version.torque_reflex),
+        "blind": blind,
+        "duration": duration,
+    }
     hand = keys.ArmPush(
         reflex_force, float(getattr(study, "reflex_torque", math.inf)), sizes or keys.PushSizes()
     )
-    joint_reflex = bool(study.version.torque_reflex)
     oriented = bool(study.task.oriented)
     info: dict[str, Any] = {}
     pace = Pace(CONTROL_DT, realtime)
@@ -722,13 +727,8 @@ def run_interactive(
                     pad,
                     site,
                     oriented,
-                    teach=teach,
-                    threshold=threshold,
-                    reflex_force=reflex_force,
-                    joint_reflex=joint_reflex,
-                    blind=blind,
-                    max_steps=max_steps,
-                    duration=duration,
+                    look,
+                    max_steps,
                 )
             except KeyboardInterrupt as e:
                 ending(stop_reason(e), interrupted=True)
@@ -750,14 +750,8 @@ def _session_loop(
     pad: PadSource | None,
     site: int,
     oriented: bool,
-    *,
-    teach: str,
-    threshold: float,
-    reflex_force: float,
-    joint_reflex: bool,
-    blind: bool,
+    look: dict[str, Any],
     max_steps: int | None,
-    duration: float,
 ) -> dict[str, Any]:
     """The control loop of :func:`run_interactive`; returns the last ``info``."""
     from strol_gym.tasks.study import CONTROL_DT
@@ -821,7 +815,7 @@ def _session_loop(
                 step=pace.steps,
                 force=np.asarray(info["wrench"][:3]),
                 torque=np.asarray(info["wrench"][3:]),
-                reflex_force=reflex_force,
+                reflex_force=look["reflex_force"],
             )
         if info["is_correction"]:
             last_correction = (info["time"], np.asarray(info["correction"]))
@@ -841,18 +835,13 @@ def _session_loop(
                 study.task,
                 info,
                 felt,
-                teach=teach,
-                threshold=threshold,
-                reflex_force=reflex_force,
-                joint_reflex=joint_reflex,
+                **look,
                 last_correction=last_correction,
                 last_reflex=last_reflex,
                 rtf=factor,
-                blind=blind,
                 panel=bool(getattr(viewer, "show_panel", True)),
                 push=push,
                 selected=_body_words(study.model, selected, site),
-                duration=duration,
             )
             viewer.set_texts(texts)
         pace.wait()
