@@ -520,3 +520,38 @@ def test_a_gamepad_push_is_one_correction(tmp_path):
     (c,) = read_session(path).episodes[0].corrections
     assert _angle(c["u_h"], camera_axes(150.0)[:, 1]) < 30.0, c["u_h"]
     assert info["corrections"] == 1
+
+
+def test_a_drag_pushes_by_its_length_in_metres_from_mujocos_own_perturbation():
+    """MuJoCo's mjv_initPerturb on the cup gives no push; then 5 cm of drag = 20 N along it,
+    0.1 rad of turn = 3 N m about it (Task 2), a 50 cm drag stops at the cap."""
+    from strol_gym.benchmarks.sessions.interact import drag_wrench, session_env
+
+    env = session_env(2)
+    env.reset(seed=1)
+    m, d = env.unwrapped.model, env.unwrapped.data
+    site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
+    body = int(m.site_bodyid[site])
+    cam, opt, pert = mujoco.MjvCamera(), mujoco.MjvOption(), mujoco.MjvPerturb()
+    scn = mujoco.MjvScene(m, 1000)
+    mujoco.mjv_defaultFreeCamera(m, cam)
+    mujoco.mjv_updateScene(m, d, opt, pert, cam, mujoco.mjtCatBit.mjCAT_ALL, scn)
+    pert.select, pert.localpos[:] = body, m.site_pos[site]
+    mujoco.mjv_initPerturb(m, d, scn, pert)
+    both = int(mujoco.mjtPertBit.mjPERT_TRANSLATE) | int(mujoco.mjtPertBit.mjPERT_ROTATE)
+
+    def push(refselpos, refquat):
+        drag = Drag(body, both, np.array(refselpos), np.array(refquat), pert.localpos.copy())
+        return drag_wrench(m, d, drag, site, True, (80.0, 8.0))
+
+    force, torque = push(pert.refselpos, pert.refquat)
+    np.testing.assert_allclose(np.r_[force, torque], 0.0, atol=1e-9)
+    force, _ = push(pert.refselpos + np.array([0.05, 0.0, 0.0]), pert.refquat)
+    np.testing.assert_allclose(force, [20.0, 0.0, 0.0], atol=1e-9)
+    turned = np.zeros(4)
+    mujoco.mju_mulQuat(turned, [np.cos(0.05), 0.0, 0.0, np.sin(0.05)], pert.refquat)
+    _, torque = push(pert.refselpos, turned)
+    np.testing.assert_allclose(torque, [0.0, 0.0, 3.0], atol=1e-6)
+    force, _ = push(pert.refselpos + np.array([0.0, 0.5, 0.0]), pert.refquat)
+    np.testing.assert_allclose(force, [0.0, 80.0, 0.0], atol=1e-9)
+    env.close()
