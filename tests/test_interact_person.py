@@ -228,9 +228,10 @@ def double_click_until(where, *bodies):
 cup = next(r for r in records() if r["type"] == "episode")["x0"][:3]
 if mode == "keys":
     xdo("mousemove", x0 + w // 2, y0 + h // 2)  # no window manager: keys go under the pointer
-    for _ in range(3):  # W held 1.5 s (again if the push never reached the arm)
+    for _ in range(3):  # W held 3 s (again if the push never reached the arm)
+        # the viewer reads the keys when it draws a frame: slow in software, on a busy machine
         xdo("keydown", "w")
-        time.sleep(1.5)
+        time.sleep(3.0)
         xdo("keyup", "w")
         if wait_for(lambda r: r["type"] == "correction", 10):
             break
