@@ -244,13 +244,15 @@ elif mode == "click":
         xdo("key", "Home")
         if wait_for(lambda r: r in records()[seen:] and selected("panda0_link7")(r), 6):
             break
-    xdo("mousemove", x0 + w // 2, y0 + h // 2, "keydown", "ctrl", "mousedown", 3)
-    for _ in range(20):
-        xdo("mousemove_relative", "--", 3, -2)
-        time.sleep(0.05)
-    time.sleep(3.0)  # the viewer reads the mouse when it draws a frame (slow in software)
-    xdo("mouseup", 3, "keyup", "ctrl")
-    wait_for(lambda r: r["type"] == "correction" or r.get("kind") == "reflex", 20)
+    for _ in range(3):  # a Ctrl + right-drag (again if it left no trace: a person would)
+        xdo("mousemove", x0 + w // 2, y0 + h // 2, "keydown", "ctrl", "mousedown", 3)
+        for _ in range(20):
+            xdo("mousemove_relative", "--", 3, -2)
+            time.sleep(0.05)
+        time.sleep(3.0)  # the viewer reads the mouse when it draws a frame (slow in software)
+        xdo("mouseup", 3, "keyup", "ctrl")
+        if wait_for(lambda r: r["type"] == "correction" or r.get("kind") == "reflex", 10):
+            break
     xdo("windowclose", wid)
 sys.exit(proc.wait(timeout=240))
 """
