@@ -191,11 +191,15 @@ def run_drive(
     window: bool = True,
     on_step: Callable[[dict[str, Any], list[str]], None] | None = None,
     pad: Callable[[], keymap.Pad | None] | None = None,
+    frames: Callable[[np.ndarray], None] | None = None,
+    stop: Callable[[], str | None] | None = None,
 ) -> tuple[Path, dict[str, Any]]:
     """One Highway session driven by a person; returns the log's path and the last ``info``
     (with ``real_time_factor``, ``end_reason`` and ``time``). ``keys`` defaults to the
     window's keys (and ``pad``'s); ``window`` false runs without one (tests);
-    ``on_step(info, panel)`` sees each step's panel."""
+    ``on_step(info, panel)`` sees each step's panel; ``frames`` (without a window) gets each
+    step's picture (highway-env's ``rgb_array``); ``stop()`` returning a reason ends the
+    session with it (a page's closed connection)."""
     from strol_gym.benchmarks.engine.robots import robot_policy
     from strol_gym.benchmarks.sessions.person import (
         Pace,
@@ -224,7 +228,7 @@ def run_drive(
         human=person,
         n_corrections=steps,
         max_episode_steps=steps,
-        render_mode="human" if window else None,
+        render_mode="human" if window else ("rgb_array" if frames is not None else None),
         width=900,
         height=300,
     )
@@ -250,6 +254,8 @@ def run_drive(
                 poll = PygameKeys(pad)
             teach = _words(task.feature_names, hw.theta_star)
             cue = ""
+            if frames is not None:
+                frames(hw.render())
             pace = Pace(dt, realtime)
             try:
                 while True:
@@ -284,6 +290,8 @@ def run_drive(
                     )
                     if on_step is not None:
                         on_step(info, panel)
+                    if frames is not None:
+                        frames(hw.render())
                     if window:
                         _draw_panel(panel if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
                     pace.wait()
@@ -298,6 +306,10 @@ def run_drive(
                         break
                     if window and hw.viewer is None:  # the person closed the window
                         reason = "window closed"
+                        break
+                    why = stop() if stop is not None else None
+                    if why:
+                        reason = why
                         break
                 env.end_session(reason, {**info, "time": t})
             except KeyboardInterrupt as e:

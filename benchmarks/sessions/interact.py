@@ -45,22 +45,43 @@ NO_DISPLAY = (
 )
 
 
-class Drag(NamedTuple):
+class DragLike(Protocol):
     """The viewer's mouse perturbation as the person left it (``mjvPerturb``'s fields)."""
 
+    @property
+    def select(self) -> int:
+        """The selected body (0 or less: nothing; a drag then moves the camera)."""
+        ...
+
+    @property
+    def active(self) -> int:
+        """``mjtPertBit`` bits: translate (Ctrl + right-drag), rotate (Ctrl + left-drag)."""
+        ...
+
+    @property
+    def refselpos(self) -> np.ndarray:
+        """Where the drag wants the selected point (m, world)."""
+        ...
+
+    @property
+    def refquat(self) -> np.ndarray:
+        """The orientation the drag wants of the body's inertial frame."""
+        ...
+
+    @property
+    def localpos(self) -> np.ndarray:
+        """The selected point in the body's frame (m)."""
+        ...
+
+
+class Drag(NamedTuple):
+    """A :class:`DragLike` read from MuJoCo's viewer (or written by a script)."""
+
     select: int
-    """The selected body (0 or less: nothing; a drag then moves the camera)."""
     active: int
-    """``mjtPertBit`` bits: translate (Ctrl + right-drag), rotate (Ctrl + left-drag)."""
     refselpos: np.ndarray
-    """Where the drag wants the selected point (m, world)."""
     refquat: np.ndarray
-    """The orientation the drag wants of the body's inertial frame."""
     localpos: np.ndarray
-    """The selected point in the body's frame (m)."""
-
-
-NO_DRAG = Drag(0, 0, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3))
 
 
 class Viewer(Protocol):
@@ -76,7 +97,7 @@ class Viewer(Protocol):
 
     def close(self) -> None: ...
 
-    def drag(self) -> Drag:
+    def drag(self) -> DragLike:
         """The mouse's perturbation now."""
         ...
 
@@ -355,11 +376,16 @@ TARGET_RGBA = np.array([0.1, 0.8, 0.2, 0.7], dtype=np.float32)
 PLAN_RADIUS = 0.012
 
 
-def draw_plan(scene: mujoco.MjvScene, points: np.ndarray, target: np.ndarray | None = None) -> None:
-    """Replace ``scene``'s geoms with one sphere per waypoint of ``points`` (blue), then of
-    ``target`` (green), as many as fit."""
+def draw_plan(
+    scene: mujoco.MjvScene,
+    points: np.ndarray,
+    target: np.ndarray | None = None,
+    append: bool = False,
+) -> None:
+    """Replace ``scene``'s geoms (``append``: add to them) with one sphere per waypoint of
+    ``points`` (blue), then of ``target`` (green), as many as fit."""
     layers = [(points, PLAN_RGBA)] + ([] if target is None else [(target, TARGET_RGBA)])
-    n = 0
+    n = scene.ngeom if append else 0
     for pts, rgba in layers:
         for p in np.asarray(pts, dtype=np.float64).reshape(-1, 3)[: scene.maxgeom - n]:
             mujoco.mjv_initGeom(
@@ -392,7 +418,7 @@ DRAG_TURN_STIFFNESS = 30.0
 def drag_wrench(
     model: mujoco.MjModel,
     data: mujoco.MjData,
-    drag: Drag,
+    drag: DragLike,
     site: int,
     oriented: bool,
     limits: tuple[float, float],
@@ -679,6 +705,9 @@ def run_interactive(
     site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
     cup_body = int(study.model.site_bodyid[site])
     viewer = viewer_factory(study.model, study.data)
+    bind = getattr(viewer, "bind", None)
+    if bind is not None:  # a front end that needs the env itself (its reflex, its Task)
+        bind(study)
     options: dict[str, Any] = {"max_steps": max_steps, "realtime": realtime, "blind": blind}
     options |= {"mode": "interactive", "duration": duration}
     env = SessionLogger(learning, path, extra={"interact": options}, auto_end=False)
@@ -769,8 +798,8 @@ def _session_loop(
         if viewer.lost:
             ending(f"window closed ({viewer.lost})")
             break
-        if not viewer.is_running():
-            ending("window closed")
+        if not viewer.is_running():  # a front end may say why it closed (a page's connection)
+            ending(getattr(viewer, "end_reason", None) or "window closed")
             break
         if max_steps is not None and pace.steps >= max_steps:
             ending("max_steps")
