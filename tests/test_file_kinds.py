@@ -197,6 +197,8 @@ def exported(tmp_path) -> Path:
     folder = tmp_path / "base"
     (folder / "data").mkdir(parents=True)
     meta = {"observation_space": BOX, "action_space": BOX, "total_episodes": 1}
+    meta.update(data_format="hdf5", total_steps=3, dataset_id="strol/kinds-v0")
+    meta["minari_version"] = minari.__version__  # Minari goes on to open main_data.hdf5
     (folder / "data" / "metadata.json").write_text(json.dumps(meta))
     with h5py.File(folder / "data" / "main_data.hdf5", "w") as f:
         f.create_group("episode_0").create_dataset("actions", data=np.zeros((3, 2)))
