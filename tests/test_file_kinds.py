@@ -279,3 +279,17 @@ def test_a_memory_error_in_a_reader_is_one_line(exported, tmp_path, monkeypatch,
         ["replay", str(exported), "--learners", "strol", "--out", str(tmp_path / "r")], capsys
     )
     assert "out of memory" in err
+
+
+def test_the_study_servers_plan_and_consent_are_read_as_regular_files_only(tmp_path):
+    from strol_gym.benchmarks.serve.plan import load_plan
+
+    fifo = tmp_path / "plan.json"
+    os.mkfifo(fifo)
+    with pytest.raises(files.NotAFile, match=f"--study {fifo} is a FIFO"):
+        load_plan(fifo)
+    plan = tmp_path / "ok.json"
+    plan.write_text(json.dumps({"name": "kinds", "consent": "consent.txt"}))
+    os.mkfifo(tmp_path / "consent.txt")
+    with pytest.raises(files.NotAFile, match=r"consent\.txt is a FIFO"):
+        load_plan(plan)
