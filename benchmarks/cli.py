@@ -33,8 +33,10 @@ OWN_COMMANDS: dict[str, str] = {
     "display)",
     "import-study": "the authors' user-study pickles as session logs (replay them with replay)",
     "fit-human": "fit a human model to correction logs; compare models by held-out likelihood",
+    "check-human": "posterior-predictive check of a simulated person against real session logs",
     "fit-participant": "fit the study population (StROL-Study-v2's participant) to imported "
     "study logs",
+    "serve": "a study in the browser: people push the arm and correct the car from a web page",
     "report": "re-render tables, summary.md and plots from a folder",
 }
 """The commands that are not experiments, with their one-line help: ``strol-bench --help``
@@ -58,6 +60,10 @@ def _add_own_parser(sub: Any, name: str) -> None:
         p.add_argument("folder", help="a results folder written by paper or run")
         p.add_argument("--no-plots", action="store_true")
         plugin_option(p)  # the run's own pieces: a user learner keeps its display name
+    elif name == "serve":
+        from strol_gym.benchmarks.serve import cli as serve
+
+        serve.add_parser(sub)
     else:
         module = name.replace("-", "_")
         importlib.import_module(f"strol_gym.benchmarks.sessions.{module}").add_parser(sub)
@@ -182,8 +188,20 @@ def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     return command(args, parser)
 
 
+def cmd_check_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.check_human import command
+
+    return command(args, parser)
+
+
 def cmd_fit_participant(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.fit_participant import command
+
+    return command(args, parser)
+
+
+def cmd_serve(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.serve.cli import command
 
     return command(args, parser)
 
@@ -196,10 +214,12 @@ def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) 
 
 COMMANDS = {
     "fit-human": cmd_fit_human,
+    "check-human": cmd_check_human,
     "fit-participant": cmd_fit_participant,
     "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
+    "serve": cmd_serve,
     "export": cmd_export,
     "train": cmd_train,
     "list": cmd_list,

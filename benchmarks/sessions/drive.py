@@ -18,6 +18,7 @@ the same loop without a window.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -30,10 +31,12 @@ from strol_gym.envs.panda.model import has_display
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
 
+NO_WINDOW_HINT = (
+    "run it on a virtual display with `xvfb-run -a strol-bench interact --env highway ...` (and "
+    'send keys with xdotool), or use the simulated humans, gymnasium.make("StROL-Highway-v0")'
+)
 NO_DISPLAY_HIGHWAY = (
-    "interact --env highway needs a display and a keyboard (DISPLAY is not set): run it on a "
-    "virtual one with `xvfb-run -a strol-bench interact --env highway ...` (and send keys with "
-    'xdotool), or use the simulated humans, gymnasium.make("StROL-Highway-v0")'
+    "interact --env highway needs a display and a keyboard (DISPLAY is not set): " + NO_WINDOW_HINT
 )
 POLL_SECONDS = 0.02
 """How often the keys are read within a step (s)."""
@@ -129,6 +132,26 @@ def drive_panel(
     return lines
 
 
+HEADLESS_DRIVERS = ("offscreen", "dummy")
+"""SDL's video drivers without a window: what it falls back to when DISPLAY names no server."""
+
+
+def check_window() -> None:
+    """ValueError unless pygame opens windows on a screen: with an unreachable DISPLAY, SDL
+    falls back to drawing off screen, and the session would run unseen, its log empty."""
+    import pygame
+
+    pygame.display.init()
+    driver = pygame.display.get_driver()
+    if driver in HEADLESS_DRIVERS:
+        pygame.display.quit()
+        raise ValueError(
+            f"interact --env highway cannot open a window on DISPLAY="
+            f"{os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')!r} (SDL fell back "
+            f"to its {driver!r} driver: no display server answers there); " + NO_WINDOW_HINT
+        )
+
+
 def run_drive(
     learner: str = "strol",
     learner_kwargs: dict[str, Any] | None = None,
@@ -140,10 +163,14 @@ def run_drive(
     keys: KeySource | None = None,
     window: bool = True,
     on_step: Callable[[dict[str, Any], list[str]], None] | None = None,
+    frames: Callable[[np.ndarray], None] | None = None,
+    stop: Callable[[], str | None] | None = None,
 ) -> tuple[Path, dict[str, Any]]:
     """One Highway session driven by a person; returns the log's path and the last ``info``
     (with ``real_time_factor``). ``keys`` defaults to the window's arrow keys; ``window``
-    false runs without one (tests); ``on_step(info, panel)`` sees each step's panel."""
+    false runs without one (tests); ``on_step(info, panel)`` sees each step's panel;
+    ``frames`` (without a window) gets each step's picture (highway-env's ``rgb_array``);
+    ``stop()`` returning a reason ends the session with it (a page's closed connection)."""
     from strol_gym.benchmarks.engine.robots import robot_policy
     from strol_gym.benchmarks.sessions.person import Pace, default_log_path
 
@@ -151,6 +178,8 @@ def run_drive(
         raise ValueError(f"duration must be in (0, 86400] seconds, got {duration}")
     if window and not has_display():
         raise ValueError(NO_DISPLAY_HIGHWAY)
+    if window:
+        check_window()
     path = Path(log) if log is not None else default_log_path()
     if path.exists():
         raise ValueError(f"log {path} exists; sessions are never overwritten")
@@ -165,7 +194,7 @@ def run_drive(
         human=person,
         n_corrections=steps,
         max_episode_steps=steps,
-        render_mode="human" if window else None,
+        render_mode="human" if window else ("rgb_array" if frames is not None else None),
         width=900,
         height=300,
     )
@@ -188,6 +217,9 @@ def run_drive(
             poll = PygameKeys()
         teach = _words(task.feature_names, hw.theta_star)
         n_corr, cue, t, ended = 0, "", 0.0, False
+        reason = "window closed"
+        if frames is not None:
+            frames(hw.render())
         pace = Pace(dt, realtime)
         while True:
             # the keys over the step: polled until its end on the wall clock (or once)
@@ -215,6 +247,8 @@ def run_drive(
             panel = drive_panel(task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue)
             if on_step is not None:
                 on_step(info, panel)
+            if frames is not None:
+                frames(hw.render())
             if window:
                 _draw_panel(panel if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
             pace.wait()
@@ -223,8 +257,12 @@ def run_drive(
                 break
             if window and hw.viewer is None:  # the person closed the window
                 break
+            why = stop() if stop is not None else None
+            if why:
+                reason = why
+                break
         if not ended:
-            env.end_session("window closed", info)
+            env.end_session(reason, info)
     except KeyboardInterrupt:
         env.end_session("interrupted", info, interrupted=True)
         info = {**info, "interrupted": True}

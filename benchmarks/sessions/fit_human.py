@@ -153,7 +153,10 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
                 hat = np.full_like(hat, np.nan) if after is None else after
             n_ep += 1
             if len(person) > _max_corrections():
-                raise ValueError(f"SOURCE: more than {_max_corrections()} corrections")
+                raise ValueError(
+                    f"SOURCE: more than {_max_corrections():,} corrections (the cap "
+                    "fit_corrections: a fit's memory grows with them; --allow-large lifts it)"
+                )
     if not person:
         raise ValueError("SOURCE: no correction with a logged θ* (the preference taught)")
     assert task is not None
@@ -181,9 +184,12 @@ def _hat_source(unknown: bool, rebuilt: int) -> str:
 
 
 def _max_corrections() -> int:
+    """The most corrections a fit reads: the caps table's ``fit_corrections`` (memory grows
+    with them, ~0.4 MB each), or with the caps lifted the fitter's own bound."""
     from strol_gym.benchmarks.sessions.fitting import MAX_CORRECTIONS
+    from strol_gym.limits import CAPS, lifted_now
 
-    return MAX_CORRECTIONS
+    return MAX_CORRECTIONS if lifted_now() else CAPS["fit_corrections"]
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -376,7 +382,7 @@ def run_fit_human(
 
 # ---------------------------------------------------------------------------- CLI
 def add_parser(sub: Any) -> None:
-    from strol_gym.benchmarks.args import plugin_option, positive_int
+    from strol_gym.benchmarks.args import add_allow_large, plugin_option, positive_int
 
     p = sub.add_parser(
         "fit-human",
@@ -409,10 +415,16 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument("--no-plots", action="store_true")
     plugin_option(p)
+    add_allow_large(p)
 
 
 def command(args: Any, parser: Any) -> int:
+    from strol_gym.benchmarks.args import check_size_caps
+
+    check_size_caps(args, {})  # --allow-large lifts the cap on the corrections read
     compare = [c for c in args.compare.split(",") if c] if args.compare else []
+    if args.compare and not compare:
+        parser.error(f"--compare must name models (comma-separated), got {args.compare!r}")
     fits = run_fit_human(
         args.sources,
         args.human,

@@ -425,7 +425,7 @@ class CorrectionEnv:
 
     def reset_overrides(self, options: dict | None) -> tuple[np.ndarray | None, np.ndarray | None]:
         """``reset(options={"theta_star": ..., "state": ...})``: checked overrides or None."""
-        options = dict(options or {})
+        options = checks.mapping("options", options, f"a dict with keys among {RESET_OPTIONS}")
         bad = set(options) - set(RESET_OPTIONS)
         if bad:
             raise ValueError(f"unknown reset option(s) {sorted(bad)}; valid: {RESET_OPTIONS}")
@@ -454,10 +454,14 @@ class CorrectionEnv:
                     for v, k in zip(values, self._u_scale_l, strict=True)
                 ]
             )
-        if np.shape(action) != (self.task.action_dim,):
+        try:
+            shape = np.shape(action)
+        except ValueError:  # a ragged sequence
             raise ValueError(
-                f"action must have shape ({self.task.action_dim},), got {np.shape(action)}"
-            )
+                f"action must be {self.task.action_dim} numbers, got {action!r:.80}"
+            ) from None
+        if shape != (self.task.action_dim,):
+            raise ValueError(f"action must have shape ({self.task.action_dim},), got {shape}")
         if np.iscomplexobj(action):  # float64 would drop the imaginary part silently
             raise ValueError(f"action must be real numbers, got {action}")
         try:
