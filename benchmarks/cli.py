@@ -30,8 +30,8 @@ OWN_COMMANDS: dict[str, str] = {
     "list": "envs and every registry: learners, humans, Tasks, conditions",
     "replay": "feed a session log's corrections through learners (table, CSV, plot)",
     "export": "write a session log, or benchmark runs, as a Minari dataset (the [data] extra)",
-    "interact": "push the study arm yourself in MuJoCo's viewer; the robot learns (needs a "
-    "display)",
+    "interact": "push the study arm (or drive the Highway car) yourself; the robot learns "
+    "(needs a display)",
     "import-study": "the authors' user-study pickles as session logs (replay them with replay)",
     "fit-human": "fit a human model to correction logs; compare models by held-out likelihood",
     "check-human": "posterior-predictive check of a simulated person against real session logs",
@@ -66,7 +66,7 @@ def _add_own_parser(sub: Any, name: str) -> None:
 
         serve.add_parser(sub)
     else:
-        module = name.replace("-", "_")
+        module = "interact_cli" if name == "interact" else name.replace("-", "_")
         importlib.import_module(f"strol_gym.benchmarks.sessions.{module}").add_parser(sub)
 
 
@@ -178,7 +178,7 @@ def cmd_export(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
 
 
 def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from strol_gym.benchmarks.sessions.interact import command
+    from strol_gym.benchmarks.sessions.interact_cli import command
 
     return command(args, parser)
 
