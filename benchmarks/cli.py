@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
     from strol_gym.benchmarks.sessions import fit_participant
 
     fit_participant.add_parser(sub)  # strol-bench fit-participant (issue 39)
+    from strol_gym.benchmarks.sessions import fit_timing
+
+    fit_timing.add_parser(sub)
 
     p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
     p.add_argument("folder", help="a results folder written by paper or run")
@@ -165,6 +168,12 @@ def cmd_fit_participant(args: argparse.Namespace, parser: argparse.ArgumentParse
     return command(args, parser)
 
 
+def cmd_fit_timing(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.fit_timing import command
+
+    return command(args, parser)
+
+
 def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.import_study import command
 
@@ -174,6 +183,7 @@ def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) 
 COMMANDS = {
     "fit-human": cmd_fit_human,
     "fit-participant": cmd_fit_participant,
+    "fit-timing": cmd_fit_timing,
     "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,

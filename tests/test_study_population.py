@@ -56,7 +56,10 @@ def test_v2_default_participant_is_the_fitted_population():
         mean, sd = pop.fitted[f"{key}_log_mean"], pop.fitted[f"{key}_log_sd"]
         assert abs(logs.mean() - mean) < 4 * sd / math.sqrt(len(logs)) + 1e-12
         assert abs(logs.std() - sd) < 0.1 * sd + 1e-12
-    budgets = np.array([p.budget for p in people])
+    assert pop.hazard is not None and all(p.hazard == pop.hazard[3] for p in people)
+    # without a timing fit the population keeps the learner-independent budget
+    budgeted = population.read_fit(population.FIT_FILE)
+    budgets = np.array([budgeted.draw(rng, 3).budget for _ in range(4000)])
     assert abs(budgets.mean() - pop.count_mean[3]) < 4 * math.sqrt(pop.count_mean[3] / 4000)
 
 
@@ -66,7 +69,7 @@ def test_two_users_draw_different_people_and_a_seed_the_same():
     for seed in (11, 12, 11):
         env.reset(seed=seed)
         p = env.unwrapped.human.params
-        drawn.append((p.size, p.turn, p.aim, p.linger, p.budget))
+        drawn.append((p.size, p.turn, p.aim, p.linger, p.hazard))
     env.close()
     assert drawn[0] != drawn[1]
     assert drawn[0] == drawn[2]
@@ -135,7 +138,7 @@ def test_no_rebounds_on_v2():
         env = _v2(task=task, duration=25.0)
         env.reset(seed=seed)
         env.unwrapped.human.params = FittedParams(
-            **{**env.unwrapped.human.params.__dict__, "budget": 6}
+            **{**env.unwrapped.human.params.__dict__, "budget": 6, "hazard": None}
         )
         zero = np.zeros(env.action_space.shape, dtype=np.float32)
         truncated, recs = False, []

@@ -46,7 +46,10 @@ from strol_gym.tasks.study import StudyTask
 
 FIT_FILE = Path(__file__).with_name("participant_fit.json")
 """The shipped fit (module docstring)."""
+TIMING_FILE = Path(__file__).with_name("timing_fit.json")
+"""The shipped timing hazard (``strol-bench fit-timing``): when a person steps in."""
 FORMAT = "strol-participant-fit"
+TIMING_FORMAT = "strol-timing-fit"
 MAX_FIT_BYTES = 1_000_000
 """A fit file larger than this is refused before it is read."""
 MAX_READ_SCALE = 10.0
@@ -152,15 +155,26 @@ class Population:
     """The :data:`FITTED` estimates."""
     priors: dict[str, Any]
     """The :data:`PRIORS` values the file names (``patience`` an int)."""
+    hazard: dict[int, tuple[float, float, float]] | None = None
+    """Per Task, the timing hazard's (a, b, c) (``FittedParams.hazard``); None: the budget."""
+    path_time: dict[int, float] | None = None
+    """Per Task, the s of the robot's motion a person watches (with ``hazard``)."""
 
     def draw(self, rng: np.random.Generator, task: int) -> FittedParams:
         """One person for a session of Task ``task`` (1-3), from ``rng``: its sizes, aim,
-        linger and budget (Poisson of the Task's mean times its own multiplier)."""
+        linger and when it steps in: the timing hazard of its Task where the population has
+        one (then it reacts to the robot), else a budget (Poisson of the Task's mean times its
+        own multiplier)."""
         f = self.fitted
         task = int(checks.number("task", task, low=1, high=3, integer=True))
         z = rng.standard_normal(5)
         sd_r = f["count_person_sd"]
         multiplier = math.exp(sd_r * z[4] - 0.5 * sd_r**2)  # mean 1
+        when: dict[str, Any] = {}
+        if self.hazard is not None and self.path_time is not None:
+            when = {"hazard": self.hazard[task], "path_time": self.path_time[task]}
+        else:
+            when = {"budget": int(rng.poisson(self.count_mean[task] * multiplier))}
         return FittedParams(
             size=math.exp(f["size_log_mean"] + f["size_log_sd"] * z[0]),
             size_within=f["size_within"],
@@ -168,7 +182,7 @@ class Population:
             turn_within=f["turn_within"],
             aim=math.exp(f["aim_log_mean"] + f["aim_log_sd"] * z[2]),
             linger=math.exp(f["linger_log_mean"] + f["linger_log_sd"] * z[3]),
-            budget=int(rng.poisson(self.count_mean[task] * multiplier)),
+            **when,
             **self.priors,
         )
 
@@ -208,18 +222,47 @@ def parse(obj: Any, what: str = "participant fit") -> Population:
     return Population(count_mean, est, priors)
 
 
-def read_fit(path: str | Path) -> Population:
-    """The population of fit file ``path`` (size-capped, plain JSON, checked)."""
-    path = Path(path)
+def parse_timing(
+    obj: Any, what: str = "timing fit"
+) -> tuple[dict[int, tuple[float, float, float]], dict[int, float]]:
+    """Per Task (a, b, c) and path time from a timing fit file's JSON object (checked)."""
+    if not isinstance(obj, dict) or obj.get("format") != TIMING_FORMAT:
+        raise ValueError(f"{what} must be a JSON object with format {TIMING_FORMAT!r}")
+    hz = checks.mapping(f"{what}['hazard']", obj.get("hazard"), "an object")
+    pt = checks.mapping(f"{what}['path_time']", obj.get("path_time"), "an object")
+    hazard, path_time = {}, {}
+    for t in (1, 2, 3):
+        v = checks.vector(f"{what}['hazard']['{t}']", hz.get(str(t)), 3)
+        for name, c in zip("abc", v.tolist(), strict=True):
+            checks.number(f"{what}['hazard']['{t}'] ({name})", c, low=-50.0, high=50.0)
+        hazard[t] = (float(v[0]), float(v[1]), float(v[2]))
+        path_time[t] = float(
+            checks.number(f"{what}['path_time']['{t}']", pt.get(str(t)), low=0.0, low_open=True)
+        )
+    return hazard, path_time
+
+
+def _read_json(path: Path, what: str) -> Any:
     if path.stat().st_size > MAX_FIT_BYTES:
-        raise ValueError(f"{path}: a participant fit file is at most {MAX_FIT_BYTES} bytes")
-    return parse(loads_json(path.read_bytes(), str(path)), str(path))
+        raise ValueError(f"{path}: a {what} file is at most {MAX_FIT_BYTES} bytes")
+    return loads_json(path.read_bytes(), str(path))
+
+
+def read_fit(path: str | Path, timing: str | Path | None = None) -> Population:
+    """The population of fit file ``path`` (size-capped, plain JSON, checked), reacting to the
+    robot with the timing fit ``timing`` if given (else it keeps a budget)."""
+    path = Path(path)
+    pop = parse(_read_json(path, "participant fit"), str(path))
+    if timing is None:
+        return pop
+    hazard, path_time = parse_timing(_read_json(Path(timing), "timing fit"), str(timing))
+    return dataclasses.replace(pop, hazard=hazard, path_time=path_time)
 
 
 @functools.cache
 def shipped() -> Population:
-    """The shipped fit (read once per process)."""
-    return read_fit(FIT_FILE)
+    """The shipped fit with its timing hazard (read once per process)."""
+    return read_fit(FIT_FILE, TIMING_FILE)
 
 
 def best_correction(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -360,6 +403,7 @@ __all__ = [
     "FITTED",
     "FIT_FILE",
     "PRIORS",
+    "TIMING_FILE",
     "FittedPopulationModel",
     "Population",
     "cosine",
