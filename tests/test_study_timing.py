@@ -90,6 +90,7 @@ def test_the_shipped_population_reacts_and_its_hazard_is_checked():
         person = pop.draw(np.random.default_rng(t), t)
         assert person.hazard == tuple(shipped["hazard"][str(t)])
         assert person.path_time == shipped["path_time"][str(t)]
+        assert person.ramp == shipped["rise"]  # the push rises as the real pushes logged
     with pytest.raises(ValueError, match=r"user_kwargs\['hazard'\]"):
         FittedParams(hazard=(0.0, 1.0))
     with pytest.raises(ValueError, match=r"user_kwargs\['path_time'\]"):
@@ -144,8 +145,9 @@ def test_fit_timing_on_synthetic_sessions(timing_logs, tmp_path, capsys):
     assert res["sessions"]["fit"] == 24 and len(res["skipped"]) == 12
     assert set(res["models"]) == set(timing.MODELS)
     assert res["lopo_loglik"]["rate"] < 0
-    hazard, path_time = population.parse_timing(json.loads(fit_file.read_text()))
+    hazard, path_time, rise = population.parse_timing(json.loads(fit_file.read_text()))
     assert path_time[1] == pytest.approx(40 * DT) and set(hazard) == {1, 2, 3}
+    assert rise == pytest.approx(2 * DT)  # poses per correction 5, 0, 1, 3: median 2
     with pytest.raises(SystemExit):
         cli.main(["fit-timing", str(timing_logs), "--out", str(tmp_path), "--bootstrap", "0"])
 

@@ -68,6 +68,23 @@ def read_timed(folder: str | Path) -> tuple[list[timing.TimedSession], list[dict
     return out, skipped
 
 
+def correction_samples(folder: str | Path) -> list[int]:
+    """Logged poses of every correction of every session (empty and one-pose ones as the
+    episode line counts them: 0 and 1)."""
+    out: list[int] = []
+    for path in find_logs(folder):
+        recs = _records(path)
+        ep = next(r for r in recs if r["type"] == "episode")
+        out += [0] * int(ep.get("corrections_empty") or 0)
+        out += [1] * int(ep.get("corrections_one_pose") or 0)
+        seen = set()
+        for c in recs:
+            if c["type"] == "correction" and c["physical_correction"] not in seen:
+                seen.add(c["physical_correction"])
+                out.append(int(c["samples"]))
+    return out
+
+
 def ratio(sessions: list[timing.TimedSession], counts: np.ndarray, num: str, den: str) -> float:
     """Σ counts of learner ``num``'s sessions over Σ of ``den``'s."""
     a = sum(c for s, c in zip(sessions, counts, strict=True) if s.learner == num)
@@ -163,6 +180,7 @@ def run(folder: str | Path, fit_learners: tuple[str, ...], heldout: str, reps: i
         raise ValueError(f"LOGS {folder}: no session of {', '.join(fit_learners)} with θ̂ known")
     res = evaluate(sessions, fit_learners, heldout)
     res["skipped"] = skipped
+    res["correction_samples"] = correction_samples(folder)
     samples: dict[int, list[int]] = {}
     for s in sessions:
         samples.setdefault(s.task, []).append(s.samples)
@@ -187,14 +205,20 @@ def population_fit(res: dict[str, Any], sessions_samples: dict[int, list[int]]) 
         "version": 1,
         "model": "reactive",
         "source": "the authors' user study (github.com/VT-Collab/StROL_RAL before d383bef), "
-        "imported with strol-bench import-study --theta0 implied",
-        "command": "strol-bench fit-timing LOGS --out DIR --write-fit timing_fit.json",
+        "imported with strol-bench import-study DATA --out LOGS --theta0 implied "
+        "--authors-ghat GDIR (StROL's θ̂ under the paper's ĝ, λ = 0.25)",
+        "command": "strol-bench fit-timing LOGS --out DIR --bootstrap 400 --write-fit "
+        "timing_fit.json",
         "fit_learners": res["fit_learners"],
         "units": "rate per s of the robot's logged path (dt = 0.05 s per sample); shortfall: "
         "regret of the plan of θ̂ over the median regret of θ̂ uniform in [-1, 1]^d; wait: "
         "log(1 + s since the last correction)",
         "hazard": {str(t): [p[f"rate_task{t}"], p["shortfall"], p["wait"]] for t in timing.TASKS},
         "path_time": {str(t): float(np.mean(v)) * DT for t, v in sorted(sessions_samples.items())},
+        "rise": float(np.median(res["correction_samples"])) * DT,
+        "rise_source": "the median logged poses per correction (every learner) x 0.05 s: the "
+        "authors' loop logged a pose at each new force maximum, so a push's force rose for "
+        "about that long; the simulated push's force rises (and falls) over it",
         "heldout": {
             "learner": res["heldout"],
             "loglik": {m: r["heldout_loglik"] for m, r in res["models"].items()},

@@ -10,9 +10,10 @@ per second of the robot's path:
 
 - s(t), the **shortfall** of the robot's current plan: its regret under θ* (planned from the
   Task's start with the robot's θ̂ at t, eq. S1) over the regret of a robot that knows
-  nothing (the median over θ̂ uniform in [−1, 1]^d): 0 = the person's own plan, 1 = as bad
-  as a random start. b > 0 is a person who corrects a worse robot sooner (a reactive person);
-  b = 0 a person whose corrections do not depend on the robot (the count a budget);
+  nothing (the median over θ̂ uniform in [−1, 1]^d), capped at 1: 0 = the person's own
+  plan, 1 = as bad as a random start or worse. b > 0 is a person who corrects a worse robot
+  sooner (a reactive person); b = 0 a person whose corrections do not depend on the robot
+  (the count a budget);
 - τ(t), the seconds since the last correction (or the session's start): c < 0 a person who
   waits longer after each push, c > 0 one who corrects in bursts.
 
@@ -217,13 +218,20 @@ def shortfall_unit(task: Task, theta_star: np.ndarray) -> float:
     return _unit(task, tuple(float(v) for v in np.asarray(theta_star, dtype=np.float64)))
 
 
+SHORTFALL_CAP = 1.0
+"""s saturates here: a plan as bad as a random start's or worse looks equally bad. Chosen by
+the leave-one-person-out log-likelihood on the One and MOF sessions among s, min(s, 1),
+log(s + 0.05), √s and max(s − 0.3, 0) (docs/study.md)."""
+
+
 def shortfall(task: Task, theta_star: np.ndarray, theta_hats: np.ndarray) -> np.ndarray:
     """s (n,) for each θ̂ (n, d): the regret of θ̂'s plan from the Task's start (eq. S1) over
-    :func:`shortfall_unit`."""
+    :func:`shortfall_unit`, at most :data:`SHORTFALL_CAP`."""
     hats = np.atleast_2d(np.asarray(theta_hats, dtype=np.float64))
     star = np.broadcast_to(np.asarray(theta_star, dtype=np.float64), hats.shape)
     start = np.repeat(np.asarray(task.start, dtype=np.float64)[None], len(hats), 0)
-    return task.regret(hats, star, start) / shortfall_unit(task, theta_star)
+    s = task.regret(hats, star, start) / shortfall_unit(task, theta_star)
+    return np.minimum(s, SHORTFALL_CAP)
 
 
 def step_in_probability(rate_per_s: float, dt: float) -> float:
@@ -234,6 +242,7 @@ def step_in_probability(rate_per_s: float, dt: float) -> float:
 
 __all__ = [
     "MODELS",
+    "SHORTFALL_CAP",
     "TERMS",
     "Design",
     "TimedSession",

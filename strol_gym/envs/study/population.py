@@ -159,6 +159,10 @@ class Population:
     """Per Task, the timing hazard's (a, b, c) (``FittedParams.hazard``); None: the budget."""
     path_time: dict[int, float] | None = None
     """Per Task, the s of the robot's motion a person watches (with ``hazard``)."""
+    rise: float | None = None
+    """s over which a push's force rises (and falls): the median logged samples per real
+    correction × 0.05 s (the authors' loop logged a sample at each new force maximum), in
+    place of the prior ``ramp``; None: the prior."""
 
     def draw(self, rng: np.random.Generator, task: int) -> FittedParams:
         """One person for a session of Task ``task`` (1-3), from ``rng``: its sizes, aim,
@@ -173,6 +177,8 @@ class Population:
         when: dict[str, Any] = {}
         if self.hazard is not None and self.path_time is not None:
             when = {"hazard": self.hazard[task], "path_time": self.path_time[task]}
+            if self.rise is not None:
+                when["ramp"] = self.rise
         else:
             when = {"budget": int(rng.poisson(self.count_mean[task] * multiplier))}
         return FittedParams(
@@ -182,8 +188,7 @@ class Population:
             turn_within=f["turn_within"],
             aim=math.exp(f["aim_log_mean"] + f["aim_log_sd"] * z[2]),
             linger=math.exp(f["linger_log_mean"] + f["linger_log_sd"] * z[3]),
-            **when,
-            **self.priors,
+            **{**self.priors, **when},
         )
 
 
@@ -224,8 +229,9 @@ def parse(obj: Any, what: str = "participant fit") -> Population:
 
 def parse_timing(
     obj: Any, what: str = "timing fit"
-) -> tuple[dict[int, tuple[float, float, float]], dict[int, float]]:
-    """Per Task (a, b, c) and path time from a timing fit file's JSON object (checked)."""
+) -> tuple[dict[int, tuple[float, float, float]], dict[int, float], float]:
+    """Per Task (a, b, c) and path time, and the push's rise time, from a timing fit file's
+    JSON object (checked)."""
     if not isinstance(obj, dict) or obj.get("format") != TIMING_FORMAT:
         raise ValueError(f"{what} must be a JSON object with format {TIMING_FORMAT!r}")
     hz = checks.mapping(f"{what}['hazard']", obj.get("hazard"), "an object")
@@ -239,7 +245,8 @@ def parse_timing(
         path_time[t] = float(
             checks.number(f"{what}['path_time']['{t}']", pt.get(str(t)), low=0.0, low_open=True)
         )
-    return hazard, path_time
+    rise = float(checks.number(f"{what}['rise']", obj.get("rise"), low=0.01, high=10.0))
+    return hazard, path_time, rise
 
 
 def _read_json(path: Path, what: str) -> Any:
@@ -255,8 +262,8 @@ def read_fit(path: str | Path, timing: str | Path | None = None) -> Population:
     pop = parse(_read_json(path, "participant fit"), str(path))
     if timing is None:
         return pop
-    hazard, path_time = parse_timing(_read_json(Path(timing), "timing fit"), str(timing))
-    return dataclasses.replace(pop, hazard=hazard, path_time=path_time)
+    hazard, path_time, rise = parse_timing(_read_json(Path(timing), "timing fit"), str(timing))
+    return dataclasses.replace(pop, hazard=hazard, path_time=path_time, rise=rise)
 
 
 @functools.cache
