@@ -288,6 +288,8 @@ def _main(argv: Sequence[str] | None = None) -> int:
         raise
     except (ValueError, OSError) as e:  # OSError: a path we cannot read or write (it is named)
         parser.exit(2, f"strol-bench: error: {e}\n")
+    except MemoryError:  # input too large for this machine: said in one line, not a traceback
+        parser.exit(2, f"strol-bench: error: {args.command}: out of memory (an input too large?)\n")
     except KeyboardInterrupt:
         print(f"\n{_interrupted(args)}", file=sys.stderr)
         return 130

@@ -33,6 +33,7 @@ CAPS: dict[str, int] = {
     "session_line_bytes": 2**20,  # one session-log line (a correction is ~1 KB)
     "dataset_steps": 10_000_000,  # steps in one Minari dataset array (rows)
     "dataset_episodes": 1_000_000,  # episodes in one Minari dataset
+    "dataset_bytes": 2**30,  # bytes all arrays of one Minari dataset declare (ours: kilobytes)
 }
 """Name -> the largest accepted value."""
 

@@ -46,7 +46,9 @@ def test_v2_default_participant_is_the_fitted_population():
     assert env.unwrapped.participant == "fitted"
     assert isinstance(human, FittedParticipant)
     for name, entry in shipped["prior"].items():  # the priors, read back
-        assert getattr(human.params, name) == entry["value"]
+        if name != "ramp":  # the shipped population's push rises as the real ones logged
+            assert getattr(human.params, name) == entry["value"]
+    assert human.params.ramp == pop.rise and human.params.correction == "aimed"
     env.close()
     # the between-person distribution read back: draws recover the file's log means and sds
     rng = np.random.default_rng(0)
@@ -220,6 +222,8 @@ def test_v2_ghat_trained_on_the_fitted_population(kind):
         training = learner.checkpoint_meta["training"]
         assert training["human"].endswith("population:FittedPopulationModel")
         assert training["sigma"] == 0.0
+        # trained on the shipped population's own corrections
+        assert training["human_kwargs"]["correction"] == population.SHIPPED_CORRECTION
     v1 = make_learner(kind, task=make_task("study-task1-v1"))
     assert v1.checkpoint.endswith(f"study1-v1_{kind}.safetensors")
 
@@ -290,3 +294,32 @@ def test_read_scale_is_the_median_read_over_the_median_meant():
     task1 = [{"sizes": {"read": [(0.5, 0.0)], "intended": [(1.0, 0.0)]}}]
     assert read_scale(task1) == pytest.approx([0.5, 1.0])  # no turns: rotation left at 1
     assert read_scale([{"sizes": {"read": [], "intended": []}}]) is None
+
+
+def test_the_aimed_population_pushes_and_trains_with_one_model():
+    """The shipped person's corrections and the ĝ training human's (``correction="aimed"``)
+    are the aimed person's draws (``population.aimed_draws``); a bad model name is refused."""
+    task = STUDY_TASKS_V2[2]()
+    n = 8
+    x = np.tile(task.start, (n, 1))
+    star = np.tile(task.theta_star, (n, 1))
+    model = population.FittedPopulationModel(task, read_scale=(0.5, 2.0), correction="aimed")
+    u = model.correct(x, np.zeros((n, 6)), star, np.random.default_rng(4))
+    draws = model.draw(np.random.default_rng(4), n)
+    meant = population.aimed_draws(
+        task, task.theta_star, x, draws.extra["z"][:, :7], draws.extra["pick"]
+    )
+    np.testing.assert_allclose(u[:, :3], 0.5 * meant[:, :3] * task.action_bound[:3])
+    np.testing.assert_allclose(u[:, 3:], 2.0 * meant[:, 3:] * task.action_bound[3:])
+    person = FittedParticipant(
+        task, task.theta_star, np.random.default_rng(5), params=FittedParams(correction="aimed")
+    )
+    rng = np.random.default_rng(5)
+    expect = population.aimed_draws(
+        task, task.theta_star, task.start, rng.standard_normal((1, 7)), rng.random(1)
+    )[0]
+    np.testing.assert_allclose(person.act(task.start, np.zeros(6)), expect * task.action_bound)
+    with pytest.raises(ValueError, match="correction must be one of"):
+        population.FittedPopulationModel(task, correction="nope")
+    with pytest.raises(ValueError, match=r"user_kwargs\['correction'\]"):
+        FittedParams(correction="nope")

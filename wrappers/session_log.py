@@ -42,6 +42,7 @@ from typing import Any, Protocol, runtime_checkable
 import gymnasium as gym
 import numpy as np
 
+from strol_gym.files import open_regular
 from strol_gym.learners.protocol import OnlineRewardLearner
 from strol_gym.limits import CAPS, lifted_now
 from strol_gym.provenance import package_versions
@@ -262,6 +263,17 @@ def _vector(where: str, rec: dict, key: str, dim: int | None, optional: bool = F
     return arr
 
 
+def _poses(where: str, value: Any) -> np.ndarray:
+    """``authors_poses``: (n, 6) finite numbers, n ≥ 2 (the line's size is capped already)."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        arr = np.array([np.nan])
+    if arr.ndim != 2 or arr.shape[1] != 6 or len(arr) < 2 or not np.isfinite(arr).all():
+        raise SessionLogError(f"{where}: 'authors_poses' must be a list of >= 2 rows of 6 numbers")
+    return arr
+
+
 def _dimension(where: str, desc: dict, key: str) -> int:
     value = desc.get(key)
     if isinstance(value, bool) or not isinstance(value, int) or not 0 < value <= 10_000:
@@ -308,7 +320,7 @@ def _lines(path: Path) -> Iterator[tuple[int, bytes]]:
     the cap (``strol_gym.limits``, ``session_line_bytes``) is refused before it is held whole."""
     cap = CAPS["session_line_bytes"] if not lifted_now() else None
     try:
-        with path.open("rb") as f:
+        with open_regular(path, "session log") as f:
             no = 0
             while True:
                 line = f.readline(-1 if cap is None else cap + 1)
@@ -368,8 +380,11 @@ def read_session(path: str | Path) -> Session:
                 "u_h": _vector(where, rec, "u_h", dims["a"]),
                 "u_r": _vector(where, rec, "u_r", dims["a"]),
                 "theta_hat_after": _vector(where, rec, "theta_hat_after", dims["d"], True),
+                "theta_hat_before": _vector(where, rec, "theta_hat_before", dims["d"], True),
                 "correction_time": ctime,
             }
+            if rec.get("authors_poses") is not None:  # import-study: the logged poses it spans
+                c["authors_poses"] = _poses(where, rec["authors_poses"])
             episodes[-1].corrections.append(c)
         elif kind == "header":
             raise SessionLogError(f"{where}: a second header")

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym.files import write_text_atomic
 from strol_gym.humans import human_model, teach
 from strol_gym.humans.fitting import (
     DEFAULT_INTERVAL,
@@ -365,7 +366,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     if args.merge:
-        (out / "recovery.md").write_text(markdown(*merge(args.merge)))
+        write_text_atomic(out / "recovery.md", markdown(*merge(args.merge)))
         print(f"wrote {out / 'recovery.md'}")
         return 0
     methods = [m for m in args.intervals.split(",") if m]
@@ -386,8 +387,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     def write() -> None:
         meta["seconds"] = round(time.perf_counter() - t0, 1)
-        (out / "recovery.json").write_text(
-            json.dumps({"recovery": rec, "confusion": conf, **meta}, indent=2) + "\n"
+        write_text_atomic(
+            out / "recovery.json",
+            json.dumps({"recovery": rec, "confusion": conf, **meta}, indent=2) + "\n",
         )
 
     for human in [m for m in args.models.split(",") if m]:
@@ -415,7 +417,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("confusion", json.dumps(conf), "held-out only", json.dumps(plain), flush=True)
         print(f"matched β {beta:.4g}", flush=True)
     write()
-    (out / "recovery.md").write_text(markdown(rec, conf, meta))
+    write_text_atomic(out / "recovery.md", markdown(rec, conf, meta))
     print(f"wrote {out / 'recovery.md'}")
     return 0
 

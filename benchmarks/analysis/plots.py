@@ -25,6 +25,7 @@ import numpy as np
 from strol_gym.benchmarks.analysis import robust, stats
 from strol_gym.benchmarks.analysis.base import METRIC_LABELS, Analysis, display
 from strol_gym.benchmarks.engine.conditions import env_preset
+from strol_gym.files import write_figure
 from strol_gym.metrics import short
 
 PAPER_COLORS = {
@@ -52,7 +53,7 @@ def save_figure(fig, out: Path, stem: str) -> list[Path]:
     paths = []
     for ext in ("png", "svg"):
         p = out / f"{stem}.{ext}"
-        fig.savefig(p, dpi=130 if ext == "png" else None, bbox_inches="tight")
+        write_figure(fig, p, dpi=130 if ext == "png" else None, bbox_inches="tight")
         paths.append(p)
     plt.close(fig)
     return paths

@@ -26,6 +26,7 @@ from strol_gym.benchmarks.analysis.base import (
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
+from strol_gym.files import write_text_atomic
 from strol_gym.metrics import METRICS as METRIC_TABLE
 
 CELL_KEYS = ("mean", "std", "sem", "median", "n")
@@ -655,7 +656,7 @@ def write_reports(
 
         paths = plotting.make_plots(a, rd.path / "plots")
     rel = [p.relative_to(rd.path) for p in paths]
-    (rd.path / "summary.md").write_text(summary_markdown(a, rd.meta, rel))
+    write_text_atomic(rd.path / "summary.md", summary_markdown(a, rd.meta, rel))
     return a, paths
 
 

@@ -16,7 +16,9 @@ import hashlib
 import importlib.util
 import json
 import os
+import re
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -42,15 +44,22 @@ def add_backend_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--slurm-executor",
         choices=("slurm", "local"),
-        default="slurm",
-        help="with --backend slurm: sbatch (default) or submitit's local executor (no cluster)",
+        default=None,
+        help="with --backend slurm: sbatch (default; Slurm must be installed) or submitit's "
+        "local executor (no cluster)",
     )
-    p.add_argument("--slurm-partition", default=None, help="with --backend slurm: a partition")
+    p.add_argument(
+        "--slurm-partition",
+        type=_partition,
+        default=None,
+        help="with --backend slurm: a partition (letters, digits, '_', '-', '.'; a "
+        "comma-separated list for several)",
+    )
     p.add_argument(
         "--slurm-time",
         type=_minutes,
-        default=60,
-        help="with --backend slurm: minutes per array task (default 60)",
+        default=None,
+        help=f"with --backend slurm: minutes per array task (default {SLURM_TIME_MIN})",
     )
     p.add_argument(
         "--ray-address",
@@ -70,20 +79,71 @@ def _minutes(text: str) -> int:
     return value
 
 
+SLURM_TIME_MIN = 60
+"""Minutes per array task unless ``--slurm-time`` says otherwise."""
+PARTITION = re.compile(r"^[A-Za-z0-9_.-]{1,64}(,[A-Za-z0-9_.-]{1,64}){0,31}$")
+"""A Slurm partition name (or a comma-separated list): it goes into the batch script, so
+nothing else (a newline would add a line to it)."""
+
+
+def _partition(text: str) -> str:
+    if not isinstance(text, str) or not PARTITION.match(text):
+        raise argparse.ArgumentTypeError(
+            "must be a partition name of letters, digits, '_', '-' and '.' (or a "
+            f"comma-separated list of them), got {text!r:.80}"
+        )
+    return text
+
+
 def backend_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    """The ``run_benchmark`` keyword arguments chosen by :func:`add_backend_options`' options."""
+    """The ``run_benchmark`` keyword arguments chosen by :func:`add_backend_options`' options;
+    ValueError for a ``--slurm-*`` option without ``--backend slurm`` (it would do nothing)."""
     kw: dict[str, Any] = {"backend": args.backend, "ray_address": args.ray_address}
+    given = [
+        f"--slurm-{name}"
+        for name in ("executor", "partition", "time")
+        if getattr(args, f"slurm_{name}", None) is not None
+    ]
+    if given and args.backend != "slurm":
+        raise ValueError(f"{', '.join(given)} only apply with --backend slurm")
     if args.backend == "slurm":
         kw["slurm"] = {
-            "executor": args.slurm_executor,
+            "executor": args.slurm_executor or "slurm",
             "partition": args.slurm_partition,
-            "time_min": args.slurm_time,
+            "time_min": args.slurm_time or SLURM_TIME_MIN,
         }
     return kw
 
 
-def check_backend(backend: str, ray_address: str | None) -> None:
-    """ValueError for an unknown backend, an address without Ray, or Ray not installed."""
+def check_slurm(options: dict[str, Any] | None) -> None:
+    """ValueError naming what is wrong with ``--backend slurm``'s options: an unknown executor,
+    a partition that is not a name (:data:`PARTITION`), or the executor ``slurm`` on a machine
+    without Slurm's ``sbatch`` and ``srun`` (submitit would quietly run every unit here)."""
+    import shutil
+
+    opts = options or {}
+    executor = opts.get("executor", "slurm")
+    if executor not in ("slurm", "local"):
+        raise ValueError(f"slurm executor must be 'slurm' or 'local', got {executor!r}")
+    partition = opts.get("partition")
+    if partition is not None:
+        try:
+            _partition(partition)
+        except argparse.ArgumentTypeError as e:
+            raise ValueError(f"--slurm-partition {e}") from None
+    missing = [tool for tool in ("sbatch", "srun") if shutil.which(tool) is None]
+    if executor == "slurm" and missing:
+        raise ValueError(
+            f"--backend slurm needs Slurm: {' and '.join(missing)} not on PATH (install "
+            "Slurm's client, or give --slurm-executor local to run the array on this machine)"
+        )
+
+
+def check_backend(
+    backend: str, ray_address: str | None, slurm: dict[str, Any] | None = None
+) -> None:
+    """ValueError for an unknown backend, an address without Ray, Ray not installed, or
+    Slurm's options wrong or given without ``backend='slurm'`` (:func:`check_slurm`)."""
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {list(BACKENDS)}, got {backend!r}")
     if ray_address is not None and backend != "ray":
@@ -92,8 +152,12 @@ def check_backend(backend: str, ray_address: str | None) -> None:
         raise ValueError(f"ray_address must be a non-empty address string, got {ray_address!r}")
     if backend == "ray" and importlib.util.find_spec("ray") is None:
         raise ValueError(RAY_MISSING)
+    if slurm is not None and backend != "slurm":
+        raise ValueError("slurm options are only used with backend 'slurm'")
     if backend == "slurm" and importlib.util.find_spec("submitit") is None:
         raise ValueError("--backend slurm needs submitit: pip install 'strol-gym[slurm]'")
+    if backend == "slurm":
+        check_slurm(slurm)
     if ray_address is not None:
         check_reachable(ray_address)  # before any work: Ray itself retries for minutes
 
@@ -166,6 +230,36 @@ def _ray_unit(
 
 
 # ---------------------------------------------------------------------- on the driver
+RAY_INIT_DEADLINE = 20.0
+"""Seconds ``ray.init`` may take to join the cluster at ``--ray-address``: a service that
+answers like gRPC but is not Ray's (any HTTP/2 server) passes :func:`check_reachable`, and Ray
+then retries for minutes."""
+
+
+def _init_within(ray: Any, deadline: float, **kwargs: Any) -> None:
+    """``ray.init(**kwargs)`` in a thread, waited for ``deadline`` s: ValueError naming the
+    address if it has not joined by then (the thread is left to Ray's own retries; it holds
+    nothing of ours, and the process ends as the command does)."""
+    box: dict[str, BaseException] = {}
+
+    def init() -> None:
+        try:
+            ray.init(**kwargs)
+        except BaseException as e:  # handed to the caller
+            box["error"] = e
+
+    thread = threading.Thread(target=init, name="ray.init", daemon=True)
+    thread.start()
+    thread.join(deadline)
+    if thread.is_alive():
+        raise ValueError(
+            f"--ray-address {kwargs.get('address')}: no Ray cluster answered within "
+            f"{deadline:g} s (the service there accepts connections but did not let Ray join)"
+        )
+    if "error" in box:
+        raise box["error"]
+
+
 def _start_ray(jobs: int, address: str | None) -> bool:
     """Connect to ``address`` or start a local cluster; True when this call started Ray (and
     so must shut it down)."""
@@ -179,7 +273,7 @@ def _start_ray(jobs: int, address: str | None) -> bool:
 
         if ray.is_initialized():
             return False
-        ray.init(address=address, **common)
+        _init_within(ray, RAY_INIT_DEADLINE, address=address, **common)
         return True
     # Ray resolves 127.0.0.1 to the host's network address, and its servers then listen on
     # every interface, unless its single-machine mode is on: read at import by this process,

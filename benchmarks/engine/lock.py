@@ -33,7 +33,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from strol_gym.files import host, temp_tag
+from strol_gym.files import host, open_regular, temp_tag
 
 LOCK = ".lock"
 BREAK = ".lock.break"
@@ -132,7 +132,7 @@ def _pid_alive(pid: int) -> bool:
 def _read(lock: Path) -> tuple[Owner | None, os.stat_result, bytes] | None:
     """The lock's owner, stat and bytes; None if it does not exist."""
     try:
-        with open(lock, "rb") as f:
+        with open_regular(lock, "lock file") as f:
             st = os.fstat(f.fileno())
             data = f.read(_MAX_LOCK_BYTES + 1)
     except FileNotFoundError:

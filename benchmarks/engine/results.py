@@ -39,7 +39,7 @@ from strol_gym.benchmarks.engine.lock import (
     hold_folder,
     release_folder,
 )
-from strol_gym.files import loads_json, naming_file, write_json_atomic
+from strol_gym.files import loads_json, open_atomic, read_regular, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.provenance import git_revision, package_versions, version_changes
 
@@ -191,7 +191,7 @@ class ResultsDir:
     @staticmethod
     def _read_meta(path: Path) -> dict:
         try:
-            meta = loads_json((path / META).read_bytes(), str(path / META))
+            meta = loads_json(read_regular(path / META), str(path / META))
         except (OSError, ValueError) as e:  # ValueError: bad JSON, not UTF-8, nested too deep
             raise ResultsError(
                 f"{path / META} is unreadable or corrupt ({type(e).__name__}: {e}). Use another "
@@ -306,7 +306,7 @@ class ResultsDir:
             if p.name.startswith("."):
                 continue
             try:
-                label = loads_json(p.read_bytes(), str(p)).get("kernels") or "unrecorded"
+                label = loads_json(read_regular(p), str(p)).get("kernels") or "unrecorded"
             except (OSError, ValueError, AttributeError):
                 label = "unreadable"
             out.setdefault(str(label), []).append(p.stem)
@@ -332,7 +332,7 @@ class ResultsDir:
             if unit is None:
                 raise ResultsError(f"{p} does not belong to this config's units: corrupt folder")
             try:
-                payload = loads_json(p.read_bytes(), str(p))
+                payload = loads_json(read_regular(p), str(p))
                 ok = payload["config_hash"] == self.config_hash
                 recs = payload["records"]
                 seeds = tuple(payload["unit"]["seeds"])
@@ -416,7 +416,7 @@ class ResultsDir:
         max_steps = max((len(r["errors"]) for r in records), default=0)
         head = ["env", "condition", "learner", "seed", *RUN_FIELDS, "steps", "terminated"]
         head += [f"error_step_{k}" for k in range(max_steps)]
-        with open(runs_path, "w", newline="") as f:
+        with open_atomic(runs_path, newline="") as f:
             w = csv.writer(f)
             w.writerow(head)
             for r in records:
@@ -427,7 +427,7 @@ class ResultsDir:
                     + [r["steps"], int(bool(r["terminated"]))]
                     + [_fmt(e) for e in errs]
                 )
-        with open(curves_path, "w", newline="") as f:
+        with open_atomic(curves_path, newline="") as f:
             w = csv.writer(f)
             w.writerow(["env", "condition", "learner", "seed", "step", "error", "cos_error"])
             for r in records:
@@ -495,7 +495,7 @@ def _fmt(x: Any) -> str:
 
 def write_csv(path: Path, rows: Iterable[dict], columns: Sequence[str]) -> Path:
     """Write dict rows with the given column order; floats at full precision."""
-    with naming_file(path), open(path, "w", newline="") as f:
+    with open_atomic(path, newline="") as f:
         w = csv.writer(f)
         w.writerow(columns)
         for r in rows:

@@ -65,7 +65,7 @@ def run_benchmark(
     from strol_gym.benchmarks.engine.backends import check_backend
     from strol_gym.benchmarks.engine.results import package_versions
 
-    check_backend(backend, ray_address)
+    check_backend(backend, ray_address, slurm)
     config, stuck = config.with_user_specs()
     if stuck and (int(jobs) > 1 or backend != "local"):
         raise ValueError(

@@ -16,6 +16,8 @@ array with submitit's local executor (no cluster): how CI tests it.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import sys
 import time
@@ -26,7 +28,7 @@ from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.results import ResultsError, write_json_atomic
-from strol_gym.files import temp_tag
+from strol_gym.files import read_regular, temp_tag
 
 SLURM_DIR = ".slurm"
 EXECUTORS = ("slurm", "local")
@@ -61,9 +63,7 @@ def _read_block(path: Path, unit: Unit, config_hash: str) -> list[dict] | None:
     """The records of a block file, or None if it is not a complete block of ``unit`` for this
     config (a leftover of another config, a torn copy): it is then ignored and recomputed."""
     try:
-        if path.stat().st_size > MAX_BLOCK_BYTES:
-            return None
-        payload = json.loads(path.read_bytes().decode("utf-8"))
+        payload = json.loads(read_regular(path, MAX_BLOCK_BYTES, "block file").decode("utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
     if not isinstance(payload, dict) or payload.get("config_hash") != config_hash:
@@ -111,19 +111,26 @@ def iter_slurm(
     yield from _collect(blocks, want, config_hash)  # an earlier array's finished tasks
     if not want:
         return
-    cluster = None if executor == "slurm" else "local"
-    ex = submitit.AutoExecutor(folder=base / "logs", cluster=cluster)
     params: dict[str, Any] = {"timeout_min": int(time_min), "cpus_per_task": 1}
     if executor == "slurm":
         params["slurm_array_parallelism"] = int(jobs)
         if partition:
             params["slurm_partition"] = partition
-    ex.update_parameters(name="strol-bench", **params)
     todo = list(want.values())
     n = len(todo)
     cfg, path = config.to_dict(), list(sys.path)
     where, make = [str(blocks)] * n, [make_worker] * n
-    submitted = ex.map_array(_array_task, [cfg] * n, [path] * n, todo, where, make)
+    echoed = io.StringIO()  # submitit echoes a failing sbatch's stderr: said once, below
+    try:
+        with contextlib.redirect_stderr(echoed):
+            # named, never None: AutoExecutor(cluster=None) would run every unit here instead
+            ex = submitit.AutoExecutor(folder=base / "logs", cluster=executor)
+            ex.update_parameters(name="strol-bench", **params)
+            submitted = ex.map_array(_array_task, [cfg] * n, [path] * n, todo, where, make)
+    except (RuntimeError, OSError) as e:  # no srun, sbatch failed (submitit's FailedJobError)
+        said = " ".join(str(e).split())
+        raise ResultsError(f"the Slurm array could not be submitted: {said[:400]}") from None
+    sys.stderr.write(echoed.getvalue())
     try:
         while want:
             yield from _collect(blocks, want, config_hash)

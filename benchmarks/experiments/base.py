@@ -37,6 +37,7 @@ from strol_gym.benchmarks.engine.results import (
     write_csv,
     write_json_atomic,
 )
+from strol_gym.files import write_text_atomic
 
 
 @dataclasses.dataclass
@@ -183,7 +184,7 @@ def write_table(
     out.mkdir(parents=True, exist_ok=True)
     csv_path = write_csv(out / f"{stem}.csv", rows, columns)
     md_path = out / f"{stem}.md"
-    md_path.write_text("\n".join(markdown) + "\n")
+    write_text_atomic(md_path, "\n".join(markdown) + "\n")
     return [csv_path, md_path]
 
 

@@ -24,6 +24,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from strol_gym.benchmarks.engine.kernels import kernel_label
+from strol_gym.files import write_text_atomic
 
 ALPHA = 0.05
 DEFAULT_SETTINGS = ("native", "Haswell:default", "Prescott:default")
@@ -270,7 +271,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             print("\n".join(tests_table(folders, primary_metrics(folders))))
             if args.tests_md:
                 path = Path(args.tests_md).with_suffix(f".{stem}.md")
-                path.write_text("\n".join(tests_table(folders)) + "\n")
+                write_text_atomic(path, "\n".join(tests_table(folders)) + "\n")
                 print(f"every test of {name} (all metrics): {path}")
     return 0
 

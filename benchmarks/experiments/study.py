@@ -46,6 +46,7 @@ from strol_gym.benchmarks.engine.episodes import regret_inputs
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 from strol_gym.envs.study import metrics as study_authors
+from strol_gym.files import write_text_atomic
 
 TASKS = (1, 2, 3)
 DEFAULT_USERS = 20
@@ -397,7 +398,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     ]
     if pooled:
         md += ["", *pooled_markdown(pooled, len(envs), rd.config.experiments[0].runs)]
-    (rd.path / "study_table.md").write_text("\n".join(md) + "\n")
+    write_text_atomic(rd.path / "study_table.md", "\n".join(md) + "\n")
     paths = make_plots(a, records, rd.path / "plots") if plots else []
     result = {
         "tasks": tasks,
@@ -407,7 +408,7 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
         "table": rows,
         "plots": [str(p) for p in paths],
     }
-    (rd.path / "study.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
+    write_text_atomic(rd.path / "study.json", json.dumps(result, indent=1, default=float) + "\n")
     result["markdown"] = "\n".join(md)
     return result
 

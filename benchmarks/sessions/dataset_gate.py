@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from strol_gym.files import NotAFile, check_input, read_regular
 from strol_gym.limits import CAPS, check_size, lifted_now
 from strol_gym.wrappers.session_log import SessionLogError
 
@@ -203,10 +204,12 @@ def read_metadata(path: str | Path) -> dict[str, Any]:
     """A Minari ``metadata.json`` as a dict, size-checked; :class:`DatasetRefused` names it."""
     path = Path(path)
     try:
-        if path.stat().st_size > MAX_METADATA_BYTES:
-            raise DatasetRefused(f"{path}: larger than {MAX_METADATA_BYTES} bytes")
-        meta = json.loads(path.read_bytes().decode("utf-8"))
-    except (OSError, ValueError, RecursionError) as e:  # ValueError: not UTF-8 or not JSON
+        raw = read_regular(path, MAX_METADATA_BYTES, "Minari metadata file")
+    except (OSError, ValueError) as e:  # NotAFile (a FIFO, a device), too large, unreadable
+        raise DatasetRefused(f"{path}: {e}" if str(path) not in str(e) else str(e)) from None
+    try:
+        meta = json.loads(raw.decode("utf-8"))
+    except (ValueError, RecursionError) as e:  # ValueError: not UTF-8 or not JSON
         raise DatasetRefused(f"{path}: not a Minari metadata file ({type(e).__name__})") from None
     if not isinstance(meta, dict):
         raise DatasetRefused(f"{path}: not a Minari metadata file (not a JSON object)")
@@ -250,37 +253,85 @@ MAX_ROW_WIDTH = 1_024
 """The most numbers per step in a dataset array (ours hold tens)."""
 
 
+MAX_OBJECTS = 100_000
+"""The most groups and arrays the gate walks in a dataset's HDF5 file (ours hold a few dozen)."""
+
+
 def check_arrays(folder: Path) -> None:
-    """:class:`DatasetRefused` naming the file and array if any array in the dataset's HDF5
-    file declares more rows than the cap (``dataset_steps``) or rows wider than
-    :data:`MAX_ROW_WIDTH`: shapes are read from the file's headers, before Minari allocates."""
+    """:class:`DatasetRefused` naming the file (and array) unless the dataset's HDF5 file is a
+    regular file whose arrays all live in it and fit the caps, read from its headers before
+    Minari allocates anything:
+
+    - no external link (an array of another file), no virtual dataset (one mapped onto other
+      files: a FIFO among them blocks the read), no external storage (raw bytes of another file);
+    - no array of more rows than ``dataset_steps`` or rows wider than :data:`MAX_ROW_WIDTH`;
+    - the bytes all arrays declare, summed, within ``dataset_bytes`` (a chunked array that was
+      never written takes no room in the file but all of it in memory when read).
+    """
     data = folder / DATA_FILE
-    if not data.is_file():
+    try:
+        check_input(data, "dataset file")
+    except FileNotFoundError:
         return
+    except OSError as e:  # NotAFile (a FIFO, a device, a folder) or unreadable
+        raise DatasetRefused(str(e) if isinstance(e, NotAFile) else f"{data}: {e}") from None
     try:
         import h5py
     except ImportError:  # Minari without HDF5 cannot read it either
         return
-    rows = CAPS["dataset_steps"] + 1
-    found: list[str] = []
-
-    def visit(name: str, obj: Any) -> None:
-        shape = getattr(obj, "shape", None)
-        if shape is None or found:
-            return
-        if len(shape) and (shape[0] > rows or math.prod(shape[1:]) > MAX_ROW_WIDTH):
-            found.append(f"{name} {tuple(shape)}")
-
     try:
         with h5py.File(data, "r") as f:
-            f.visititems(visit)
+            problem = _walk(h5py, f)
     except OSError as e:
         raise DatasetRefused(f"{data}: not a readable HDF5 file ({e})") from None
-    if found and not lifted_now():
-        raise DatasetRefused(
-            f"{data}: array {found[0]} is larger than the cap ({rows - 1:,} rows of at most "
-            f"{MAX_ROW_WIDTH} numbers; strol_gym.limits.lift() lifts it)"
-        )
+    if problem is not None:
+        raise DatasetRefused(f"{data}: {problem}")
+
+
+def _walk(h5py: Any, root: Any) -> str | None:
+    """What in ``root``'s tree the gate refuses (:func:`check_arrays`), or None."""
+    rows, width = CAPS["dataset_steps"] + 1, MAX_ROW_WIDTH  # observations: steps + 1 rows
+    total, seen = 0, 0
+    stack = [("", root)]
+    while stack:
+        where, group = stack.pop()
+        for name in group:
+            seen += 1
+            if seen > MAX_OBJECTS:
+                return f"more than {MAX_OBJECTS:,} groups and arrays"
+            path = f"{where}/{name}" if where else name
+            link = group.get(name, getlink=True)
+            if isinstance(link, h5py.ExternalLink):
+                return f"{path} is an external link (to {link.filename}): refused"
+            if not isinstance(link, h5py.HardLink):
+                continue  # a soft link names an object of this file, checked where it lives
+            obj = group[name]
+            if isinstance(obj, h5py.Group):
+                if path.count("/") >= 32:
+                    return f"{path}: groups nested deeper than 32 levels"
+                stack.append((path, obj))
+                continue
+            if not isinstance(obj, h5py.Dataset):
+                continue
+            if obj.is_virtual:
+                return f"{path} is a virtual dataset (mapped onto other files): refused"
+            if obj.external:
+                return f"array {path} is stored in another file (external storage): refused"
+            shape = tuple(obj.shape or ())
+            if lifted_now():
+                continue
+            if len(shape) and (shape[0] > rows or math.prod(shape[1:]) > width):
+                return (
+                    f"array {path} {shape} is larger than the cap ({rows - 1:,} rows of at most "
+                    f"{width} numbers; strol_gym.limits.lift() lifts it)"
+                )
+            total += math.prod(shape) * obj.dtype.itemsize
+            if total > CAPS["dataset_bytes"]:
+                return (
+                    f"its arrays declare more than {CAPS['dataset_bytes']:,} bytes in all (the "
+                    "cap dataset_bytes; strol_gym.limits.lift() lifts it)"
+                )
+    return None
 
 
 __all__ = [

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym.files import write_figure, write_text_atomic
 from strol_gym.humans.fitting import (
     DEFAULT_INTERVAL,
     FEW_PEOPLE,
@@ -239,7 +240,7 @@ def ppc_plot(path: Path, data: Corrections, fits: dict[str, Fit], seed: int) -> 
     axes[0].legend(fontsize=7)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -351,10 +352,11 @@ def run_fit_human(
     record = main.to_json()
     if chosen is not None:
         record["selection"] = chosen.to_json()
-    (out / "fit.json").write_text(json.dumps(record, indent=2) + "\n")
-    (out / "fit.md").write_text(fit_markdown(main, sources))
+    write_text_atomic(out / "fit.json", json.dumps(record, indent=2) + "\n")
+    write_text_atomic(out / "fit.md", fit_markdown(main, sources))
     if chosen is not None:
-        (out / "compare.json").write_text(
+        write_text_atomic(
+            out / "compare.json",
             json.dumps(
                 {
                     "fits": [f.to_json() for f in fits.values()],
@@ -363,9 +365,9 @@ def run_fit_human(
                 },
                 indent=2,
             )
-            + "\n"
+            + "\n",
         )
-        (out / "compare.md").write_text(compare_markdown(fits, skipped, chosen))
+        write_text_atomic(out / "compare.md", compare_markdown(fits, skipped, chosen))
         if plots:
             ppc_plot(out / "plots" / "ppc.png", data, fits, seed)
     return fits

@@ -46,7 +46,7 @@ from strol_gym.envs.study.population import (
     cosine,
     draw_corrections,
 )
-from strol_gym.files import write_json_atomic
+from strol_gym.files import check_output, write_json_atomic, write_text_atomic
 from strol_gym.tasks.study import StudyTask
 from strol_gym.wrappers.session_log import read_session, session_task
 
@@ -374,7 +374,8 @@ def command(args: argparse.Namespace, parser: Any) -> int:
         parser.error(
             f"LOGS must be a folder written by strol-bench import-study, got {args.logs!r}"
         )
-    out = Path(args.out)
+    out = check_output(args.out, "--out")  # before the work: a FIFO, a device, a link
+    check_output(out.with_suffix(".md"), "--out's table")
     cmd = f"strol-bench fit-participant LOGS --out {out.name} --bootstrap {args.bootstrap}"
     try:
         fit = fit_participant(args.logs, args.bootstrap, args.seed, cmd + f" --seed {args.seed}")
@@ -383,7 +384,7 @@ def command(args: argparse.Namespace, parser: Any) -> int:
         return 2
     write_json_atomic(out, fit)
     text = fit_markdown(fit)
-    out.with_suffix(".md").write_text(text, encoding="utf-8")
+    write_text_atomic(out.with_suffix(".md"), text)
     print(text)
     print(f"wrote {out} and {out.with_suffix('.md')}")
     return 0

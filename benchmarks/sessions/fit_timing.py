@@ -133,7 +133,9 @@ def bootstrap(
     people = sorted({s.person for s in sessions})
     by = {p: [s for s in sessions if s.person == p] for p in people}
     rng = np.random.default_rng(seed)
-    real, pred, gain = [], {m: [] for m in timing.MODELS}, []
+    real: list[float] = []
+    gain: list[float] = []
+    pred: dict[str, list[float]] = {m: [] for m in timing.MODELS}
     for _ in range(reps):
         pick = rng.integers(0, len(people), len(people))
         sample = [s for i in pick for s in by[people[i]]]

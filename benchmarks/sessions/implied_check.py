@@ -6,8 +6,9 @@ DIR is a ``user_study/data`` tree (read with the plain-pickle reader). The autho
 uniformly from [−1, 1]^d and logged only the final θ̂; their updates never depend on θ̂, so
 θ̂0 = θ̂_final − Σ updates (:mod:`authors_rules`: our One and Gradient rules under their settings).
 Per folder (b1 = One, b2 = MOF, ours = StROL) and rule, the count of sessions whose implied θ̂0
-lies inside the box. StROL sessions are checked with the gradient rule alone (their ĝ term is
-not reproduced here), which the check is expected to reject.
+lies inside the box. StROL sessions are checked here with the gradient rule alone, a control
+the check is expected to reject; ``strol-bench import-study --theta0 implied --authors-ghat
+GDIR`` checks them under their own rule (with the authors' ĝ).
 """
 
 from __future__ import annotations

@@ -14,19 +14,25 @@ in the Study Task's frame and orientation convention (:mod:`authors_frame`):
   ``--authors-updates``, one line per consecutive pair of logged poses instead, u_H = 3·Δ, as
   their learner updated. Empty and one-pose corrections give no update (nor did theirs); the
   episode line counts them.
+- each record keeps the poses it spans as the authors logged them (their hand frame, roll′):
+  ``authors_poses``, (n, 6), so a learner in their feature space (``strol-paper``) replays from
+  the log alone.
 - what the logs do not hold is marked, never invented: θ̂ before/after each correction (their
   learner aliased one buffer), start/end/correction times and forces (null), θ̂0 (the episode's
   ``theta_hat0`` is the Task prior's mean, or with ``--theta0 implied`` the θ̂0 worked back from
-  the final θ̂ with the session's rule where that rule allows it: ``theta_hat0_source`` says
-  which). With ``--theta0 implied`` a One or MOF session's θ̂ before/after each correction is
-  reconstructed too (the implied θ̂0 and the same updates forward; the header's ``theta_hat``
-  says so); a StROL session's stays unknown (``NOT_RECONSTRUCTED`` says why).
+  the final θ̂ with the session's rule: ``theta_hat0_source`` says which). With ``--theta0
+  implied`` each correction's ``theta_hat_before`` / ``theta_hat_after`` are reconstructed too
+  (the implied θ̂0 and the same updates forward, in the authors' feature space; the header's
+  ``extra["theta_hat"]`` says so). A StROL session's rule needs the authors' ĝ
+  (``--authors-ghat GDIR``, :mod:`authors_ghat`; the header's ``extra["authors_ghat"]`` names
+  its file and SHA-256); without it that session's θ̂ stays unknown (``NOT_RECONSTRUCTED``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import re
 from pathlib import Path
 from typing import Any
@@ -40,13 +46,16 @@ from strol_gym.benchmarks.sessions.authors_frame import (
     pose_to_frame,
     rotation_angle,
 )
+from strol_gym.benchmarks.sessions.authors_ghat import FLAG, PAPER_LAMBDA, load_authors_ghat
 from strol_gym.benchmarks.sessions.authors_rules import (
     AUTHORS_GAIN,
+    PAPER,
+    RULE_NAMES,
     RULES,
-    implied_theta0,
-    reconstructed_theta_hats,
+    reconstruct,
 )
 from strol_gym.benchmarks.sessions.plain_pickle import load_plain_pickle
+from strol_gym.files import check_input
 from strol_gym.provenance import package_versions
 from strol_gym.tasks.study import STUDY_TASKS, StudyTask, wrap_angle
 from strol_gym.wrappers.session_log import SessionWriter
@@ -68,9 +77,8 @@ UNKNOWN = (
     "the order of the learners a participant met",
 )
 NOT_RECONSTRUCTED = {
-    "ours": "not reconstructed: StROL's update adds the authors' trained ĝ term, which this "
-    "project does not have, so neither θ̂0 nor θ̂ per correction can be worked back from the "
-    "final θ̂",
+    "ours": "not reconstructed: StROL's update adds the authors' trained ĝ term; give "
+    f"{FLAG} GDIR (a checkout's user_study/g_data) to work θ̂0 and θ̂ per correction back",
 }
 """Why ``--theta0 implied`` leaves θ̂ unknown in a session (written to its header)."""
 _SESSION = re.compile(r"^user_(\d+)$")
@@ -171,6 +179,8 @@ def find_sessions(root: str | Path) -> list[tuple[Path, int, int, str]]:
                 p = user_dir / f"task_{task}" / alg / "data.pkl"
                 if p.is_file():
                     found.append((p, int(m[1]), task, alg))
+                elif os.path.lexists(p):  # a FIFO, a device, a dangling link: said, not skipped
+                    check_input(p, "study file")
                 if len(found) > MAX_SESSIONS:
                     raise ValueError(f"DIR {root}: more than {MAX_SESSIONS} sessions")
     if not found:
@@ -217,7 +227,7 @@ def correction_lines(
     theta0: np.ndarray | None = None,
 ) -> list[dict[str, Any]]:
     """The ``correction`` records of one session (see the module docstring); ``hats``, per
-    correction θ̂ after each logged sample (``authors_rules.reconstructed_theta_hats``), and
+    correction θ̂ after each logged sample (``authors_rules.reconstruct``), and
     ``theta0`` fill θ̂ before/after each record where a One or MOF session's θ̂ is
     reconstructed (``--theta0 implied``)."""
     lines: list[dict[str, Any]] = []
@@ -252,6 +262,7 @@ def correction_lines(
         else:
             steps = [(states[0], state_step(task, states[0], states[-1]), None)]
         for i, (x, u_h, sample) in enumerate(steps):
+            span = poses[i : i + 2] if authors_updates else poses
             after = None
             if hats is not None:
                 after = hats[k][i] if authors_updates else hats[k][-1]
@@ -263,6 +274,7 @@ def correction_lines(
                 "u_r": np.zeros_like(u_h),
                 "theta_hat_before": before,
                 "theta_hat_after": after,
+                "authors_poses": span,
                 **common,
             }
             before = after
@@ -272,14 +284,16 @@ def correction_lines(
     return lines
 
 
-def _theta0(raw: RawSession, task: StudyTask, mode: str) -> tuple[np.ndarray, str]:
-    mean = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
-    if mode == "implied" and raw.alg in RULES and raw.theta_final is not None:
-        rule = RULES[raw.alg]
-        th0 = implied_theta0(raw.theta_final, raw.corrections, raw.task, rule)
-        return th0, f"implied: final θ̂ minus the authors' per-sample updates under {rule}"
-    why = "" if mode == "prior-mean" else " (this session's rule gives no implied θ̂0)"
-    return mean, "prior mean (θ̂0 was not logged)" + why
+Implied = tuple[np.ndarray, list[np.ndarray]]
+"""A session's implied θ̂0 and θ̂ after each logged sample (``authors_rules.reconstruct``)."""
+
+
+def implied(raw: RawSession, ghat: str | Path | None) -> Implied | None:
+    """The session's implied θ̂0 and θ̂ per sample under its own rule (None: no final θ̂, or a
+    StROL session without the authors' ĝ)."""
+    if raw.theta_final is None or (RULES[raw.alg] == PAPER and ghat is None):
+        return None
+    return reconstruct(raw.theta_final, raw.corrections, raw.task, RULES[raw.alg], ghat)
 
 
 def write_session(
@@ -289,23 +303,32 @@ def write_session(
     authors_updates: bool,
     theta0: str,
     packages: dict[str, str | None] | None = None,
+    rebuilt: Implied | None = None,
+    ghat: str | Path | None = None,
 ) -> Path:
-    """One authors' session as ``out/user_K_task_J_ALG.jsonl``."""
+    """One authors' session as ``out/user_K_task_J_ALG.jsonl``; with ``theta0 == "implied"``
+    its θ̂ is ``rebuilt`` (:func:`implied`) where the session's rule allows it."""
     task = STUDY_TASKS[raw.task]()
     from strol_gym.tasks import task_name
 
     path = out / f"user_{raw.user}_task_{raw.task}_{raw.alg}.jsonl"
-    th0, source = _theta0(raw, task, theta0)
-    hats, unknown, extra = None, list(UNKNOWN), {}
-    if source.startswith("implied") and raw.theta_final is not None:
+    th0 = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
+    source = "prior mean (θ̂0 was not logged)"
+    hats, unknown = None, list(UNKNOWN)
+    extra: dict[str, object] = {}
+    if theta0 == "implied" and rebuilt is not None:
         rule = RULES[raw.alg]
-        hats = reconstructed_theta_hats(raw.theta_final, raw.corrections, raw.task, rule)
+        th0, hats = rebuilt
+        source = f"implied: final θ̂ minus the authors' per-sample updates under {rule}"
         unknown = [u for u in unknown if u not in ("theta_hat per correction", "theta_hat0")]
         extra["theta_hat"] = (
             f"reconstructed: the implied θ̂0 and the authors' per-sample updates under {rule} "
-            "(authors_rules.reconstructed_theta_hats), not logged"
+            "in their feature space (authors_rules.reconstruct), not logged"
         )
+        if rule == PAPER:
+            extra["authors_ghat"] = load_authors_ghat(str(ghat), raw.task).describe()
     elif theta0 == "implied":
+        source += " (this session's rule gives no implied θ̂0)"
         extra["theta_hat"] = NOT_RECONSTRUCTED.get(raw.alg, "not reconstructed: no final θ̂")
     header = {
         "created": None,
@@ -375,14 +398,40 @@ def start_spread_mm(sessions: list[RawSession]) -> dict[int, np.ndarray]:
     return {k: np.array(v) for k, v in out.items()}
 
 
+def implied_lines(sessions: list[RawSession], rebuilt: dict[int, Implied]) -> list[str]:
+    """Per folder whose rule was worked back: how many implied θ̂0 lie in the prior's box."""
+    out = []
+    for alg, rule in RULE_NAMES.items():
+        mine = [i for i, s in enumerate(sessions) if s.alg == alg and s.theta_final is not None]
+        if not mine or not all(i in rebuilt for i in mine):
+            continue
+        inside = sum(bool(np.all(np.abs(rebuilt[i][0]) <= 1.0)) for i in mine)
+        out.append(f"implied θ̂0 inside [−1, 1]^d: {rule} {inside} of {len(mine)}")
+    return out
+
+
 def import_study(
-    root: str | Path, out: str | Path, authors_updates: bool = False, theta0: str = "prior-mean"
-) -> tuple[list[Path], FrameFit, dict[int, np.ndarray]]:
+    root: str | Path,
+    out: str | Path,
+    authors_updates: bool = False,
+    theta0: str = "prior-mean",
+    authors_ghat: str | Path | None = None,
+) -> tuple[list[Path], FrameFit, dict[int, np.ndarray], list[str]]:
     """Read every session under ``root`` and write its log into ``out`` (which must not hold
-    them already: logs are never overwritten)."""
+    them already: logs are never overwritten). Also returns the implied-θ̂0 check's lines
+    (``theta0 == "implied"``; StROL's with ``authors_ghat``, GDIR)."""
     if theta0 not in ("prior-mean", "implied"):
         raise ValueError(f"theta0 must be 'prior-mean' or 'implied', got {theta0!r}")
+    if authors_ghat is not None:
+        for number in (1, 2):  # both files read and checked before anything is written
+            load_authors_ghat(authors_ghat, number)
     sessions = read_sessions(root)  # all checked before anything is written
+    rebuilt: dict[int, Implied] = {}
+    if theta0 == "implied":
+        for i, s in enumerate(sessions):
+            r = implied(s, authors_ghat)
+            if r is not None:
+                rebuilt[i] = r
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -391,14 +440,18 @@ def import_study(
     fit = fit_transform()
     packages = package_versions()
     written = []
-    for s in sessions:
+    for i, s in enumerate(sessions):
         try:
-            written.append(write_session(s, out, fit, authors_updates, theta0, packages))
+            written.append(
+                write_session(
+                    s, out, fit, authors_updates, theta0, packages, rebuilt.get(i), authors_ghat
+                )
+            )
         except FileExistsError:
             raise ValueError(
                 f"--out {out}: user_{s.user}_task_{s.task}_{s.alg}.jsonl exists (never overwritten)"
             ) from None
-    return written, fit, start_spread_mm(sessions)
+    return written, fit, start_spread_mm(sessions), implied_lines(sessions, rebuilt)
 
 
 # ---------------------------------------------------------------------- CLI
@@ -423,14 +476,31 @@ def add_parser(sub: Any) -> None:
         "--theta0",
         choices=("prior-mean", "implied"),
         default="prior-mean",
-        help="the episode's θ̂0: the Task prior's mean, or (One and MOF sessions) the θ̂0 "
-        "implied by the final θ̂ under the authors' rule",
+        help="the episode's θ̂0: the Task prior's mean, or the θ̂0 implied by the final θ̂ "
+        "under the session's own rule (with θ̂ before/after each correction; StROL sessions "
+        f"need {FLAG})",
+    )
+    p.add_argument(
+        FLAG,
+        dest="authors_ghat",
+        default=None,
+        metavar="GDIR",
+        help="a local checkout's user_study/g_data (model_t1, model_t2): the authors' ĝ, read "
+        "with torch.load(weights_only=True), checked against their MLP, never copied",
     )
 
 
 def command(args: Any, parser: Any) -> int:
-    written, fit, spread = import_study(args.dir, args.out, args.authors_updates, args.theta0)
+    written, fit, spread, check = import_study(
+        args.dir, args.out, args.authors_updates, args.theta0, args.authors_ghat
+    )
     print(f"wrote {len(written)} session logs into {args.out}")
+    if args.authors_ghat is not None:
+        for number, tasks in ((1, "Task 1"), (2, "Tasks 2-3")):
+            g = load_authors_ghat(args.authors_ghat, number)
+            print(f"authors' ĝ for {tasks}: {g.path} sha256 {g.sha256} (λ = {PAPER_LAMBDA})")
+    for line in check:
+        print(line)
     print(
         f"frame: cup = logged frame · (offset {np.round(fit.offset_mm, 2).tolist()} mm, "
         f"turn {fit.turn_deg:.2f}° about z); residual at the homes "
@@ -456,6 +526,8 @@ __all__ = [
     "RawSession",
     "check_session",
     "find_sessions",
+    "implied",
+    "implied_lines",
     "import_study",
     "read_sessions",
     "write_session",

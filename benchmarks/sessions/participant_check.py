@@ -37,6 +37,7 @@ from strol_gym.benchmarks.sessions.fit_participant import (
     read_sessions,
 )
 from strol_gym.envs.study.population import best_correction, cosine
+from strol_gym.files import write_text_atomic
 from strol_gym.tasks.study import StudyTask
 
 SEED = 39_100
@@ -250,9 +251,9 @@ def run(
         result["who"][w] = per
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "distances.json").write_text(json.dumps(result, indent=1) + "\n")
+    write_text_atomic(out / "distances.json", json.dumps(result, indent=1) + "\n")
     text = markdown(result, who, tasks)
-    (out / "distances.md").write_text(text)
+    write_text_atomic(out / "distances.md", text)
     print(text)
     return result
 

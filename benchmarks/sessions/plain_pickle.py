@@ -19,10 +19,15 @@ from typing import Any, Literal
 
 import numpy as np
 
+from strol_gym.files import read_regular
+
 MAX_FILE_BYTES = 256 * 2**20
 """The largest pickle read (the authors' largest is ~0.2 MB)."""
 MAX_ARRAY_ITEMS = 10_000_000
 """The most elements one array may hold."""
+MAX_NODES = 1_000_000
+"""The most values (arrays, lists, dicts, numbers, strings) a pickle's tree may hold, counting
+a shared one each time it is referenced (an authors' log holds a few thousand)."""
 _KINDS = "biuf"
 """numpy dtype kinds admitted: bool, signed and unsigned integers, floats."""
 _NUMPY_MODULES = ("numpy", "numpy.core.multiarray", "numpy._core.multiarray")
@@ -123,41 +128,82 @@ class _Unpickler(pickle.Unpickler):
         raise PickleRefused("a persistent reference")
 
 
-def _plain(value: Any, depth: int = 0) -> Any:
-    """The loaded tree with stand-ins replaced by arrays; anything else refused."""
-    if depth > 32:
-        raise PickleRefused("nesting deeper than 32 levels")
-    if isinstance(value, _Array):
-        if value.array is None:
-            raise PickleRefused("an ndarray without data")
-        return value.array
-    if isinstance(value, list | tuple):
-        return [_plain(v, depth + 1) for v in value]
-    if isinstance(value, dict):
-        if not all(isinstance(k, str | int) for k in value):
-            raise PickleRefused("a dict with keys other than strings and integers")
-        return {k: _plain(v, depth + 1) for k, v in value.items()}
-    if value is None or isinstance(value, bool | int | float | str):
-        return value
-    raise PickleRefused(f"a {type(value).__name__} (only arrays, lists, dicts and numbers)")
+class _Plain:
+    """The loaded tree with stand-ins replaced by arrays; anything else refused.
+
+    An object the pickle references twice (through its memo) is converted once and stays
+    shared, and the tree's size *as a reader walks it* (every reference counted, a shared list
+    as often as it is referenced) is held to :data:`MAX_NODES`: 30 nested levels of
+    ``[prev, prev]`` fit in 309 bytes and unfold to 2³⁰ leaves.
+    """
+
+    def __init__(self, budget: int) -> None:
+        self.budget = budget
+        self.done: dict[int, tuple[Any, int]] = {}  # id -> (converted, walked size)
+        self.keep: list[Any] = []  # the originals, alive while their ids are keys
+
+    def __call__(self, value: Any, depth: int = 0) -> tuple[Any, int]:
+        if depth > 32:
+            raise PickleRefused("nesting deeper than 32 levels")
+        if isinstance(value, list | tuple | dict | _Array) and id(value) in self.done:
+            return self.done[id(value)]
+        if isinstance(value, _Array):
+            if value.array is None:
+                raise PickleRefused("an ndarray without data")
+            out: Any
+            out, size = value.array, 1
+        elif isinstance(value, list | tuple):
+            out, size = [], 1
+            for v in value:
+                item, n = self(v, depth + 1)
+                out.append(item)
+                size = self._add(size, n)
+        elif isinstance(value, dict):
+            if not all(isinstance(k, str | int) for k in value):
+                raise PickleRefused("a dict with keys other than strings and integers")
+            out, size = {}, 1
+            for k, v in value.items():
+                out[k], n = self(v, depth + 1)
+                size = self._add(size, n)
+        elif value is None or isinstance(value, bool | int | float | str):
+            return value, 1
+        else:
+            raise PickleRefused(f"a {type(value).__name__} (only arrays, lists, dicts and numbers)")
+        self.done[id(value)] = (out, size)
+        self.keep.append(value)
+        return out, size
+
+    def _add(self, size: int, n: int) -> int:
+        size += n
+        if size > self.budget:
+            raise PickleRefused(
+                f"more than {self.budget:,} values once shared references are followed "
+                "(a pickle that unfolds as it is read)"
+            )
+        return size
 
 
-def load_plain_pickle(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> Any:
+def load_plain_pickle(
+    path: str | Path, max_bytes: int = MAX_FILE_BYTES, max_nodes: int = MAX_NODES
+) -> Any:
     """The content of the pickle at ``path``: numpy arrays in lists and dicts, numbers, strings.
 
     Raises :class:`PickleRefused` (a ValueError naming the file) for anything else, for a file
-    larger than ``max_bytes``, or for a damaged pickle. Nothing in the file is ever called.
+    that is not a regular file or is larger than ``max_bytes``, for a tree of more than
+    ``max_nodes`` values (:class:`_Plain`), or for a damaged pickle. Nothing in the file is
+    ever called.
     """
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > max_bytes:
-            raise PickleRefused(f"{path}: {size} bytes, more than the {max_bytes} read")
-        raw = path.read_bytes()
+        raw = read_regular(path, max_bytes, "pickle")
     except OSError as e:
         raise PickleRefused(f"{path}: cannot read ({e.strerror or e})") from None
+    except ValueError as e:
+        raise PickleRefused(str(e)) from None
     try:
-        return _plain(_Unpickler(io.BytesIO(raw)).load())
+        return _Plain(max_nodes)(_Unpickler(io.BytesIO(raw)).load())[0]
+    except MemoryError:
+        raise PickleRefused(f"{path}: refused: too large to hold in memory") from None
     except PickleRefused as e:
         raise PickleRefused(f"{path}: refused: {e}") from None
     except RecursionError:
@@ -166,4 +212,4 @@ def load_plain_pickle(path: str | Path, max_bytes: int = MAX_FILE_BYTES) -> Any:
         raise PickleRefused(f"{path}: not a readable pickle ({type(e).__name__}: {e})") from None
 
 
-__all__ = ["MAX_FILE_BYTES", "PickleRefused", "load_plain_pickle"]
+__all__ = ["MAX_FILE_BYTES", "MAX_NODES", "PickleRefused", "load_plain_pickle"]

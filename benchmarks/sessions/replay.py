@@ -15,31 +15,51 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym.benchmarks.sessions import authors_space
+from strol_gym.benchmarks.sessions.authors_ghat import FLAG, ghat_dir
+from strol_gym.benchmarks.sessions.authors_rules import PAPER
 from strol_gym.benchmarks.sessions.export import read_any
+from strol_gym.files import open_atomic, write_figure
 from strol_gym.learners.protocol import LearnerFailed
-from strol_gym.learners.registry import display_name, make_learner
+from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cos_error, error
 from strol_gym.wrappers.session_log import Session, session_task
 
+DEFAULT_LEARNERS = ["gradient", "one", "mof", "strol"]
+"""What ``replay`` runs without ``--learners``."""
+
 
 def replay_session(
-    session: Session, learners: Sequence[str], learner_kwargs: dict[str, dict] | None = None
+    session: Session,
+    learners: Sequence[str],
+    learner_kwargs: dict[str, dict] | None = None,
+    authors_ghat: str | None = None,
 ) -> dict[str, list[np.ndarray]]:
     """θ̂ after 0, 1, ..., n corrections of each episode, concatenated over episodes, per learner
-    (a list of (n_e + 1, d) arrays, one per episode)."""
+    (a list of (n_e + 1, d) arrays, one per episode); ``strol-paper`` and ``NAME@authors`` in
+    the authors' feature space (:mod:`authors_space`)."""
     task = session_task(session)
     out: dict[str, list[np.ndarray]] = {}
     for name in learners:
-        learner = make_learner(name, task=task, **(learner_kwargs or {}).get(name, {}))
+        kwargs = (learner_kwargs or {}).get(name, {})
+        authors = authors_space.in_authors_space(name)
+        if authors:
+            learner = authors_space.build(name, task, authors_ghat, kwargs)
+        else:
+            learner = make_learner(name, task=task, **kwargs)
         curves = []
         for k, ep in enumerate(session.episodes):
             learner.reset(ep.theta_hat0.copy())
             thetas = [np.asarray(learner.theta, dtype=np.float64).copy()]
             for j, c in enumerate(ep.corrections):
+                where = f"in episode {k}, correction {j} of {session.path}"
+                if authors:  # this project's learners on the logged poses: errors name the log
+                    authors_space.feed(learner, c, where)
+                    thetas.append(np.asarray(learner.theta, dtype=np.float64).copy())
+                    continue
                 try:
                     learner.update(c["x"], c["u_h"], c["u_r"])
                 except Exception as e:  # a user's learner may raise anything: say where
-                    where = f"in episode {k}, correction {j} of {session.path}"
                     raise LearnerFailed.of(str(name), where, e) from None
                 thetas.append(np.asarray(learner.theta, dtype=np.float64).copy())
             curve = np.array(thetas)
@@ -92,7 +112,7 @@ def summary_rows(session: Session, results: dict[str, list[np.ndarray]]) -> list
 def write_csv(path: Path, session: Session, results: dict[str, list[np.ndarray]]) -> None:
     """One row per learner, episode and correction count: θ̂ and its errors to θ*."""
     d = len(session.header["task_describe"]["feature_names"])
-    with path.open("w", newline="", encoding="utf-8") as f:
+    with open_atomic(path, newline="") as f:
         w = csv.writer(f)
         w.writerow(
             ["learner", "episode", "correction"]
@@ -122,7 +142,7 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
     star = session.episodes[-1].theta_star
     for i, ax in enumerate(axes[0]):
         for name, curves in results.items():
-            color, label = learner_color(name), display_name(name)
+            color, label = learner_color(name), authors_space.label(name)
             ax.plot(curves[-1][:, i], marker=".", color=color, label=label)
         if star is not None:
             ax.axhline(star[i], color="k", ls="--", lw=1, label="θ*")
@@ -130,7 +150,7 @@ def plot_thetas(path: Path, session: Session, results: dict[str, list[np.ndarray
         ax.set_xlabel("corrections")
     axes[0][0].legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    write_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -140,6 +160,7 @@ def run_replay(
     out: str | Path | None = None,
     learner_kwargs: dict[str, dict] | None = None,
     plots: bool = True,
+    authors_ghat: str | None = None,
 ) -> tuple[list[dict[str, Any]], list[Path]]:
     """Replay ``log`` through ``learners``; print the table; write CSV (+ PNG) into ``out``."""
     session = read_any(log)
@@ -153,7 +174,7 @@ def run_replay(
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise OSError(f"--out {folder}: cannot create this folder ({e.strerror or e})") from None
-    results = replay_session(session, learners, learner_kwargs)
+    results = replay_session(session, learners, learner_kwargs, authors_ghat)
     rows = summary_rows(session, results)
     written = [folder / "replay.csv"]
     write_csv(written[0], session, results)
@@ -168,7 +189,7 @@ def run_replay(
     print(f"{'learner':16s} {'ep':>2s} {'n':>3s}  {'final θ̂':34s} {'error':>7s} {'1 − cos':>7s}")
     for r in rows:
         print(
-            f"{display_name(r['learner']):16s} {r['episode']:2d} {r['corrections']:3d}  "
+            f"{authors_space.label(r['learner']):16s} {r['episode']:2d} {r['corrections']:3d}  "
             f"{_fmt(r['theta_hat']):34s} {r['error']:7.3f} {r['cos_error']:7.3f}"
         )
     for p in written:
@@ -198,8 +219,10 @@ def add_parser(sub: Any) -> None:
     p.add_argument(
         "--learners",
         type=learner_list,
-        required=True,
-        help="comma-separated registered names or module:attr",
+        default=None,
+        help="comma-separated registered names or module:attr; NAME@authors runs NAME in the "
+        "authors' feature space on an imported log's poses, strol-paper is the paper's StROL "
+        f"(needs {FLAG}); default: {','.join(DEFAULT_LEARNERS)} (+ strol-paper with {FLAG})",
     )
     p.add_argument("--learner-kwargs", default=None, help='JSON, e.g. \'{"strol": {"lam": 0.5}}\'')
     p.add_argument("--out", default=None, help="output folder (default: LOG's name + _replay)")
@@ -212,6 +235,13 @@ def add_parser(sub: Any) -> None:
         default=None,
         help="a folder's Study logs replayed with that version's Task (and its ĝ)",
     )
+    p.add_argument(
+        FLAG,
+        dest="authors_ghat",
+        default=None,
+        metavar="GDIR",
+        help="a local checkout's user_study/g_data: the authors' ĝ for the learner strol-paper",
+    )
     plugin_option(p)
 
 
@@ -219,9 +249,13 @@ def command(args: Any, parser: Any) -> int:
     from strol_gym.benchmarks.args import check_learner_names, learner_kwargs
     from strol_gym.benchmarks.sessions import replay_folder
 
+    if args.learners is None:
+        args.learners = DEFAULT_LEARNERS + ([PAPER] if args.authors_ghat is not None else [])
+    if args.authors_ghat is not None:
+        ghat_dir(args.authors_ghat)
+    check_learner_names(authors_space.check_names(args.learners, args.authors_ghat))
     if replay_folder.is_log_folder(args.log):
         return replay_folder.command(args, parser)
-    check_learner_names(args.learners)
     kwargs = learner_kwargs(args.learner_kwargs)
-    run_replay(args.log, args.learners, args.out, kwargs, plots=not args.no_plots)
+    run_replay(args.log, args.learners, args.out, kwargs, not args.no_plots, args.authors_ghat)
     return 0

@@ -14,6 +14,10 @@ This is off-policy: each person corrected *that session's* robot, whose motion f
 ``--task-version 1`` replays a v0 Task's logs with the same-numbered StROL-Study-v1 Task, so
 learners with a ĝ use the one trained for v1's corrections; a learner with no ĝ for the Task it
 is given is left out, with a note.
+
+``strol-paper`` (the paper's StROL, with ``--authors-ghat GDIR``) and ``NAME@authors`` run in
+the authors' feature space on the logged poses in their hand frame (:mod:`authors_space`);
+their regret is undefined (NaN: no planner in that space) and left out of regret's tests.
 """
 
 from __future__ import annotations
@@ -27,8 +31,11 @@ from typing import Any
 import numpy as np
 
 from strol_gym.benchmarks.analysis.stats import compare_to_reference, describe, rm_anova
+from strol_gym.benchmarks.sessions import authors_space
+from strol_gym.benchmarks.sessions.authors_ghat import AuthorsGhat
+from strol_gym.files import open_atomic, write_figure, write_text_atomic
 from strol_gym.learners.protocol import LearnerFailed
-from strol_gym.learners.registry import display_name, make_learner
+from strol_gym.learners.registry import make_learner
 from strol_gym.metrics import cos_error, episode_regret, error
 from strol_gym.tasks.base import Task
 from strol_gym.wrappers.session_log import Session, read_session, session_task
@@ -67,20 +74,27 @@ def versioned(task: Task, version: int | None) -> Task:
 
 
 def _build(
-    names: Sequence[str], task: Task, kwargs: dict[str, dict]
+    names: Sequence[str], task: Task, kwargs: dict[str, dict], authors_ghat: str | None = None
 ) -> tuple[dict[str, Any], dict[str, str]]:
     """Each learner built for ``task``; one without a ĝ for it is left out with a note."""
     built, notes = {}, {}
     for name in names:
         try:
-            built[name] = make_learner(name, task=task, **kwargs.get(name, {}))
+            if authors_space.in_authors_space(name):
+                built[name] = authors_space.build(name, task, authors_ghat, kwargs.get(name, {}))
+            else:
+                built[name] = make_learner(name, task=task, **kwargs.get(name, {}))
         except FileNotFoundError as e:
             notes[name] = str(e).split(";")[0].rsplit(" in ", 1)[0]
     return built, notes
 
 
 def g_hat_source(learner: Any) -> str:
-    """Which ĝ a learner uses: its checkpoint's file and the Task id it was trained for."""
+    """Which ĝ a learner uses: its checkpoint's file and the Task id it was trained for (the
+    authors' ĝ: its file and SHA-256's start)."""
+    ghat = getattr(learner, "ghat", None)
+    if isinstance(ghat, AuthorsGhat):
+        return f"authors' {ghat.path.name} ({ghat.sha256[:12]})"
     path = getattr(learner, "checkpoint", None)
     if path is None:
         return "none" if getattr(learner, "model", None) is None else "in memory"
@@ -90,22 +104,30 @@ def g_hat_source(learner: Any) -> str:
 
 def final_theta(learner: Any, name: str, session: Session) -> np.ndarray:
     """θ̂ after the session's corrections, from its logged θ̂0 (every episode in turn)."""
+    authors = authors_space.in_authors_space(name)
     for ep in session.episodes:
         learner.reset(ep.theta_hat0.copy())
         for j, c in enumerate(ep.corrections):
+            where = f"in correction {j} of {session.path}"
+            if authors:
+                authors_space.feed(learner, c, where)
+                continue
             try:
                 learner.update(c["x"], c["u_h"], c["u_r"])
             except Exception as e:  # a user's learner may raise anything: say where
-                where = f"in correction {j} of {session.path}"
                 raise LearnerFailed.of(name, where, e) from None
     return np.asarray(learner.theta, dtype=np.float64).copy()
 
 
 def replay_group(
-    sessions: list[Session], task: Task, names: Sequence[str], kwargs: dict[str, dict]
+    sessions: list[Session],
+    task: Task,
+    names: Sequence[str],
+    kwargs: dict[str, dict],
+    authors_ghat: str | None = None,
 ) -> dict[str, Any]:
     """One Task's sessions through every learner: per learner, (n,) arrays of each metric."""
-    built, notes = _build(names, task, kwargs)
+    built, notes = _build(names, task, kwargs, authors_ghat)
     stars = np.array([s.episodes[-1].theta_star for s in sessions], dtype=np.float64)
     start = getattr(task, "start", None)  # the Study Tasks' (and the Robot's) fixed start
     if start is None:
@@ -114,11 +136,13 @@ def replay_group(
     group: dict[str, Any] = {"task": task, "sessions": sessions, "notes": notes}
     group["g_hat"] = {n: g_hat_source(le) for n, le in built.items()}
 
-    def scores(finals: np.ndarray) -> dict[str, np.ndarray]:
+    def scores(finals: np.ndarray, planned: bool = True) -> dict[str, np.ndarray]:
         return {
             "error": np.array([error(a, b) for a, b in zip(stars, finals, strict=True)]),
             "cos_error": np.array([cos_error(a, b) for a, b in zip(stars, finals, strict=True)]),
-            "regret": np.array(episode_regret(task, finals, stars, x0)),
+            "regret": np.array(episode_regret(task, finals, stars, x0))
+            if planned
+            else np.full(len(finals), np.nan),
         }
 
     # Where every learner starts: what the corrections have to improve on (not tested).
@@ -126,21 +150,23 @@ def replay_group(
     group["metrics"] = {}
     for name, learner in built.items():
         finals = np.array([final_theta(learner, name, s) for s in sessions])
-        group["metrics"][name] = scores(finals)
+        group["metrics"][name] = scores(finals, not authors_space.in_authors_space(name))
     return group
 
 
 def group_stats(group: dict[str, Any], reference: str) -> list[dict[str, Any]]:
     """Per metric: the RM-ANOVA across learners and the reference's Holm-corrected tests."""
-    names = list(group["metrics"])
     rows: list[dict[str, Any]] = []
-    if len(names) < 2 or reference not in names:
-        return rows
-    for metric in METRICS:
+    for metric in METRICS:  # a learner without the metric (regret in the authors' φ) is left out
+        names = [n for n, ms in group["metrics"].items() if np.isfinite(ms[metric]).any()]
+        if len(names) < 2:
+            continue
         y = np.column_stack([group["metrics"][n][metric] for n in names])
         keep = np.isfinite(y).all(axis=1)
         a = rm_anova(y[keep])
         rows.append({"metric": metric, "test": "rm-anova", "n": a.n, "F": a.F, "p_gg": a.p_gg})
+        if reference not in names:
+            continue
         for r in compare_to_reference(y[keep], names, reference):
             rows.append({"metric": metric, **r})
     return rows
@@ -163,13 +189,15 @@ def load_groups(folder: str | Path, version: int | None) -> dict[str, tuple[Task
 
 
 def _cell(values: np.ndarray) -> str:
+    if not np.isfinite(values).any():
+        return "n/a"
     d = describe(values)
     return f"{d['mean']:.3f} ± {d['std']:.3f}" if d["n"] > 1 else f"{d['mean']:.3f}"
 
 
 def _p_cell(stats: list[dict[str, Any]], metric: str, name: str, reference: str) -> str:
-    if name == reference:
-        return "ref."
+    if name == reference:  # the reference of a metric it has no values of is no reference
+        return "ref." if any(r.get("baseline") and r["metric"] == metric for r in stats) else ""
     for r in stats:
         if r["metric"] == metric and r.get("baseline") == name:
             p = r["p_holm"]
@@ -186,7 +214,7 @@ def markdown_table(groups: dict[str, dict[str, Any]], reference: str) -> str:
         head = "| learner | ĝ | " + " | ".join(f"{LABELS[m]} | p (Holm)" for m in METRICS) + " |"
         lines += [head, "|" + "---|" * (2 + 2 * len(METRICS))]
         for name, ms in g["metrics"].items():
-            cells = [display_name(name), g["g_hat"][name]]
+            cells = [authors_space.label(name), g["g_hat"][name]]
             for m in METRICS:
                 cells += [_cell(ms[m]), _p_cell(g["stats"], m, name, reference)]
             lines.append("| " + " | ".join(cells) + " |")
@@ -201,7 +229,12 @@ def markdown_table(groups: dict[str, dict[str, Any]], reference: str) -> str:
                     ptxt = "n/a" if not math.isfinite(p) else f"{p:.3g}"
                     lines.append(f"\nRM-ANOVA {LABELS[m]}: F = {r['F']:.2f}, p (GG) = {ptxt}")
         for name, note in g["notes"].items():
-            lines.append(f"\n{display_name(name)} left out: {note}.")
+            lines.append(f"\n{authors_space.label(name)} left out: {note}.")
+        if any(authors_space.in_authors_space(n) for n in g["metrics"]):
+            lines.append(
+                "\nRows marked (authors' φ) run in the authors' feature space on their logged "
+                "poses: regret n/a (no planner in that space)."
+            )
         lines.append("")
     return "\n".join(lines)
 
@@ -209,7 +242,7 @@ def markdown_table(groups: dict[str, dict[str, Any]], reference: str) -> str:
 def write_outputs(folder: Path, groups: dict[str, dict[str, Any]], reference: str) -> list[Path]:
     """Per-session CSV, statistics CSV and the markdown table (into ``folder``)."""
     per = folder / "replay_sessions.csv"
-    with per.open("w", newline="", encoding="utf-8") as f:
+    with open_atomic(per, newline="") as f:
         w = csv.writer(f)
         w.writerow(["task", "session", "learner", *METRICS])
         for tname, g in groups.items():
@@ -220,14 +253,14 @@ def write_outputs(folder: Path, groups: dict[str, dict[str, Any]], reference: st
     stats = folder / "replay_stats.csv"
     keys = ["task", "metric", "test", "learner", "baseline", "n", "mean_diff", "p_raw"]
     keys += ["p_holm", "wilcoxon_p_holm", "effect_size", "F", "p_gg"]
-    with stats.open("w", newline="", encoding="utf-8") as f:
+    with open_atomic(stats, newline="") as f:
         dw = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         dw.writeheader()
         for tname, g in groups.items():
             for r in g["stats"]:
                 dw.writerow({"task": tname, **r})
     table = folder / "replay.md"
-    table.write_text(markdown_table(groups, reference), encoding="utf-8")
+    write_text_atomic(table, markdown_table(groups, reference))
     return [per, stats, table]
 
 
@@ -251,11 +284,11 @@ def plot_groups(path: Path, groups: dict[str, dict[str, Any]]) -> None:
             for patch, n in zip(box["boxes"], names, strict=True):
                 patch.set_facecolor(learner_color(n))
                 patch.set_alpha(0.6)
-            ax.set_xticks(range(1, len(names) + 1), [display_name(n) for n in names])
+            ax.set_xticks(range(1, len(names) + 1), [authors_space.label(n) for n in names])
             ax.tick_params(axis="x", labelrotation=60, labelsize=7)
             ax.set_title(f"{tname}: {LABELS[m]}", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -267,6 +300,7 @@ def run_folder(
     plots: bool = True,
     reference: str = "strol",
     version: int | None = None,
+    authors_ghat: str | None = None,
 ) -> tuple[dict[str, dict[str, Any]], list[Path]]:
     """Replay every log under ``folder``; print the table; write CSVs, table (+ PNG) to ``out``."""
     if reference not in learners:
@@ -279,7 +313,7 @@ def run_folder(
         raise OSError(f"--out {dest}: cannot create this folder ({e.strerror or e})") from None
     groups = {}
     for tname, (task, sessions) in loaded.items():
-        g = replay_group(sessions, task, learners, learner_kwargs or {})
+        g = replay_group(sessions, task, learners, learner_kwargs or {}, authors_ghat)
         g["stats"] = group_stats(g, reference)
         groups[tname] = g
     written = write_outputs(dest, groups, reference)
@@ -294,9 +328,8 @@ def run_folder(
 
 def command(args: Any, parser: Any) -> int:
     """``strol-bench replay FOLDER`` (the replay parser's arguments)."""
-    from strol_gym.benchmarks.args import check_learner_names, learner_kwargs
+    from strol_gym.benchmarks.args import learner_kwargs
 
-    check_learner_names(args.learners)
     run_folder(
         args.log,
         args.learners,
@@ -305,6 +338,7 @@ def command(args: Any, parser: Any) -> int:
         plots=not args.no_plots,
         reference=args.reference,
         version=args.task_version,
+        authors_ghat=args.authors_ghat,
     )
     return 0
 

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from strol_gym.benchmarks.sessions.replay_folder import find_logs
+from strol_gym.files import read_regular, write_figure, write_text_atomic
 from strol_gym.metrics import cos_error, error
 from strol_gym.tasks.study import StudyTask
 from strol_gym.wrappers.session_log import read_session, session_task
@@ -38,7 +39,8 @@ QUANTILES = (10, 25, 50, 75, 90)
 
 def _records(path: Path) -> list[dict[str, Any]]:
     """The log's lines as objects (after :func:`read_session` has checked the file)."""
-    return [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line]
+    text = read_regular(path).decode("utf-8")
+    return [json.loads(line) for line in text.splitlines() if line]
 
 
 def collect(folder: str | Path) -> dict[str, dict[int, list[float]] | Any]:
@@ -153,7 +155,7 @@ def plot_card(path: Path, data: dict[str, Any]) -> None:
         ax.axis("off")
     fig.suptitle("The authors' user study (12 participants × 3 Tasks × 3 learners): aggregates")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -166,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     text = card_markdown(data)
-    (out / "card.md").write_text(text, encoding="utf-8")
+    write_text_atomic(out / "card.md", text)
     plot_card(out / "study_data_card.png", data)
     print(text)
     print(f"wrote {out / 'card.md'} and {out / 'study_data_card.png'}")

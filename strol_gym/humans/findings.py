@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from strol_gym.humans.aim import AimedModel, FittedAimedModel
 from strol_gym.humans.builtin import NominalModel
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.choices import perturb
@@ -357,6 +358,8 @@ FINDINGS: dict[str, type[HumanModel]] = {
     "bpref-skip": BPrefSkipModel,
     "bpref-equal": BPrefEqualModel,
     "fitted-study": FittedStudyModel,
+    "aimed": AimedModel,
+    "fitted-aimed": FittedAimedModel,
 }
 """The models of this module by name, registered on import of ``strol_gym.humans``."""
 

@@ -49,6 +49,16 @@ import numpy as np
 from scipy import optimize, special
 from scipy.stats import qmc
 
+from strol_gym.humans.aim import (
+    AIM_PARAMS,
+    MAX_AIM,
+    MAX_TURN,
+    MIN_AIM,
+    aimed_corrections,
+    emphasis_names,
+    steepest_ascent,
+)
+from strol_gym.humans.aim import log_density as aim_log_density
 from strol_gym.humans.findings import margin, scale_free_logits
 from strol_gym.humans.interface import DEFAULT_CANDIDATES
 from strol_gym.tasks.base import Task
@@ -277,6 +287,18 @@ class Family:
     def parts(self, prep: dict[str, Any], v: dict[str, float]) -> Parts:
         raise NotImplementedError
 
+    def terms(self, prep: dict[str, Any], v: dict[str, float]) -> np.ndarray | None:
+        """Each correction's log-likelihood (n,) in units of a_max, for a family whose density
+        is not a mixture of Gaussians about choices (``aimed``); None: ``parts`` describes it."""
+        return None
+
+    def sample(
+        self, prep: dict[str, Any], v: dict[str, float], rng: np.random.Generator
+    ) -> np.ndarray | None:
+        """A posterior-predictive draw (n, a) in units of a_max for a family with its own
+        ``terms``; None: ``simulate`` draws from ``parts``."""
+        return None
+
     def _sigma(self, prep: dict[str, Any], v: dict[str, float]) -> np.ndarray:
         return np.full(len(prep["uh"]), v["sigma"])
 
@@ -504,6 +526,51 @@ class Boltzmann(Family):
         return Parts(prep["mu"], logw, self._sigma(prep, v), v["bias"])
 
 
+class Aimed(Family):
+    """The aimed person (``strol_gym.humans.aim``): the direction's projected normal about the
+    steepest ascent of θ* ⊙ w, the rotation weighed, a log-normal size or two; its density in
+    closed form. The emphasis weights w (``w_<feature>``, the first feature's held at 1) are
+    the Task's: they join ``params`` when the family meets its corrections (``prepare``)."""
+
+    name = "aimed"
+    base_params = (
+        Param("aim", MIN_AIM, MAX_AIM, 1.0, log=True),
+        Param("turn", 1e-2, MAX_TURN, 0.5, log=True),
+        Param("size", 1e-3, 100.0, 1.2, log=True),
+        Param("size_sd", 1e-3, 10.0, 0.5, log=True),
+        Param("small_share", 0.0, 1.0, 0.2),
+        Param("small_size", 1e-3, 100.0, 0.3, log=True),
+    )
+    params = base_params
+
+    def prepare(self, data):
+        task, d = data.task, data.task.dim
+        names = emphasis_names(task)
+        self.params = self.base_params + tuple(Param(k, 1e-2, 100.0, 1.0, log=True) for k in names)
+        one = [
+            steepest_ascent(task, data.x, data.u_r, data.theta_star * np.eye(d)[j])
+            for j in range(d)
+        ]
+        return {"uh": _unit(data, data.u_h), "bests": np.stack(one, axis=1), "names": names}
+
+    def _split(
+        self, prep: dict[str, Any], v: dict[str, float]
+    ) -> tuple[np.ndarray, dict[str, float]]:
+        """The steepest ascents (n, a) of θ* ⊙ w and the scalar parameters."""
+        w = np.array([1.0] + [v.get(k, 1.0) for k in prep["names"]])
+        best = np.einsum("j,nja->na", w, prep["bests"])
+        return best, {k: v[k] for k in AIM_PARAMS}
+
+    def terms(self, prep, v):
+        best, own = self._split(prep, v)
+        return aim_log_density(prep["uh"], best, **own)
+
+    def sample(self, prep, v, rng):
+        best, own = self._split(prep, v)
+        n, a = best.shape
+        return aimed_corrections(best, rng.standard_normal((n, a + 1)), rng.random(n), **own)
+
+
 class _Preset(Family):
     """A registered preset fitted as its family (its parameters free)."""
 
@@ -520,6 +587,12 @@ class _Preset(Family):
 
     def parts(self, prep, v):
         return self.family.parts(prep, v)
+
+    def terms(self, prep, v):
+        return self.family.terms(prep, v)
+
+    def sample(self, prep, v, rng):
+        return self.family.sample(prep, v, rng)
 
 
 def families() -> dict[str, Family]:
@@ -538,6 +611,7 @@ def families() -> dict[str, Family]:
         "margin-noise": MarginNoise(),
         "scale-free": Boltzmann("scale-free", relative=True),
         "reversing": Reversing(),
+        "aimed": Aimed(),
     }
     for preset, base in (
         ("bpref-stoc", "scale-free"),
@@ -545,6 +619,7 @@ def families() -> dict[str, Family]:
         ("bpref-skip", "skipping"),
         ("bpref-equal", "margin-noise"),
         ("fitted-study", "scale-free"),
+        ("fitted-aimed", "aimed"),
     ):
         out[preset] = _Preset(preset, out[base])
     return out
@@ -574,6 +649,9 @@ def family(name: str) -> Family:
 def loglik_terms(fam: Family, prep: dict[str, Any], v: dict[str, float]) -> np.ndarray:
     """Each correction's log-likelihood (n,) under ``fam`` at parameter values ``v``, in
     u_H's own units (the a_max Jacobian included, so that models compare)."""
+    own = fam.terms(prep, v)
+    if own is not None:
+        return own - prep["log_volume"]
     p = fam.parts(prep, v)
     uh = prep["uh"]
     a = uh.shape[1]
@@ -919,6 +997,9 @@ class _Fixed(Family):
 
     def parts(self, prep, v):
         return self.base.parts(prep, {**v, self.fixed_name: self.value})
+
+    def terms(self, prep, v):
+        return self.base.terms(prep, {**v, self.fixed_name: self.value})
 
 
 def _one_sided(fam: Family, prep: dict[str, Any], t: np.ndarray, j: int, level: float) -> float:
@@ -1282,6 +1363,9 @@ def simulate(
     fam = family(name)
     data, _ = usable(fam, data)
     prep = prepare(fam, data)
+    own = fam.sample(prep, values, rng)
+    if own is not None:
+        return own * np.asarray(data.task.action_bound)
     p = fam.parts(prep, values)
     n, c, a = len(prep["uh"]), p.mu.shape[1], p.mu.shape[2]
     w = np.exp(p.logw - special.logsumexp(p.logw, axis=1, keepdims=True))

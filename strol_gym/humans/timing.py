@@ -35,7 +35,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from strol_gym import checks
-from strol_gym.tasks.base import Task
+from strol_gym.tasks.study import StudyTask
 
 TERMS = ("shortfall", "wait")
 MODELS: dict[str, tuple[str, ...]] = {
@@ -204,7 +204,7 @@ UNIT_SEED = 0
 
 
 @functools.cache
-def _unit(task: Task, theta_star: tuple[float, ...]) -> float:
+def _unit(task: StudyTask, theta_star: tuple[float, ...]) -> float:
     rng = np.random.default_rng(UNIT_SEED)
     th = rng.uniform(-1.0, 1.0, (UNIT_DRAWS, task.dim))
     star = np.broadcast_to(np.asarray(theta_star), th.shape)
@@ -212,7 +212,7 @@ def _unit(task: Task, theta_star: tuple[float, ...]) -> float:
     return float(np.median(task.regret(th, star, start)))
 
 
-def shortfall_unit(task: Task, theta_star: np.ndarray) -> float:
+def shortfall_unit(task: StudyTask, theta_star: np.ndarray) -> float:
     """The median regret (from the Task's start) of θ̂ uniform in [−1, 1]^d, drawn with seed
     ``UNIT_SEED``: the shortfall's unit, a robot that knows nothing (cached per Task and θ*)."""
     return _unit(task, tuple(float(v) for v in np.asarray(theta_star, dtype=np.float64)))
@@ -224,7 +224,7 @@ the leave-one-person-out log-likelihood on the One and MOF sessions among s, min
 log(s + 0.05), √s and max(s − 0.3, 0) (docs/study.md)."""
 
 
-def shortfall(task: Task, theta_star: np.ndarray, theta_hats: np.ndarray) -> np.ndarray:
+def shortfall(task: StudyTask, theta_star: np.ndarray, theta_hats: np.ndarray) -> np.ndarray:
     """s (n,) for each θ̂ (n, d): the regret of θ̂'s plan from the Task's start (eq. S1) over
     :func:`shortfall_unit`, at most :data:`SHORTFALL_CAP`."""
     hats = np.atleast_2d(np.asarray(theta_hats, dtype=np.float64))

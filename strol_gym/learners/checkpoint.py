@@ -26,7 +26,16 @@ import torch
 from safetensors.torch import load as load_safetensors
 from safetensors.torch import save as save_safetensors
 
-from strol_gym.files import loads_json, temp_beside
+from strol_gym.files import (
+    check_input,
+    check_output,
+    loads_json,
+    open_regular,
+    read_regular,
+    replace_checked,
+    temp_beside,
+    write_text_atomic,
+)
 from strol_gym.learners.network import CorrectionNet
 from strol_gym.provenance import package_versions
 from strol_gym.tasks.base import Task
@@ -79,7 +88,7 @@ HASH_CHUNK = 1 << 20
 def _hash_file(h: Any, path: Path, prefix_length: bool = False) -> None:
     """Feed ``path``'s bytes to ``h`` in 1 MiB chunks (a 1 GB file costs 1 MiB of memory),
     preceded by its length (8 bytes, little-endian) if ``prefix_length``."""
-    with open(path, "rb") as f:
+    with open_regular(path, "weights") as f:
         if prefix_length:
             h.update(os.fstat(f.fileno()).st_size.to_bytes(8, "little"))
         while chunk := f.read(HASH_CHUNK):
@@ -142,6 +151,8 @@ def check_weights_path(path: str | Path, name: str = "path") -> Path:
         )
     if path.is_dir():
         raise ValueError(f"{name} {path} is a folder; give a file name ending in .safetensors")
+    check_output(path, name)
+    check_output(sidecar_path(path), f"{name}'s sidecar")
     folder = path.parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
@@ -183,10 +194,10 @@ def read_weights(path: Path) -> dict[str, torch.Tensor]:
     containers. ValueError naming the file if it cannot be read."""
     try:
         if path.suffix == TORCH_PT:
-            return torch.load(path, map_location="cpu", weights_only=True)
+            return torch.load(check_input(path, "weights"), map_location="cpu", weights_only=True)
         # safetensors checks that its header fits the file and that every tensor's byte range
         # lies inside it, so a damaged or edited file cannot ask for more memory than it has.
-        return load_safetensors(path.read_bytes())
+        return load_safetensors(read_regular(path, what="weights"))
     except Exception as e:  # a damaged file fails in either reader in many ways
         raise ValueError(f"{path}: cannot read these weights ({e})") from None
 
@@ -265,8 +276,12 @@ def _commit(path: Path, tmp_weights: Path, meta: dict[str, Any]) -> None:
     side = sidecar_path(path)
     try:
         tmp_json = temp_beside(side, lambda tmp: tmp.write_text(text))
-        os.replace(tmp_json, side)
-        os.replace(tmp_weights, path)
+        try:
+            check_output(path)  # both checked before either is renamed
+            replace_checked(tmp_json, side)
+        finally:
+            tmp_json.unlink(missing_ok=True)
+        replace_checked(tmp_weights, path)
     finally:
         tmp_weights.unlink(missing_ok=True)
 
@@ -275,7 +290,7 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     side = sidecar_path(path)
     if not side.is_file():
         raise FileNotFoundError(f"checkpoint sidecar {side} is missing (needed beside {path})")
-    meta = loads_json(side.read_bytes(), f"checkpoint sidecar {side}")
+    meta = loads_json(read_regular(side, what="checkpoint sidecar"), f"checkpoint sidecar {side}")
     if not isinstance(meta, dict):
         raise ValueError(f"checkpoint sidecar {side} must hold a JSON object")
     for key, kind in (("task", dict), ("network", dict), ("kind", str)):
@@ -312,7 +327,7 @@ def rehash_sidecar(path: str | Path) -> str:
     side = sidecar_path(path)
     meta = read_sidecar(path)
     meta["weights_sha256"] = weights_sha256(path)
-    side.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+    write_text_atomic(side, json.dumps(meta, indent=2, sort_keys=True) + "\n")
     return meta["weights_sha256"]
 
 
@@ -387,7 +402,7 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
     found = []
     for side in sorted(directory.glob("*.json")):
         try:
-            meta = loads_json(side.read_bytes(), str(side))
+            meta = loads_json(read_regular(side, what="checkpoint sidecar"), str(side))
         except (OSError, ValueError):
             continue
         if not isinstance(meta, dict) or not isinstance(meta.get("task"), dict):

@@ -51,7 +51,7 @@ from strol_gym.envs.study.people import (  # noqa: F401  (THRESHOLD: here until 
     FittedParams,
     ParticipantParams,
 )
-from strol_gym.envs.study.population import best_correction, draw_corrections
+from strol_gym.envs.study.population import aimed_correction, best_correction, draw_corrections
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
 from strol_gym.humans.timing import shortfall, step_in_probability
@@ -287,10 +287,15 @@ class FittedParticipant(Participant):
         self._pushed = 0.0
 
     def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: Any = None) -> np.ndarray:
-        """A correction drawn at pose ``x`` from this person's fitted aim and sizes."""
+        """A correction drawn at pose ``x`` from this person's fitted aim and sizes (or the
+        aimed person's, ``params.correction``)."""
         del u_r, theta_hat
-        best = best_correction(self.task, self._theta_star, x)
         p = self.params
+        if p.correction == "aimed":
+            u = aimed_correction(self.task, self._theta_star, x, self.rng)
+            self.intended.append(u)
+            return u * self._a_max
+        best = best_correction(self.task, self._theta_star, x)
         u = draw_corrections(
             best,
             self.rng,

@@ -38,8 +38,9 @@ from typing import Any
 import numpy as np
 
 from strol_gym import checks
-from strol_gym.envs.study.people import FittedParams
-from strol_gym.files import loads_json
+from strol_gym.envs.study.people import CORRECTIONS, FittedParams
+from strol_gym.files import loads_json, read_regular
+from strol_gym.humans.aim import aimed_corrections, fitted_aim_params, steepest_ascent
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
@@ -48,6 +49,9 @@ FIT_FILE = Path(__file__).with_name("participant_fit.json")
 """The shipped fit (module docstring)."""
 TIMING_FILE = Path(__file__).with_name("timing_fit.json")
 """The shipped timing hazard (``strol-bench fit-timing``): when a person steps in."""
+SHIPPED_CORRECTION = "aimed"
+"""The shipped population's model of a correction: the aimed person fitted per Task (better
+held-out likelihood than the scale-free fit on every Task, docs/humans.md)."""
 FORMAT = "strol-participant-fit"
 TIMING_FORMAT = "strol-timing-fit"
 MAX_FIT_BYTES = 1_000_000
@@ -159,6 +163,8 @@ class Population:
     """Per Task, the timing hazard's (a, b, c) (``FittedParams.hazard``); None: the budget."""
     path_time: dict[int, float] | None = None
     """Per Task, the s of the robot's motion a person watches (with ``hazard``)."""
+    correction: str = "population"
+    """Its people's model of a correction (``FittedParams.correction``)."""
     rise: float | None = None
     """s over which a push's force rises (and falls): the median logged samples per real
     correction × 0.05 s (the authors' loop logged a sample at each new force maximum), in
@@ -181,6 +187,7 @@ class Population:
                 when["ramp"] = self.rise
         else:
             when = {"budget": int(rng.poisson(self.count_mean[task] * multiplier))}
+        when["correction"] = self.correction
         return FittedParams(
             size=math.exp(f["size_log_mean"] + f["size_log_sd"] * z[0]),
             size_within=f["size_within"],
@@ -250,16 +257,21 @@ def parse_timing(
 
 
 def _read_json(path: Path, what: str) -> Any:
-    if path.stat().st_size > MAX_FIT_BYTES:
-        raise ValueError(f"{path}: a {what} file is at most {MAX_FIT_BYTES} bytes")
-    return loads_json(path.read_bytes(), str(path))
+    return loads_json(read_regular(path, MAX_FIT_BYTES, f"{what} file"), str(path))
 
 
-def read_fit(path: str | Path, timing: str | Path | None = None) -> Population:
+def read_fit(
+    path: str | Path, timing: str | Path | None = None, correction: str = "population"
+) -> Population:
     """The population of fit file ``path`` (size-capped, plain JSON, checked), reacting to the
-    robot with the timing fit ``timing`` if given (else it keeps a budget)."""
+    robot with the timing fit ``timing`` if given (else it keeps a budget), its corrections by
+    ``correction`` (``people.CORRECTIONS``)."""
+    if correction not in CORRECTIONS:
+        raise ValueError(f"correction must be one of {', '.join(CORRECTIONS)}, got {correction!r}")
     path = Path(path)
-    pop = parse(_read_json(path, "participant fit"), str(path))
+    pop = dataclasses.replace(
+        parse(_read_json(path, "participant fit"), str(path)), correction=correction
+    )
     if timing is None:
         return pop
     hazard, path_time, rise = parse_timing(_read_json(Path(timing), "timing fit"), str(timing))
@@ -268,8 +280,9 @@ def read_fit(path: str | Path, timing: str | Path | None = None) -> Population:
 
 @functools.cache
 def shipped() -> Population:
-    """The shipped fit with its timing hazard (read once per process)."""
-    return read_fit(FIT_FILE, TIMING_FILE)
+    """The shipped fit with its timing hazard and the aimed person's corrections (read once
+    per process)."""
+    return read_fit(FIT_FILE, TIMING_FILE, SHIPPED_CORRECTION)
 
 
 def best_correction(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -338,6 +351,28 @@ def shape_corrections(
     return out
 
 
+def aimed_draws(
+    task: StudyTask, theta_star: np.ndarray, x: np.ndarray, z: np.ndarray, pick: np.ndarray
+) -> np.ndarray:
+    """Corrections (n, a) in a_max units of the aimed person fitted for ``task``'s study Task
+    (``humans.aim.FITTED_AIM``) at poses ``x`` (n, s), from standard normals ``z`` (n, a + 1)
+    and uniforms ``pick`` (n,): about the steepest ascent of θ* ⊙ its emphasis."""
+    kw = fitted_aim_params(task)
+    emphasis = kw.pop("emphasis")
+    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+    star = np.broadcast_to(np.asarray(theta_star, dtype=np.float64) * emphasis, (len(x), task.dim))
+    best = steepest_ascent(task, x, np.zeros((len(x), task.action_dim)), star)
+    return aimed_corrections(best, z, pick, **kw)
+
+
+def aimed_correction(
+    task: StudyTask, theta_star: np.ndarray, x: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """One aimed correction (a,) at pose ``x`` (a_max units), its draws from ``rng``."""
+    z = rng.standard_normal((1, task.action_dim + 1))
+    return aimed_draws(task, theta_star, x, z, rng.random(1))[0]
+
+
 def cosine(u: np.ndarray, best: np.ndarray) -> np.ndarray:
     """cos(u, best) row by row, both in a_max units (NaN where either is zero): the data
     card's "cos(u_H, θ*'s best correction)"."""
@@ -365,7 +400,13 @@ class FittedPopulationModel(HumanModel):
         bias: float = 0.0,
         n_candidates: int = DEFAULT_CANDIDATES,
         read_scale: Sequence[float] = (1.0, 1.0),
+        correction: str = "population",
     ) -> None:
+        if correction not in CORRECTIONS:
+            raise ValueError(
+                f"correction must be one of {', '.join(CORRECTIONS)}, got {correction!r}"
+            )
+        self.correction = correction
         if not isinstance(task, StudyTask):
             raise ValueError(f"task must be a study Task, got {type(task).__name__}")
         super().__init__(task, sigma, bias, n_candidates)
@@ -378,7 +419,10 @@ class FittedPopulationModel(HumanModel):
 
     def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
         a = self.task.action_dim
-        return {"person": rng.standard_normal((n, 3)), "z": rng.standard_normal((n, a + 2))}
+        out = {"person": rng.standard_normal((n, 3)), "z": rng.standard_normal((n, a + 2))}
+        if self.correction == "aimed":
+            out["pick"] = rng.random(n)
+        return out
 
     def choose(
         self,
@@ -390,6 +434,10 @@ class FittedPopulationModel(HumanModel):
         k: np.ndarray | int = 0,
     ) -> np.ndarray:
         task, f = self.study_task, self.fit.fitted
+        if self.correction == "aimed":
+            z1 = draws.extra["z"][:, : task.action_dim + 1]
+            u = aimed_draws(task, theta_star, x, z1, draws.extra["pick"])
+            return self._read(u) * task.a_max
         best = best_correction(task, theta_star, x)
         z = draws.extra["person"]
         u = shape_corrections(
@@ -401,18 +449,25 @@ class FittedPopulationModel(HumanModel):
             turn=np.exp(f["turn_log_mean"] + f["turn_log_sd"] * z[:, 2]),
             turn_within=f["turn_within"],
         )
+        return self._read(u) * task.a_max
+
+    def _read(self, u: np.ndarray) -> np.ndarray:
+        """``u`` scaled by ``read_scale`` (position, rotation), in place."""
         u[:, :3] *= self.read_scale[0]
         u[:, 3:] *= self.read_scale[1]
-        return u * task.a_max
+        return u
 
 
 __all__ = [
     "FITTED",
     "FIT_FILE",
     "PRIORS",
+    "SHIPPED_CORRECTION",
     "TIMING_FILE",
     "FittedPopulationModel",
     "Population",
+    "aimed_correction",
+    "aimed_draws",
     "cosine",
     "draw_corrections",
     "parse",
