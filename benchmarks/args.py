@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from strol_gym import checks
@@ -70,14 +70,23 @@ def check_learner_names(names: list[str] | tuple[str, ...]) -> None:
         LEARNERS.check_name(name)
 
 
-def learner_kwargs(text: str | None) -> dict[str, dict[str, Any]]:
+def learner_kwargs(
+    text: str | None, learners: Sequence[str] | None = None
+) -> dict[str, dict[str, Any]]:
     """``--learner-kwargs``: a JSON object of constructor kwargs per learner (``{}`` for None);
-    ValueError naming the option otherwise."""
+    ValueError naming the option otherwise, or naming a learner not among ``learners`` (the
+    ones the command runs: kwargs for another would be ignored without a word)."""
     if not text:
         return {}
     kwargs = loads_json(text, "--learner-kwargs")
     if not isinstance(kwargs, dict) or not all(isinstance(v, dict) for v in kwargs.values()):
         raise ValueError('--learner-kwargs must map learner names to objects: {"strol": {...}}')
+    stray = [k for k in kwargs if learners is not None and k not in learners]
+    if stray:
+        raise ValueError(
+            f"--learner-kwargs names {', '.join(map(repr, stray))}, not among the learners run "
+            f"({', '.join(learners or [])})"
+        )
     return kwargs
 
 
@@ -190,9 +199,11 @@ RUNNER_CAPS = {
     "block": CAPS["block"],
     "jobs": min(CAPS["jobs"], JOBS_PER_CPU * (os.cpu_count() or 1)),
     "lambdas": CAPS["lambdas"],
+    "sigmas": CAPS["sigmas"],
 }
 """Every command that runs the runner: run seeds per unit, worker processes (at most 4 per CPU
-of this machine and 1,024), values in a ``--lambdas`` list (a list's length is checked)."""
+of this machine and 1,024), values in a ``--lambdas`` or ``--sigmas`` list (a list's length is
+checked)."""
 
 
 def add_allow_large(parser: argparse.ArgumentParser) -> None:

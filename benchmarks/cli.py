@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib
 import os
 import signal
 import sys
@@ -23,8 +24,53 @@ from strol_gym.benchmarks.engine.results import ResultsError
 from strol_gym.benchmarks.experiments import EXPERIMENTS, make_experiment
 from strol_gym.learners.protocol import LearnerFailed
 
+OWN_COMMANDS: dict[str, str] = {
+    "train": "train ĝ for StROL or e2e (Algorithm 1)",
+    "list": "envs and every registry: learners, humans, Tasks, conditions",
+    "replay": "feed a session log's corrections through learners (table, CSV, plot)",
+    "export": "write a session log, or benchmark runs, as a Minari dataset (the [data] extra)",
+    "interact": "push the study arm yourself in MuJoCo's viewer; the robot learns (needs a "
+    "display)",
+    "import-study": "the authors' user-study pickles as session logs (replay them with replay)",
+    "fit-human": "fit a human model to correction logs; compare models by held-out likelihood",
+    "check-human": "posterior-predictive check of a simulated person against real session logs",
+    "fit-timing": "fit when the study's people corrected, given the robot's plan; check on a "
+    "held-out learner",
+    "fit-participant": "fit the study population (StROL-Study-v2's participant) to imported "
+    "study logs",
+    "report": "re-render tables, summary.md and plots from a folder",
+}
+"""The commands that are not experiments, with their one-line help: ``strol-bench --help``
+lists them without importing their modules (tests/test_bench_cli.py checks each against the
+help its own parser gives)."""
 
-def build_parser() -> argparse.ArgumentParser:
+
+def _add_own_parser(sub: Any, name: str) -> None:
+    """The full parser of one of :data:`OWN_COMMANDS` (this imports what the command needs)."""
+    if name == "train":
+        from strol_gym.benchmarks.train import add_train_arguments
+
+        p = sub.add_parser("train", help=OWN_COMMANDS["train"])
+        add_train_arguments(p)
+        plugin_option(p)
+    elif name == "list":
+        p = sub.add_parser("list", help=OWN_COMMANDS["list"])
+        plugin_option(p)
+    elif name == "report":
+        p = sub.add_parser("report", help=OWN_COMMANDS["report"])
+        p.add_argument("folder", help="a results folder written by paper or run")
+        p.add_argument("--no-plots", action="store_true")
+        plugin_option(p)  # the run's own pieces: a user learner keeps its display name
+    else:
+        module = name.replace("-", "_")
+        importlib.import_module(f"strol_gym.benchmarks.sessions.{module}").add_parser(sub)
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``strol-bench`` parser. Every experiment's parser is built (their modules are light);
+    of :data:`OWN_COMMANDS` only ``command``'s (all of them when ``command`` is None), the
+    others by name and one-line help, so that ``--help`` and ``list`` load neither torch nor
+    MuJoCo."""
     parser = argparse.ArgumentParser(
         prog="strol-bench",
         description="Benchmark online reward learners on the StROL envs (paired runs, statistics, "
@@ -33,40 +79,17 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in EXPERIMENTS.names():
         make_experiment(name).add_parser(sub)
-
-    from strol_gym.benchmarks.train import add_train_arguments
-
-    p = sub.add_parser("train", help="train ĝ for StROL or e2e (Algorithm 1)")
-    add_train_arguments(p)
-    plugin_option(p)
-
-    p = sub.add_parser("list", help="envs and every registry: learners, humans, Tasks, conditions")
-    plugin_option(p)
-
-    from strol_gym.benchmarks.sessions import export, interact, replay
-
-    replay.add_parser(sub)
-    export.add_parser(sub)
-    interact.add_parser(sub)
-    from strol_gym.benchmarks.sessions import import_study
-
-    import_study.add_parser(sub)
-
-    from strol_gym.benchmarks.sessions import fit_human
-
-    fit_human.add_parser(sub)  # strol-bench fit-human (issue 35)
-    from strol_gym.benchmarks.sessions import fit_participant
-
-    fit_participant.add_parser(sub)  # strol-bench fit-participant (issue 39)
-    from strol_gym.benchmarks.sessions import fit_timing
-
-    fit_timing.add_parser(sub)
-
-    p = sub.add_parser("report", help="re-render tables, summary.md and plots from a folder")
-    p.add_argument("folder", help="a results folder written by paper or run")
-    p.add_argument("--no-plots", action="store_true")
-    plugin_option(p)  # the run's own pieces: a user learner keeps its display name
+    for name, summary in OWN_COMMANDS.items():
+        if command is None or name == command:
+            _add_own_parser(sub, name)
+        else:
+            sub.add_parser(name, help=summary, add_help=False)
     return parser
+
+
+def _command(argv: Sequence[str]) -> str | None:
+    """The command ``argv`` names (its first word that is not an option), or None."""
+    return next((a for a in argv if not a.startswith("-")), None)
 
 
 # ---------------------------------------------------------------------- commands
@@ -162,6 +185,12 @@ def cmd_fit_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
     return command(args, parser)
 
 
+def cmd_check_human(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.check_human import command
+
+    return command(args, parser)
+
+
 def cmd_fit_participant(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.fit_participant import command
 
@@ -182,6 +211,7 @@ def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) 
 
 COMMANDS = {
     "fit-human": cmd_fit_human,
+    "check-human": cmd_check_human,
     "fit-participant": cmd_fit_participant,
     "fit-timing": cmd_fit_timing,
     "import-study": cmd_import_study,
@@ -269,7 +299,10 @@ def _main(argv: Sequence[str] | None = None) -> int:
         except ValueError as e:  # as main's own handler below says it: exit status 2
             print(f"strol-bench: error: {e}", file=sys.stderr)
             raise SystemExit(2) from None
-        parser = build_parser()
+        # only the named command's parser in full: the others by name and help (an unknown
+        # word still gets argparse's list of the valid choices)
+        named = _command(argv)
+        parser = build_parser(named if named in OWN_COMMANDS else "")
         args = parser.parse_args(argv)
     finally:  # from here on an interrupt is a KeyboardInterrupt: runs save what is finished
         if watch:

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from strol_gym.benchmarks.sessions import fitting as F
 from strol_gym.benchmarks.sessions.fit_human import load_corrections
-from strol_gym.humans import fitting as F
+from strol_gym.benchmarks.sessions.fitting import Corrections
 from strol_gym.humans.aim import emphasis_names
-from strol_gym.humans.fitting import Corrections
 
 VARIANTS: dict[str, dict[str, float | str]] = {
     "all": {},
@@ -63,7 +64,7 @@ def main(folder: str) -> None:
             print(f"Task {t} | {label} | {len(fam.params)} | {ll:.2f} | {held:.2f}", flush=True)
 
 
-def shipped(folder: str, chosen: list[str]) -> dict[str, dict[str, list[float]]]:
+def shipped(folder: str, chosen: list[str]) -> dict[str, dict[str, Any]]:
     """The per-Task fit ``fitted-aimed`` ships: the ``chosen`` variant of each Task (that of
     highest held-out log-likelihood in ``main``'s table); [estimate, low, high] with the
     person-clustered sandwich intervals of ``fit-human``."""
@@ -77,7 +78,7 @@ def shipped(folder: str, chosen: list[str]) -> dict[str, dict[str, list[float]]]
         ci = F.sandwich_intervals(fam, prep, data, mle)
         held = F.heldout(fam, prep, data, 4, np.random.default_rng(1))
         row = {k: [round(mle[k], 4), round(ci[k][0], 4), round(ci[k][1], 4)] for k in mle}
-        held_at = {p.name: p for p in F.family("aimed").base_params}
+        held_at = {p.name: p for p in F.Aimed.base_params}
         row.update({k: [1.0, 1.0, 1.0] for k in emphasis_names(data.task) if k not in mle})
         row.update({k: [1.0, 1.0, 1.0] for k in held_at if k not in mle and k == "turn"})
         row.update(

@@ -1,12 +1,13 @@
 """Pushes in a row on StROL-Study-v2: the fastest joint, as a share of its speed limit, at
 every physics step (the state each ``mj_step`` starts from, read by MuJoCo's control callback).
 
-    .venv/bin/python lab/study_v2_push_rows.py [--cases 50] [--seed 0] [--task 1]
+    .venv/bin/python lab/study_v2_push_rows.py [--cases 50] [--seed 0] [--task 1] [--short]
 
 Each case: a study seed (episode) drawn in [20000, 30000), a start 1-4 s in, then ``--pushes``
-pushes of 1 s one after another (force 30-41 N, torque up to 2.7 N m, random directions, through
-``apply_wrench``), then 3 s without. Prints each case's peak share, the physics step's time after
-the last push ended, and whether the speed reflex tripped; then the largest share seen.
+pushes one after another (1 s each; ``--short``: 0.2-1 s; ``--gaps``: 0-1 s apart; force 30-41
+N, torque up to 2.7 N m, random directions, through ``apply_wrench``), then 3 s without. Prints
+each case's peak share, the env step after the last push where it came, and whether the speed
+reflex tripped; then the largest share seen.
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ from strol_gym import checks
 from strol_gym.envs.study.controller import VELOCITY_LIMIT
 
 
-def draw(rng: np.random.Generator, pushes: int) -> dict[str, Any]:
+def draw(
+    rng: np.random.Generator, pushes: int, short: bool = False, gaps: bool = False
+) -> dict[str, Any]:
     """One case's draws."""
 
     def unit() -> np.ndarray:
@@ -35,7 +38,12 @@ def draw(rng: np.random.Generator, pushes: int) -> dict[str, Any]:
         "seed": int(rng.integers(20000, 30000)),
         "start": float(rng.uniform(1.0, 4.0)),
         "wrenches": [
-            (unit() * rng.uniform(30.0, 41.0), unit() * rng.uniform(0.0, 2.7))
+            (
+                unit() * rng.uniform(30.0, 41.0),
+                unit() * rng.uniform(0.0, 2.7),
+                float(rng.uniform(0.2, 1.0)) if short else 1.0,
+                float(rng.uniform(0.0, 1.0)) if gaps else 0.0,
+            )
             for _ in range(pushes)
         ],
     }
@@ -59,9 +67,9 @@ def peak_share(task: int, case: dict[str, Any], after_s: float = 3.0) -> dict[st
     reflex = False
     mujoco.set_mjcb_control(watch)
     try:
-        for force, torque in case["wrenches"]:
-            env.apply_wrench(force, torque, duration=1.0)
-            for _ in range(20):
+        for force, torque, duration, gap in case["wrenches"]:
+            env.apply_wrench(force, torque, duration=duration)
+            for _ in range(max(1, round(duration / 0.05)) + round(gap / 0.05)):
                 phase["step"] -= 1
                 _, _, _, trunc, info = env.step(zero)
                 reflex |= bool(info.get("reflex"))
@@ -84,11 +92,13 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--task", type=int, default=1)
     p.add_argument("--pushes", type=int, default=4)
+    p.add_argument("--short", action="store_true", help="pushes of 0.2-1 s (default 1 s)")
+    p.add_argument("--gaps", action="store_true", help="0-1 s between pushes (default none)")
     args = p.parse_args(argv)
     rng = np.random.default_rng([args.seed, args.task])
     top, t0 = 0.0, time.perf_counter()
     for i in range(args.cases):
-        case = draw(rng, args.pushes)
+        case = draw(rng, args.pushes, args.short, args.gaps)
         r = peak_share(args.task, case)
         top = max(top, r["share"])
         print(

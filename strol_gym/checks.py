@@ -160,6 +160,12 @@ def array(
     what = f"an array of {kind}" + (f" of shape {_shape_words(shape)}" if shape is not None else "")
     if isinstance(value, str | bytes | Mapping):
         raise _bad(name, what, value, kind=True)
+    if (
+        not (isinstance(value, np.ndarray) and value.dtype.kind in "biuf")
+        and np.dtype(dtype).kind != "c"
+        and np.iscomplexobj(cast(Any, value))
+    ):  # a real dtype would drop the imaginary part without a word
+        raise _bad(name, what.replace("numbers", "real numbers"), value, kind=True)
     try:
         a = np.array(value, dtype=dtype) if copy else np.asarray(value, dtype=dtype)
     except (TypeError, ValueError):

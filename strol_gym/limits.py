@@ -30,9 +30,11 @@ CAPS: dict[str, int] = {
     "threads": 1_024,  # torch threads of `train`
     "corrections": 10_000,  # correction steps per episode (`run`, `export`; paper: 5 and 10)
     "lambdas": 1_000,  # values in a --lambdas list
+    "sigmas": 100,  # values in `robustness --sigmas` (default: 2), each a condition per human
     "session_line_bytes": 2**20,  # one session-log line (a correction is ~1 KB)
     "dataset_steps": 10_000_000,  # steps in one Minari dataset array (rows)
     "dataset_episodes": 1_000_000,  # episodes in one Minari dataset
+    "fit_corrections": 5_000,  # corrections `fit-human` reads (~0.4 MB each; the study: ~600)
     "dataset_bytes": 2**30,  # bytes all arrays of one Minari dataset declare (ours: kilobytes)
 }
 """Name -> the largest accepted value."""

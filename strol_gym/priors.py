@@ -8,6 +8,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from strol_gym import checks
 from strol_gym.registry import Registry
 
 
@@ -178,7 +179,14 @@ def make_prior(spec: str | Prior | Sequence[Sequence[float]], task_modes: np.nda
     "module:attr" of a factory, a Prior object, or explicit modes."""
     task_modes = np.atleast_2d(task_modes)
     if isinstance(spec, str):
-        prior = PRIORS.get(spec)(task_modes)
+        factory = PRIORS.get(spec)
+        try:
+            prior = factory(task_modes)
+        except Exception as e:  # a 'module:attr' naming something that is not a factory
+            raise ValueError(
+                f"prior {spec!r}: its factory (task_modes) -> Prior failed "
+                f"({type(e).__name__}: {' '.join(str(e).split())[:120]})"
+            ) from None
         if not isinstance(prior, Prior):
             raise ValueError(f"prior {spec!r} gave {type(prior).__name__}, not a Prior")
         if prior.dim != task_modes.shape[1]:
@@ -190,8 +198,8 @@ def make_prior(spec: str | Prior | Sequence[Sequence[float]], task_modes: np.nda
         if spec.dim != task_modes.shape[1]:
             raise ValueError(f"prior has dim {spec.dim}, the task needs {task_modes.shape[1]}")
         return spec
-    modes = np.atleast_2d(np.asarray(spec, dtype=np.float64))
-    if modes.shape[1] != task_modes.shape[1]:
+    modes = np.atleast_2d(checks.array("prior", spec))
+    if modes.ndim != 2 or modes.shape[1] != task_modes.shape[1]:
         raise ValueError(f"prior modes need {task_modes.shape[1]} columns, got shape {modes.shape}")
     return MixturePrior(modes, name="custom")
 

@@ -161,8 +161,11 @@ class Registry(Generic[T]):
     def __contains__(self, name: object) -> bool:
         return name in self.table
 
-    def register(self, name: str, piece: T | str, *, replace: bool = False) -> None:
-        """Add ``piece`` (or a ``"module:attr"`` string, imported on first use) as ``name``."""
+    def register(
+        self, name: str, piece: T | str, *, replace: bool = False, builtin: bool = False
+    ) -> None:
+        """Add ``piece`` (or a ``"module:attr"`` string, imported on first use) as ``name``.
+        ``builtin``: a piece the package ships (registered at its import), not the user's."""
         if not isinstance(name, str) or not name or ":" in name or "," in name:
             error = ValueError if isinstance(name, str) else checks.ArgumentTypeError
             raise error(
@@ -187,6 +190,8 @@ class Registry(Generic[T]):
         else:
             self.check(name, piece)
         self.table[name] = piece
+        if builtin:
+            self.builtin = (*self.builtin, name)
 
     def unregister(self, name: str) -> None:
         """Remove a user entry (built-ins stay)."""

@@ -174,3 +174,30 @@ def test_output_into_a_closed_pipe_ends_quietly(argv):
         os.close(write)
     assert done.returncode == 0
     assert done.stderr.decode() == ""
+
+
+def test_the_listing_gives_each_own_command_the_help_its_parser_gives():
+    """``strol-bench --help`` names the commands that are not experiments from
+    ``cli.OWN_COMMANDS`` (without importing them): the same words their full parsers give."""
+    full = cli.build_parser()  # every parser in full
+    (sub,) = [a for a in full._actions if a.dest == "command"]
+    helps = {a.dest: a.help for a in sub._choices_actions}
+    assert {name: helps.get(name) for name in cli.OWN_COMMANDS} == cli.OWN_COMMANDS
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["list"], ["paper", "--help"]])
+def test_help_and_list_load_no_heavy_stack(argv):
+    """The start-up of ``--help`` and ``list`` (lab/speed/cli_start.py times it) imports
+    neither torch, scipy, MuJoCo nor matplotlib: checked in a fresh interpreter."""
+    import subprocess
+
+    code = (
+        "import contextlib, io, sys\n"
+        "from strol_gym.benchmarks.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+        f"    main({argv!r})\n"
+        "heavy = ('torch', 'scipy', 'mujoco', 'matplotlib', 'highway_env', 'safetensors')\n"
+        "print(sorted({m.split('.')[0] for m in sys.modules} & set(heavy)))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr

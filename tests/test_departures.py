@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 import torch
 
+from lab.checks.departures import RobotTaskXR, robot_alpha1
+from lab.checks.mof_calibration import separating_threshold
 from strol_gym.benchmarks.engine.conditions import (
     PAPER_LEARNERS,
     PAPER_TABLE_LEARNERS,
     paper_condition,
 )
 from strol_gym.benchmarks.engine.config import paper_config
-from strol_gym.benchmarks.experiments.departures import RobotTaskXR, robot_alpha1
-from strol_gym.benchmarks.experiments.mof_calibration import separating_threshold
 from strol_gym.benchmarks.experiments.paper import Paper
 from strol_gym.learners.network import CorrectionNet, bound_correction
 from strol_gym.learners.registry import make_learner

@@ -1,5 +1,5 @@
-"""``strol-bench fit-human`` and ``strol_gym.humans.fitting``: recovery, model selection, the
-log's generating parameters out of sight, the bound's censoring, bad input."""
+"""``strol-bench fit-human`` and ``strol_gym.benchmarks.sessions.fitting``: recovery, model
+selection, the log's generating parameters out of sight, the bound's censoring, bad input."""
 
 from __future__ import annotations
 
@@ -11,12 +11,12 @@ import pytest
 from cli_checks import cli_error
 
 import strol_gym  # noqa: F401  (registers the envs)
+from lab.checks.fit_recovery import recovery, selection, simulate_people
 from strol_gym.benchmarks import cli
-from strol_gym.benchmarks.analysis.fit_recovery import recovery, selection, simulate_people
 from strol_gym.benchmarks.sessions.fit_human import load_corrections
+from strol_gym.benchmarks.sessions.fitting import INTERVALS, PARSIMONY_RULE, chi_bar_pvalue, fit
 from strol_gym.humans import human_model
 from strol_gym.humans.findings import candidate_rewards, margin
-from strol_gym.humans.fitting import INTERVALS, PARSIMONY_RULE, chi_bar_pvalue, fit
 from strol_gym.tasks import make_task
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger

@@ -375,10 +375,10 @@ def test_ctrl_c_from_the_entry_functions_first_line_is_one_line_and_130(tmp_path
 
         real = cli.build_parser
 
-        def interrupted_while_building():
+        def interrupted_while_building(command=None):
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(5)
-            return real()
+            return real(command)
 
         cli.build_parser = interrupted_while_building
         sys.exit(cli.main(["list"]))

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from strol_gym.benchmarks.sessions import fitting as F
 from strol_gym.humans import HumanSpec, human_model, make_human
-from strol_gym.humans import fitting as F
 from strol_gym.humans.aim import (
     FITTED_AIM,
     AimedModel,

@@ -133,7 +133,7 @@ def _stats_csv(folder, rows):
 
 
 def test_cross_kernel_lists_every_test_and_names_the_cpu_dependent_verdicts(tmp_path):
-    from strol_gym.benchmarks.experiments.cross_kernel import compare, tests, tests_table
+    from lab.checks.cross_kernel import compare, tests, tests_table
 
     base = {"env": "robot", "condition": "noisy-biased", "metric": "regret", "learner": "strol"}
     a = [{**base, "baseline": "e2e", "p_holm": 0.2, "mean_diff": -0.1, "wilcoxon_p_holm": 0.049,
@@ -157,7 +157,7 @@ def test_cross_kernel_lists_every_test_and_names_the_cpu_dependent_verdicts(tmp_
 
 
 def test_cross_kernel_settings():
-    from strol_gym.benchmarks.experiments.cross_kernel import setting_env
+    from lab.checks.cross_kernel import setting_env
 
     assert setting_env("native") == {}
     assert setting_env("Prescott:avx2") == {

@@ -27,8 +27,10 @@ PACKAGES = {
     "strol_gym": "strol_gym",
     "strol_gym.wrappers": "wrappers",
     "strol_gym.benchmarks": "benchmarks",
+    "lab": "lab",
 }
 BENCHMARK = "strol_gym.benchmarks"
+LAB = "lab"
 ROOTS = {"strol_gym", BENCHMARK}
 
 # The layers, lowest first (docs/layout.md). A module belongs to the unit with the longest
@@ -41,7 +43,7 @@ LAYERS: list[tuple[str, ...]] = [
         "strol_gym.provenance",
         "strol_gym.files",
         "strol_gym.limits",
-        "strol_gym.deprecation",
+        "strol_gym.lazy",
         "strol_gym.planning",
         "strol_gym.metrics",
         "strol_gym.compiled",
@@ -52,7 +54,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("strol_gym.learners",),
     ("strol_gym.envs",),
     ("strol_gym.wrappers",),
-    ("strol_gym.registration", "strol_gym.analysis", "strol_gym.testing", "strol_gym.sb3"),
+    ("strol_gym.registration", "strol_gym.analysis", "strol_gym.testing"),
     ("strol_gym",),
     ("strol_gym.benchmarks.engine",),
     ("strol_gym.benchmarks.analysis",),
@@ -63,10 +65,14 @@ LAYERS: list[tuple[str, ...]] = [
     ("strol_gym.benchmarks.__main__", "strol_gym.benchmarks.speed"),
     ("strol_gym.benchmarks.examples",),
     ("strol_gym.benchmarks",),
+    # the lab (not installed): it may use the benchmark and the library, nothing uses it; its
+    # rooms, then the scripts at its top
+    ("lab.speed", "lab.study", "lab.checks"),
+    ("lab",),
 ]
 # benchmarks/'s top level: the CLI and what only the CLI shares; everything else in a room.
 BENCHMARK_TOP = {"__init__.py", "__main__.py", "args.py", "cli.py", "train.py"}
-_NAME = re.compile(r"(strol_gym(?:\.\w+)*)(?::[\w.]+)?")
+_NAME = re.compile(r"((?:strol_gym|lab)(?:\.\w+)*)(?::[\w.]+)?")
 
 
 def modules(root: Path = ROOT) -> dict[str, Path]:
@@ -311,11 +317,23 @@ def test_the_core_never_reaches_the_benchmark():
     wrong = sorted(
         f"{m} -> ... -> {t}"
         for m in g
-        if not m.startswith(BENCHMARK)
+        if not m.startswith((BENCHMARK, LAB))
         for t in reachable(g, m)
         if t.startswith(BENCHMARK)
     )
     assert not wrong, "the core imports the benchmark: " + "; ".join(wrong)
+
+
+def test_nothing_installed_reaches_the_lab():
+    g = graph()
+    wrong = sorted(
+        f"{m} -> ... -> {t}"
+        for m in g
+        if not m.startswith(LAB)
+        for t in reachable(g, m)
+        if t.startswith(LAB)
+    )
+    assert not wrong, "an installed module imports the lab: " + "; ".join(wrong)
 
 
 def test_benchmark_top_level_holds_the_cli_only():

@@ -324,8 +324,8 @@ def test_checkpoints_and_sidecars_naming_code(tmp_path, marker):
 def test_experiment_tables_naming_code(tmp_path, marker):
     """The experiments' own readers (runs.csv, summary/stats CSV, confirm.json, study.json)
     read names as strings: a file full of module:attr imports nothing."""
-    from strol_gym.benchmarks.analysis.compare_learners import load_runs
-    from strol_gym.benchmarks.experiments.cross_kernel import folder_verdicts, means
+    from lab.checks.compare_learners import load_runs
+    from lab.checks.cross_kernel import folder_verdicts, means
     from strol_gym.metrics import RUN_METRICS
 
     spec = f"{SIDE_EFFECT}:Mine"

@@ -119,6 +119,8 @@ def test_the_wheel_carries_the_assets_and_the_pretrained_weights(wheel_install):
     assert not any(n.startswith(("wrappers/", "benchmarks/")) for n in names), (
         "wrappers and benchmarks must install under the strol_gym namespace"
     )
+    lab = [n for n in names if n.startswith("lab/") or "/lab/" in n]
+    assert not lab, f"the lab is not installed, yet the wheel holds {lab[:5]}"
 
 
 def test_the_wheel_carries_licence_citation_changelog_and_no_pickled_weights(wheel_install):

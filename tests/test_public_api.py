@@ -1,25 +1,20 @@
-"""Every import path and name the README and docs/ show keeps working; renamed ones for one
-release, as aliases that warn (CHANGELOG.md lists them).
+"""Every import path and name the README and docs/ show imports; the names removed before the
+first release (CHANGELOG.md, "Removed") are gone, not aliased.
 
-``SHOWN`` was built from README.md and docs/*.md at 59bd92e (``grep -ohE`` of ``from strol_gym...
-import ...`` lines and of dotted ``strol_gym.x.y`` names), so it holds what users were shown
-before this release's moves; ``test_what_the_docs_show_today_imports`` reads today's pages.
+``SHOWN`` pins the names the pages show (``grep -ohE`` of ``from strol_gym... import ...`` lines
+and of dotted ``strol_gym.x.y`` names in README.md and docs/*.md);
+``test_what_the_docs_show_today_imports`` reads today's pages.
 """
 
 from __future__ import annotations
 
 import importlib
 import re
-import sys
-import warnings
 from pathlib import Path
 
-import numpy as np
 import pytest
-from gymnasium.envs.registration import load_env_creator
 
 import strol_gym  # noqa: F401  (registers the envs)
-from strol_gym.envs.study_v1 import NAMES as STUDY_V1_NAMES
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -68,8 +63,6 @@ SHOWN = [
     "strol_gym.testing:check_task",
     "strol_gym.testing:check_human",
     # envs
-    # (the envs' old module paths, e.g. strol_gym.envs.base, moved to subpackages by simulator:
-    # envs.moved.MOVED, tested below; their new homes here)
     "strol_gym.envs.contract:CorrectionEnv",
     "strol_gym.envs.robot.vector:VectorRobotEnv",
     "strol_gym.envs.highway.vector:VectorHighwayEnv",
@@ -97,21 +90,41 @@ SHOWN = [
     "strol_gym.benchmarks.experiments:register_experiment",
     "strol_gym.benchmarks.experiments.base:BenchExperiment",
     "strol_gym.benchmarks.experiments.base:Outcome",
-    "strol_gym.benchmarks.experiments.study_seed_sets",
-    "strol_gym.benchmarks.analysis.compare_learners",
 ]
 
-MOVED = {
-    # old "module:attr" -> new "module:attr"; each warns for one release, then goes
-    "strol_gym.sb3:SB3VecEnv": "strol_gym.wrappers.sb3:SB3VecEnv",
-    "strol_gym.humans:ModelHuman": "strol_gym.humans:SimulatedHuman",
-    "strol_gym.humans:TeacherModel": "strol_gym.humans:NominalModel",
-    "strol_gym.humans.model:ModelHuman": "strol_gym.humans.interface:SimulatedHuman",
-    "strol_gym.humans.model:HumanModel": "strol_gym.humans.interface:HumanModel",
-    "strol_gym.humans.model:Human": "strol_gym.humans.interface:Human",
-    "strol_gym.humans.models:TeacherModel": "strol_gym.humans.builtin:NominalModel",
-    "strol_gym.humans.models:NominalHuman": "strol_gym.humans.builtin:NominalHuman",
-}
+REMOVED_MODULES = [
+    # old module paths, each removed in favour of the module CHANGELOG.md names
+    "strol_gym.sb3",
+    "strol_gym.deprecation",
+    "strol_gym.humans.model",
+    "strol_gym.humans.models",
+    "strol_gym.humans.fitting",
+    "strol_gym.envs.moved",
+    "strol_gym.envs.base",
+    "strol_gym.envs.vector_base",
+    "strol_gym.envs.panda_ik",
+    "strol_gym.envs.panda_ik_batched",
+    "strol_gym.envs.robot_scene",
+    "strol_gym.envs.robot_seeds",
+    "strol_gym.envs.vector_robot",
+    "strol_gym.envs.vector_highway",
+    "strol_gym.envs.study_participant",
+    "strol_gym.envs.study_user",
+    "strol_gym.envs.study_scene",
+    "strol_gym.envs.study_v1",
+    "strol_gym.benchmarks.engine.study_authors",
+]
+
+REMOVED_NAMES = [
+    "strol_gym.humans:ModelHuman",
+    "strol_gym.humans:TeacherModel",
+    "strol_gym.envs.study:HOLD",
+    "strol_gym.envs.study:Velocity",
+    "strol_gym.envs.study:K_NULL",
+    "strol_gym.envs.study:D_NULL",
+    "strol_gym.envs.study:END_HOLD",
+    "strol_gym.envs.study:TORQUE_LEVER",
+]
 
 # Dotted names in the docs that are not import paths: an entry-point group, a placeholder, the
 # ``python -m`` entry (importing it runs the CLI).
@@ -128,43 +141,32 @@ def resolve(spec: str) -> object:
     return getattr(obj, attr) if attr else obj
 
 
-def _our_deprecations(caught: list[warnings.WarningMessage]) -> list[str]:
-    return [
-        str(w.message)
-        for w in caught
-        if issubclass(w.category, DeprecationWarning) and "old name goes" in str(w.message)
-    ]
-
-
 @pytest.mark.parametrize("spec", SHOWN)
-def test_a_name_the_docs_showed_imports_without_warning(spec):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        assert resolve(spec) is not None
-    assert not _our_deprecations(caught), spec
+def test_a_name_the_docs_show_imports(spec):
+    assert resolve(spec) is not None
 
 
-@pytest.mark.parametrize(("old", "new"), sorted(MOVED.items()))
-def test_an_old_name_still_works_and_warns(old, new):
-    module, _, attr = old.partition(":")
-    with pytest.warns(DeprecationWarning, match=r"the old name goes in the next release"):
-        obj = getattr(importlib.import_module(module), attr)
-    assert obj is resolve(new)
+@pytest.mark.parametrize("old", REMOVED_MODULES)
+def test_a_removed_module_path_is_gone(old):
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module(old)
 
 
-def test_from_import_of_an_old_name_works_and_warns():
-    with pytest.warns(DeprecationWarning, match=r"strol_gym\.sb3\.SB3VecEnv is now"):
-        from strol_gym.sb3 import SB3VecEnv
-    from strol_gym.wrappers.sb3 import SB3VecEnv as new
+@pytest.mark.parametrize("spec", REMOVED_NAMES)
+def test_a_removed_name_is_an_attribute_error(spec):
+    module, _, attr = spec.partition(":")
+    with pytest.raises(AttributeError, match=attr):
+        getattr(importlib.import_module(module), attr)
 
-    assert SB3VecEnv is new
 
-
-def test_an_unknown_name_is_still_an_attribute_error():
-    import strol_gym.humans
-
-    with pytest.raises(AttributeError, match="NoSuchHuman"):
-        strol_gym.humans.NoSuchHuman  # noqa: B018
+def test_the_changelog_lists_every_removal():
+    changelog = (ROOT / "CHANGELOG.md").read_text()
+    unreleased = changelog.split("## [Unreleased]", 1)[1].split("\n## [", 1)[0]
+    removed = unreleased.split("### Removed", 1)[1].split("\n### ", 1)[0]
+    missing = [
+        spec for spec in [*REMOVED_MODULES, *REMOVED_NAMES] if spec.replace(":", ".") not in removed
+    ]
+    assert not missing, f"CHANGELOG.md's [Unreleased] / Removed lacks {missing}"
 
 
 def _shown_today() -> set[str]:
@@ -196,95 +198,21 @@ def _resolve_dotted(spec: str) -> object:
 
 
 def test_what_the_docs_show_today_imports():
-    """Pages change: every name they show now must import (a new name, or an alias)."""
+    """Pages change: every name they show now must import."""
     broken = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        for spec in sorted(_shown_today()):
-            try:
-                _resolve_dotted(spec)
-            except (ImportError, AttributeError) as e:
-                broken.append(f"{spec}: {e}")
+    for spec in sorted(_shown_today()):
+        try:
+            _resolve_dotted(spec)
+        except (ImportError, AttributeError) as e:
+            broken.append(f"{spec}: {e}")
     assert not broken, "names the docs show that do not import: " + "; ".join(broken)
 
 
-# ---------------------------------------------------------------- the envs' old module paths
-MOVED_MODULES = {
-    # old module -> new module (the old one warns and is the new one)
-    "strol_gym.envs.base": "strol_gym.envs.contract",
-    "strol_gym.envs.vector_base": "strol_gym.envs.vector",
-    "strol_gym.envs.panda_ik": "strol_gym.envs.panda.ik",
-    "strol_gym.envs.panda_ik_batched": "strol_gym.envs.panda.ik_batched",
-    "strol_gym.envs.robot_scene": "strol_gym.envs.robot.scene",
-    "strol_gym.envs.robot_seeds": "strol_gym.envs.robot.seeds",
-    "strol_gym.envs.vector_robot": "strol_gym.envs.robot.vector",
-    "strol_gym.envs.vector_highway": "strol_gym.envs.highway.vector",
-    "strol_gym.envs.study_participant": "strol_gym.envs.study.participant",
-    "strol_gym.envs.study_user": "strol_gym.envs.study.user",
-    "strol_gym.envs.study_scene": "strol_gym.envs.study.scene",
-    "strol_gym.benchmarks.engine.study_authors": "strol_gym.envs.study.metrics",
-}
-
-OLD_ENTRY_POINTS = {
-    # what gymnasium registrations and Minari dataset headers written before 0.2 name
-    "strol_gym.envs.robot:RobotEnv": "strol_gym.envs.robot.env:RobotEnv",
-    "strol_gym.envs.vector_robot:VectorRobotEnv": "strol_gym.envs.robot.vector:VectorRobotEnv",
-    "strol_gym.envs.highway:HighwayEnv": "strol_gym.envs.highway.env:HighwayEnv",
-    "strol_gym.envs.vector_highway:VectorHighwayEnv": (
-        "strol_gym.envs.highway.vector:VectorHighwayEnv"
-    ),
-    "strol_gym.envs.study:StudyEnv": "strol_gym.envs.study.env:StudyEnv",
-    "strol_gym.envs.study_v1:StudyEnvV1": "strol_gym.envs.study.env:StudyEnvV1",
-}
-
-
-@pytest.mark.parametrize("old", sorted(MOVED_MODULES))
-def test_old_module_path_warns_and_is_the_new_module(old):
-    new = importlib.import_module(MOVED_MODULES[old])
-    sys.modules.pop(old, None)  # an earlier import would not warn again
-    with pytest.warns(DeprecationWarning, match=r"the old name goes in the next release"):
-        module = importlib.import_module(old)
-    assert module is new
-
-
-def test_a_split_module_warns_on_import():
-    sys.modules.pop("strol_gym.envs.study_v1", None)
-    with pytest.warns(DeprecationWarning, match="strol_gym.envs.study_v1 was split"):
-        importlib.import_module("strol_gym.envs.study_v1")
-
-
-@pytest.mark.parametrize("old", sorted(OLD_ENTRY_POINTS))
-def test_old_entry_points_resolve_to_the_same_class(old):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        before = load_env_creator(old)
-    assert before is load_env_creator(OLD_ENTRY_POINTS[old])
-
-
-@pytest.mark.parametrize(
-    ("package", "name", "home"),
-    [
-        ("strol_gym.envs.study", "HOLD", "strol_gym.envs.study.controller"),
-        ("strol_gym.envs.study", "TORQUE_LEVER", "strol_gym.envs.study.env"),
-        *(("strol_gym.envs.study_v1", n, h) for n, h in STUDY_V1_NAMES.items()),
-    ],
-)
-def test_names_of_a_module_that_was_split_warn(package, name, home):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # the module's own, on import
-        module = importlib.import_module(package)
-    with pytest.warns(DeprecationWarning, match=f"{home}.{name}"):
-        value = getattr(module, name)
-    assert value is getattr(importlib.import_module(home), name)
-
-
-def test_env_classes_import_from_their_package_without_warning():
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", DeprecationWarning)
-        from strol_gym.envs.highway import HighwayEnv, VectorHighwayEnv  # noqa: F401
-        from strol_gym.envs.panda import Q_HOME, PandaIK  # noqa: F401
-        from strol_gym.envs.robot import RobotEnv, VectorRobotEnv  # noqa: F401
-        from strol_gym.envs.study import StudyEnv, StudyEnvV1  # noqa: F401
+def test_env_classes_import_from_their_package():
+    from strol_gym.envs.highway import HighwayEnv, VectorHighwayEnv  # noqa: F401
+    from strol_gym.envs.panda import Q_HOME, PandaIK  # noqa: F401
+    from strol_gym.envs.robot import RobotEnv, VectorRobotEnv  # noqa: F401
+    from strol_gym.envs.study import StudyEnv, StudyEnvV1  # noqa: F401
 
 
 def test_unknown_name_of_an_env_package_is_an_attribute_error():
@@ -292,18 +220,3 @@ def test_unknown_name_of_an_env_package_is_an_attribute_error():
 
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         robot.nope  # noqa: B018
-
-
-def test_an_env_with_the_old_one_start_hook_still_draws_its_starts():
-    from strol_gym.envs.robot import RobotEnv
-
-    with pytest.warns(DeprecationWarning, match="draw_starts"):
-
-        class OldHookEnv(RobotEnv):
-            def _draw_start(self, rng):
-                return np.array([0.4, 0.0, 0.3]) + 0.0 * rng.random(), rng
-
-    env = OldHookEnv(human=None)
-    obs, _ = env.reset(seed=0)
-    np.testing.assert_allclose(obs["state"], [0.4, 0.0, 0.3], atol=2e-3)
-    env.close()

@@ -284,7 +284,7 @@ def test_best_correction_one_pose_is_a_batch_row():
 def test_read_scale_is_the_median_read_over_the_median_meant():
     """participant_check's read scale: per part, the median read |u_H| over the median meant
     one, over every session's pushes (a push the arm lost counts as meant, not read)."""
-    from strol_gym.benchmarks.sessions.participant_check import read_scale
+    from lab.study.participant_check import read_scale
 
     sessions = [
         {"sizes": {"read": [(0.5, 0.2), (0.7, 0.4)], "intended": [(1.0, 0.4), (1.0, 0.4)]}},

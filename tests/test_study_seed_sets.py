@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from strol_gym.benchmarks.experiments.study_seed_sets import complete_users, decisive_margin
+from lab.study.study_seed_sets import complete_users, decisive_margin
 
 
 class _Tests:
@@ -42,7 +42,7 @@ def test_complete_users_counts_users_with_every_run():
 
 def test_from_study_refuses_a_folder_that_is_not_a_study(tmp_path, capsys):
     """--from-study reads a results folder or exits 2 with one line naming the option."""
-    from strol_gym.benchmarks.experiments.study_seed_sets import main
+    from lab.study.study_seed_sets import main
 
     with pytest.raises(SystemExit) as e:
         main(["--from-study", str(tmp_path / "none")])

@@ -373,7 +373,7 @@ def test_plans_stay_in_the_reachable_set_the_task_carries(task):
     pitcher (up to 5.4 cm below its low x, 18 of 600 sets of 8 plans from home) and from
     random starts."""
     t = STUDY_TASKS_V2[task]()
-    assert t.reach_source.startswith("benchmarks/speed/study_reach.py")
+    assert t.reach_source.startswith("lab/study/study_reach.py")
     rng = np.random.default_rng([ENTROPY, task])
     n = 16
     theta = rng.uniform(-1, 1, (2 * n, t.dim))

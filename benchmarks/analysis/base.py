@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from strol_gym.benchmarks.engine.config import BenchConfig
+from strol_gym.benchmarks.engine.record import RunRecord, value
 from strol_gym.metrics import RUN_METRICS, label
 
 METRICS: tuple[str, ...] = RUN_METRICS
@@ -71,10 +72,10 @@ class Analysis:
         ]
 
 
-def _matrix(records: Sequence[dict], env: str, cond: str, learners: Sequence[str], key: str):
+def _matrix(records: Sequence[RunRecord], env: str, cond: str, learners: Sequence[str], key: str):
     """(seeds, learners) array of ``key``; rows are run seeds in ascending order."""
     by = {
-        (r["seed"], r["learner"]): r[key]
+        (r["seed"], r["learner"]): value(r, key)
         for r in records
         if (r["env"], r["condition"]) == (env, cond)
     }

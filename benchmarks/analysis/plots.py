@@ -15,18 +15,28 @@ import hashlib
 import textwrap
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from strol_gym.benchmarks.analysis import robust, stats
 from strol_gym.benchmarks.analysis.base import METRIC_LABELS, Analysis, display
 from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.files import write_figure
+from strol_gym.lazy import LazyModule
 from strol_gym.metrics import short
+
+
+def _headless() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+
+if TYPE_CHECKING:
+    import matplotlib.pyplot as plt
+else:  # matplotlib loads at the first figure: `strol-bench --help` does not need it
+    plt = LazyModule("matplotlib.pyplot", before=_headless)
 
 PAPER_COLORS = {
     "gradient": "#7f7f7f",

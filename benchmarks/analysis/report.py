@@ -25,6 +25,7 @@ from strol_gym.benchmarks.analysis.base import (
 )
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig
+from strol_gym.benchmarks.engine.record import RunRecord, value
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.files import write_text_atomic
 from strol_gym.metrics import METRICS as METRIC_TABLE
@@ -95,7 +96,7 @@ ANOVA_COLUMNS = (
 
 
 def pooled_matrix(
-    records: Sequence[dict], envs: Sequence[str], learners: Sequence[str], key: str
+    records: Sequence[RunRecord], envs: Sequence[str], learners: Sequence[str], key: str
 ) -> tuple[list[int], np.ndarray]:
     """(seeds, learners): each run seed's mean of ``key`` over every (env, condition) cell of
     ``envs`` it ran in, as the paper pools a participant over its Tasks (or a simulated human
@@ -105,7 +106,7 @@ def pooled_matrix(
     for r in records:
         if r["env"] in envs and r["learner"] in learners:
             cells.setdefault((r["seed"], r["env"], r["condition"]), {})[r["learner"]] = _f(
-                r.get(key)
+                value(r, key)
             )
     per_seed: dict[int, list[list[float]]] = {}
     bad: set[int] = set()
@@ -121,7 +122,7 @@ def pooled_matrix(
 
 
 def pooled_tests(
-    records: Sequence[dict], envs: Sequence[str], learners: Sequence[str], key: str
+    records: Sequence[RunRecord], envs: Sequence[str], learners: Sequence[str], key: str
 ) -> dict[str, Any]:
     """The paper's pooled analysis: ``pooled_matrix``, a repeated-measures ANOVA over the
     learners (Greenhouse–Geisser), then every pair of learners (paired t and Wilcoxon, each
@@ -226,7 +227,7 @@ def aggregate(
 
 def analyse(
     config: BenchConfig,
-    records: Sequence[dict],
+    records: Sequence[RunRecord],
     metrics: Sequence[str] = METRICS,
     *,
     resamples: int | None = None,

@@ -27,9 +27,16 @@ import dataclasses
 import os
 import zlib
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import stats as sps
+
+from strol_gym.lazy import LazyModule
+
+if TYPE_CHECKING:
+    from scipy import stats as sps
+else:  # scipy loads on first use: `strol-bench --help` does not need it
+    sps = LazyModule("scipy.stats")
 
 BOOTSTRAP_RESAMPLES = 2000
 """Resamples for the benchmark's intervals (the Monte Carlo error of a 95 % percentile bound is

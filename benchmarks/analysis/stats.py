@@ -16,10 +16,16 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import stats as sps
+
+from strol_gym.lazy import LazyModule
+
+if TYPE_CHECKING:
+    from scipy import stats as sps
+else:  # scipy loads on first use: `strol-bench --help` does not need it
+    sps = LazyModule("scipy.stats")
 
 ALPHA = 0.05
 

@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
+from strol_gym.benchmarks.engine.record import RunRecord
 from strol_gym.learners.protocol import LearnerFailed
 
 BACKENDS = ("local", "ray", "slurm")
@@ -214,7 +215,7 @@ _CACHE: dict[str, Any] = {}
 
 def _ray_unit(
     config_dict: dict, sys_path: list[str], unit: Unit, make_worker: Callable[[BenchConfig], Any]
-) -> tuple[Unit, list[dict]]:
+) -> tuple[Unit, list[RunRecord]]:
     """One unit in a Ray worker process. The worker keeps its envs and learners between units of
     the same config (as a local pool process does), keyed by the config's JSON."""
     for entry in sys_path:  # the driver's path: user plugins given as .py files import here
@@ -295,7 +296,7 @@ def iter_ray(
     jobs: int,
     address: str | None,
     make_worker: Callable[[BenchConfig], Any],
-) -> Iterator[tuple[Unit, list[dict]]]:
+) -> Iterator[tuple[Unit, list[RunRecord]]]:
     """Run ``units`` as Ray tasks (one CPU each) and yield ``(unit, records)`` as they finish.
     ``make_worker(config)`` builds a Ray process's worker (the runner's, passed in: a backend
     does not import the runner).

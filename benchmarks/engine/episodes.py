@@ -10,10 +10,11 @@ time with the same definition (``episode_regret``).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
+from strol_gym.benchmarks.engine.record import REGRET_INPUTS, RunRecord
 from strol_gym.envs.study import metrics as study_authors
 from strol_gym.learners.protocol import LearnerFailed
 from strol_gym.metrics import cos_error, episode_regret, error, info_metrics
@@ -30,7 +31,7 @@ def _state(obs: Any) -> np.ndarray:
     return np.asarray(obs["state"] if isinstance(obs, dict) else obs, dtype=np.float64)
 
 
-def score_regret(task: Any, records: list[dict]) -> None:
+def score_regret(task: Any, records: list[RunRecord]) -> None:
     """Every record's regret in one batched call: the unit's planning is batched, and θ*'s plan
     from a run's x0, shared by all learners on that seed, is made once (``Task.regret``)."""
     if not records:
@@ -39,11 +40,7 @@ def score_regret(task: Any, records: list[dict]) -> None:
         record["regret"] = regret
 
 
-REGRET_INPUTS = ("theta_hat", "theta_star", "x0")
-"""The record fields a run's regret is computed from (here and the study's authors' way)."""
-
-
-def regret_inputs(records: Sequence[dict]) -> list[np.ndarray]:
+def regret_inputs(records: Sequence[RunRecord]) -> list[np.ndarray]:
     """The ``REGRET_INPUTS`` columns of ``records``, one float64 array each."""
     return [np.asarray([r[k] for r in records], dtype=np.float64) for k in REGRET_INPUTS]
 
@@ -54,7 +51,7 @@ def run_block(
     env: str,
     cond: str,
     policy: Callable[[np.ndarray, np.ndarray], np.ndarray],
-) -> list[dict]:
+) -> list[RunRecord]:
     """Lockstep episodes of ``runs`` = (learner name, run seed, its wrapped env): one policy
     call per step for all of them; a record per run, in the order given."""
     wrapped = [w for _, _, w in runs]
@@ -105,31 +102,30 @@ def run_block(
             if term or trunc:
                 alive[i] = False
                 terminated[i] = bool(term)
-    records = []
+    records: list[RunRecord] = []
     for i, seed in enumerate(seeds):
         info = last_info[i]
         star = np.asarray(info["theta_star"], dtype=np.float64)
         errs = [error(star, t) for t in thetas[i]]
         coss = [cos_error(star, t) for t in thetas[i]]
-        records.append(
-            {
-                "env": env,
-                "condition": cond,
-                "learner": runs[i][0],
-                "seed": int(seed),
-                "error": errs[-1],
-                "cos_error": coss[-1],
-                "regret": float("nan"),  # scored for the whole unit at once: score_regret
-                "errors": errs,
-                "cos_errors": coss,
-                "steps": int(n_steps[i]),
-                "terminated": bool(terminated[i]),
-                "theta_star": star.tolist(),
-                "theta_hat": thetas[i][-1].tolist(),
-                "x0": x0[i].tolist(),
-                "first_correction": first_corr[i],
-            }
-            | {k: float(info[k]) for k in info_metrics() if k in info}  # the env's own totals
-            | (per_corr[i] if "correction_time" in info else {})
-        )
+        record: RunRecord = {
+            "env": env,
+            "condition": cond,
+            "learner": runs[i][0],
+            "seed": int(seed),
+            "error": errs[-1],
+            "cos_error": coss[-1],
+            "regret": float("nan"),  # scored for the whole unit at once: score_regret
+            "errors": errs,
+            "cos_errors": coss,
+            "steps": int(n_steps[i]),
+            "terminated": bool(terminated[i]),
+            "theta_star": star.tolist(),
+            "theta_hat": thetas[i][-1].tolist(),
+            "x0": x0[i].tolist(),
+            "first_correction": first_corr[i],
+        }
+        extra = {k: float(info[k]) for k in info_metrics() if k in info}  # the env's own totals
+        extra |= per_corr[i] if "correction_time" in info else {}
+        records.append(cast(RunRecord, {**record, **extra}))  # a user's metric is not a field above
     return records

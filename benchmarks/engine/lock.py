@@ -112,11 +112,24 @@ class Owner:
             return True  # written before this host rebooted
         if not _pid_alive(self.pid):
             return True
+        if self.start is None and not _may_be_ours(self.pid):
+            return True  # no start time to compare (a bare pid): the process there is not ours
         now = start_time(self.pid)
         return self.start is not None and now is not None and now != self.start  # recycled
 
     def words(self) -> str:
         return f"host {self.host}, pid {self.pid}"
+
+
+def _may_be_ours(pid: int) -> bool:
+    """Whether the process ``pid`` may be a strol-bench run: a Python interpreter or
+    strol-bench by its command line (pid 1 is init on most hosts); True where /proc cannot
+    say (no /proc, or an empty command line: a process between fork and exec)."""
+    try:
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes()[:4096].lower()
+    except OSError:
+        return True
+    return not cmd or b"python" in cmd or b"strol" in cmd
 
 
 def _pid_alive(pid: int) -> bool:

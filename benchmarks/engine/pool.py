@@ -11,6 +11,7 @@ import signal
 from collections.abc import Iterator
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
+from strol_gym.benchmarks.engine.record import RunRecord
 from strol_gym.benchmarks.engine.worker import Worker
 
 _WORKER: Worker | None = None
@@ -50,7 +51,7 @@ def _die_with_parent(parent: int | None) -> None:
         os._exit(1)
 
 
-def _work(unit: Unit) -> tuple[Unit, list[dict]]:
+def _work(unit: Unit) -> tuple[Unit, list[RunRecord]]:
     assert _WORKER is not None
     return unit, _WORKER.run_unit(unit)
 
@@ -89,7 +90,7 @@ def iter_results(
     ray_address: str | None = None,
     out: os.PathLike | None = None,
     slurm: dict | None = None,
-) -> Iterator[tuple[Unit, list[dict]]]:
+) -> Iterator[tuple[Unit, list[RunRecord]]]:
     """``(unit, records)`` as each unit finishes; ``out`` (the results folder) and ``slurm``
     (``iter_slurm``'s options) for the Slurm backend, whose array tasks write block files."""
     if backend == "slurm":

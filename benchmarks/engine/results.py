@@ -39,15 +39,13 @@ from strol_gym.benchmarks.engine.lock import (
     hold_folder,
     release_folder,
 )
+from strol_gym.benchmarks.engine.record import REQUIRED_FIELDS, RUN_FIELDS, RunRecord
 from strol_gym.files import loads_json, open_atomic, read_regular, write_json_atomic
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.provenance import git_revision, package_versions, version_changes
 
 META = "meta.json"
 RECORDS = "records"
-RUN_FIELDS = ("error", "cos_error", "regret")
-"""The column order of the run metrics in runs.csv (a file format: it stays as it is); the
-metrics themselves are ``strol_gym.metrics.RUN_METRICS``."""
 assert set(RUN_FIELDS) == set(RUN_METRICS), "runs.csv must hold every run metric"
 
 
@@ -286,7 +284,7 @@ class ResultsDir:
         done = self.done_keys()
         return [u for u in self.config.units() if u.key not in done]
 
-    def write_unit(self, unit: Unit, records: Sequence[dict]) -> None:
+    def write_unit(self, unit: Unit, records: Sequence[RunRecord]) -> None:
         """Store a finished unit atomically, with the kernels of the process that computed it
         (the workers stamp each record with ``kernels``; stored once per unit)."""
         labels = sorted({str(r["kernels"]) for r in records if "kernels" in r})
@@ -320,10 +318,10 @@ class ResultsDir:
             print(msg, file=sys.stderr)
         return msg
 
-    def read_records(self) -> list[dict]:
+    def read_records(self) -> list[RunRecord]:
         """Every record, validated, in canonical order (experiment, seed, learner order)."""
         units = {u.key: u for u in self.config.units()}
-        out: list[dict] = []
+        out: list[RunRecord] = []
         nan_seen: dict[tuple[int, str], dict[bool, tuple[Path, dict]]] = {}
         for p in sorted((self.path / RECORDS).glob("*.json")):
             if p.name.startswith("."):
@@ -359,11 +357,11 @@ class ResultsDir:
             if where != {(exp.env, exp.condition.name)}:
                 raise ResultsError(f"{p} holds runs of another env or condition than its unit's")
             out.extend(recs)
-        for (_, key), seen in nan_seen.items():
+        for (_, name), seen in nan_seen.items():
             if len(seen) > 1:  # some runs have it and some do not: an edited or broken record
                 p, r = seen[True]
                 raise ResultsError(
-                    f"{p}: run seed {r['seed']!r}, learner {r['learner']!r}: {key!r} is NaN while "
+                    f"{p}: run seed {r['seed']!r}, learner {r['learner']!r}: {name!r} is NaN while "
                     "other runs of its experiment have it (NaN is only for an env that does not "
                     "score it, e.g. regret without a planner); delete the file to rerun its unit"
                 )
@@ -410,7 +408,7 @@ class ResultsDir:
             _release_lock(self.path)
 
     # ------------------------------------------------------------------ long-format tables
-    def write_run_tables(self, records: Sequence[dict]) -> tuple[Path, Path]:
+    def write_run_tables(self, records: Sequence[RunRecord]) -> tuple[Path, Path]:
         """runs.csv (one row per run × learner) and curves.csv (one row per step)."""
         runs_path, curves_path = self.path / "runs.csv", self.path / "curves.csv"
         max_steps = max((len(r["errors"]) for r in records), default=0)
@@ -443,7 +441,7 @@ def _check_record(p: Path, r: dict, env: str, condition: str, corrections: int) 
     the field: a missing or non-finite value is named, never dropped from the tables."""
     who = f"{p}: run seed {r.get('seed')!r}, learner {r.get('learner')!r}"
     rerun = "; delete the file to rerun its unit"
-    for key in ("env", "condition", "learner", "seed", "steps", "terminated", "errors"):
+    for key in REQUIRED_FIELDS:
         if key not in r:
             raise ResultsError(f"{who}: {key!r} is missing{rerun}")
     if r["env"] != env or r["condition"] != condition:

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
+from strol_gym.benchmarks.engine.record import RunRecord
 from strol_gym.benchmarks.engine.results import ResultsError, write_json_atomic
 from strol_gym.files import read_regular, temp_tag
 
@@ -59,7 +60,7 @@ def _array_task(
     return path.name
 
 
-def _read_block(path: Path, unit: Unit, config_hash: str) -> list[dict] | None:
+def _read_block(path: Path, unit: Unit, config_hash: str) -> list[RunRecord] | None:
     """The records of a block file, or None if it is not a complete block of ``unit`` for this
     config (a leftover of another config, a torn copy): it is then ignored and recomputed."""
     try:
@@ -78,7 +79,7 @@ def _read_block(path: Path, unit: Unit, config_hash: str) -> list[dict] | None:
 
 def _collect(
     blocks: Path, want: dict[str, Unit], config_hash: str
-) -> Iterator[tuple[Unit, list[dict]]]:
+) -> Iterator[tuple[Unit, list[RunRecord]]]:
     for path in sorted(blocks.glob("*.json")):
         key = path.name.split(".", 1)[0]
         if key in want:
@@ -97,7 +98,7 @@ def iter_slurm(
     partition: str | None = None,
     time_min: int = 60,
     poll_s: float = 2.0,
-) -> Iterator[tuple[Unit, list[dict]]]:
+) -> Iterator[tuple[Unit, list[RunRecord]]]:
     """Run ``units`` as one job array (at most ``jobs`` tasks at once), each with
     ``make_worker(config)``'s worker, and yield ``(unit, records)`` as their block files appear
     in ``out``."""

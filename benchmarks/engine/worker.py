@@ -9,6 +9,7 @@ from strol_gym.benchmarks.engine.conditions import env_preset
 from strol_gym.benchmarks.engine.config import BenchConfig, Unit
 from strol_gym.benchmarks.engine.episodes import run_block, score_regret
 from strol_gym.benchmarks.engine.kernels import kernel_label
+from strol_gym.benchmarks.engine.record import RunRecord
 from strol_gym.benchmarks.engine.robots import robot_policy
 from strol_gym.learners.registry import make_learner
 from strol_gym.registry import install_specs
@@ -49,7 +50,7 @@ class Worker:
         self._envs, self._exp = [], None
         self._wrapped = {learner: [] for learner in self.config.learners}
 
-    def run_unit(self, unit: Unit) -> list[dict]:
+    def run_unit(self, unit: Unit) -> list[RunRecord]:
         """Every learner on every seed of ``unit``: a list of per-run records (learner-major)."""
         exp = self.config.experiments[unit.experiment]
         n = len(unit.seeds)

@@ -11,6 +11,11 @@ training, a few evaluation episodes print the learner's final error and regret.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
 
 import gymnasium as gym
 import numpy as np
@@ -25,7 +30,31 @@ def make_env(learner: str, belief_reward: bool, max_episode_steps: int) -> gym.E
     return OnlineLearningWrapper(env, learner, replace_reward=belief_reward)
 
 
+@contextlib.contextmanager
+def private_tmp() -> Iterator[None]:
+    """Temporary files (stable-baselines3's logger folder ``SB3-*``, torch's compile cache
+    ``torchinductor_*``) in a folder of this run's own, removed when it ends, not left in
+    ``$TMPDIR``."""
+    folder = tempfile.mkdtemp(prefix="strol-sb3-")
+    before = tempfile.tempdir, os.environ.get("TMPDIR")
+    tempfile.tempdir = os.environ["TMPDIR"] = folder
+    try:
+        yield
+    finally:
+        tempfile.tempdir = before[0]
+        if before[1] is None:
+            os.environ.pop("TMPDIR", None)
+        else:
+            os.environ["TMPDIR"] = before[1]
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def main() -> None:
+    with private_tmp():
+        run()
+
+
+def run() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--learner", default="strol")
     parser.add_argument("--steps", type=int, default=2048, help="PPO environment steps")

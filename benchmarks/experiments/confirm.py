@@ -22,10 +22,9 @@ import math
 import time
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import stats as sps
 
 from strol_gym.benchmarks.analysis import robust, stats
 from strol_gym.benchmarks.analysis.report import fmt, fmt_ci
@@ -38,7 +37,14 @@ from strol_gym.benchmarks.engine.conditions import (
     make_condition,
 )
 from strol_gym.benchmarks.engine.config import DEFAULT_BLOCK, BenchConfig, Experiment
+from strol_gym.benchmarks.engine.record import RunRecord
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome, load
+from strol_gym.lazy import LazyModule
+
+if TYPE_CHECKING:
+    from scipy import stats as sps
+else:  # scipy loads on first use: `strol-bench --help` does not need it
+    sps = LazyModule("scipy.stats")
 
 PROTOCOL_RUNS = 1000
 PROTOCOL_SEED = 3_000_000
@@ -164,7 +170,7 @@ def verdict(outcomes: Sequence[str]) -> str:
 
 
 def analyse(
-    records: Sequence[dict],
+    records: Sequence[RunRecord],
     env: str = "robot",
     conditions: Sequence[str] = CONDITION_NAMES,
     *,
@@ -420,7 +426,7 @@ class Confirm(BenchExperiment):
 
 
 def analyse_held_out(
-    records: Sequence[dict], envs: Sequence[str], *, resamples: int = RESAMPLES
+    records: Sequence[RunRecord], envs: Sequence[str], *, resamples: int = RESAMPLES
 ) -> dict[str, Any]:
     """Protocol 1: ``analyse`` per env on its held-out cells with its primary outcome; verdict
     keys are "env/human"; the sensitivity check is Holm over every cell's three tests."""

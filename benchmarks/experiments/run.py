@@ -150,7 +150,7 @@ def config_for_run(args: argparse.Namespace) -> BenchConfig:
         )
         for c in conds
     )
-    kwargs = learner_kwargs(args.learner_kwargs)
+    kwargs = learner_kwargs(args.learner_kwargs, args.learners)
     learners = list(dict.fromkeys(args.learners))
     reference = args.reference or (
         REFERENCE_LEARNER if REFERENCE_LEARNER in learners else learners[0]

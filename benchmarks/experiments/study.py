@@ -43,6 +43,7 @@ from strol_gym.benchmarks.args import (
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.episodes import regret_inputs
+from strol_gym.benchmarks.engine.record import RunRecord, value
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 from strol_gym.envs.study import metrics as study_authors
@@ -205,7 +206,7 @@ def _cell(a: Analysis, env: str, learner: str, metric: str) -> dict[str, Any] | 
     return a.cell(env, USERS.name, learner, metric)
 
 
-def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
+def table_rows(a: Analysis, records: Sequence[RunRecord]) -> list[dict[str, Any]]:
     """One row per learner × metric: mean ± SEM per Task, over all Tasks, and the paper's."""
     envs = [e.env for e in a.config.experiments]
     rows = []
@@ -217,7 +218,8 @@ def table_rows(a: Analysis, records: Sequence[dict]) -> list[dict[str, Any]]:
                 row[f"task{_task_of(env)}_mean"] = c["mean"] if c else math.nan
                 row[f"task{_task_of(env)}_sem"] = c["sem"] if c else math.nan
             v = np.array(
-                [r[metric] for r in records if r["learner"] == learner and metric in r], dtype=float
+                [value(r, metric) for r in records if r["learner"] == learner and metric in r],
+                dtype=float,
             )
             v = v[np.isfinite(v)]
             row["all_mean"] = float(v.mean()) if v.size else math.nan
@@ -255,7 +257,7 @@ def table_markdown(rows: Sequence[dict[str, Any]], tasks: Sequence[int]) -> list
     return lines
 
 
-def make_plots(a: Analysis, records: Sequence[dict], out: Path) -> list[Path]:
+def make_plots(a: Analysis, records: Sequence[RunRecord], out: Path) -> list[Path]:
     """Fig. 6 style: regret and correction time per Task and learner (mean ± SEM bars, every
     simulated user as a dot, StROL's directional mark against that learner: ↓ StROL lower, ↑
     higher, Holm-corrected t-test), and regret against correction time per run."""
@@ -427,7 +429,7 @@ def _who(config: BenchConfig) -> str:
     return f"{exp.env_id}, {kind}"
 
 
-def add_authors_regret(records: list[dict]) -> None:
+def add_authors_regret(records: list[RunRecord]) -> None:
     """Each record's regret the authors' way (``study_authors.regret``), batched per Task."""
     from strol_gym.tasks.study import STUDY_TASKS, STUDY_TASKS_V2
 

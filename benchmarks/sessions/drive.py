@@ -18,6 +18,7 @@ the same loop without a window.
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -30,10 +31,12 @@ from strol_gym.envs.panda.model import has_display
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
 
+NO_WINDOW_HINT = (
+    "run it on a virtual display with `xvfb-run -a strol-bench interact --env highway ...` (and "
+    'send keys with xdotool), or use the simulated humans, gymnasium.make("StROL-Highway-v0")'
+)
 NO_DISPLAY_HIGHWAY = (
-    "interact --env highway needs a display and a keyboard (DISPLAY is not set): run it on a "
-    "virtual one with `xvfb-run -a strol-bench interact --env highway ...` (and send keys with "
-    'xdotool), or use the simulated humans, gymnasium.make("StROL-Highway-v0")'
+    "interact --env highway needs a display and a keyboard (DISPLAY is not set): " + NO_WINDOW_HINT
 )
 POLL_SECONDS = 0.02
 """How often the keys are read within a step (s)."""
@@ -129,6 +132,26 @@ def drive_panel(
     return lines
 
 
+HEADLESS_DRIVERS = ("offscreen", "dummy")
+"""SDL's video drivers without a window: what it falls back to when DISPLAY names no server."""
+
+
+def check_window() -> None:
+    """ValueError unless pygame opens windows on a screen: with an unreachable DISPLAY, SDL
+    falls back to drawing off screen, and the session would run unseen, its log empty."""
+    import pygame
+
+    pygame.display.init()
+    driver = pygame.display.get_driver()
+    if driver in HEADLESS_DRIVERS:
+        pygame.display.quit()
+        raise ValueError(
+            f"interact --env highway cannot open a window on DISPLAY="
+            f"{os.environ.get('DISPLAY') or os.environ.get('WAYLAND_DISPLAY')!r} (SDL fell back "
+            f"to its {driver!r} driver: no display server answers there); " + NO_WINDOW_HINT
+        )
+
+
 def run_drive(
     learner: str = "strol",
     learner_kwargs: dict[str, Any] | None = None,
@@ -151,6 +174,8 @@ def run_drive(
         raise ValueError(f"duration must be in (0, 86400] seconds, got {duration}")
     if window and not has_display():
         raise ValueError(NO_DISPLAY_HIGHWAY)
+    if window:
+        check_window()
     path = Path(log) if log is not None else default_log_path()
     if path.exists():
         raise ValueError(f"log {path} exists; sessions are never overwritten")

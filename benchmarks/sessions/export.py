@@ -93,6 +93,10 @@ def _env_spaces(spec: Any, dims: dict[str, int]) -> tuple[Any, spaces.Space, spa
     return (spec, obs, act, True) if ok else (spec, *_spaces(dims), False)
 
 
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+"""The largest number a dataset's float32 observations and actions hold (larger: inf)."""
+
+
 def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None, task: Any = None) -> Any:
     """One episode as Minari's buffer. With ``task`` (the env's own spaces), the observation
     adds φ(x) and the action is u_R scaled to the env's action space (u_R / robot_action_bound)."""
@@ -111,6 +115,13 @@ def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None, task: A
         x[n] = x[n - 1]  # the last observation: where the last correction began, final θ̂
     star = np.full(dims["d"], nan) if ep.theta_star is None else ep.theta_star
     ctime = [nan if c["correction_time"] is None else c["correction_time"] for c in ep.corrections]
+    for key, values in (("x", x), ("u_h", u_h), ("u_r", u_r), ("theta_hat", theta)):
+        finite = values[np.isfinite(values)]
+        if finite.size and np.abs(finite).max() > FLOAT32_MAX:  # float32 would store it as inf
+            raise ValueError(
+                f"episode with seed {seed}: {key} holds {np.abs(finite).max():.3g}, beyond the "
+                f"float32 range (±{FLOAT32_MAX:.3g}) of the dataset's observations and actions"
+            )
     observations = {
         "state": x.astype(np.float32),
         "correction": u_h.astype(np.float32),

@@ -1,5 +1,6 @@
 """``strol-bench fit-human SOURCE... --human NAME [--compare A,B,C] --out DIR``: fit a human
-model to correction logs (the likelihood and its machinery: ``strol_gym.humans.fitting``).
+model to correction logs (the likelihood and its machinery:
+``strol_gym.benchmarks.sessions.fitting``).
 
 A SOURCE is a session log (.jsonl), a folder of them, or a Minari dataset (``strol-bench
 export``). The fit reads only what a person's log holds (``fitting.Corrections``): the header's
@@ -28,8 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from strol_gym.files import write_figure, write_text_atomic
-from strol_gym.humans.fitting import (
+from strol_gym.benchmarks.sessions.fitting import (
     DEFAULT_INTERVAL,
     FEW_PEOPLE,
     INTERVALS,
@@ -42,6 +42,7 @@ from strol_gym.humans.fitting import (
     select,
     simulate,
 )
+from strol_gym.files import write_figure, write_text_atomic
 
 INTERVAL_NAMES = {
     "bca": "BCa bootstrap, widened for few people",
@@ -152,7 +153,10 @@ def load_corrections(sources: Sequence[str]) -> Corrections:
                 hat = np.full_like(hat, np.nan) if after is None else after
             n_ep += 1
             if len(person) > _max_corrections():
-                raise ValueError(f"SOURCE: more than {_max_corrections()} corrections")
+                raise ValueError(
+                    f"SOURCE: more than {_max_corrections():,} corrections (the cap "
+                    "fit_corrections: a fit's memory grows with them; --allow-large lifts it)"
+                )
     if not person:
         raise ValueError("SOURCE: no correction with a logged θ* (the preference taught)")
     assert task is not None
@@ -180,9 +184,12 @@ def _hat_source(unknown: bool, rebuilt: int) -> str:
 
 
 def _max_corrections() -> int:
-    from strol_gym.humans.fitting import MAX_CORRECTIONS
+    """The most corrections a fit reads: the caps table's ``fit_corrections`` (memory grows
+    with them, ~0.4 MB each), or with the caps lifted the fitter's own bound."""
+    from strol_gym.benchmarks.sessions.fitting import MAX_CORRECTIONS
+    from strol_gym.limits import CAPS, lifted_now
 
-    return MAX_CORRECTIONS
+    return MAX_CORRECTIONS if lifted_now() else CAPS["fit_corrections"]
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -245,7 +252,7 @@ def ppc_plot(path: Path, data: Corrections, fits: dict[str, Fit], seed: int) -> 
 
 
 def _usable(name: str, data: Corrections) -> Corrections:
-    from strol_gym.humans.fitting import family, usable
+    from strol_gym.benchmarks.sessions.fitting import family, usable
 
     return usable(family(name), data)[0]
 
@@ -326,7 +333,7 @@ def run_fit_human(
 ) -> dict[str, Fit]:
     """The command's work (module docstring); the fits by model name. ValueError where
     ``compare`` is asked of fewer than 2 people (held-out needs folds of people)."""
-    from strol_gym.humans.fitting import family
+    from strol_gym.benchmarks.sessions.fitting import family
 
     for name in [human, *compare]:
         family(name)  # every name checked before any work
@@ -375,7 +382,7 @@ def run_fit_human(
 
 # ---------------------------------------------------------------------------- CLI
 def add_parser(sub: Any) -> None:
-    from strol_gym.benchmarks.args import plugin_option, positive_int
+    from strol_gym.benchmarks.args import add_allow_large, plugin_option, positive_int
 
     p = sub.add_parser(
         "fit-human",
@@ -408,10 +415,16 @@ def add_parser(sub: Any) -> None:
     )
     p.add_argument("--no-plots", action="store_true")
     plugin_option(p)
+    add_allow_large(p)
 
 
 def command(args: Any, parser: Any) -> int:
+    from strol_gym.benchmarks.args import check_size_caps
+
+    check_size_caps(args, {})  # --allow-large lifts the cap on the corrections read
     compare = [c for c in args.compare.split(",") if c] if args.compare else []
+    if args.compare and not compare:
+        parser.error(f"--compare must name models (comma-separated), got {args.compare!r}")
     fits = run_fit_human(
         args.sources,
         args.human,

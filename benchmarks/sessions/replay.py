@@ -256,6 +256,6 @@ def command(args: Any, parser: Any) -> int:
     check_learner_names(authors_space.check_names(args.learners, args.authors_ghat))
     if replay_folder.is_log_folder(args.log):
         return replay_folder.command(args, parser)
-    kwargs = learner_kwargs(args.learner_kwargs)
+    kwargs = learner_kwargs(args.learner_kwargs, args.learners)
     run_replay(args.log, args.learners, args.out, kwargs, not args.no_plots, args.authors_ghat)
     return 0

@@ -334,7 +334,7 @@ def command(args: Any, parser: Any) -> int:
         args.log,
         args.learners,
         args.out,
-        learner_kwargs(args.learner_kwargs),
+        learner_kwargs(args.learner_kwargs, args.learners),
         plots=not args.no_plots,
         reference=args.reference,
         version=args.task_version,

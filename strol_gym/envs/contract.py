@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import inspect
 import math
-import warnings
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import gymnasium as gym
@@ -167,26 +166,6 @@ class CorrectionEnv:
     """``n_corrections`` when not given."""
     default_size: ClassVar[tuple[int, int]] = (480, 360)
     """Frame ``width`` and ``height`` (pixels) when not given."""
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        if "_draw_start" in vars(cls) and "draw_starts" not in vars(cls):
-            # An env written before 0.2 drew one start (``_draw_start(rng)``); until 0.3 its
-            # hook serves as the batch-first one, row by row.
-            warnings.warn(
-                f"{cls.__name__}._draw_start(rng) is deprecated; define draw_starts(rngs) "
-                "(strol_gym.envs.contract)",
-                DeprecationWarning,
-                stacklevel=2,
-            )
-            one = vars(cls)["_draw_start"]
-
-            def draw_starts(self, rngs, human_rngs=True):
-                draws = [one(self, rng) for rng in rngs]
-                return np.stack([x for x, _ in draws]), [h for _, h in draws]
-
-            # the old one-start hook serves as the batch-first one until 0.3
-            cls.draw_starts = draw_starts  # type: ignore[method-assign]
 
     def __init__(
         self,
@@ -446,7 +425,7 @@ class CorrectionEnv:
 
     def reset_overrides(self, options: dict | None) -> tuple[np.ndarray | None, np.ndarray | None]:
         """``reset(options={"theta_star": ..., "state": ...})``: checked overrides or None."""
-        options = dict(options or {})
+        options = checks.mapping("options", options, f"a dict with keys among {RESET_OPTIONS}")
         bad = set(options) - set(RESET_OPTIONS)
         if bad:
             raise ValueError(f"unknown reset option(s) {sorted(bad)}; valid: {RESET_OPTIONS}")
@@ -475,10 +454,14 @@ class CorrectionEnv:
                     for v, k in zip(values, self._u_scale_l, strict=True)
                 ]
             )
-        if np.shape(action) != (self.task.action_dim,):
+        try:
+            shape = np.shape(action)
+        except ValueError:  # a ragged sequence
             raise ValueError(
-                f"action must have shape ({self.task.action_dim},), got {np.shape(action)}"
-            )
+                f"action must be {self.task.action_dim} numbers, got {action!r:.80}"
+            ) from None
+        if shape != (self.task.action_dim,):
+            raise ValueError(f"action must have shape ({self.task.action_dim},), got {shape}")
         if np.iscomplexobj(action):  # float64 would drop the imaginary part silently
             raise ValueError(f"action must be real numbers, got {action}")
         try:

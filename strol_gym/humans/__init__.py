@@ -21,11 +21,9 @@ Modules: ``choices`` (the batched choices: eq. M6, Boltzmann, driver; the noise)
 ``interface`` (``Human``, ``HumanModel``, ``Draws``, ``SimulatedHuman``), ``builtin`` (the
 built-in models and their humans), ``zoo`` (the robustness zoo), ``registry`` (names and
 builders), ``spec`` (``HumanSpec``), ``population`` (many people of one spec), ``teaching`` (the
-loop). ``ModelHuman`` and ``TeacherModel`` are the old names of ``SimulatedHuman`` and
-``NominalModel`` (they warn; CHANGELOG.md).
+loop).
 """
 
-from strol_gym.deprecation import moved
 from strol_gym.humans.builtin import (
     BoltzmannHuman,
     BoltzmannModel,
@@ -69,14 +67,6 @@ from strol_gym.humans.spec import HumanSpec
 from strol_gym.humans.teaching import teach
 
 register_findings()  # the findings' models join the registry (strol_gym.humans.findings)
-
-__getattr__ = moved(
-    __name__,
-    {
-        "ModelHuman": "strol_gym.humans.interface:SimulatedHuman",
-        "TeacherModel": "strol_gym.humans.builtin:NominalModel",
-    },
-)
 
 __all__ = [
     "DEFAULT_CANDIDATES",

@@ -29,7 +29,7 @@ API (one place each):
 - :func:`aimed_corrections`: the corrections (n, a) from parameters and standard draws (what
   both the model and a person elsewhere, e.g. the study population, call);
 - :func:`log_density`: log p(u_H) of corrections under the model (what ``fit-human`` maximises:
-  ``strol_gym.humans.fitting.Aimed``);
+  ``strol_gym.benchmarks.sessions.fitting.Aimed``);
 - :func:`steepest_ascent`: b at a batch of states.
 
 The direction's density on the unit sphere is the projected normal's: with y ~ N(μ, Σ),
@@ -42,17 +42,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import special
 
 from strol_gym import checks
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
 from strol_gym.humans.zoo import check_probability
+from strol_gym.lazy import LazyModule
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
+
+if TYPE_CHECKING:
+    from scipy import special
+else:  # scipy loads at the first density: importing strol_gym does not need it
+    special = LazyModule("scipy.special")
 
 MAX_AIM = 20.0
 """The largest τ accepted: beyond it the direction is uniform to within 0.3 % in density."""

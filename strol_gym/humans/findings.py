@@ -27,7 +27,7 @@ is already about the best there is (a competent robot, nothing to gain), m ≈ 1
 correction improves on it (a robot doing badly). It uses only what the person sees (x, u_R, the
 admissible corrections) and θ*, never θ̂. Each model keeps the interface's promises (same draws
 whatever θ̂; a silent correction is u_H = 0 exactly). ``strol-bench fit-human`` fits each of
-them (``strol_gym.humans.fitting``).
+them (``strol_gym.benchmarks.sessions.fitting``).
 """
 
 from __future__ import annotations
@@ -371,12 +371,12 @@ ReversingHuman = SimulatedHuman.of(ReversingModel, "ReversingHuman")
 
 
 def register_findings() -> None:
-    """Register every model of :data:`FINDINGS` through the open registry (idempotent)."""
-    from strol_gym.humans.registry import HUMANS, register_human
+    """Register every model of :data:`FINDINGS` as a shipped human (idempotent)."""
+    from strol_gym.humans.registry import HUMANS
 
     for name, model in FINDINGS.items():
         if name not in HUMANS.names():
-            register_human(name, model)
+            HUMANS.register(name, model, builtin=True)
 
 
 __all__ = [

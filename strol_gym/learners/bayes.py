@@ -20,7 +20,7 @@ from strol_gym.learners.protocol import (
     checked_theta,
 )
 from strol_gym.limits import check_size
-from strol_gym.priors import HedgedPrior
+from strol_gym.priors import HedgedPrior, check_theta_range
 from strol_gym.tasks.base import Task
 
 LIKELIHOODS = ("reward", "teacher")
@@ -318,6 +318,7 @@ class BayesLearner(LinearRuleLearner):
         for key, arr in (("particles", particles), ("logw", logw)):
             if not np.isfinite(arr).all():
                 raise ValueError(f"state[{key!r}] must be finite (no NaN or inf)")
+        check_theta_range("state['particles']", particles)  # θ samples: 1e308 overflows
         if particles.shape[:-1] != logw.shape or particles.shape[-1:] != (self.task.dim,):
             raise ValueError(
                 f"state['particles'] {particles.shape} must be logw's shape {logw.shape} "

@@ -26,6 +26,7 @@ import torch
 from safetensors.torch import load as load_safetensors
 from safetensors.torch import save as save_safetensors
 
+from strol_gym import checks
 from strol_gym.files import (
     check_input,
     check_output,
@@ -95,11 +96,24 @@ def _hash_file(h: Any, path: Path, prefix_length: bool = False) -> None:
             h.update(chunk)
 
 
+MAX_WEIGHT = 1e6
+"""The largest |weight| a checkpoint or a learner's state may hold: trained networks hold
+weights below 10; far larger ones (1e30) overflow float32 activations at the first update,
+which would then seem to blame its inputs."""
+
+
 def check_finite_weights(weights: dict[str, Any], where: str) -> None:
-    """ValueError naming ``where`` and the tensor if any weight is NaN or inf."""
+    """ValueError naming ``where`` and the tensor if any weight is not a float (an int64
+    tensor), NaN or inf, or larger in size than :data:`MAX_WEIGHT`."""
     for key, value in weights.items():
-        if torch.is_tensor(value) and value.is_floating_point() and not torch.isfinite(value).all():
+        if not torch.is_tensor(value):
+            continue
+        if not value.is_floating_point():
+            raise ValueError(f"{where}: weight {key!r} is {value.dtype}, not floating point")
+        if not torch.isfinite(value).all():
             raise ValueError(f"{where}: weight {key!r} contains NaN or inf")
+        if value.numel() and float(value.abs().max()) > MAX_WEIGHT:
+            raise ValueError(f"{where}: weight {key!r} holds a value beyond ±{MAX_WEIGHT:g}")
 
 
 def check_shapes(weights: Any, net: Any, where: str) -> None:
@@ -367,7 +381,16 @@ def load_checkpoint(
     path: str | Path, task: Task, kind: str | None = None
 ) -> tuple[CorrectionNet, dict[str, Any]]:
     """Load a ĝ checked against ``task`` (and ``kind`` if given). Returns (model, sidecar)."""
+    if not isinstance(path, str | os.PathLike):
+        raise checks.ArgumentTypeError(
+            f"checkpoint must be a path to a .safetensors (or .pt) file, got {path!r}"
+        )
     path = Path(path)
+    if path.suffix not in WEIGHTS_SUFFIXES:
+        raise ValueError(
+            f"checkpoint must be a .safetensors (or .pt) file, got {path} (the suffix says "
+            "how the weights are read)"
+        )
     if not path.is_file():
         raise FileNotFoundError(f"no checkpoint at {path}")
     meta = read_sidecar(path)

@@ -11,6 +11,7 @@ learner loads the ĝ shipped for the task (``strol_gym/pretrained``), looked up 
 from __future__ import annotations
 
 import copy
+import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -21,6 +22,7 @@ import torch
 
 from strol_gym import checks
 from strol_gym.learners.checkpoint import (
+    MAX_WEIGHT,
     check_finite_weights,
     find_pretrained,
     input_dim,
@@ -74,6 +76,10 @@ class CorrectionLearner(LinearRuleLearner):
         """Where ĝ came from (None: a model passed in) and its sidecar."""
         if model is not None and checkpoint is not None:
             raise ValueError("pass either checkpoint or model, not both")
+        if checkpoint is not None and not isinstance(checkpoint, str | os.PathLike):
+            raise checks.ArgumentTypeError(
+                f"checkpoint must be a path to a .safetensors (or .pt) file, got {checkpoint!r}"
+            )
         if model is None:
             # The shipped ĝ of the Task's setting (``Task.ghat_task``: itself, or a version's
             # predecessor); a checkpoint given explicitly must fit the Task itself.
@@ -158,10 +164,6 @@ class CorrectionLearner(LinearRuleLearner):
         super().load_state_dict(state)  # checks θ̂ before it assigns it
         self.model = model.eval()
 
-
-MAX_WEIGHT = 1e6
-"""The largest |weight| a loaded ĝ state may hold: trained networks hold weights below 10; far
-larger ones overflow float32 activations and would fail at the first update."""
 
 MAX_LAM = 1000.0
 """Largest λ: 100x the λ sweep's largest; beyond it λ·ĝ swamps g and θ̂ runs off."""

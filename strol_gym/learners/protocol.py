@@ -82,9 +82,9 @@ def _as_float_array(name: str, value: np.ndarray, width: int) -> np.ndarray:
 
 
 def as_theta(name: str, value: np.ndarray, dim: int) -> np.ndarray:
-    """A learner's start θ̂0, (d,) or (B, d), within ±``MAX_THETA`` as a prior's and θ*'s are:
-    a larger one (1e308) only makes its updates overflow. (A restored state's θ̂ is only checked
-    finite: updates may carry an estimate past the bound, and a state must load back.)"""
+    """A learner's start θ̂0 or a restored state's θ̂, (d,) or (B, d), within ±``MAX_THETA``
+    as a prior's and θ*'s are: a larger one (1e308) only makes the next update overflow, and
+    that update's error would blame its inputs."""
     arr = _as_float_array(name, value, dim)
     check_theta_range(name, arr)
     return arr
@@ -184,7 +184,7 @@ class LinearRuleLearner:
             theta = np.asarray(state["theta"], dtype=np.float64)
         except (TypeError, ValueError) as e:
             raise ValueError(f"state['theta'] must be {self.task.dim} numbers ({e})") from None
-        self.theta = _as_float_array("theta", theta, self.task.dim).copy()
+        self.theta = as_theta("state['theta']", theta, self.task.dim).copy()
 
     def check_identity(self, state: Any) -> None:
         """ValueError unless ``state`` is this learner's kind, Task and config: checked first,

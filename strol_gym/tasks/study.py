@@ -469,14 +469,14 @@ class ReachSet:
 
 
 REACH_SOURCE = (
-    "benchmarks/speed/study_reach.py --samples 2000 --seed 0 (2026-11-25; IK on the scene's Panda "
+    "lab/study/study_reach.py --samples 2000 --seed 0 (2026-11-25; IK on the scene's Panda "
     "from the home joints, every joint 0.1 rad inside its limits, the elbow 0.35 rad more from "
     "stretched, the wrist 25° from its singularity; the largest candidate set with ≥ 98 % of "
     "its drawn poses and of its outer 5 cm reachable, its floor raised until its floor corners "
     "keep the cup 1.6 cm off the table, 3 cm more where the arm cannot reach them); then "
     "(2026-11-26) room left for a person's push (study_reach.py's PUSH_ROOM: the shell's radius "
     "5.5 / 5 cm in, the floor at 15 / 18 cm, Tasks 2-3's far and high faces 6 and 8 cm in "
-    "and the roll ≤ 0.1 rad), measured with benchmarks/speed/study_v2_pushes.py at seeds 36 and 38"
+    "and the roll ≤ 0.1 rad), measured with lab/study/study_v2_pushes.py at seeds 36 and 38"
 )
 REACH_UPRIGHT = ReachSet(
     np.array([0.25, -0.45, 0.15]), np.array([0.80, 0.65, 0.60]), 0.35, 0.72, 0.0, REACH_SOURCE
@@ -699,7 +699,7 @@ class StudyTaskV2(StudyTask):
     """A study Task as StROL-Study-v2 plans it: the same features, θ*, prior and bounds, and a
     planner that keeps the cup where the arm reaches it (``reach_*``) and out of the objects'
     hulls (``keep_out``, ``floor``). Plain data: the Task knows no simulator; the numbers were
-    computed from the arm model offline (``reach_source``: ``benchmarks/speed/study_reach.py``)."""
+    computed from the arm model offline (``reach_source``: ``lab/study/study_reach.py``)."""
 
     keep_out: np.ndarray = dataclasses.field(default_factory=KEEP_OUT.copy)
     floor: float = FLOOR

@@ -4,7 +4,7 @@
 load their module on first use.
 """
 
-from strol_gym.envs.moved import exports
+from strol_gym.lazy import exports
 
 _ENV = "strol_gym.envs.highway.env"
 __all__ = ["ROAD_LENGTH", "HighwayEnv", "HumanVehicle", "VectorHighwayEnv"]

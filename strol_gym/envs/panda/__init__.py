@@ -2,7 +2,7 @@
 helpers (``model``) and its inverse kinematics, one arm (``ik``) and N arms batched
 (``ik_batched``). Names load their module on first use."""
 
-from strol_gym.envs.moved import exports
+from strol_gym.lazy import exports
 
 _MODEL = "strol_gym.envs.panda.model"
 __all__ = [

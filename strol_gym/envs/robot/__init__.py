@@ -4,7 +4,7 @@
 from a RobotTask) and ``seeds`` (the IK seed table). Names load their module on first use.
 """
 
-from strol_gym.envs.moved import exports
+from strol_gym.lazy import exports
 
 __all__ = ["RobotEnv", "VectorRobotEnv"]
 __getattr__ = exports(

@@ -16,10 +16,9 @@ that carries a cup, in MuJoCo.
 Names load their module on first use.
 """
 
-from strol_gym.envs.moved import exports
+from strol_gym.lazy import exports
 
 _ENV = "strol_gym.envs.study.env"
-_CONTROLLER = "strol_gym.envs.study.controller"
 __all__ = ["V0", "V1", "V2", "StudyEnv", "StudyEnvV1", "StudyEnvV2", "StudyVersion"]
 __getattr__ = exports(
     __name__,
@@ -28,10 +27,5 @@ __getattr__ = exports(
         "StudyEnvV1": _ENV,
         "StudyEnvV2": _ENV,
         **dict.fromkeys(("V0", "V1", "V2", "StudyVersion"), "strol_gym.envs.study.versions"),
-    },
-    # what strol_gym.envs.study (one module until 0.2) also held
-    {
-        **dict.fromkeys(("END_HOLD", "TORQUE_LEVER"), _ENV),
-        **dict.fromkeys(("HOLD", "Velocity", "K_NULL", "D_NULL"), _CONTROLLER),
     },
 )

@@ -538,28 +538,56 @@ class ImpedanceController:
         return tau
 
     def _step_braked(self, pushed: bool) -> None:
-        """``HOLD`` physics steps with v2's joint brake (``BRAKE_FROM``): one ``mj_step`` at a
-        time while a wrench pushes, a joint passes a quarter of its limit or the look-ahead
-        (``_ahead``) sees one passing ``BRAKE_FROM`` within the chunk, a joint's torque
-        capped so that its next step's speed stays at 0.9x its limit; else the chunk at once."""
-        m, d, qd, ctrl = self.model, self.data, self._qvel, self._ctrl
-        start = self._brake_vlim
+        """``HOLD`` physics steps with v2's joint brake (``BRAKE_FROM``): braked steps
+        (:meth:`_braked_steps`) while a wrench pushes, a joint passes a quarter of its limit or
+        the look-ahead (``_ahead``) sees one passing ``BRAKE_FROM`` within the chunk; else
+        the chunk's torques held, the look-ahead read again after each step
+        (:meth:`_watched_steps`)."""
+        qd, ctrl = self._qvel, self._ctrl
         if (
             not pushed
             and not any(abs(s) > h for s, h in zip(qd.tolist(), self._watch_vlim, strict=False))
             and not any(
-                abs(s) > b for s, b in zip(self._ahead(ctrl.tolist(), HOLD), start, strict=False)
+                abs(s) > b
+                for s, b in zip(self._ahead(ctrl.tolist(), HOLD), self._brake_vlim, strict=False)
             )
         ):
-            mujoco.mj_step(m, d, HOLD)
-            self._tau_last = ctrl.tolist()
-            self._note_contact()
+            self._watched_steps()
             return
+        self._braked_steps(pushed, HOLD)
+
+    def _watched_steps(self) -> None:
+        """``HOLD`` physics steps under the chunk's torques, one ``mj_step`` at a time (the
+        bytes of one call of ``HOLD`` steps), the look-ahead to the chunk's end read again
+        after each with that step's acceleration: a joint it sees passing ``BRAKE_FROM`` gets
+        the brake from the next step on. The chunk's first look extrapolates the last step's
+        acceleration, and the arm springing back after pushes in a row speeds up as it goes:
+        a wrist joint passed its limit (1.0022x) inside a chunk that look had let through."""
+        m, d = self.model, self.data
+        tau = self._ctrl.tolist()
+        for done in range(1, HOLD + 1):
+            mujoco.mj_step(m, d)
+            self._tau_last = tau
+            left = HOLD - done
+            if left and any(
+                abs(s) > b for s, b in zip(self._ahead(tau, left), self._brake_vlim, strict=False)
+            ):
+                self._note_contact()
+                self._braked_steps(False, left)
+                return
+        self._note_contact()
+
+    def _braked_steps(self, pushed: bool, steps: int) -> None:
+        """``steps`` physics steps one ``mj_step`` at a time, a joint's torque capped so that
+        its next step's speed stays at ``BRAKE_FROM`` of its limit (:meth:`_brake`), the
+        joints' damping cancelled (``JOINT_COMP``), the reflexes watched."""
+        m, d, qd, ctrl = self.model, self.data, self._qvel, self._ctrl
+        start = self._brake_vlim
         base0 = ctrl.tolist()
         comp = [JOINT_COMP * c for c in JOINT_DAMPING.tolist()]
         tlim, m_inv = self._tlim, self._m_inv
         dt = m.opt.timestep
-        for _ in range(HOLD):
+        for _ in range(steps):
             speeds = qd.tolist()
             base = [b + c * s for b, c, s in zip(base0, comp, speeds, strict=False)]
             near = zip(speeds, self._ahead(base, 1), self._exact_vlim, strict=False)

@@ -857,7 +857,7 @@ class StudyEnvV2(StudyEnv):
       setpoint itself is held, and the plan restarts from where the person left the cup.
     - **The arm reaches where it is sent:** the Task (``StudyTask{1,2,3}V2``) plans within
       the reachable set (``ReachSet``: a box, a shell around the shoulder, a roll and pitch
-      bound, derived from the arm model by ``benchmarks/speed/study_reach.py``, named in
+      bound, derived from the arm model by ``lab/study/study_reach.py``, named in
       ``reach_source``) and out of the objects' hulls, which it carries as data; the robot
       executes its plans as they are (no clipping: ``reach`` is None), and the regret uses the
       same planner.

@@ -1,0 +1,126 @@
+"""strol-bench check-human on synthetic sessions in the authors' layout (written here), and its
+joint band."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from cli_checks import cli_error
+from test_study_import import _session, _write
+
+from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.sessions.check_human import (
+    STATISTICS,
+    by_task,
+    joint_band,
+    read_sessions,
+    statistics,
+    two_sided_p,
+)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    """Three people × Tasks 1-3 × every learner, two corrections each (StROL's one); imported."""
+    root = tmp_path_factory.mktemp("authors") / "data"
+    rng = np.random.default_rng(49)
+    for p in range(3):
+        for task in (1, 2, 3):
+            for alg in ("b1", "b2", "ours"):
+                moves = [rng.uniform(-0.1, 0.1, 6) * [1, 1, 1, 0.5, 0.5, 0.5] for _ in range(2)]
+                if task == 1:
+                    moves = [np.concatenate([v[:3], np.zeros(3)]) for v in moves]
+                sizes = [3, 4] if alg != "ours" else [3]
+                _write(root, f"user_{p + 1}", task, alg, _session(task, rng, moves, sizes))
+    out = tmp_path_factory.mktemp("logs") / "logs"
+    assert cli.main(["import-study", str(root), "--out", str(out)]) == 0
+    return out
+
+
+def test_joint_band_holds_its_level():
+    """Fresh replicates of the same person fall outside some band about 5 % of the time, where
+    twelve marginal 95 % bands would miss far more often."""
+    rng = np.random.default_rng(0)
+    cov = 0.5 * np.eye(12) + 0.5  # correlated checks
+    draws = rng.multivariate_normal(np.zeros(12), cov, 4000)
+    gamma, bands = joint_band(draws)
+    fresh = rng.multivariate_normal(np.zeros(12), cov, 4000)
+    outside = ((fresh < bands[:, 0]) | (fresh > bands[:, 1])).any(axis=1).mean()
+    assert 0.03 < outside < 0.075
+    assert (1 - 0.95) / 12 < gamma < 0.05  # between Bonferroni's and no adjustment
+    marginal = np.quantile(draws, [0.025, 0.975], axis=0).T
+    assert ((fresh < marginal[:, 0]) | (fresh > marginal[:, 1])).any(axis=1).mean() > 0.15
+
+
+def test_two_sided_p():
+    d = np.arange(100.0)
+    assert two_sided_p(d, 49.5)[0] == pytest.approx(1.0)
+    assert two_sided_p(d, -1.0)[0] == 0.0
+    assert two_sided_p(d, 0.0)[0] == pytest.approx(0.02)
+
+
+def test_real_statistics_count_by_learner(logs):
+    tasks = by_task(read_sessions(logs))
+    assert sorted(tasks) == [1, 2, 3]
+    s = statistics(tasks[2])
+    assert s["count_one"] == s["count_mof"] == 2.0 and s["count_strol"] == 1.0
+    assert 0.0 <= s["raised"] <= 1.0 and s["size_median"] > 0
+    assert set(s) == set(STATISTICS)
+
+
+def test_check_human_writes_report_figure_and_replicates(logs, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["check-human", str(logs), "--human", "fitted-aimed", "--out", str(out)]
+    assert cli.main([*argv, "--draws", "40", "--keep", "2"]) == 0
+    assert "check-human: fitted-aimed" in capsys.readouterr().out
+    report = json.loads((out / "report.json").read_text())
+    assert len(report["checks"]) == 3 * len(STATISTICS)
+    counts = [c for c in report["checks"] if c["statistic"].startswith("count_")]
+    assert all(c["pass"] is None and "not simulated" in c["note"] for c in counts)
+    sized = [c for c in report["checks"] if c["statistic"] == "size_median"]
+    assert all(isinstance(c["pass"], bool) and len(c["band"]) == 2 for c in sized)
+    assert report["band"]["checks"] == 3 * 5
+    assert (out / "check.png").stat().st_size > 0 and (out / "report.md").exists()
+    # the kept replicate's logs give back its statistics
+    again = by_task(read_sessions(out / "sessions" / "draw_001"))
+    for t, sessions in again.items():
+        redo = statistics(sessions)
+        kept = report["kept_replicates"][1][str(t)]
+        for k in ("size_median", "size_small", "angle_median", "raised"):
+            assert redo[k] == pytest.approx(kept[k], rel=1e-9), (t, k)
+    # same seed, same report
+    out2 = tmp_path / "out2"
+    argv2 = ["check-human", str(logs), "--human", "fitted-aimed", "--out", str(out2)]
+    assert cli.main([*argv2, "--draws", "40", "--keep", "0", "--no-plots"]) == 0
+    assert json.loads((out2 / "report.json").read_text())["checks"] == report["checks"]
+
+
+def test_population_simulates_the_counts(logs, tmp_path):
+    out = tmp_path / "pop"
+    argv = ["check-human", str(logs), "--population", "--out", str(out), "--draws", "30"]
+    assert cli.main([*argv, "--keep", "1", "--no-plots"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    counts = [c for c in report["checks"] if c["statistic"].startswith("count_")]
+    assert all(isinstance(c["pass"], bool) for c in counts)
+    when = [c for c in report["checks"] if c["statistic"] == "when_median"]
+    assert all(c["pass"] is None for c in when)
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--human", "no-such-person"], "no-such-person"),
+        (["--human", "nominal"], "θ̂"),
+        (["--human", "fitted-aimed", "--draws", "5"], "--draws"),
+        (["--human", "fitted-aimed", "--human-kwargs", "[1]"], "--human-kwargs"),
+        (["--human", "fitted-aimed", "--human-kwargs", '{"nope": 1}'], "nope"),
+        (["--person", "math:pi"], "--person"),
+    ],
+)
+def test_bad_input_exits_2_naming_it(logs, tmp_path, capsys, extra, needle):
+    argv = ["check-human", str(logs), "--out", str(tmp_path / "x"), "--draws", "20", *extra]
+    if "--draws" in extra[2:]:
+        argv = ["check-human", str(logs), "--out", str(tmp_path / "x"), *extra]
+    assert needle in cli_error(argv, capsys)
