@@ -165,3 +165,20 @@ def test_study_with_learners_without_strol_says_h3_was_not_evaluated(tmp_path, c
     with pytest.raises(SystemExit) as e:
         cli.main([*argv, "--learners", "one,nope"])
     assert e.value.code == 2
+
+
+def test_simulate_draws_the_process_the_likelihood_scores():
+    """A constant hazard's mean count is samples × P(step in per sample); a plan whose
+    shortfall falls at a logged switch lowers the rate after it; same seed, same events."""
+    rng = np.random.default_rng(8)
+    hazard, n = (-2.0, 1.5, 0.0), 800
+    p = timing.step_in_probability(math.exp(-2.0), DT)
+    counts = [len(timing.simulate(hazard, n, np.array([]), [0.0], DT, rng)) for _ in range(300)]
+    assert np.mean(counts) == pytest.approx(n * p, rel=0.1)
+    falls = [
+        len(timing.simulate(hazard, n, np.array([400]), [1.0, 0.0], DT, rng)) for _ in range(300)
+    ]
+    assert np.mean(falls) == pytest.approx(400 * p * (math.exp(1.5) + 1), rel=0.1)
+    a = timing.simulate(hazard, n, np.array([400]), [1.0, 0.0], DT, np.random.default_rng(1))
+    b = timing.simulate(hazard, n, np.array([400]), [1.0, 0.0], DT, np.random.default_rng(1))
+    assert np.array_equal(a, b)

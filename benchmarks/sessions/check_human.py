@@ -29,9 +29,10 @@ time (:func:`joint_band`).
   count and timing checks are reported as not simulated; a u_H = 0 (a silent person) drops the
   correction;
 - ``--population``: :class:`StudyPopulation`, StROL-Study-v2's fitted participants
-  (``strol_gym.envs.study.population``): one person per (user, Task) whose correction budget is
-  its count in each of that user's sessions, pushing as its fit says at the session's logged
-  states (in turn). Its timing comes from the arm's physics, which this check does not run;
+  (``strol_gym.envs.study.population``): the shipped people correct when their timing hazard
+  says, given the plan the robot logged along each real session (count and timing simulated),
+  each correction the population's at the session's logged states (in turn); a population
+  without a timing fit has a budget per (user, Task) and its timing is not simulated;
 - ``--person MODULE:ATTR``: any object (or a callable returning one) with ``decides_count``,
   ``decides_when`` and ``sessions(real, rng)``, see :class:`Person`.
 
@@ -53,6 +54,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from strol_gym.envs.study.metrics import AUTHORS_DT
 from strol_gym.humans.aim import steepest_ascent
 from strol_gym.tasks.base import Task
 
@@ -139,6 +141,7 @@ def read_sessions(folder: str | Path) -> list[Session]:
                 "u_r": np.asarray(c["u_r"], dtype=np.float64),
                 "path_sample": c.get("path_sample"),
                 "theta_hat_before": c.get("theta_hat_before"),
+                "theta_hat_after": c.get("theta_hat_after"),
             }
             for c in corr
         ]
@@ -292,13 +295,21 @@ class StudyPopulation:
     v2's arm, which this check does not run: not simulated."""
 
     decides_count = True
-    decides_when = False
     name = "population (StROL-Study-v2, fitted)"
+
+    @property
+    def decides_when(self) -> bool:  # type: ignore[override]
+        """The shipped population decides when (its timing hazard); a budgeted one does not."""
+        from strol_gym.envs.study.population import shipped
+
+        return shipped().hazard is not None
 
     def sessions(self, real, rng):
         from strol_gym.envs.study.population import best_correction, draw_corrections, shipped
 
         pop = shipped()
+        if pop.hazard is not None:
+            return reacting_sessions(pop, real, rng)
         task = real[0].task
         pool = [c for s in real for c in s.corrections]
         people: dict[str, Any] = {}
@@ -334,6 +345,55 @@ class StudyPopulation:
                 ]
             )
         return out
+
+
+def logged_plan(s: Session) -> tuple[np.ndarray, np.ndarray]:
+    """(path samples at which the robot's θ̂ changed, the plan's shortfall before the first and
+    after each) of a real session, from its logged θ̂ (the episode's θ̂0 where none is
+    logged)."""
+    from strol_gym.humans.timing import shortfall
+
+    rows = [c for c in s.corrections if c.get("theta_hat_after") is not None]
+    hats = [s.episode.get("theta_hat0")] + [c["theta_hat_after"] for c in rows]
+    if hats[0] is None:
+        hats[0] = np.asarray(s.task.prior_modes, dtype=np.float64).mean(axis=0)
+    switches = np.array([int(c["path_sample"]) for c in rows], dtype=np.int64)
+    return switches, shortfall(s.task, s.theta_star, np.asarray(hats, dtype=np.float64))
+
+
+def reacting_sessions(pop: Any, real: Sequence[Session], rng: np.random.Generator):
+    """The shipped population's people (``Population.hazard``) along the real sessions: when
+    each corrects is drawn from its timing hazard given the plan the robot logged
+    (:func:`logged_plan`, ``timing.simulate``), each correction is the population's model of a
+    correction at the session's logged correction states in turn (the Task's others' where it
+    logged none), unclipped."""
+    from strol_gym.envs.study.population import aimed_draws
+    from strol_gym.humans.timing import simulate
+
+    task = real[0].task
+    pool = [c for s in real for c in s.corrections]
+    out: list[list[dict[str, Any]]] = []
+    for s in real:
+        person = pop.draw(rng, s.number)
+        switches, falls = logged_plan(s)
+        when = simulate(person.hazard, s.path_samples, switches, falls, AUTHORS_DT, rng)
+        when = when[:MAX_CORRECTIONS]
+        states = s.corrections or pool
+        if not len(when) or not states:
+            out.append([])
+            continue
+        picked = [states[k % len(states)] for k in range(len(when))]
+        x = np.stack([c["x"] for c in picked])
+        n, a = len(picked), task.action_dim
+        u = aimed_draws(task, s.theta_star, x, rng.standard_normal((n, a + 1)), rng.random(n))
+        u = u * np.asarray(task.action_bound)
+        out.append(
+            [
+                {**c, "u_h": ui, "path_sample": int(k), "theta_hat_before": None}
+                for c, ui, k in zip(picked, u, when, strict=True)
+            ]
+        )
+    return out
 
 
 def person_from(spec: str) -> Person:

@@ -199,6 +199,38 @@ def rate(f: TimingFit | np.ndarray, task: int, shortfall: float, wait: float) ->
     return math.exp(min(eta, 50.0))
 
 
+def simulate(
+    hazard: Sequence[float],
+    samples: int,
+    switches: np.ndarray,
+    shortfall: np.ndarray,
+    dt: float,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """The path samples at which a person with ``hazard`` (a, b, c) corrects along a logged
+    path of ``samples`` samples whose plan's shortfall is ``shortfall[k]`` from the k-th of the
+    sorted path samples ``switches`` on (``shortfall[0]`` before the first): the robot's plan
+    as logged, τ since the person's own last correction. One uniform per sample, drawn in a
+    block: P(correct at t) = 1 − exp(−rate·dt), the likelihood's discrete process."""
+    n = int(checks.number("samples", samples, low=0, high=MAX_SAMPLES, integer=True))
+    a, b, c = (float(v) for v in hazard)
+    t = np.arange(n)
+    s = np.asarray(shortfall, dtype=np.float64)[np.searchsorted(switches, t, side="right")]
+    u = rng.random(n)
+    events: list[int] = []
+    start = last = 0
+    while start < n:  # the next event: the first sample from ``start`` whose draw hits
+        k = t[start:]
+        eta = np.minimum(a + b * s[start:] + c * np.log1p((k - last) * dt), 50.0)
+        hit = np.flatnonzero(u[start:] < -np.expm1(-np.exp(eta) * dt))
+        if not len(hit):
+            break
+        last = start + int(hit[0])
+        events.append(last)
+        start = last + 1
+    return np.array(events, dtype=np.int64)
+
+
 UNIT_DRAWS = 64
 UNIT_SEED = 0
 
@@ -255,5 +287,6 @@ __all__ = [
     "rate",
     "shortfall",
     "shortfall_unit",
+    "simulate",
     "step_in_probability",
 ]
