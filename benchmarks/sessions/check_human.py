@@ -309,7 +309,11 @@ class StudyPopulation:
 
         pop = shipped()
         if pop.hazard is not None:
-            return reacting_sessions(pop, real, rng)
+            plans = self.__dict__.setdefault("_plans", {})  # one plan per real session
+            for r in real:
+                if id(r) not in plans:
+                    plans[id(r)] = (r, logged_plan(r))
+            return reacting_sessions(pop, real, rng, {i: v[1] for i, v in plans.items()})
         task = real[0].task
         pool = [c for s in real for c in s.corrections]
         people: dict[str, Any] = {}
@@ -361,12 +365,18 @@ def logged_plan(s: Session) -> tuple[np.ndarray, np.ndarray]:
     return switches, shortfall(s.task, s.theta_star, np.asarray(hats, dtype=np.float64))
 
 
-def reacting_sessions(pop: Any, real: Sequence[Session], rng: np.random.Generator):
+def reacting_sessions(
+    pop: Any,
+    real: Sequence[Session],
+    rng: np.random.Generator,
+    plans: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+):
     """The shipped population's people (``Population.hazard``) along the real sessions: when
     each corrects is drawn from its timing hazard given the plan the robot logged
     (:func:`logged_plan`, ``timing.simulate``), each correction is the population's model of a
     correction at the session's logged correction states in turn (the Task's others' where it
-    logged none), unclipped."""
+    logged none), unclipped. ``plans``: :func:`logged_plan` of each session by ``id``, if
+    already computed (it plans; a replicate need not plan again)."""
     from strol_gym.envs.study.population import aimed_draws
     from strol_gym.humans.timing import simulate
 
@@ -375,7 +385,7 @@ def reacting_sessions(pop: Any, real: Sequence[Session], rng: np.random.Generato
     out: list[list[dict[str, Any]]] = []
     for s in real:
         person = pop.draw(rng, s.number)
-        switches, falls = logged_plan(s)
+        switches, falls = plans[id(s)] if plans and id(s) in plans else logged_plan(s)
         when = simulate(person.hazard, s.path_samples, switches, falls, AUTHORS_DT, rng)
         when = when[:MAX_CORRECTIONS]
         states = s.corrections or pool
