@@ -38,6 +38,7 @@ OWN_COMMANDS: dict[str, str] = {
     "held-out learner",
     "fit-participant": "fit the study population (StROL-Study-v2's participant) to imported "
     "study logs",
+    "serve": "a study in the browser: people push the arm and correct the car from a web page",
     "report": "re-render tables, summary.md and plots from a folder",
 }
 """The commands that are not experiments, with their one-line help: ``strol-bench --help``
@@ -61,6 +62,10 @@ def _add_own_parser(sub: Any, name: str) -> None:
         p.add_argument("folder", help="a results folder written by paper or run")
         p.add_argument("--no-plots", action="store_true")
         plugin_option(p)  # the run's own pieces: a user learner keeps its display name
+    elif name == "serve":
+        from strol_gym.benchmarks.serve import cli as serve
+
+        serve.add_parser(sub)
     else:
         module = name.replace("-", "_")
         importlib.import_module(f"strol_gym.benchmarks.sessions.{module}").add_parser(sub)
@@ -203,6 +208,12 @@ def cmd_fit_timing(args: argparse.Namespace, parser: argparse.ArgumentParser) ->
     return command(args, parser)
 
 
+def cmd_serve(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.serve.cli import command
+
+    return command(args, parser)
+
+
 def cmd_import_study(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.sessions.import_study import command
 
@@ -217,6 +228,7 @@ COMMANDS = {
     "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
+    "serve": cmd_serve,
     "export": cmd_export,
     "train": cmd_train,
     "list": cmd_list,

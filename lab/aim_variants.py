@@ -2,7 +2,7 @@
 people) of ``aimed`` with the rotation weighed or not, one size or two, per study Task.
 
     python lab/aim_variants.py LOGS                      # the held-out table
-    python lab/aim_variants.py LOGS --shipped V1,V2,V3   # the values fitted-aimed ships
+    python lab/aim_variants.py LOGS --shipped "V1;V2;V3"   # the values fitted-aimed ships
 
 LOGS is a folder written by strol-bench import-study; V1-V3 the variants chosen per Task.
 """
@@ -26,6 +26,17 @@ VARIANTS: dict[str, dict[str, float | str]] = {
     "turn 1": {"turn": 1.0},
     "one size": {"small_share": 0.0, "small_size": 1.0},
     "one size, turn 1": {"small_share": 0.0, "small_size": 1.0, "turn": 1.0},
+    "no emphasis, reach 1.3": {"emphasis": "ones", "reach": 1.3},
+    "no emphasis, reach 2": {"emphasis": "ones", "reach": 2.0},
+    "no emphasis, reach 3": {"emphasis": "ones", "reach": 3.0},
+    "no emphasis, reach 5": {"emphasis": "ones", "reach": 5.0},
+    "no emphasis, reach 8": {"emphasis": "ones", "reach": 8.0},
+    "no emphasis, one size, reach 3": {
+        "emphasis": "ones",
+        "reach": 3.0,
+        "small_share": 0.0,
+        "small_size": 1.0,
+    },
     "no emphasis, one size, turn 1": {
         "emphasis": "ones",
         "small_share": 0.0,
@@ -34,7 +45,7 @@ VARIANTS: dict[str, dict[str, float | str]] = {
     },
 }
 """Parameters held per variant (``"emphasis": "ones"``: every feature weight at 1). In Task 1
-(no rotation) ``turn`` does nothing: held at 1 there."""
+(no rotation) ``turn`` is no parameter: the variants that hold it are left out there."""
 
 
 def fixed(data: Corrections, values: dict[str, float | str], task_number: int) -> F.Family:
@@ -44,17 +55,17 @@ def fixed(data: Corrections, values: dict[str, float | str], task_number: int) -
     held = dict(values)
     if held.pop("emphasis", None) == "ones":
         held.update({k: 1.0 for k in emphasis_names(data.task)})
-    if task_number == 1:
-        held["turn"] = 1.0
     for name, value in held.items():
         fam = F._Fixed(fam, name, float(value))
     return fam
 
 
-def main(folder: str) -> None:
-    for t in (1, 2, 3):
+def main(folder: str, tasks: tuple[int, ...] = (1, 2, 3), only: str = "") -> None:
+    for t in tasks:
         data = load_corrections(sorted(str(p) for p in Path(folder).glob(f"*_task_{t}_*.jsonl")))
         for label, values in VARIANTS.items():
+            if only and only not in label:
+                continue
             if t == 1 and "turn" in values:
                 continue
             fam = fixed(data, values, t)
@@ -91,6 +102,8 @@ def shipped(folder: str, chosen: list[str]) -> dict[str, dict[str, Any]]:
 
 if __name__ == "__main__":
     if len(sys.argv) > 2 and sys.argv[2] == "--shipped":
-        shipped(sys.argv[1], sys.argv[3].split(","))
+        shipped(sys.argv[1], sys.argv[3].split(";"))
+    elif len(sys.argv) > 2:  # LOGS TASKS LABEL-PART: some variants of some Tasks
+        main(sys.argv[1], tuple(int(t) for t in sys.argv[2].split(",")), sys.argv[3])
     else:
         main(sys.argv[1])

@@ -62,8 +62,8 @@ def check_output(path: str | os.PathLike[str], what: str = "output") -> Path:
     path = Path(path)
     try:
         mode = os.lstat(path).st_mode
-    except FileNotFoundError:
-        return path
+    except (FileNotFoundError, NotADirectoryError):  # nothing there (the folder's own check
+        return path  # says why it cannot be made)
     if not stat.S_ISREG(mode):
         raise NotAFile(
             f"{what} {path} is {kind_of(mode)}, not a regular file: refusing to replace it "

@@ -9,7 +9,6 @@ import socket
 import subprocess
 import sys
 import threading
-import time
 
 import pytest
 from cli_checks import cli_error
@@ -86,19 +85,22 @@ def test_a_ray_address_that_is_not_ray_fails_within_the_deadline():
         "backends.RAY_INIT_DEADLINE = 3.0\n"
         f"address = '127.0.0.1:{port}'\n"
         "backends.check_backend('ray', address)  # passes: it answers like gRPC\n"
+        "import ray, time  # imported first: its import is not ray.init's wait\n"
+        "t0 = time.monotonic()\n"
         "try:\n"
         "    backends._start_ray(1, address)\n"
         "except ValueError as e:\n"
         "    print(e)\n"
+        "    print(f'after {time.monotonic() - t0:.1f} s')\n"
         "    sys.exit(2)\n"
     )
-    t0 = time.monotonic()
     try:
         proc = subprocess.run(
-            [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+            [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
         )
     finally:
         server.close()
     assert proc.returncode == 2, proc.stderr[-2000:]
-    assert time.monotonic() - t0 < 30
     assert f"127.0.0.1:{port}: no Ray cluster answered within 3 s" in proc.stdout
+    waited = float(proc.stdout.split("after ")[-1].split(" s")[0])
+    assert 3.0 <= waited < 10.0

@@ -247,7 +247,7 @@ def test_reference_learner_has_one_definition():
     import ast
     import inspect
 
-    from strol_gym.benchmarks.analysis import compare_learners
+    from lab.checks import compare_learners
     from strol_gym.benchmarks.engine import conditions
 
     for mod in (confirm, compare_learners):

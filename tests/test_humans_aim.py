@@ -12,6 +12,7 @@ from strol_gym.humans import HumanSpec, human_model, make_human
 from strol_gym.humans.aim import (
     FITTED_AIM,
     AimedModel,
+    aim_direction,
     log_direction_density,
     steepest_ascent,
     unit_rows,
@@ -51,6 +52,25 @@ def test_steepest_ascent_of_the_study_task_is_the_feature_gradient():
         axis=1,
     )
     np.testing.assert_allclose(b, fd * task.action_bound, atol=1e-6)
+
+
+def test_aim_direction_at_a_reach_gains_more_for_a_push_that_long():
+    """The best direction for a push of length r raises θ·φ at least as much by that push as
+    the steepest ascent does, and more where the features curve."""
+    task = make_task("study-task3")
+    rng = np.random.default_rng(11)
+    x = task.sample_start(rng, 40)
+    theta = np.tile(task.theta_star, (40, 1))
+    zero = np.zeros((40, 6))
+    local = aim_direction(task, x, zero, theta, 0.0)
+    far = aim_direction(task, x, zero, theta, 3.0)
+    np.testing.assert_allclose(np.linalg.norm(far, axis=1), 1.0)
+
+    def gain(d):
+        return np.einsum("nd,nd->n", task.g(x, 3.0 * d * task.action_bound, zero), theta)
+
+    assert np.all(gain(far) >= gain(local) - 1e-9)
+    assert np.mean(gain(far) > gain(local) + 1e-3) > 0.5
 
 
 def _corrections(task, model, n, seed):
@@ -98,7 +118,8 @@ def test_fitted_aimed_takes_its_study_tasks_values_and_overrides():
         model = human_model("fitted-aimed", task)
         est = FITTED_AIM["per_task"][f"study-task{number}"]["estimate"]
         assert model.aim == est["aim"] and model.size == est["size"]
-        assert model.emphasis[0] == 1.0 and model.emphasis[1] == est["w_plate"]
+        assert model.reach == est["reach"]
+        assert model.emphasis[1] == est.get("w_plate", 1.0)
     task = make_task("study-task2")
     assert human_model("fitted-aimed", task, aim=0.3).aim == 0.3
     other = make_task("robot")
@@ -112,6 +133,7 @@ def test_fitted_aimed_takes_its_study_tasks_values_and_overrides():
         ({"size": 0.0}, "size must be"),
         ({"turn": -1.0}, "turn must be"),
         ({"small_share": 2.0}, "small_share must be"),
+        ({"reach": -1.0}, "reach must be"),
         ({"emphasis": [1.0, 2.0]}, "emphasis"),
         ({"emphasis": [0.0, 0.0, 0.0, 0.0]}, "emphasis must be"),
     ],

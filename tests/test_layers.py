@@ -60,7 +60,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("strol_gym.benchmarks.analysis",),
     ("strol_gym.benchmarks.args",),
     ("strol_gym.benchmarks.experiments", "strol_gym.benchmarks.sessions"),
-    ("strol_gym.benchmarks.train",),
+    ("strol_gym.benchmarks.train", "strol_gym.benchmarks.serve"),
     ("strol_gym.benchmarks.cli",),
     ("strol_gym.benchmarks.__main__", "strol_gym.benchmarks.speed"),
     ("strol_gym.benchmarks.examples",),

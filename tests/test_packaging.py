@@ -116,6 +116,8 @@ def test_the_wheel_carries_the_assets_and_the_pretrained_weights(wheel_install):
             assert f"{package.replace('.', '/')}/{name}" in names
     for module in ("strol_gym/wrappers/__init__.py", "strol_gym/benchmarks/cli.py"):
         assert module in names
+    for page in ("index.html", "page.js", "page.css"):  # strol-bench serve's page
+        assert f"strol_gym/benchmarks/serve/static/{page}" in names
     assert not any(n.startswith(("wrappers/", "benchmarks/")) for n in names), (
         "wrappers and benchmarks must install under the strol_gym namespace"
     )

@@ -265,7 +265,8 @@ def test_implied_theta0_by_hand():
 
 
 def test_study_card_and_implied_check(tree, tmp_path, capsys):
-    from strol_gym.benchmarks.sessions import implied_check, study_card
+    from lab.study import implied_check
+    from strol_gym.benchmarks.sessions import study_card
 
     root, moves = tree
     logs = tmp_path / "logs"

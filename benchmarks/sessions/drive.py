@@ -163,10 +163,14 @@ def run_drive(
     keys: KeySource | None = None,
     window: bool = True,
     on_step: Callable[[dict[str, Any], list[str]], None] | None = None,
+    frames: Callable[[np.ndarray], None] | None = None,
+    stop: Callable[[], str | None] | None = None,
 ) -> tuple[Path, dict[str, Any]]:
     """One Highway session driven by a person; returns the log's path and the last ``info``
     (with ``real_time_factor``). ``keys`` defaults to the window's arrow keys; ``window``
-    false runs without one (tests); ``on_step(info, panel)`` sees each step's panel."""
+    false runs without one (tests); ``on_step(info, panel)`` sees each step's panel;
+    ``frames`` (without a window) gets each step's picture (highway-env's ``rgb_array``);
+    ``stop()`` returning a reason ends the session with it (a page's closed connection)."""
     from strol_gym.benchmarks.engine.robots import robot_policy
     from strol_gym.benchmarks.sessions.person import Pace, default_log_path
 
@@ -190,7 +194,7 @@ def run_drive(
         human=person,
         n_corrections=steps,
         max_episode_steps=steps,
-        render_mode="human" if window else None,
+        render_mode="human" if window else ("rgb_array" if frames is not None else None),
         width=900,
         height=300,
     )
@@ -213,6 +217,9 @@ def run_drive(
             poll = PygameKeys()
         teach = _words(task.feature_names, hw.theta_star)
         n_corr, cue, t, ended = 0, "", 0.0, False
+        reason = "window closed"
+        if frames is not None:
+            frames(hw.render())
         pace = Pace(dt, realtime)
         while True:
             # the keys over the step: polled until its end on the wall clock (or once)
@@ -240,6 +247,8 @@ def run_drive(
             panel = drive_panel(task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue)
             if on_step is not None:
                 on_step(info, panel)
+            if frames is not None:
+                frames(hw.render())
             if window:
                 _draw_panel(panel if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
             pace.wait()
@@ -248,8 +257,12 @@ def run_drive(
                 break
             if window and hw.viewer is None:  # the person closed the window
                 break
+            why = stop() if stop is not None else None
+            if why:
+                reason = why
+                break
         if not ended:
-            env.end_session("window closed", info)
+            env.end_session(reason, info)
     except KeyboardInterrupt:
         env.end_session("interrupted", info, interrupted=True)
         info = {**info, "interrupted": True}

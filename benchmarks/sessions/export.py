@@ -150,18 +150,42 @@ def _episode_buffer(ep: Episode, dims: dict[str, int], seed: int | None, task: A
     )
 
 
-def export_session(log: str | Path, dataset_id: str) -> Any:
-    """Write session log ``log`` as Minari dataset ``dataset_id``; the MinariDataset.
+SAME_SETTING = ("env_id", "env_kwargs", "task", "learner", "learner_kwargs")
+"""Header fields every log of one dataset shares (one env, Task and learner)."""
+
+
+def export_session(log: str | Path | list[str | Path], dataset_id: str) -> Any:
+    """Write session log ``log`` (or several logs of one setting: the same env, Task and
+    learner, :data:`SAME_SETTING`, e.g. a study's people) as Minari dataset ``dataset_id``,
+    their episodes in order; the MinariDataset. The first log's header is the dataset's.
 
     The id is checked before anything is created (:func:`dataset_gate.dataset_path`), and a
     failed export removes the folder it began."""
     folder = new_dataset_path(dataset_id)
     minari = _minari()
-    session = read_session(log)
+    logs = log if isinstance(log, list) else [log]
+    if not logs:
+        raise ValueError(f"dataset_id {dataset_id!r}: no session log to export")
+    sessions = [read_session(one) for one in logs]
+    session = sessions[0]
+    for other in sessions[1:]:
+        differ = [k for k in SAME_SETTING if other.header.get(k) != session.header.get(k)]
+        if differ:
+            raise ValueError(
+                f"{other.path}: its {', '.join(differ)} differ from {session.path}'s; one "
+                "dataset holds sessions of one env, Task and learner"
+            )
     _, dims = check_header(f"{session.path}:1", session.header)
     task = session_task(session)  # a registered Task (or a --plugin's): never imported here
     spec, obs_space, act_space, own = _env_spaces(env_spec(session.header, dataset_id), dims)
-    buffers = [_episode_buffer(ep, dims, ep.seed, task if own else None) for ep in session.episodes]
+    buffers = [
+        _episode_buffer(ep, dims, ep.seed, task if own else None)
+        for one in sessions
+        for ep in one.episodes
+    ]
+    names = ", ".join(one.path.name for one in sessions[:3]) + (
+        ", ..." if len(sessions) > 3 else ""
+    )
     # Minari nags for provenance a session log does not have (author, code permalink)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", category=UserWarning, module=r"minari\.")
@@ -173,7 +197,7 @@ def export_session(log: str | Path, dataset_id: str) -> Any:
                 observation_space=obs_space,
                 action_space=act_space,
                 algorithm_name=str(session.header.get("learner")),
-                description=f"strol-gym session {session.path.name}: corrections on "
+                description=f"strol-gym session(s) {names}: corrections on "
                 f"{session.header['env_id']}, task {session.header['task']}",
             )
         except BaseException as e:

@@ -54,6 +54,8 @@ from strol_gym.humans.aim import (
     MAX_AIM,
     MAX_TURN,
     MIN_AIM,
+    TURN_AXES,
+    aim_direction,
     aimed_corrections,
     emphasis_names,
     steepest_ascent,
@@ -530,7 +532,8 @@ class Aimed(Family):
     """The aimed person (``strol_gym.humans.aim``): the direction's projected normal about the
     steepest ascent of θ* ⊙ w, the rotation weighed, a log-normal size or two; its density in
     closed form. The emphasis weights w (``w_<feature>``, the first feature's held at 1) are
-    the Task's: they join ``params`` when the family meets its corrections (``prepare``)."""
+    the Task's: they join ``params`` when the family meets its corrections (``prepare``), and
+    ρ leaves them in a Task without rotation axes (it weighs none there)."""
 
     name = "aimed"
     base_params: tuple[Param, ...] = (
@@ -543,23 +546,51 @@ class Aimed(Family):
     )
     params: tuple[Param, ...] = base_params
 
+    def __init__(self) -> None:
+        self._directions: dict[tuple[Any, ...], tuple[np.ndarray, np.ndarray]] = {}
+
     def prepare(self, data):
         task, d = data.task, data.task.dim
         names = emphasis_names(task)
-        self.params = self.base_params + tuple(Param(k, 1e-2, 100.0, 1.0, log=True) for k in names)
+        own = self.base_params
+        if task.action_dim <= TURN_AXES:  # no axis for ρ to weigh: not a parameter here
+            own = tuple(p for p in own if p.name != "turn")
+        self.params = own + tuple(Param(k, 1e-2, 100.0, 1.0, log=True) for k in names)
         one = [
             steepest_ascent(task, data.x, data.u_r, data.theta_star * np.eye(d)[j])
             for j in range(d)
         ]
-        return {"uh": _unit(data, data.u_h), "bests": np.stack(one, axis=1), "names": names}
+        return {
+            "uh": _unit(data, data.u_h),
+            "bests": np.stack(one, axis=1),
+            "names": names,
+            "x": data.x,
+            "u_r": data.u_r,
+            "theta_star": data.theta_star,
+            "task": task,
+        }
 
     def _split(
         self, prep: dict[str, Any], v: dict[str, float]
     ) -> tuple[np.ndarray, dict[str, float]]:
-        """The steepest ascents (n, a) of θ* ⊙ w and the scalar parameters."""
+        """The aimed directions (n, a) for θ* ⊙ w at ``reach`` and the scalar parameters."""
         w = np.array([1.0] + [v.get(k, 1.0) for k in prep["names"]])
-        best = np.einsum("j,nja->na", w, prep["bests"])
-        return best, {k: v[k] for k in AIM_PARAMS}
+        reach = v.get("reach", 0.0)
+        if reach <= 0.0:  # the steepest ascent is linear in θ: one sum of the features'
+            best = np.einsum("j,nja->na", w, prep["bests"])
+        else:  # the ascent, once per (w, reach) and set of corrections (a held ρ, w: once)
+            x = prep["x"]
+            key = (id(x), tuple(w.tolist()), reach)
+            cached = self._directions.get(key)
+            if cached is None:
+                theta = prep["theta_star"] * w
+                best = aim_direction(prep["task"], x, prep["u_r"], theta, reach)
+                if len(self._directions) > 64:
+                    self._directions.clear()
+                self._directions[key] = (x, best)  # x kept: its id stays unique while cached
+            else:
+                best = cached[1]
+        return best, {k: v.get(k, 1.0) for k in AIM_PARAMS}
 
     def terms(self, prep, v):
         best, own = self._split(prep, v)
@@ -569,6 +600,17 @@ class Aimed(Family):
         best, own = self._split(prep, v)
         n, a = best.shape
         return aimed_corrections(best, rng.standard_normal((n, a + 1)), rng.random(n), **own)
+
+
+class AimedReach(Aimed):
+    """``aimed`` with its ``reach`` fitted too (:func:`strol_gym.humans.aim.aim_direction`: the
+    direction of the best push of that length; each evaluation runs the ascent, so it is the
+    slower fit)."""
+
+    name = "aimed-reach"
+    base_params = (*Aimed.base_params, Param("reach", 1e-2, 10.0, 1.0, log=True))
+    params = base_params
+    reduces_to = None
 
 
 class _Preset(Family):
@@ -612,6 +654,7 @@ def families() -> dict[str, Family]:
         "scale-free": Boltzmann("scale-free", relative=True),
         "reversing": Reversing(),
         "aimed": Aimed(),
+        "aimed-reach": AimedReach(),
     }
     for preset, base in (
         ("bpref-stoc", "scale-free"),

@@ -160,11 +160,16 @@ TARGET_RGBA = np.array([0.1, 0.8, 0.2, 0.7], dtype=np.float32)
 PLAN_RADIUS = 0.012
 
 
-def draw_plan(scene: mujoco.MjvScene, points: np.ndarray, target: np.ndarray | None = None) -> None:
-    """Replace ``scene``'s geoms with one sphere per waypoint of ``points`` (blue), then of
-    ``target`` (green), as many as fit."""
+def draw_plan(
+    scene: mujoco.MjvScene,
+    points: np.ndarray,
+    target: np.ndarray | None = None,
+    append: bool = False,
+) -> None:
+    """Replace ``scene``'s geoms (``append``: add to them) with one sphere per waypoint of
+    ``points`` (blue), then of ``target`` (green), as many as fit."""
     layers = [(points, PLAN_RGBA)] + ([] if target is None else [(target, TARGET_RGBA)])
-    n = 0
+    n = scene.ngeom if append else 0
     for pts, rgba in layers:
         for p in np.asarray(pts, dtype=np.float64).reshape(-1, 3)[: scene.maxgeom - n]:
             mujoco.mjv_initGeom(
@@ -392,6 +397,9 @@ def run_interactive(
     assert isinstance(study, StudyEnv)  # the study's preset is a StudyEnv
     site = mujoco.mj_name2id(study.model, mujoco.mjtObj.mjOBJ_SITE, "cup")
     viewer = viewer_factory(study.model, study.data)
+    bind = getattr(viewer, "bind", None)
+    if bind is not None:  # a front end that needs the env itself (its reflex, its Task)
+        bind(study)
     options = {"max_steps": max_steps, "realtime": realtime, "mode": "interactive", "blind": blind}
     env = SessionLogger(learning, path, extra={"interact": options})
     teach = teach_words(study.task.feature_names, study.task.theta_star)
@@ -473,8 +481,8 @@ def run_interactive(
             env.end_session("interrupted", info, interrupted=True)
             info = {**info, "interrupted": True}
             ended = True
-        if not ended:
-            env.end_session(reason)
+        if not ended:  # a front end may say why it closed (e.g. the page's connection)
+            env.end_session(getattr(viewer, "end_reason", None) or reason)
     finally:
         viewer.close()
         env.close()

@@ -6,13 +6,14 @@ its σ must be small, which makes large pushes rare. The twelve people of the au
 both: about a fifth of their corrections were below 0.7 a_max, and about 83 % raised θ*'s reward.
 This model separates the two (all in units of a_max per axis):
 
-- **where it pushes**: about the steepest ascent b (:func:`steepest_ascent`) of θ* ⊙ w, the
-  preference with each feature weighed by the person's ``emphasis`` w (the people of the study
-  cared for the plate more, and the table's height less, than θ*'s weights say), with an aim error
-  in the direction: y = D (b̂ + τ z), z ~ N(0, I), d = y / ‖y‖ (a projected normal: τ = 0 pushes
-  along D b̂, τ → ∞ anywhere), where D weighs the axes after the first three (the study Tasks'
-  rotation) by ``turn`` = ρ: the people turned the cup much less than θ*'s steepest ascent in
-  units of a_max asks (its rotation is about 85 % of its length; theirs about 40 %);
+- **where it pushes**: about b̂, what it aims at (:func:`aim_direction`): the steepest ascent
+  (:func:`steepest_ascent`) of θ* ⊙ w, the preference with each feature weighed by the person's
+  ``emphasis`` w, or, with ``reach`` r > 0, the direction of the best push of length r (a push of
+  a hand's length gains by the features' curvature too); with an aim error in the direction:
+  y = D (b̂ + τ z), z ~ N(0, I), d = y / ‖y‖ (a projected normal: τ = 0 pushes along D b̂, τ → ∞
+  anywhere), where D weighs the axes after the first three (the study Tasks' rotation) by
+  ``turn`` = ρ: the people turned the cup much less than θ*'s steepest ascent in units of a_max
+  asks (its rotation is about 85 % of its length; theirs about 40 %);
 - **how far**: a log-normal length r, median ``size`` and log sd ``size_sd``; with probability
   ``small_share`` from a second log-normal of median ``small_size`` (same log sd): the data
   choose one size or two (held-out likelihood, :data:`FITTED_AIM`);
@@ -21,16 +22,17 @@ This model separates the two (all in units of a_max per axis):
 API (one place each):
 
 - :class:`AimedModel` (registered ``aimed``): the model, parameters ``aim`` (τ), ``turn`` (ρ),
-  ``size``, ``size_sd``, ``small_share``, ``small_size``, ``emphasis`` (w, one per feature)
-  besides σ, ε;
+  ``size``, ``size_sd``, ``small_share``, ``small_size``, ``emphasis`` (w, one per feature),
+  ``reach`` besides σ, ε; ``AimedModel(task, **params).correct(x, u_r, theta_star, rng)`` gives
+  a batch of corrections (the :class:`HumanModel` interface);
 - :class:`FittedAimedModel` (registered ``fitted-aimed``): its maximum-likelihood values per
   study Task (:data:`FITTED_AIM`, fitted by ``strol-bench fit-human --human aimed``; in another
-  Task, the mean of Tasks 2 and 3);
+  Task, Task 3's); :func:`fitted_aim_params` the same values as keyword arguments;
 - :func:`aimed_corrections`: the corrections (n, a) from parameters and standard draws (what
   both the model and a person elsewhere, e.g. the study population, call);
 - :func:`log_density`: log p(u_H) of corrections under the model (what ``fit-human`` maximises:
   ``strol_gym.benchmarks.sessions.fitting.Aimed``);
-- :func:`steepest_ascent`: b at a batch of states.
+- :func:`steepest_ascent`, :func:`aim_direction`: b and b̂ at a batch of states.
 
 The direction's density on the unit sphere is the projected normal's: with y ~ N(μ, Σ),
 μ = D b̂, Σ = τ² D², A = dᵀΣ⁻¹d, s = dᵀΣ⁻¹μ / √A,
@@ -86,10 +88,61 @@ def steepest_ascent(task: Task, x: np.ndarray, u_r: np.ndarray, theta: np.ndarra
     if isinstance(task, StudyTask):
         jac = task.feature_jacobian(x + np.pad(u_r, ((0, 0), (0, x.shape[1] - a))))
         return np.einsum("nds,nd->ns", jac, theta)[:, :a] * bound
-    steps = np.concatenate([np.eye(a), -np.eye(a)]) * (STEP * bound)  # (2a, a)
-    g = task.g(x[:, None, :], np.broadcast_to(steps, (n, 2 * a, a)), u_r[:, None, :])
+    return push_gradient(task, x, u_r, theta, np.zeros((n, a)), STEP)
+
+
+def push_gradient(
+    task: Task, x: np.ndarray, u_r: np.ndarray, theta: np.ndarray, at: np.ndarray, step: float
+) -> np.ndarray:
+    """∂(θ·g(x, u, u_R))/∂u at u = ``at`` (n, a), both in units of a_max, by central
+    differences of ``step`` (the Task's own g)."""
+    a = at.shape[1]
+    bound = np.asarray(task.action_bound, dtype=np.float64)
+    steps = np.concatenate([np.eye(a), -np.eye(a)]) * step  # (2a, a)
+    u = (at[:, None, :] + steps[None]) * bound
+    g = task.g(x[:, None, :], u, u_r[:, None, :])
     r = np.einsum("nkd,nd->nk", g, theta)
-    return (r[:, :a] - r[:, a:]) / (2.0 * STEP)
+    return (r[:, :a] - r[:, a:]) / (2.0 * step)
+
+
+REACH_STEPS = 20
+"""Ascent steps of :func:`aim_direction` on the sphere of radius ``reach``."""
+REACH_RATE = 0.5
+"""Each step's turn toward the tangent of θ·g's gradient (as a share of the unit direction)."""
+
+
+def aim_direction(
+    task: Task, x: np.ndarray, u_r: np.ndarray, theta: np.ndarray, reach: float
+) -> np.ndarray:
+    """b̂ (n, a), unit rows in units of a_max (zero where θ·φ is flat): the direction a person
+    aims at. ``reach`` 0: θ's steepest ascent (:func:`steepest_ascent`); ``reach`` r > 0: the
+    direction of the best push of length r (θ·g(x, r d, u_R) over unit d, the Task's own g),
+    by :data:`REACH_STEPS` ascent steps on the sphere from the steepest ascent, the best
+    direction met kept (so never worse than the steepest ascent for that push): a push of a
+    hand's length gains by the features' curvature too (a distance grows whichever way one
+    moves off it; uprightness falls whichever way one tilts)."""
+    x, u_r, theta = (np.atleast_2d(np.asarray(v, dtype=np.float64)) for v in (x, u_r, theta))
+    d = unit_rows(steepest_ascent(task, x, u_r, theta))
+    if reach <= 0.0:
+        return d
+    moving = np.any(d != 0.0, axis=1, keepdims=True)
+    bound = np.asarray(task.action_bound, dtype=np.float64)
+
+    def value(dirs: np.ndarray) -> np.ndarray:
+        return np.einsum("nd,nd->n", task.g(x, reach * dirs * bound, u_r), theta)
+
+    best, best_value = d, value(d)
+    for _ in range(REACH_STEPS):
+        grad = push_gradient(task, x, u_r, theta, reach * d, 1e-4)
+        tangent = grad - np.einsum("na,na->n", grad, d)[:, None] * d
+        norm = np.linalg.norm(grad, axis=1, keepdims=True)
+        turn = np.divide(tangent, norm, out=np.zeros_like(tangent), where=norm > 0)
+        d = np.where(moving, unit_rows(d + REACH_RATE * turn), d)
+        now = value(d)
+        better = now > best_value  # kept only where it gains: never worse than the start
+        best = np.where(better[:, None], d, best)
+        best_value = np.maximum(now, best_value)
+    return best
 
 
 def unit_rows(v: np.ndarray) -> np.ndarray:
@@ -179,27 +232,26 @@ FITTED_AIM: dict[str, Any] = {
     "model": "aimed",
     "per_task": {
         "study-task1": {
+            "variant": "no emphasis, one size, reach 3",
             "estimate": {
-                "aim": 0.5943,
+                "aim": 0.7853,
                 "turn": 1.0,
                 "size": 0.9497,
                 "size_sd": 0.7221,
                 "small_share": 0.0,
                 "small_size": 1.0,
-                "w_plate": 2.1658,
-                "w_table": 0.01,
+                "reach": 3.0,
             },
             "ci95": {
-                "aim": [0.3865, 0.9138],
+                "aim": [0.5278, 1.1685],
                 "size": [0.6924, 1.3025],
                 "size_sd": [0.5266, 0.9903],
-                "w_plate": [1.6598, 2.8262],
-                "w_table": [0.01, 0.0948],
             },
-            "fixed": {"turn": 1.0, "small_share": 0.0, "small_size": 1.0},
-            "heldout_loglik": 423.58,
+            "fixed": {"turn": 1.0, "small_share": 0.0, "small_size": 1.0, "reach": 3.0},
+            "heldout_loglik": 424.36,
         },
         "study-task2": {
+            "variant": "emphasis, steepest ascent",
             "estimate": {
                 "aim": 0.6245,
                 "turn": 0.5785,
@@ -210,6 +262,7 @@ FITTED_AIM: dict[str, Any] = {
                 "w_plate": 1.5869,
                 "w_table": 0.01,
                 "w_upright": 0.1341,
+                "reach": 0.0,
             },
             "ci95": {
                 "aim": [0.5008, 0.7789],
@@ -222,87 +275,103 @@ FITTED_AIM: dict[str, Any] = {
                 "w_table": [0.01, 0.0412],
                 "w_upright": [0.0847, 0.2121],
             },
-            "fixed": {},
+            "fixed": {"reach": 0.0},
             "heldout_loglik": 1248.34,
         },
         "study-task3": {
+            "variant": "no emphasis, reach 3",
             "estimate": {
-                "aim": 1.2378,
-                "turn": 0.4646,
+                "aim": 0.8893,
+                "turn": 0.4775,
                 "size": 1.3363,
                 "size_sd": 0.4422,
                 "small_share": 0.1345,
                 "small_size": 0.2613,
-                "w_plate": 12.4958,
-                "w_table": 9.0164,
-                "w_upright": 4.836,
+                "reach": 3.0,
             },
             "ci95": {
-                "aim": [0.9144, 1.6757],
-                "turn": [0.3784, 0.5704],
-                "size": [1.1019, 1.6206],
+                "aim": [0.6919, 1.143],
+                "turn": [0.3965, 0.5749],
+                "size": [1.1019, 1.6207],
                 "size_sd": [0.3019, 0.6477],
                 "small_share": [0.0673, 0.2508],
                 "small_size": [0.1118, 0.6111],
-                "w_plate": [0.01, 100.0],
-                "w_table": [0.01, 100.0],
-                "w_upright": [0.01, 100.0],
             },
-            "fixed": {},
-            "heldout_loglik": 1172.01,
+            "fixed": {"reach": 3.0},
+            "heldout_loglik": 1218.46,
         },
     },
     "params": {
-        "aim": 0.9312,
-        "turn": 0.5215,
-        "size": 1.3215,
-        "size_sd": 0.4473,
-        "small_share": 0.1242,
-        "small_size": 0.2426,
+        "aim": 0.8893,
+        "turn": 0.4775,
+        "size": 1.3363,
+        "size_sd": 0.4422,
+        "small_share": 0.1345,
+        "small_size": 0.2613,
+        "reach": 3.0,
     },
     "heldout_loglik_variants": {
-        "study-task1": {"all": 418.22, "no emphasis": 389.13, "one size": 423.58},
+        "study-task1": {
+            "emphasis, steepest ascent": 418.22,
+            "emphasis, one size, steepest ascent": 423.58,
+            "no emphasis, steepest ascent": 389.13,
+            "no emphasis, reach 1.3": 403.45,
+            "no emphasis, reach 2": 411.35,
+            "no emphasis, reach 3": 419.01,
+            "no emphasis, reach 5": 424.94,
+            "no emphasis, reach 8": 413.47,
+            "no emphasis, one size, reach 3": 424.36,
+        },
         "study-task2": {
-            "all": 1248.34,
-            "no emphasis": 1160.11,
-            "turn 1": 1189.71,
-            "one size": 1228.57,
-            "no emphasis, one size, turn 1": 1012.33,
+            "emphasis, steepest ascent": 1248.34,
+            "emphasis, one size, steepest ascent": 1228.57,
+            "emphasis, turn 1, steepest ascent": 1189.71,
+            "no emphasis, steepest ascent": 1160.11,
+            "no emphasis, reach 1.3": 1197.62,
+            "no emphasis, reach 2": 1215.91,
+            "no emphasis, reach 3": 1233.01,
+            "no emphasis, reach 5": 1250.42,
+            "no emphasis, reach 8": 1244.67,
+            "no emphasis, one size, reach 3": 1213.21,
         },
         "study-task3": {
-            "all": 1172.01,
-            "no emphasis": 1169.91,
-            "turn 1": 1071.65,
-            "one size": 1149.14,
-            "no emphasis, one size, turn 1": 1039.28,
+            "emphasis, steepest ascent": 1172.01,
+            "emphasis, one size, steepest ascent": 1149.14,
+            "emphasis, turn 1, steepest ascent": 1071.65,
+            "no emphasis, steepest ascent": 1169.91,
+            "no emphasis, reach 1.3": 1214.16,
+            "no emphasis, reach 2": 1219.46,
+            "no emphasis, reach 3": 1218.46,
+            "no emphasis, reach 5": 1194.99,
+            "no emphasis, reach 8": 1190.55,
+            "no emphasis, one size, reach 3": 1195.6,
         },
     },
     "heldout_loglik_other_models": {
-        "study-task1": {"scale-free": 375.12, "boltzmann": 378.34, "myopic": 328.21},
-        "study-task2": {"scale-free": 863.65, "boltzmann": 859.96, "myopic": 818.67},
-        "study-task3": {"scale-free": 872.38, "boltzmann": 864.94, "myopic": 736.51},
+        "study-task1": {"under": 366.6, "scale-free": 375.12, "boltzmann": 378.34},
+        "study-task2": {"under": 935.5, "scale-free": 863.65, "boltzmann": 859.96},
+        "study-task3": {"under": 925.9, "scale-free": 872.38, "boltzmann": 864.94},
     },
     "source": "the authors' user study (github VT-Collab/StROL_RAL, data removed at d383bef): "
     "12 participants x 3 Tasks x 3 learners, imported with strol-bench import-study (one "
     "update per correction); every correction of a Task's 36 sessions",
     "command": "python lab/aim_variants.py LOGS (the variants' held-out table), then "
-    "python lab/aim_variants.py LOGS --shipped 'one size,all,all' (the aimed family of "
-    "fit-human, sandwich intervals with the leave-one-person-out covariance; held-out: 4 "
-    "folds of people, seed 1); the other models: strol-bench fit-human "
-    "LOGS/user_*_task_J_*.jsonl --human aimed --compare scale-free,boltzmann,myopic --folds 4",
+    "python lab/aim_variants.py LOGS --shipped 'no emphasis, one size, reach 3;all;no "
+    "emphasis, reach 3' (the aimed family of fit-human, sandwich intervals with the "
+    "leave-one-person-out covariance; held-out: 4 folds of people, seed 1); the other "
+    "models: strol-bench fit-human (docs/humans.md, 'Fitted to the twelve people')",
     "date": "2026-11-29",
 }
 """The fit behind ``fitted-aimed`` (docs/humans.md, "The aimed person"): per study Task the
 maximum-likelihood values, their 95 % intervals over people and the held-out log-likelihood
-(4 folds of people) of the variant the data chose by it (``fixed``: held, not fitted; the
-emphasis ``w_<feature>`` relative to the first feature, the pitcher's). Against per-axis noise
-on the same corrections (``scale-free``): +48 (Task 1), +385 (Task 2), +300 (Task 3). The
-emphasis raised it by 29 and 88 in Tasks 1 and 2 (people cared for the plate about twice as
-much as θ* says, for the table's height almost not at all) and by 2 in Task 3, where its
-weights are not determined (their intervals span the whole range); weighing the rotation
-(ρ ≈ 0.5) by 59 and 100 in Tasks 2 and 3; a second, small size by 20 and 23 there, while in
-Task 1 it lowered it (418.2 against 423.6). ``params``: elsewhere, the mean of Tasks 2 and 3
-(both 6-D, both with two sizes), no emphasis."""
+(4 folds of people) of the variant chosen among those tried (``fixed``: held, not fitted): the
+steepest ascent of θ* ⊙ w with a fitted per-feature emphasis w, or, with no emphasis, the best
+direction for a push of ``reach`` 3 a_max (30 cm). Task 1: the reach, one size (424.4 against
+423.6); Task 2: the emphasis (1248.3 against 1233.0 at reach 3); Task 3: the reach (1218.5
+against 1172.0). Reach 3 was taken for every Task before the grid 1.3-8 (each Task's best of it
+gains at most 17 more, chosen on the same folds, so not taken). Against per-axis noise on the
+same corrections: ``under`` 366.6 / 935.5 / 925.9, ``scale-free`` 375.1 / 863.6 / 872.4.
+``params``: elsewhere, Task 3's values (no emphasis: any Task's features)."""
 
 
 class AimedModel(HumanModel):
@@ -311,7 +380,9 @@ class AimedModel(HumanModel):
     (default 0), ``aim`` = τ (≥ 0), ``turn`` = ρ (> 0), ``size`` (median length, units of
     a_max), ``size_sd`` (its log sd), ``small_share`` (probability of the second size),
     ``small_size`` (its median), ``emphasis`` (one weight ≥ 0 per feature, default all 1: the
-    person aims for θ* ⊙ w), ``n_candidates`` (kept for the interface: no candidates)."""
+    person aims for θ* ⊙ w), ``reach`` (the push length, units of a_max, whose best direction
+    it aims at: :func:`aim_direction`; 0, the default, the steepest ascent), ``n_candidates``
+    (kept for the interface: no candidates)."""
 
     def __init__(
         self,
@@ -325,10 +396,14 @@ class AimedModel(HumanModel):
         small_share: float = 0.0,
         small_size: float = 0.3,
         emphasis: Sequence[float] | None = None,
+        reach: float = 0.0,
         n_candidates: int = DEFAULT_CANDIDATES,
     ) -> None:
         super().__init__(task, sigma, bias, n_candidates)
         self.emphasis = check_emphasis(task, emphasis)
+        self.reach = check_fraction("reach", reach)
+        if self.reach > MAX_SIZE:
+            raise ValueError(f"reach must be a number in [0, {MAX_SIZE:g}], got {reach!r}")
         self.aim = check_fraction("aim", aim)
         if self.aim > MAX_AIM:
             raise ValueError(f"aim must be a number in [0, {MAX_AIM:g}], got {aim!r}")
@@ -360,7 +435,7 @@ class AimedModel(HumanModel):
         return {"z": rng.standard_normal((n, a + 1)), "pick": rng.random(n)}
 
     def choose(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
-        best = steepest_ascent(self.task, x, u_r, theta_star * self.emphasis)
+        best = aim_direction(self.task, x, u_r, theta_star * self.emphasis, self.reach)
         u = aimed_corrections(best, draws.extra["z"], draws.extra["pick"], **self.params())
         return u * np.asarray(self.task.action_bound, dtype=np.float64)
 
@@ -400,20 +475,22 @@ def emphasis_of(task: Task, values: dict[str, float]) -> np.ndarray:
 
 def fitted_aim_params(task: Task) -> dict[str, Any]:
     """:data:`FITTED_AIM`'s values for ``task`` as :class:`AimedModel`'s keyword arguments: its
-    study Task's (``study-taskN``), else the mean of Tasks 2 and 3 without emphasis."""
+    study Task's (``study-taskN``), else Task 3's (no emphasis: any Task's features)."""
     number = getattr(task, "number", None)
     per = FITTED_AIM["per_task"].get(f"study-task{number}") if number is not None else None
     if per is None:
-        return {k: float(FITTED_AIM["params"][k]) for k in AIM_PARAMS}
+        mean = FITTED_AIM["params"]  # Task 3's
+        return {**{k: float(mean[k]) for k in AIM_PARAMS}, "reach": float(mean["reach"])}
     values = per["estimate"]
     out: dict[str, Any] = {k: float(values[k]) for k in AIM_PARAMS}
     out["emphasis"] = emphasis_of(task, values)
+    out["reach"] = float(values.get("reach", 0.0))
     return out
 
 
 class FittedAimedModel(AimedModel):
     """The aimed person as fitted to the twelve people of the authors' study, Task by Task
-    (:data:`FITTED_AIM`); outside the study Tasks, the mean of Tasks 2 and 3. Parameters as
+    (:data:`FITTED_AIM`); outside the study Tasks, Task 3's. Parameters as
     ``aimed``; one given (not None) overrides the fit's."""
 
     def __init__(
@@ -428,10 +505,11 @@ class FittedAimedModel(AimedModel):
         small_share: float | None = None,
         small_size: float | None = None,
         emphasis: Sequence[float] | None = None,
+        reach: float | None = None,
         n_candidates: int = DEFAULT_CANDIDATES,
     ) -> None:
-        given = (aim, turn, size, size_sd, small_share, small_size, emphasis)
-        names = (*AIM_PARAMS, "emphasis")
+        given = (aim, turn, size, size_sd, small_share, small_size, emphasis, reach)
+        names = (*AIM_PARAMS, "emphasis", "reach")
         mine = {k: v for k, v in zip(names, given, strict=True) if v is not None}
         values = {**fitted_aim_params(task), **mine}
         super().__init__(task, sigma, bias, n_candidates=n_candidates, **values)
@@ -442,6 +520,7 @@ __all__ = [
     "FITTED_AIM",
     "AimedModel",
     "FittedAimedModel",
+    "aim_direction",
     "aimed_corrections",
     "check_emphasis",
     "emphasis_names",
@@ -449,5 +528,6 @@ __all__ = [
     "fitted_aim_params",
     "log_density",
     "log_direction_density",
+    "push_gradient",
     "steepest_ascent",
 ]

@@ -2,7 +2,7 @@
 the robot is off), per Task and seed; for checking that a controller change leaves ordinary
 episodes' bytes as they were.
 
-    .venv/bin/python lab/study_v2_hashes.py [--seeds 3] [--steps 400]
+    .venv/bin/python -m lab.study.study_v2_hashes [--seeds 3] [--steps 400]
 """
 
 from __future__ import annotations

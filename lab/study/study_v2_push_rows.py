@@ -1,7 +1,7 @@
 """Pushes in a row on StROL-Study-v2: the fastest joint, as a share of its speed limit, at
 every physics step (the state each ``mj_step`` starts from, read by MuJoCo's control callback).
 
-    .venv/bin/python lab/study_v2_push_rows.py [--cases 50] [--seed 0] [--task 1] [--short]
+    .venv/bin/python -m lab.study.study_v2_push_rows [--cases 50] [--seed 0] [--task 1] [--short]
 
 Each case: a study seed (episode) drawn in [20000, 30000), a start 1-4 s in, then ``--pushes``
 pushes one after another (1 s each; ``--short``: 0.2-1 s; ``--gaps``: 0-1 s apart; force 30-41
