@@ -40,7 +40,7 @@ import numpy as np
 from strol_gym import checks
 from strol_gym.envs.study.people import CORRECTIONS, FittedParams
 from strol_gym.files import loads_json, read_regular
-from strol_gym.humans.aim import aimed_corrections, fitted_aim_params, steepest_ascent
+from strol_gym.humans.aim import aim_direction, aimed_corrections, fitted_aim_params
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
@@ -356,12 +356,13 @@ def aimed_draws(
 ) -> np.ndarray:
     """Corrections (n, a) in a_max units of the aimed person fitted for ``task``'s study Task
     (``humans.aim.FITTED_AIM``) at poses ``x`` (n, s), from standard normals ``z`` (n, a + 1)
-    and uniforms ``pick`` (n,): about the steepest ascent of θ* ⊙ its emphasis."""
+    and uniforms ``pick`` (n,): about the aimed person's direction for θ* ⊙ its emphasis
+    (``humans.aim.aim_direction``, with its fitted ``reach``)."""
     kw = fitted_aim_params(task)
-    emphasis = kw.pop("emphasis")
+    emphasis, reach = kw.pop("emphasis"), kw.pop("reach")
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
     star = np.broadcast_to(np.asarray(theta_star, dtype=np.float64) * emphasis, (len(x), task.dim))
-    best = steepest_ascent(task, x, np.zeros((len(x), task.action_dim)), star)
+    best = aim_direction(task, x, np.zeros((len(x), task.action_dim)), star, reach)
     return aimed_corrections(best, z, pick, **kw)
 
 
