@@ -50,13 +50,16 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from strol_gym.envs.study.metrics import AUTHORS_DT
 from strol_gym.humans.aim import steepest_ascent
 from strol_gym.tasks.base import Task
+
+if TYPE_CHECKING:
+    from strol_gym.tasks.study import StudyTask
 
 LEARNERS = ("one", "mof", "strol")
 """The study's learners, as import-study names them."""
@@ -287,68 +290,27 @@ class AtLoggedMoments:
 
 
 class StudyPopulation:
-    """StROL-Study-v2's fitted population (``strol_gym.envs.study.population``): per (user,
-    Task) one person drawn from the shipped fit, whose budget is its corrections in each of that
-    user's sessions, pushing as the fit's participant aims and sizes
-    (``draw_corrections``, the intended push, unclipped) at the session's logged correction
-    states in turn (the Task's other sessions' where it logged none). When it pushes comes from
-    v2's arm, which this check does not run: not simulated."""
+    """StROL-Study-v2's shipped population (``strol_gym.envs.study.population.shipped``): when
+    and how often each person corrects is drawn from its timing hazard along the real session's
+    path given the plan the robot logged (:func:`reacting_sessions`); its corrections are the
+    population's (the intended push, unclipped) at the session's logged correction states in
+    turn (the Task's other sessions' where it logged none)."""
 
     decides_count = True
+    decides_when = True
     name = "population (StROL-Study-v2, fitted)"
 
-    @property
-    def decides_when(self) -> bool:  # type: ignore[override]
-        """The shipped population decides when (its timing hazard); a budgeted one does not."""
-        from strol_gym.envs.study.population import shipped
-
-        return shipped().hazard is not None
+    def __init__(self) -> None:
+        self._plans: dict[int, tuple[Session, tuple[np.ndarray, np.ndarray]]] = {}
 
     def sessions(self, real, rng):
-        from strol_gym.envs.study.population import best_correction, draw_corrections, shipped
+        from strol_gym.envs.study.population import shipped
 
-        pop = shipped()
-        if pop.hazard is not None:
-            plans = self.__dict__.setdefault("_plans", {})  # one plan per real session
-            for r in real:
-                if id(r) not in plans:
-                    plans[id(r)] = (r, logged_plan(r))
-            return reacting_sessions(pop, real, rng, {i: v[1] for i, v in plans.items()})
-        task = real[0].task
-        pool = [c for s in real for c in s.corrections]
-        people: dict[str, Any] = {}
-        out: list[list[dict[str, Any]]] = []
-        for s in real:
-            person = people.get(s.user)
-            if person is None:
-                person = people[s.user] = pop.draw(rng, s.number)
-            states = s.corrections or pool
-            if not states:
-                out.append([])
-                continue
-            n = min(int(person.budget), MAX_CORRECTIONS)
-            picked = [states[k % len(states)] for k in range(n)]
-            if not picked:
-                out.append([])
-                continue
-            x = np.stack([c["x"] for c in picked])
-            best = best_correction(task, s.theta_star, x)
-            u = draw_corrections(
-                best,
-                rng,
-                aim=person.aim,
-                size=person.size,
-                size_within=person.size_within,
-                turn=person.turn,
-                turn_within=person.turn_within,
-            ) * np.asarray(task.action_bound)
-            out.append(
-                [
-                    {**c, "u_h": ui, "theta_hat_before": None}
-                    for c, ui in zip(picked, u, strict=True)
-                ]
-            )
-        return out
+        for r in real:  # each real session's logged plan once (it plans), not per replicate
+            if id(r) not in self._plans:
+                self._plans[id(r)] = (r, logged_plan(r))
+        plans = {i: v[1] for i, v in self._plans.items()}
+        return reacting_sessions(shipped(), real, rng, plans)
 
 
 def logged_plan(s: Session) -> tuple[np.ndarray, np.ndarray]:
@@ -357,12 +319,22 @@ def logged_plan(s: Session) -> tuple[np.ndarray, np.ndarray]:
     logged)."""
     from strol_gym.humans.timing import shortfall
 
+    task = _study_task(s.task)
     rows = [c for c in s.corrections if c.get("theta_hat_after") is not None]
     hats = [s.episode.get("theta_hat0")] + [c["theta_hat_after"] for c in rows]
     if hats[0] is None:
-        hats[0] = np.asarray(s.task.prior_modes, dtype=np.float64).mean(axis=0)
+        hats[0] = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
     switches = np.array([int(c["path_sample"]) for c in rows], dtype=np.int64)
-    return switches, shortfall(s.task, s.theta_star, np.asarray(hats, dtype=np.float64))
+    return switches, shortfall(task, s.theta_star, np.asarray(hats, dtype=np.float64))
+
+
+def _study_task(task: Task) -> StudyTask:
+    """``task`` if it is a study Task, else ValueError (the population lives in them)."""
+    from strol_gym.tasks.study import StudyTask
+
+    if not isinstance(task, StudyTask):
+        raise ValueError(f"--population simulates study sessions, not {task.task_id}")
+    return task
 
 
 def reacting_sessions(
@@ -380,7 +352,7 @@ def reacting_sessions(
     from strol_gym.envs.study.population import aimed_draws
     from strol_gym.humans.timing import simulate
 
-    task = real[0].task
+    task = _study_task(real[0].task)
     pool = [c for s in real for c in s.corrections]
     out: list[list[dict[str, Any]]] = []
     for s in real:
