@@ -35,6 +35,8 @@ OWN_COMMANDS: dict[str, str] = {
     "import-study": "the authors' user-study pickles as session logs (replay them with replay)",
     "fit-human": "fit a human model to correction logs; compare models by held-out likelihood",
     "check-human": "posterior-predictive check of a simulated person against real session logs",
+    "fit-timing": "fit when the study's people corrected, given the robot's plan; check on a "
+    "held-out learner",
     "fit-participant": "fit the study population (StROL-Study-v2's participant) to imported "
     "study logs",
     "serve": "a study in the browser: people push the arm and correct the car from a web page",
@@ -201,6 +203,12 @@ def cmd_fit_participant(args: argparse.Namespace, parser: argparse.ArgumentParse
     return command(args, parser)
 
 
+def cmd_fit_timing(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.fit_timing import command
+
+    return command(args, parser)
+
+
 def cmd_serve(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.serve.cli import command
 
@@ -217,6 +225,7 @@ COMMANDS = {
     "fit-human": cmd_fit_human,
     "check-human": cmd_check_human,
     "fit-participant": cmd_fit_participant,
+    "fit-timing": cmd_fit_timing,
     "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
