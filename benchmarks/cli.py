@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import importlib.util
 import os
 import signal
 import sys
@@ -29,11 +30,13 @@ OWN_COMMANDS: dict[str, str] = {
     "list": "envs and every registry: learners, humans, Tasks, conditions",
     "replay": "feed a session log's corrections through learners (table, CSV, plot)",
     "export": "write a session log, or benchmark runs, as a Minari dataset (the [data] extra)",
-    "interact": "push the study arm yourself in MuJoCo's viewer; the robot learns (needs a "
-    "display)",
+    "interact": "push the study arm (or drive the Highway car) yourself; the robot learns "
+    "(needs a display)",
     "import-study": "the authors' user-study pickles as session logs (replay them with replay)",
     "fit-human": "fit a human model to correction logs; compare models by held-out likelihood",
     "check-human": "posterior-predictive check of a simulated person against real session logs",
+    "fit-timing": "fit when the study's people corrected, given the robot's plan; check on a "
+    "held-out learner",
     "fit-participant": "fit the study population (StROL-Study-v2's participant) to imported "
     "study logs",
     "serve": "a study in the browser: people push the arm and correct the car from a web page",
@@ -65,7 +68,7 @@ def _add_own_parser(sub: Any, name: str) -> None:
 
         serve.add_parser(sub)
     else:
-        module = name.replace("-", "_")
+        module = "interact_cli" if name == "interact" else name.replace("-", "_")
         importlib.import_module(f"strol_gym.benchmarks.sessions.{module}").add_parser(sub)
 
 
@@ -177,7 +180,7 @@ def cmd_export(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int
 
 
 def cmd_interact(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
-    from strol_gym.benchmarks.sessions.interact import command
+    from strol_gym.benchmarks.sessions.interact_cli import command
 
     return command(args, parser)
 
@@ -200,6 +203,12 @@ def cmd_fit_participant(args: argparse.Namespace, parser: argparse.ArgumentParse
     return command(args, parser)
 
 
+def cmd_fit_timing(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
+    from strol_gym.benchmarks.sessions.fit_timing import command
+
+    return command(args, parser)
+
+
 def cmd_serve(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     from strol_gym.benchmarks.serve.cli import command
 
@@ -216,6 +225,7 @@ COMMANDS = {
     "fit-human": cmd_fit_human,
     "check-human": cmd_check_human,
     "fit-participant": cmd_fit_participant,
+    "fit-timing": cmd_fit_timing,
     "import-study": cmd_import_study,
     "replay": cmd_replay,
     "interact": cmd_interact,
@@ -271,10 +281,31 @@ def _quiet_stdout() -> None:
         os.dup2(devnull, sys.stdout.fileno())
 
 
+BENCH_MODULES = ("matplotlib", "tqdm")
+"""The import names of setup.cfg's ``[bench]`` extra (tables, plots, progress bars), which the
+core install leaves out (tests/test_release.py checks they agree)."""
+
+
+def missing_bench_extra() -> str | None:
+    """None when the ``[bench]`` extra is installed, else the reason to print: checked before
+    any command, so a core install gets one line naming the extra, not an ImportError mid-run."""
+    missing = [m for m in BENCH_MODULES if importlib.util.find_spec(m) is None]
+    if not missing:
+        return None
+    return (
+        f"strol-bench needs the [bench] extra ({', '.join(missing)} not installed): "
+        "pip install 'strol-gym[bench]'"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``strol-bench`` console script. Output piped into a reader that
     stops early (``strol-bench list | head``) ends quietly, with status 0: the output is flushed
     here, where a closed pipe can be caught, not at exit."""
+    problem = missing_bench_extra()
+    if problem:
+        print(f"strol-bench: error: {problem}", file=sys.stderr)
+        return 2
     try:
         try:
             status = _main(argv)

@@ -105,7 +105,7 @@ def test_population_simulates_the_counts(logs, tmp_path):
     counts = [c for c in report["checks"] if c["statistic"].startswith("count_")]
     assert all(isinstance(c["pass"], bool) for c in counts)
     when = [c for c in report["checks"] if c["statistic"] == "when_median"]
-    assert all(c["pass"] is None for c in when)
+    assert when and all(isinstance(c["pass"], bool) for c in when)  # its timing hazard decides
 
 
 @pytest.mark.parametrize(

@@ -40,8 +40,8 @@ def test_ci_reruns_the_kernel_sensitive_tests_under_other_kernels() -> None:
     assert "grep -qw avx512f /proc/cpuinfo" in script
 
 
-def _requirements() -> dict[str, str]:
-    """setup.cfg's install_requires as {normalised name: specifier}."""
+def _requirements(*extras: str) -> dict[str, str]:
+    """setup.cfg's install_requires (and the named extras') as {normalised name: specifier}."""
     import configparser
 
     from packaging.requirements import Requirement
@@ -49,29 +49,44 @@ def _requirements() -> dict[str, str]:
 
     cfg = configparser.ConfigParser()
     cfg.read(ROOT / "setup.cfg")
-    lines = cfg["options"]["install_requires"].splitlines()
-    reqs = [Requirement(ln) for ln in (x.split("#")[0].strip() for x in lines) if ln]
+    sections = [cfg["options"]["install_requires"]]
+    sections += [cfg["options.extras_require"][extra] for extra in extras]
+    lines = [x.split("#")[0].strip() for section in sections for x in section.splitlines()]
+    reqs = [Requirement(ln) for ln in lines if ln]
     return {canonicalize_name(r.name): str(r.specifier) for r in reqs}
 
 
-def _lock() -> dict[str, str]:
+def _pins(name: str) -> dict[str, str]:
+    """A constraints file of .ci/ (the lock, or the floors) as {normalised name: version}."""
     from packaging.utils import canonicalize_name
 
-    text = (ROOT / ".ci" / "constraints.txt").read_text().splitlines()
+    text = (ROOT / ".ci" / name).read_text().splitlines()
     pins = [ln.split("==") for ln in text if ln.strip() and not ln.startswith("#")]
-    assert all(len(p) == 2 for p in pins), "the lock holds name==version lines only"
+    assert all(len(p) == 2 for p in pins), f"{name} holds name==version lines only"
     return {canonicalize_name(name): version for name, version in pins}
 
 
-def test_ranges_start_at_the_lock_and_pin_nothing():
-    """Each lower bound is the version the lock's CI leg runs; no dependency is pinned."""
-    lock = _lock()
-    for name, spec in _requirements().items():
+def _lock() -> dict[str, str]:
+    return _pins("constraints.txt")
+
+
+FLOORED_EXTRAS = ("bench", "sb3")
+"""The extras whose lower bounds .ci/oldest installs beside install_requires'."""
+
+
+def test_ranges_start_at_the_floors_and_hold_the_lock():
+    """Each lower bound (install_requires, [bench], [sb3]) is the version .ci/oldest installs
+    (.ci/oldest.txt pins exactly those); no dependency is pinned; the lock lies in the ranges."""
+    from packaging.specifiers import SpecifierSet
+
+    floors, lock = _pins("oldest.txt"), _lock()
+    requirements = _requirements(*FLOORED_EXTRAS)
+    assert set(floors) == set(requirements), "the floors pin what setup.cfg bounds, nothing else"
+    for name, spec in requirements.items():
         assert "==" not in spec, f"{name} is pinned ({spec}): declare a range"
         lower = [s[2:] for s in spec.split(",") if s.startswith(">=")]
-        assert lower == [lock[name]], (
-            f"{name}{spec}: its lower bound is not the lock's {lock[name]}"
-        )
+        assert lower == [floors[name]], f"{name}{spec}: its lower bound is not {floors[name]}"
+        assert lock[name] in SpecifierSet(spec), f"the lock's {name} {lock[name]} is not in {spec}"
 
 
 def test_setup_installs_the_lock_and_keys_its_stamp_on_it():
@@ -85,17 +100,49 @@ def test_setup_installs_the_lock_and_keys_its_stamp_on_it():
     assert ".ci/constraints.txt" in stamp and "setup.cfg" in stamp
 
 
-def test_ci_runs_the_newest_leg_with_the_lowest_torch():
-    """.ci/run ends with the newest-versions leg; it pre-installs exactly torch's lower bound,
-    installs strol-gym without the lock, and fails if torch was replaced."""
+def _torch_pin(script: str) -> str:
+    line = next(
+        ln for ln in (ROOT / ".ci" / script).read_text().splitlines() if ln.startswith("TORCH=")
+    )
+    return line.split()[0].removeprefix("TORCH=")
+
+
+def test_ci_ends_with_the_newest_release_and_oldest_legs():
     run = (ROOT / ".ci" / "run").read_text().splitlines()
-    assert run[-1] == "bash .ci/newest"
+    assert run[-3:] == ["bash .ci/newest", "bash .ci/release", "bash .ci/oldest"]
+
+
+def test_the_newest_leg_keeps_the_locks_cpu_torch():
+    """.ci/newest pre-installs exactly the lock's torch (the CPU wheel), installs strol-gym
+    without the lock, and fails if torch was replaced."""
     script = (ROOT / ".ci" / "newest").read_text()
-    torch_pin = next(ln for ln in script.splitlines() if ln.startswith("TORCH="))
-    assert torch_pin.split()[0] == "TORCH=" + _requirements()["torch"].removeprefix(">=")
+    assert _torch_pin("newest") == _lock()["torch"]
     assert 'pip install -q "torch==$TORCH"' in script
     assert "constraints" not in script.split("set -euo pipefail")[1]  # the ranges, not the lock
     assert 'if [ "$before" != "$after" ]' in script and "exit 1" in script
     for test in ("test_robot_env", "test_highway_env", "test_learners"):
         assert f"tests/{test}.py" in script
     assert 'strol-bench" paper' in script
+
+
+def test_the_oldest_leg_installs_beside_a_researchers_stack_then_at_the_floors():
+    """.ci/oldest: the wheel into a venv holding torch (the floor's) and numpy 2.2, with a
+    constraints file pinning both, fails if either moved; then every floor of .ci/oldest.txt,
+    checked installed, under the core tests and a paper run."""
+    script = (ROOT / ".ci" / "oldest").read_text()
+    assert _torch_pin("oldest") == _pins("oldest.txt")["torch"]
+    numpy = next(ln for ln in script.splitlines() if ln.startswith("NUMPY="))
+    assert numpy.split()[0].removeprefix("NUMPY=").startswith("2.2.")
+    assert '-c "$tmp/stack.txt" "$wheel"' in script
+    assert "-c .ci/oldest.txt" in script and "not at the floor" in script
+    for test in ("test_robot_env", "test_highway_env", "test_learners", "test_vector_envs"):
+        assert f"tests/{test}.py" in script
+    assert 'strol-bench" paper' in script
+
+
+def test_the_release_leg_builds_checks_and_smoke_tests_the_wheel():
+    script = (ROOT / ".ci" / "release").read_text()
+    assert _torch_pin("release") == _lock()["torch"]
+    for step in ("-m build", "twine check --strict dist/*", ".ci/check_dist.py dist", "smoke.py"):
+        assert step in script
+    assert 'grep -q "strol-gym\\[bench\\]"' in script  # strol-bench without [bench]: status 2

@@ -154,6 +154,8 @@ def test_the_unfolding_pickle_is_refused_fast_in_little_memory(tmp_path, capsys)
     raw = _unfolding_pickle()
     assert len(raw) < 400
     (folder / "data.pkl").write_bytes(raw)
+    from strol_gym.benchmarks.sessions import import_study  # noqa: F401  (imported: not timed)
+
     t0 = time.monotonic()
     err = cli_error(["import-study", str(root), "--out", str(tmp_path / "out")], capsys)
     assert time.monotonic() - t0 < 10
@@ -197,6 +199,8 @@ def exported(tmp_path) -> Path:
     folder = tmp_path / "base"
     (folder / "data").mkdir(parents=True)
     meta = {"observation_space": BOX, "action_space": BOX, "total_episodes": 1}
+    meta.update(data_format="hdf5", total_steps=3, dataset_id="strol/kinds-v0")
+    meta["minari_version"] = minari.__version__  # Minari goes on to open main_data.hdf5
     (folder / "data" / "metadata.json").write_text(json.dumps(meta))
     with h5py.File(folder / "data" / "main_data.hdf5", "w") as f:
         f.create_group("episode_0").create_dataset("actions", data=np.zeros((3, 2)))
@@ -214,6 +218,8 @@ def test_replay_of_a_dataset_whose_hdf5_file_is_a_fifo_exits_2_at_once(exported,
     data = folder / "data" / "main_data.hdf5"
     data.unlink()
     os.mkfifo(data)
+    from strol_gym.benchmarks.sessions import export, replay  # noqa: F401  (imported: not timed)
+
     t0 = time.monotonic()
     err = cli_error(
         ["replay", str(folder), "--learners", "strol", "--out", str(tmp_path / "r"), "--no-plots"],
@@ -273,3 +279,17 @@ def test_a_memory_error_in_a_reader_is_one_line(exported, tmp_path, monkeypatch,
         ["replay", str(exported), "--learners", "strol", "--out", str(tmp_path / "r")], capsys
     )
     assert "out of memory" in err
+
+
+def test_the_study_servers_plan_and_consent_are_read_as_regular_files_only(tmp_path):
+    from strol_gym.benchmarks.serve.plan import load_plan
+
+    fifo = tmp_path / "plan.json"
+    os.mkfifo(fifo)
+    with pytest.raises(files.NotAFile, match=f"--study {fifo} is a FIFO"):
+        load_plan(fifo)
+    plan = tmp_path / "ok.json"
+    plan.write_text(json.dumps({"name": "kinds", "consent": "consent.txt"}))
+    os.mkfifo(tmp_path / "consent.txt")
+    with pytest.raises(files.NotAFile, match=r"consent\.txt is a FIFO"):
+        load_plan(plan)

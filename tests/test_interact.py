@@ -17,7 +17,12 @@ import numpy as np
 import pytest
 
 from strol_gym.benchmarks.cli import main
-from strol_gym.benchmarks.sessions.interact import run_interactive
+from strol_gym.benchmarks.sessions.interact import (
+    DRAG_STIFFNESS,
+    Drag,
+    panel_text,
+    run_interactive,
+)
 from strol_gym.envs.study.segment import PushSegmenter
 from strol_gym.envs.study.versions import HOLD_OFF
 from strol_gym.tasks.study import CONTROL_DT
@@ -29,13 +34,27 @@ HOLD_STEPS = PushSegmenter.for_hold_off(15.0, HOLD_OFF, CONTROL_DT).hold_steps
 
 
 class FakeViewer:
-    """Pushes the hand with ``force`` N during syncs [start, start + steps)."""
+    """Drags the cup with ``force`` N during syncs [start, start + steps): the drag's point is
+    put ``force / DRAG_STIFFNESS`` m from the cup, as a mouse leaves it; ``held``: keys."""
 
-    def __init__(self, model, data, force=(0.0, 30.0, 0.0), start=PUSH_START, steps=PUSH_STEPS):
-        self.data = data
-        self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
+    def __init__(
+        self,
+        model,
+        data,
+        force=(0.0, 30.0, 0.0),
+        start=PUSH_START,
+        steps=PUSH_STEPS,
+        held=(),
+        azimuth=150.0,
+        held_steps=None,
+    ):
+        self.model, self.data = model, data
+        self.site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "cup")
         self.force = np.asarray(force, dtype=float)
         self.window = range(start, start + steps)
+        self.held = frozenset(held)
+        self.held_steps = held_steps  # syncs during which ``held`` is held (None: always)
+        self.camera = azimuth
         self.syncs = 0
         self.texts = None
         self.history = []
@@ -44,12 +63,33 @@ class FakeViewer:
         self.show_target = False  # the F8 key
         self.show_panel = True  # the F9 key
         self.closed = False
+        self.lost = ""
+        self.want_cup = False
+        self.selected = (0, np.zeros(3))
+        self.active, self.ref = 0, np.zeros(3)
 
     def sync(self) -> None:
         self.data.xfrc_applied[:] = 0.0
+        self.active = 0
         if self.syncs in self.window:
-            self.data.xfrc_applied[self.body, :3] = self.force
+            self.active = int(mujoco.mjtPertBit.mjPERT_TRANSLATE)
+            self.ref = self.data.site_xpos[self.site] + self.force / DRAG_STIFFNESS
         self.syncs += 1
+
+    def drag(self) -> Drag:
+        body, local = self.selected
+        return Drag(body, self.active, self.ref.copy(), np.array([1.0, 0, 0, 0]), local)
+
+    def select(self, body, localpos) -> None:
+        self.selected = (body, np.array(localpos))
+
+    def held_keys(self):
+        if self.held_steps is None or self.syncs in self.held_steps:
+            return self.held
+        return frozenset()
+
+    def azimuth(self) -> float:
+        return self.camera
 
     def is_running(self) -> bool:
         return not self.closed
@@ -119,9 +159,9 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     np.testing.assert_allclose(info["theta_hat"], rec["theta_hat_after"])
     assert lines[-1]["type"] == "end" and lines[-1]["reason"] == "max_steps"
     # the overlay shows the correction time; blind (the default), no θ̂ or φ
-    text = viewer.texts[0]
-    assert "correction time: 1.00 s" in text[2]
-    assert "theta_hat" not in text[2] and "pitcher:" not in text[2]
+    shown = "\n".join(t[2] + t[3] for t in viewer.texts)
+    assert "correction time 1.00 s" in panel_text(viewer.texts)
+    assert "theta_hat" not in shown and "pitcher:" not in shown
     assert lines[-1]["interrupted"] is False
 
 
@@ -130,10 +170,12 @@ def test_panel_tells_how_to_push_what_to_teach_and_cues_the_correction(session):
     from strol_gym.tasks.study import StudyTask1
 
     log, _, viewer = session
-    how = viewer.texts[0][2]
+    how = panel_text(viewer.texts)
     task = StudyTask1()
-    assert "Ctrl + right-drag" in how and "15 N" in how and "100 N the arm brakes" in how
-    assert how.endswith("TEACH: " + teach_words(task.feature_names, task.theta_star))
+    assert "Ctrl + right-drag" in how and ">15 N a correction" in how and ">100 N" in how
+    assert "W/S A/D E/Q push away/back" in how and "END close the window" in how
+    assert how.endswith("TEACH " + teach_words(task.feature_names, task.theta_star))
+    assert all(len(t[2]) <= 500 and len(t[3]) <= 500 for t in viewer.texts)  # mjMAXOVERLAY
     # the panel stays in the top corners: the table, pitcher and plate below stay in view
     grids = {t[1] for texts in viewer.history for t in texts}
     assert grids <= {mujoco.mjtGridPos.mjGRID_TOPLEFT, mujoco.mjtGridPos.mjGRID_TOPRIGHT}
@@ -174,7 +216,7 @@ def test_bad_log_names_file_and_line(session, tmp_path, capsys):
     log, _, _ = session
     lines = log.read_text().splitlines()
     bad = tmp_path / "bad.jsonl"
-    rec = json.loads(lines[2])
+    rec = next(json.loads(t) for t in lines if '"type": "correction"' in t)
     rec["u_h"] = [1.0, "x", 0.0]
     bad.write_text("\n".join([lines[0], lines[1], json.dumps(rec)]) + "\n")
     with pytest.raises(SessionLogError, match=rf"{bad}:3: 'u_h'"):
@@ -301,22 +343,26 @@ def _run(tmp_path, name, **kwargs):
 
 
 def test_a_shove_above_the_reflex_shows_on_the_panel_and_is_logged(tmp_path):
-    viewers, factory, path = _run(tmp_path, "shove", force=(0.0, 250.0, 0.0), steps=6)
+    """A long drag with Shift (harder) held: the drag's 250 N is capped at 1.25 x the reflex,
+    125 N, above the reflex: the arm brakes."""
+    viewers, factory, path = _run(
+        tmp_path, "shove", force=(0.0, 250.0, 0.0), steps=6, held={"shift"}
+    )
     _, info = run_interactive(
         task=1, log=path, max_steps=30, realtime=False, viewer_factory=factory
     )
     (viewer,) = viewers
     assert info["corrections"] == 0 and info["reflexes"] == 1
     lines = [json.loads(t) for t in path.read_text().splitlines()]
-    (event,) = [r for r in lines if r["type"] == "event"]
+    (event,) = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
     assert event["kind"] == "reflex" and event["reflex_force"] == 100.0
-    np.testing.assert_allclose(event["force"], [0.0, 250.0, 0.0])
+    np.testing.assert_allclose(event["force"], [0.0, 125.0, 0.0])
     assert event["step"] == PUSH_START
     assert not any(r["type"] == "correction" for r in lines)
     read_session(path)  # the reader takes event lines
     cues = ["\n".join(t[2] for t in texts[1:]) for texts in viewer.history]
     too_hard = [k for k, c in enumerate(cues) if "TOO HARD: the arm braked, no correction" in c]
-    assert too_hard[0] == PUSH_START and "(250 N > 100 N)" in cues[PUSH_START]
+    assert too_hard[0] == PUSH_START and "(125 N > 100 N)" in cues[PUSH_START]
     assert not any("PUSH COUNTS" in c for c in cues)
 
 
@@ -333,7 +379,7 @@ def test_a_push_a_joint_cannot_bear_brakes_below_the_force_reflex_and_the_panel_
     )
     (viewer,) = viewers
     assert info["corrections"] == 0 and info["reflexes"] == 1
-    assert JOINT_LIMIT in viewer.texts[0][2]
+    assert JOINT_LIMIT in panel_text(viewer.texts)
     cue = "\n".join(t[2] for t in viewer.history[PUSH_START][1:])
     assert "TOO HARD" in cue and "(60 N: a joint's limit)" in cue and "> 100 N" not in cue
 
@@ -348,8 +394,8 @@ def test_blind_by_default_and_the_panel_toggles(tmp_path):
         run_interactive(
             task=1, log=path, max_steps=3, realtime=False, viewer_factory=factory, blind=blind
         )
-        panel = viewers[0].texts[0][2]
-        assert ("theta_hat / phi" in panel) is (not blind)
+        shown = "\n".join(t[2] for t in viewers[0].texts)
+        assert ("theta_hat" in shown and " / phi " in shown) is (not blind)
         assert read_session(path).episodes[0].theta_hat0 is not None
         assert json.loads(path.read_text().splitlines()[0])["extra"]["interact"]["blind"] is blind
     viewers, factory, path = _run(tmp_path, "hidden", steps=0)
@@ -371,3 +417,141 @@ def test_our_keys_are_free_in_the_viewer():
     assert set("ABCDEFGHIJKLMNOPQRSTUVWXYZ") <= letters  # no letter is free
     glfw_f1 = 290
     assert {TARGET_KEY - glfw_f1 + 1, PANEL_KEY - glfw_f1 + 1} == {8, 9}  # F8, F9 (F1-F7 used)
+
+
+def _angle(a, b) -> float:
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    cos = np.dot(a, b) / np.linalg.norm(a) / np.linalg.norm(b)
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+@pytest.mark.parametrize("azimuth", [150.0, 60.0])
+def test_a_key_push_is_one_correction_where_the_camera_looks(tmp_path, azimuth):
+    """W held 1.5 s: the push grows like a hand's to 40 N away from the camera (laid flat on the
+    table), the panel shows its size, and it becomes one correction whose u_H points within
+    30 degrees of W's direction, whichever way the camera looks."""
+    from strol_gym.benchmarks.sessions.keys import camera_axes
+
+    viewers, factory, path = _run(
+        tmp_path, "w", steps=0, held={"w"}, held_steps=range(5, 35), azimuth=azimuth
+    )
+    _, info = run_interactive(
+        task=1, log=path, max_steps=60, realtime=False, viewer_factory=factory
+    )
+    (c,) = read_session(path).episodes[0].corrections
+    away = camera_axes(azimuth)[:, 1]
+    assert _angle(c["u_h"], away) < 30.0, (c["u_h"], away)
+    lines = [json.loads(t) for t in path.read_text().splitlines()]
+    force = np.array(next(r for r in lines if r["type"] == "correction")["trace"]["force"])
+    sizes = np.linalg.norm(force, axis=1)
+    assert sizes.max() == pytest.approx(40.0) and sizes[0] < 40.0  # it grew to 40 N
+    assert all(_angle(f, away) < 1e-6 for f in force[sizes > 0])
+    panels = [panel_text(texts) for texts in viewers[0].history]
+    assert any("key push 40 N, 0.0 N m" in p for p in panels)
+    assert info["corrections"] == 1 and info["reflexes"] == 0
+
+
+def test_duration_is_the_step_limit_and_the_end_line_says_time_up(tmp_path):
+    """--duration 100 lasts 100 simulated seconds (the registered limit, 60 s, no longer ends it
+    first); the end line says "time up" with the simulated time."""
+    viewers, factory, path = _run(tmp_path, "d", steps=0)
+    _, info = run_interactive(
+        task=1, log=path, duration=100.0, realtime=False, viewer_factory=factory
+    )
+    end = json.loads(path.read_text().splitlines()[-1])
+    assert end["type"] == "end" and end["reason"] == "time up" and info["end_reason"] == "time up"
+    assert end["steps"] == 2000 and end["sim_time"] == pytest.approx(100.0)
+    assert "time 100.0 s of 100 s" in panel_text(viewers[0].texts)
+
+
+def test_sigterm_ends_the_session_with_its_reason_and_130(tmp_path, monkeypatch, capsys):
+    """SIGTERM (a terminal closed, a job stopped) writes the end line, as Ctrl-C does."""
+    import os
+    import signal
+
+    from strol_gym.benchmarks.sessions import interact
+
+    class Terminated(FakeViewer):
+        def sync(self):
+            super().sync()
+            if self.syncs == 5:
+                os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.setattr(interact, "passive_viewer", Terminated)
+    log = tmp_path / "t.jsonl"
+    assert cli(["interact", "--task", "1", "--fast", "--log", str(log)]) == 130
+    end = json.loads(log.read_text().splitlines()[-1])
+    assert end["reason"] == "terminated" and end["interrupted"] is True
+    assert end["steps"] >= 4 and end["sim_time"] == pytest.approx(end["steps"] * CONTROL_DT)
+    out = capsys.readouterr()
+    assert "session ended: terminated" in out.out and "interrupted:" in out.err
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # put back
+
+
+def test_each_mode_has_its_own_help(capsys):
+    for argv, words in (
+        (["interact", "--help"], "Push the study arm"),
+        (["interact", "arm", "--help"], "Push the study arm"),
+        (["interact", "car", "--help"], "Drive the blue (human) car"),
+        (["interact", "--env", "highway", "--help"], "Drive the blue (human) car"),
+    ):
+        assert cli(argv) == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert words in text and "END:" in text and "LOG:" in text, argv
+    assert cli(["interact", "car", "--env", "robot", "--task", "9"]) == 2
+
+
+def test_a_gamepad_push_is_one_correction(tmp_path):
+    """The left stick pushed forward (the standard mapping's axis 1 at -1) for 1.5 s: one
+    correction away from the camera, as W gives."""
+    from strol_gym.benchmarks.sessions.keys import Pad, camera_axes
+
+    steps = iter(range(10_000))
+
+    def pad():
+        k = next(steps)
+        return Pad.of([0.0, -1.0 if 5 <= k < 35 else 0.0, 0.0, 0.0], [0.0] * 17)
+
+    _, factory, path = _run(tmp_path, "pad", steps=0)
+    _, info = run_interactive(
+        task=1, log=path, max_steps=60, realtime=False, viewer_factory=factory, pad=pad
+    )
+    (c,) = read_session(path).episodes[0].corrections
+    assert _angle(c["u_h"], camera_axes(150.0)[:, 1]) < 30.0, c["u_h"]
+    assert info["corrections"] == 1
+
+
+def test_a_drag_pushes_by_its_length_in_metres_from_mujocos_own_perturbation():
+    """MuJoCo's mjv_initPerturb on the cup gives no push; then 5 cm of drag = 20 N along it,
+    0.1 rad of turn = 3 N m about it (Task 2), a 50 cm drag stops at the cap."""
+    from strol_gym.benchmarks.sessions.interact import drag_wrench, session_env
+
+    env = session_env(2)
+    env.reset(seed=1)
+    m, d = env.unwrapped.model, env.unwrapped.data
+    site = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
+    body = int(m.site_bodyid[site])
+    cam, opt, pert = mujoco.MjvCamera(), mujoco.MjvOption(), mujoco.MjvPerturb()
+    scn = mujoco.MjvScene(m, 1000)
+    mujoco.mjv_defaultFreeCamera(m, cam)
+    mujoco.mjv_updateScene(m, d, opt, pert, cam, mujoco.mjtCatBit.mjCAT_ALL, scn)
+    pert.select, pert.localpos[:] = body, m.site_pos[site]
+    mujoco.mjv_initPerturb(m, d, scn, pert)
+    both = int(mujoco.mjtPertBit.mjPERT_TRANSLATE) | int(mujoco.mjtPertBit.mjPERT_ROTATE)
+
+    def push(refselpos, refquat):
+        drag = Drag(body, both, np.array(refselpos), np.array(refquat), pert.localpos.copy())
+        return drag_wrench(m, d, drag, site, True, (80.0, 8.0))
+
+    force, torque = push(pert.refselpos, pert.refquat)
+    np.testing.assert_allclose(np.r_[force, torque], 0.0, atol=1e-9)
+    force, _ = push(pert.refselpos + np.array([0.05, 0.0, 0.0]), pert.refquat)
+    np.testing.assert_allclose(force, [20.0, 0.0, 0.0], atol=1e-9)
+    turned = np.zeros(4)
+    mujoco.mju_mulQuat(turned, [np.cos(0.05), 0.0, 0.0, np.sin(0.05)], pert.refquat)
+    _, torque = push(pert.refselpos, turned)
+    np.testing.assert_allclose(torque, [0.0, 0.0, 3.0], atol=1e-6)
+    force, _ = push(pert.refselpos + np.array([0.0, 0.5, 0.0]), pert.refquat)
+    np.testing.assert_allclose(force, [0.0, 80.0, 0.0], atol=1e-9)
+    env.close()

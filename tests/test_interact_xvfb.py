@@ -1,5 +1,5 @@
 """strol-bench interact under Xvfb with a scripted person: MuJoCo's real passive viewer, a
-wrench sequence written on the arm after each ``sync`` (as the mouse's perturbation is), the
+drag of the cup read after each ``sync`` (as the mouse's perturbation is), the
 panel read back through the front end, the plan's spheres found in the viewer's user scene, and
 Ctrl-C (a real SIGINT) ending a session cleanly."""
 
@@ -42,24 +42,32 @@ out = {"texts": [], "plans": []}
 
 
 class ScriptedPerson(interact._Passive):
-    # The real viewer; after each sync the person's push is written where the mouse's goes.
+    # The real viewer; during the push the drag's point is put where the mouse would leave
+    # it for FORCE N along +y (the cup is selected at the start).
 
     def __init__(self, model, data):
         super().__init__(model, data)
-        self.model, self.data, self.k = model, data, 0
-        self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
+        self.model, self.data, self.k, self.pushing = model, data, 0, False
+        self.cup = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "cup")
 
     def sync(self):
         super().sync()
-        if START <= self.k < START + STEPS:
-            self.data.xfrc_applied[self.body, :3] = (0.0, FORCE, 0.0)
+        self.pushing = START <= self.k < START + STEPS
         self.k += 1
         if self.k == START + STEPS + 10:
             ready_path.write_text(str(os.getpid()))
 
+    def drag(self):
+        d = super().drag()
+        if not self.pushing:
+            return d
+        ref = self.data.site_xpos[self.cup] + np.array([0.0, FORCE, 0.0]) / interact.DRAG_STIFFNESS
+        translate = int(mujoco.mjtPertBit.mjPERT_TRANSLATE)
+        return interact.Drag(d.select, translate, ref, d.refquat, d.localpos)
+
     def set_texts(self, texts):
         super().set_texts(texts)
-        out["texts"].append([t[2] for t in self.texts])  # read back from the front end
+        out["texts"].append([interact.panel_text(self.texts)] + [t[2] for t in self.texts[1:]])
 
     def draw_plan(self, points, target=None):
         super().draw_plan(points, target)
@@ -108,7 +116,7 @@ def test_scripted_person_sees_the_panel_the_plan_and_the_correction_cue(tmp_path
     task = StudyTask1V2()
     how = seen["texts"][0][0]
     assert "Ctrl + right-drag" in how
-    assert how.endswith("TEACH: " + teach_words(task.feature_names, task.theta_star))
+    assert how.endswith("TEACH " + teach_words(task.feature_names, task.theta_star))
     cues = ["\n".join(t[1:]) for t in seen["texts"]]
     assert [k for k, t in enumerate(cues) if "PUSH COUNTS: 30 N" in t] == list(
         range(PUSH_START, PUSH_START + PUSH_STEPS)

@@ -104,6 +104,8 @@ def test_push_stays_below_the_reflex_unless_harder():
         w = push.step(harder, 0.05, 0.0)
     assert w.harder and w.size == pytest.approx(1.25 * 45.0)
     assert w.torque_size == pytest.approx(1.25 * 5.0)
+    assert push.ceiling(False) == pytest.approx((36.0, 4.0))  # a drag's cap
+    assert push.ceiling(True) == pytest.approx((56.25, 6.25))
     no_reflex = ArmPush()
     for _ in range(10):
         w = no_reflex.step(keys.arm_intent(["q"]), 0.05, 0.0)

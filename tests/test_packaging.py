@@ -10,6 +10,7 @@ file, so nothing is downloaded.
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -25,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # what a clean clone does not have: build products, caches, venvs and results
 NOT_IN_A_CLONE = shutil.ignore_patterns(
     ".git", ".venv", "build", "dist", "*.egg-info", "__pycache__", ".pytest_cache",
-    ".ruff_cache", ".hypothesis", "results", "outputs",
+    ".ruff_cache", ".mypy_cache", ".hypothesis", "results", "outputs",
 )  # fmt: skip
 
 
@@ -135,15 +136,19 @@ def test_the_wheel_carries_licence_citation_changelog_and_no_pickled_weights(whe
         assert f"{data}/data/share/doc/strol-gym/{doc}" in names, doc
         assert wheel.read(f"{data}/data/share/doc/strol-gym/{doc}") == (ROOT / doc).read_bytes()
     assert not [n for n in names if n.endswith((".pt", ".pth", ".pkl"))]
+    assert {n.split("/")[0] for n in names} == {"strol_gym", info, data}  # no lab/, no results/
     weights = [n for n in names if n.startswith("strol_gym/pretrained/")]
     assert len([n for n in weights if n.endswith(".safetensors")]) >= 6
     assert {n.rsplit(".", 1)[1] for n in weights} == {"safetensors", "json"}
     metadata = wheel.read(f"{info}/METADATA").decode().splitlines()
     assert "License-Expression: MIT" in metadata and "License-File: LICENSE" in metadata
     assert not [ln for ln in metadata if ln.startswith(("License:", "Classifier: License"))]
-    assert "Requires-Dist: safetensors>=0.8.0" in metadata
     core = [ln for ln in metadata if ln.startswith("Requires-Dist:") and "extra ==" not in ln]
     assert core and not [ln for ln in core if "==" in ln]  # ranges, not pins
+    required = {re.split(r"[<>=!~; ]", ln.removeprefix("Requires-Dist: "))[0] for ln in core}
+    assert {"numpy", "torch", "gymnasium", "mujoco", "safetensors"} <= required
+    # the lean core: the benchmark's, the adapter's and the video's packages are extras
+    assert not required & {"matplotlib", "tqdm", "imageio", "stable-baselines3", "numba", "ray"}
 
 
 def test_editable_and_wheel_installs_have_one_code_fingerprint(wheel_install):

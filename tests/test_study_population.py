@@ -46,7 +46,9 @@ def test_v2_default_participant_is_the_fitted_population():
     assert env.unwrapped.participant == "fitted"
     assert isinstance(human, FittedParticipant)
     for name, entry in shipped["prior"].items():  # the priors, read back
-        assert getattr(human.params, name) == entry["value"]
+        if name != "ramp":  # the shipped population's push rises as the real ones logged
+            assert getattr(human.params, name) == entry["value"]
+    assert human.params.ramp == pop.rise and human.params.correction == "aimed"
     env.close()
     # the between-person distribution read back: draws recover the file's log means and sds
     rng = np.random.default_rng(0)
@@ -56,7 +58,10 @@ def test_v2_default_participant_is_the_fitted_population():
         mean, sd = pop.fitted[f"{key}_log_mean"], pop.fitted[f"{key}_log_sd"]
         assert abs(logs.mean() - mean) < 4 * sd / math.sqrt(len(logs)) + 1e-12
         assert abs(logs.std() - sd) < 0.1 * sd + 1e-12
-    budgets = np.array([p.budget for p in people])
+    assert pop.hazard is not None and all(p.hazard == pop.hazard[3] for p in people)
+    # without a timing fit the population keeps the learner-independent budget
+    budgeted = population.read_fit(population.FIT_FILE)
+    budgets = np.array([budgeted.draw(rng, 3).budget for _ in range(4000)])
     assert abs(budgets.mean() - pop.count_mean[3]) < 4 * math.sqrt(pop.count_mean[3] / 4000)
 
 
@@ -66,7 +71,7 @@ def test_two_users_draw_different_people_and_a_seed_the_same():
     for seed in (11, 12, 11):
         env.reset(seed=seed)
         p = env.unwrapped.human.params
-        drawn.append((p.size, p.turn, p.aim, p.linger, p.budget))
+        drawn.append((p.size, p.turn, p.aim, p.linger, p.hazard))
     env.close()
     assert drawn[0] != drawn[1]
     assert drawn[0] == drawn[2]
@@ -135,7 +140,7 @@ def test_no_rebounds_on_v2():
         env = _v2(task=task, duration=25.0)
         env.reset(seed=seed)
         env.unwrapped.human.params = FittedParams(
-            **{**env.unwrapped.human.params.__dict__, "budget": 6}
+            **{**env.unwrapped.human.params.__dict__, "budget": 6, "hazard": None}
         )
         zero = np.zeros(env.action_space.shape, dtype=np.float32)
         truncated, recs = False, []
@@ -217,6 +222,8 @@ def test_v2_ghat_trained_on_the_fitted_population(kind):
         training = learner.checkpoint_meta["training"]
         assert training["human"].endswith("population:FittedPopulationModel")
         assert training["sigma"] == 0.0
+        # trained on the shipped population's own corrections
+        assert training["human_kwargs"]["correction"] == population.SHIPPED_CORRECTION
     v1 = make_learner(kind, task=make_task("study-task1-v1"))
     assert v1.checkpoint.endswith(f"study1-v1_{kind}.safetensors")
 
@@ -287,3 +294,32 @@ def test_read_scale_is_the_median_read_over_the_median_meant():
     task1 = [{"sizes": {"read": [(0.5, 0.0)], "intended": [(1.0, 0.0)]}}]
     assert read_scale(task1) == pytest.approx([0.5, 1.0])  # no turns: rotation left at 1
     assert read_scale([{"sizes": {"read": [], "intended": []}}]) is None
+
+
+def test_the_aimed_population_pushes_and_trains_with_one_model():
+    """The shipped person's corrections and the ĝ training human's (``correction="aimed"``)
+    are the aimed person's draws (``population.aimed_draws``); a bad model name is refused."""
+    task = STUDY_TASKS_V2[2]()
+    n = 8
+    x = np.tile(task.start, (n, 1))
+    star = np.tile(task.theta_star, (n, 1))
+    model = population.FittedPopulationModel(task, read_scale=(0.5, 2.0), correction="aimed")
+    u = model.correct(x, np.zeros((n, 6)), star, np.random.default_rng(4))
+    draws = model.draw(np.random.default_rng(4), n)
+    meant = population.aimed_draws(
+        task, task.theta_star, x, draws.extra["z"][:, :7], draws.extra["pick"]
+    )
+    np.testing.assert_allclose(u[:, :3], 0.5 * meant[:, :3] * task.action_bound[:3])
+    np.testing.assert_allclose(u[:, 3:], 2.0 * meant[:, 3:] * task.action_bound[3:])
+    person = FittedParticipant(
+        task, task.theta_star, np.random.default_rng(5), params=FittedParams(correction="aimed")
+    )
+    rng = np.random.default_rng(5)
+    expect = population.aimed_draws(
+        task, task.theta_star, task.start, rng.standard_normal((1, 7)), rng.random(1)
+    )[0]
+    np.testing.assert_allclose(person.act(task.start, np.zeros(6)), expect * task.action_bound)
+    with pytest.raises(ValueError, match="correction must be one of"):
+        population.FittedPopulationModel(task, correction="nope")
+    with pytest.raises(ValueError, match=r"user_kwargs\['correction'\]"):
+        FittedParams(correction="nope")

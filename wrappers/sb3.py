@@ -25,7 +25,13 @@ from typing import Any
 
 import numpy as np
 from gymnasium.vector import VectorEnv, VectorWrapper
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+
+try:
+    from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+except ImportError as e:  # an extra, not the core: say which
+    raise ImportError(
+        "strol_gym.wrappers.sb3 needs stable-baselines3: pip install 'strol-gym[sb3]'"
+    ) from e
 
 AUTORESET_MODES = ("NextStep", "SameStep")
 """The gymnasium autoreset modes the adapter bridges (``DISABLED`` leaves resets to the user)."""

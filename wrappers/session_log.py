@@ -19,7 +19,9 @@ Format (JSON Lines, UTF-8, one object per line, ``"type"`` says which):
   reflex, which braked it and made no correction), ``time``, ``step``, and what the kind
   carries (a reflex: ``force``, ``torque``, ``reflex_force``). Readers of corrections skip them.
 - ``end`` (optional): ``steps``, ``corrections``, ``theta_hat``, ``error``, ``cos_error``,
-  ``regret``, ``reason``, ``interrupted`` (true when the person stopped it with Ctrl-C).
+  ``regret``, ``reason``, ``interrupted`` (true when the person stopped it with Ctrl-C),
+  ``sim_time`` (simulated seconds, or null where the env reports no ``info["time"]``), and
+  anything a front end adds (a person session: ``reflexes``).
 
 Each line is flushed and fsynced when written, so a crash loses at most the correction under
 way. :func:`read_session` validates a file and names the file and line of the first bad one.
@@ -128,8 +130,17 @@ class SessionLogger(gym.Wrapper):
     be replayed. A multi-step correction's ``info["correction_record"]`` adds the wrench trace.
     """
 
-    def __init__(self, env: gym.Env, path: str | Path, extra: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        env: gym.Env,
+        path: str | Path,
+        extra: dict[str, Any] | None = None,
+        auto_end: bool = True,
+    ) -> None:
+        """``auto_end`` false: an episode's end writes no ``end`` line; the front end writes it
+        with its own reason (``end_session``)."""
         super().__init__(env)
+        self.auto_end = auto_end
         learning = _unwrap_learning(env)
         saved = getattr(learning, "_saved_kwargs", {})
         learner = saved.get("learner", learning.learner)
@@ -199,15 +210,19 @@ class SessionLogger(gym.Wrapper):
             )
             self._index += 1
         self._x = np.asarray(obs["state"], dtype=np.float64).copy()
-        if terminated or truncated:
+        if (terminated or truncated) and self.auto_end:
             self.end_session("truncated" if truncated else "terminated", info)
         return obs, reward, terminated, truncated, info
 
     def end_session(
-        self, reason: str, info: dict[str, Any] | None = None, interrupted: bool = False
+        self,
+        reason: str,
+        info: dict[str, Any] | None = None,
+        interrupted: bool = False,
+        **extra: Any,
     ) -> None:
         """Write the ``end`` line (once per episode end, or when a front end stops early;
-        ``interrupted``: the person stopped it with Ctrl-C)."""
+        ``interrupted``: the person stopped it with Ctrl-C; ``extra``: more fields)."""
         info = info or {}
         self.writer.end(
             reason=reason,
@@ -218,6 +233,8 @@ class SessionLogger(gym.Wrapper):
             error=info.get("error"),
             cos_error=info.get("cos_error"),
             regret=info.get("regret"),
+            sim_time=info.get("time"),
+            **extra,
         )
 
     def close(self) -> None:

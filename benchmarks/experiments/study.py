@@ -34,7 +34,12 @@ from strol_gym.benchmarks.analysis.report import (
     robust_legend,
 )
 from strol_gym.benchmarks.analysis.stats import mark_legend
-from strol_gym.benchmarks.args import nonneg_int, positive_int
+from strol_gym.benchmarks.args import (
+    check_learner_names,
+    learner_list,
+    nonneg_int,
+    positive_int,
+)
 from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.episodes import regret_inputs
@@ -148,7 +153,16 @@ def study_config(
     exps = tuple(
         Experiment(study_env(t, version, participant), USERS, runs=users, seed=seed) for t in tasks
     )
-    return BenchConfig(exps, tuple(learners), REFERENCE_LEARNER, BLOCK)
+    learners = tuple(dict.fromkeys(learners))
+    if not learners:
+        raise ValueError("--learners must name at least one learner")
+    reference = REFERENCE_LEARNER if REFERENCE_LEARNER in learners else learners[0]
+    return BenchConfig(exps, learners, reference, BLOCK)
+
+
+def h3_evaluable(learners: Sequence[str]) -> bool:
+    """Whether H3 can be tested: StROL, One and MOF all ran."""
+    return all(name in learners for name in POOLED_LEARNERS)
 
 
 def _task_of(env: str) -> int:
@@ -343,7 +357,8 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
     write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
-    verd = h3_verdicts(a)
+    h3 = h3_evaluable(rd.config.learners)
+    verd = h3_verdicts(a) if h3 else []
     anova = [
         f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: {_anova_text(r)}"
         for r in a.anova
@@ -362,9 +377,17 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
         "",
         *anova,
         "",
-        "H3 verdicts (StROL vs One and MOF; Holm-corrected paired t-tests, α = 0.05):",
-        "",
     ]
+    if h3:
+        md += [
+            "H3 verdicts (StROL vs One and MOF; Holm-corrected paired t-tests, α = 0.05):",
+            "",
+        ]
+    else:
+        md.append(
+            "H3 was not evaluated: it compares StROL with One and MOF, and the learners run "
+            f"were {', '.join(rd.config.learners)}."
+        )
     for v in verd:
         md.append(f"- **Task {v['task']}: {v['verdict']}**")
         md += [f"  - {d}" for d in v["details"]]
@@ -373,13 +396,15 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     pooled = [
         pooled_tests(records, envs, POOLED_LEARNERS, m)
         for m in POOLED_METRICS
-        if any(m in r for r in records)
+        if h3 and any(m in r for r in records)
     ]
-    md += ["", *pooled_markdown(pooled, len(envs), rd.config.experiments[0].runs)]
+    if pooled:
+        md += ["", *pooled_markdown(pooled, len(envs), rd.config.experiments[0].runs)]
     write_text_atomic(rd.path / "study_table.md", "\n".join(md) + "\n")
     paths = make_plots(a, records, rd.path / "plots") if plots else []
     result = {
         "tasks": tasks,
+        "h3_evaluated": h3,
         "verdicts": verd,
         "pooled": [_pooled_json(r) for r in pooled],
         "table": rows,
@@ -486,6 +511,13 @@ class Study(BenchExperiment):
             "to the twelve real people), observer (v1's default; hand-set, judges what it sees) "
             "or oracle (v0's user: the training human, satisfied by the plan's regret)",
         )
+        p.add_argument(
+            "--learners",
+            type=learner_list,
+            default=list(PAPER_LEARNERS),
+            help="comma-separated registered names or module:attr, a --plugin's too (default: "
+            "the paper's five); H3 is evaluated only with one, mof and strol among them",
+        )
         p.add_argument("--out", default=None, help="results folder (default results/study)")
         p.add_argument(
             "--jobs",
@@ -507,7 +539,11 @@ class Study(BenchExperiment):
         if version == "v0":
             print(V0_WARNING, file=sys.stderr)
         try:
-            return study_config(args.task, args.users, args.seed, version=version, participant=who)
+            learners = getattr(args, "learners", None) or list(PAPER_LEARNERS)
+            check_learner_names(learners)
+            return study_config(
+                args.task, args.users, args.seed, learners, version=version, participant=who
+            )
         except ValueError as e:
             print(f"strol-bench study: error: {e}", file=sys.stderr)
             raise SystemExit(2) from None

@@ -27,7 +27,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from strol_gym.files import loads_json, write_json_atomic
+from strol_gym.files import loads_json, read_regular, write_json_atomic
 
 NAME = re.compile(r"^[a-z0-9][a-z0-9_-]{0,39}$")
 """A study's name: it names the Minari datasets (``NAME/arm-task1-strol-v0``)."""
@@ -79,9 +79,7 @@ def load_plan(path: str | Path | None) -> StudyPlan:
         return StudyPlan()
     path = Path(path)
     where = f"--study {path}"
-    data = path.read_bytes()
-    if len(data) > MAX_PLAN_BYTES:
-        raise ValueError(f"{where}: a plan has at most {MAX_PLAN_BYTES:,} bytes")
+    data = read_regular(path, MAX_PLAN_BYTES, "--study")  # a regular file (a FIFO would block)
     raw = loads_json(data, where)
     if not isinstance(raw, dict):
         raise ValueError(f"{where}: a plan is a JSON object")
@@ -97,9 +95,7 @@ def load_plan(path: str | Path | None) -> StudyPlan:
         file = raw["consent"]
         if not isinstance(file, str) or not file or Path(file).is_absolute() or ".." in file:
             raise ValueError(f"{where}: 'consent' must be a file name beside the plan")
-        text = (path.parent / file).read_bytes()
-        if len(text) > MAX_CONSENT_BYTES:
-            raise ValueError(f"{where}: the consent text has at most {MAX_CONSENT_BYTES:,} bytes")
+        text = read_regular(path.parent / file, MAX_CONSENT_BYTES, f"{where}: the consent text")
         consent = text.decode("utf-8", errors="replace")
     learners = raw.get("learners", ["one", "mof", "strol"])
     names = LEARNERS.names()
@@ -203,7 +199,7 @@ class Participants:
         self.path = self.out / self.FILE
         self.state: dict[str, Any] = {"plan": plan.digest, "name": plan.name, "participants": {}}
         if self.path.exists():
-            state = loads_json(self.path.read_bytes(), str(self.path))
+            state = loads_json(read_regular(self.path), str(self.path))
             if not isinstance(state, dict) or not isinstance(state.get("participants"), dict):
                 raise ValueError(f"{self.path}: not a participants file of strol-bench serve")
             if state.get("plan") != plan.digest:

@@ -316,8 +316,9 @@ def _reason(log: str) -> str:
     """The ``end`` line's reason, as written."""
     import json
 
-    with open(log, "rb") as f:
-        lines = f.read().splitlines()
+    from strol_gym.files import read_regular
+
+    lines = read_regular(log, what="session log").splitlines()
     for line in reversed(lines):
         rec = json.loads(line)
         if rec.get("type") == "end":

@@ -29,9 +29,10 @@ time (:func:`joint_band`).
   count and timing checks are reported as not simulated; a u_H = 0 (a silent person) drops the
   correction;
 - ``--population``: :class:`StudyPopulation`, StROL-Study-v2's fitted participants
-  (``strol_gym.envs.study.population``): one person per (user, Task) whose correction budget is
-  its count in each of that user's sessions, pushing as its fit says at the session's logged
-  states (in turn). Its timing comes from the arm's physics, which this check does not run;
+  (``strol_gym.envs.study.population``): the shipped people correct when their timing hazard
+  says, given the plan the robot logged along each real session (count and timing simulated),
+  each correction the population's at the session's logged states (in turn); a population
+  without a timing fit has a budget per (user, Task) and its timing is not simulated;
 - ``--person MODULE:ATTR``: any object (or a callable returning one) with ``decides_count``,
   ``decides_when`` and ``sessions(real, rng)``, see :class:`Person`.
 
@@ -49,12 +50,16 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from strol_gym.envs.study.metrics import AUTHORS_DT
 from strol_gym.humans.aim import steepest_ascent
 from strol_gym.tasks.base import Task
+
+if TYPE_CHECKING:
+    from strol_gym.tasks.study import StudyTask
 
 LEARNERS = ("one", "mof", "strol")
 """The study's learners, as import-study names them."""
@@ -139,6 +144,7 @@ def read_sessions(folder: str | Path) -> list[Session]:
                 "u_r": np.asarray(c["u_r"], dtype=np.float64),
                 "path_sample": c.get("path_sample"),
                 "theta_hat_before": c.get("theta_hat_before"),
+                "theta_hat_after": c.get("theta_hat_after"),
             }
             for c in corr
         ]
@@ -284,56 +290,92 @@ class AtLoggedMoments:
 
 
 class StudyPopulation:
-    """StROL-Study-v2's fitted population (``strol_gym.envs.study.population``): per (user,
-    Task) one person drawn from the shipped fit, whose budget is its corrections in each of that
-    user's sessions, pushing as the fit's participant aims and sizes
-    (``draw_corrections``, the intended push, unclipped) at the session's logged correction
-    states in turn (the Task's other sessions' where it logged none). When it pushes comes from
-    v2's arm, which this check does not run: not simulated."""
+    """StROL-Study-v2's shipped population (``strol_gym.envs.study.population.shipped``): when
+    and how often each person corrects is drawn from its timing hazard along the real session's
+    path given the plan the robot logged (:func:`reacting_sessions`); its corrections are the
+    population's (the intended push, unclipped) at the session's logged correction states in
+    turn (the Task's other sessions' where it logged none)."""
 
     decides_count = True
-    decides_when = False
+    decides_when = True
     name = "population (StROL-Study-v2, fitted)"
 
-    def sessions(self, real, rng):
-        from strol_gym.envs.study.population import best_correction, draw_corrections, shipped
+    def __init__(self) -> None:
+        self._plans: dict[int, tuple[Session, tuple[np.ndarray, np.ndarray]]] = {}
 
-        pop = shipped()
-        task = real[0].task
-        pool = [c for s in real for c in s.corrections]
-        people: dict[str, Any] = {}
-        out: list[list[dict[str, Any]]] = []
-        for s in real:
-            person = people.get(s.user)
-            if person is None:
-                person = people[s.user] = pop.draw(rng, s.number)
-            states = s.corrections or pool
-            if not states:
-                out.append([])
-                continue
-            n = min(int(person.budget), MAX_CORRECTIONS)
-            picked = [states[k % len(states)] for k in range(n)]
-            if not picked:
-                out.append([])
-                continue
-            x = np.stack([c["x"] for c in picked])
-            best = best_correction(task, s.theta_star, x)
-            u = draw_corrections(
-                best,
-                rng,
-                aim=person.aim,
-                size=person.size,
-                size_within=person.size_within,
-                turn=person.turn,
-                turn_within=person.turn_within,
-            ) * np.asarray(task.action_bound)
-            out.append(
-                [
-                    {**c, "u_h": ui, "theta_hat_before": None}
-                    for c, ui in zip(picked, u, strict=True)
-                ]
-            )
-        return out
+    def sessions(self, real, rng):
+        from strol_gym.envs.study.population import shipped
+
+        for r in real:  # each real session's logged plan once (it plans), not per replicate
+            if id(r) not in self._plans:
+                self._plans[id(r)] = (r, logged_plan(r))
+        plans = {i: v[1] for i, v in self._plans.items()}
+        return reacting_sessions(shipped(), real, rng, plans)
+
+
+def logged_plan(s: Session) -> tuple[np.ndarray, np.ndarray]:
+    """(path samples at which the robot's θ̂ changed, the plan's shortfall before the first and
+    after each) of a real session, from its logged θ̂ (the episode's θ̂0 where none is
+    logged)."""
+    from strol_gym.humans.timing import shortfall
+
+    task = _study_task(s.task)
+    rows = [c for c in s.corrections if c.get("theta_hat_after") is not None]
+    hats = [s.episode.get("theta_hat0")] + [c["theta_hat_after"] for c in rows]
+    if hats[0] is None:
+        hats[0] = np.asarray(task.prior_modes, dtype=np.float64).mean(axis=0)
+    switches = np.array([int(c["path_sample"]) for c in rows], dtype=np.int64)
+    return switches, shortfall(task, s.theta_star, np.asarray(hats, dtype=np.float64))
+
+
+def _study_task(task: Task) -> StudyTask:
+    """``task`` if it is a study Task, else ValueError (the population lives in them)."""
+    from strol_gym.tasks.study import StudyTask
+
+    if not isinstance(task, StudyTask):
+        raise ValueError(f"--population simulates study sessions, not {task.task_id}")
+    return task
+
+
+def reacting_sessions(
+    pop: Any,
+    real: Sequence[Session],
+    rng: np.random.Generator,
+    plans: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+):
+    """The shipped population's people (``Population.hazard``) along the real sessions: when
+    each corrects is drawn from its timing hazard given the plan the robot logged
+    (:func:`logged_plan`, ``timing.simulate``), each correction is the population's model of a
+    correction at the session's logged correction states in turn (the Task's others' where it
+    logged none), unclipped. ``plans``: :func:`logged_plan` of each session by ``id``, if
+    already computed (it plans; a replicate need not plan again)."""
+    from strol_gym.envs.study.population import aimed_draws
+    from strol_gym.humans.timing import simulate
+
+    task = _study_task(real[0].task)
+    pool = [c for s in real for c in s.corrections]
+    out: list[list[dict[str, Any]]] = []
+    for s in real:
+        person = pop.draw(rng, s.number)
+        switches, falls = plans[id(s)] if plans and id(s) in plans else logged_plan(s)
+        when = simulate(person.hazard, s.path_samples, switches, falls, AUTHORS_DT, rng)
+        when = when[:MAX_CORRECTIONS]
+        states = s.corrections or pool
+        if not len(when) or not states:
+            out.append([])
+            continue
+        picked = [states[k % len(states)] for k in range(len(when))]
+        x = np.stack([c["x"] for c in picked])
+        n, a = len(picked), task.action_dim
+        u = aimed_draws(task, s.theta_star, x, rng.standard_normal((n, a + 1)), rng.random(n))
+        u = u * np.asarray(task.action_bound)
+        out.append(
+            [
+                {**c, "u_h": ui, "path_sample": int(k), "theta_hat_before": None}
+                for c, ui, k in zip(picked, u, when, strict=True)
+            ]
+        )
+    return out
 
 
 def person_from(spec: str) -> Person:

@@ -1,19 +1,25 @@
 """``strol-bench interact --env highway``: a person drives the human car; the robot car learns.
 
-The person drives the blue (human) car with the arrow keys in highway-env's own window
-(pygame). Each env step (0.5 s, the Highway Task's ``dt``) the keys are read every
-``POLL_SECONDS`` and averaged: u_H = a_max ⊙ (mean(up − down), mean(right − left)), a_max =
-``task.action_bound`` (5 m/s², 0.02 rad). Holding Up for the whole step is +a_max acceleration,
-for half of it +a_max / 2; Right steers towards the right lane (highway-env's y grows to the
-driver's right). A step with no key pressed is no correction: the car holds its speed and
-heading and the learner sees nothing. A step with a key is one correction, handed to the
-learner exactly as the simulated humans' are (``OnlineLearningWrapper``); the robot car (green)
-then acts by the benchmark's Highway robot policy for the new θ̂ (``robots.robot_policy``).
+The person drives the blue (human) car with the arrow keys (or WASD, or a gamepad) in
+highway-env's own window (pygame); what the keys mean is ``keys``' (``car_intent``, the same
+mapping a browser uses). Each env step (0.5 s, the Highway Task's ``dt``) the keys are read
+every ``POLL_SECONDS`` and averaged (``keys.car_correction``): u_H = a_max ⊙ (mean(up − down),
+mean(right − left)), a_max = ``task.action_bound`` (5 m/s², 0.02 rad). Holding Up for the
+whole step is +a_max acceleration, for half of it +a_max / 2; Right steers towards the right
+lane (highway-env's y grows to the driver's right). A step with no key pressed is no
+correction: the car holds its speed and heading and the learner sees nothing. A step with a key
+is one correction, handed to the learner exactly as the simulated humans' are
+(``OnlineLearningWrapper``); the robot car (green) then acts by the benchmark's Highway robot
+policy for the new θ̂ (``robots.robot_policy``).
 The session is logged in the format of every session (``SessionLogger``), so ``replay``,
 ``export`` and ``fit-human`` read it.
 
 The keys sit behind a ``KeySource`` (``poll() -> (accel, steer)`` in [−1, 1]²) so tests drive
 the same loop without a window.
+
+A session ends when its time is up (``duration``), when the cars collide (the panel says so
+for ``CRASH_SECONDS`` and the console too), when the window closes, or on Ctrl-C / SIGTERM;
+the ``end`` line gives the reason and the simulated time.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from strol_gym.benchmarks.sessions import keys as keymap
 from strol_gym.envs.panda.model import has_display
 from strol_gym.wrappers import OnlineLearningWrapper
 from strol_gym.wrappers.session_log import SessionLogger
@@ -41,10 +48,13 @@ NO_DISPLAY_HIGHWAY = (
 POLL_SECONDS = 0.02
 """How often the keys are read within a step (s)."""
 KEY_HELP = (
-    "KEYS: Up / Down accelerate / brake, Left / Right steer (the blue car is yours).",
-    "Holding a key for the whole 0.5 s step = the full a_max; no key = no correction.",
-    "F9: hide this panel. Close the window to end.",
+    "KEYS (the blue car is yours): " + keymap.CAR_KEY_HELP[0],
+    *keymap.CAR_KEY_HELP[1:],
+    "F9: hide this panel. END: close the window (or Ctrl-C in the terminal).",
 )
+CRASHED = "THE CARS COLLIDED: the session ends"
+CRASH_SECONDS = 2.0
+"""How long (wall-clock s) the window shows that the cars collided before it closes."""
 PANEL_HIDDEN = "F9: show the panel"
 HIGHWAY_WORDS = {
     "gap": ("stay close behind the robot car (10 m)", "keep away from the robot car"),
@@ -80,13 +90,27 @@ class PersonCorrections(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
 
-class PygameKeys:
-    """The arrow keys of highway-env's window, read from pygame's keyboard state; F9 (pressed,
-    not held) flips ``show_panel``."""
+PYGAME_NAMES = {
+    "K_UP": "arrowup",
+    "K_DOWN": "arrowdown",
+    "K_LEFT": "arrowleft",
+    "K_RIGHT": "arrowright",
+    "K_w": "w",
+    "K_a": "a",
+    "K_s": "s",
+    "K_d": "d",
+}
+"""pygame's key constants -> ``keys``' key names (a browser's ``KeyboardEvent.key``)."""
 
-    def __init__(self) -> None:
+
+class PygameKeys:
+    """The car's keys in highway-env's window, read from pygame's keyboard state (and a
+    gamepad's, ``pad``); F9 (pressed, not held) flips ``show_panel``."""
+
+    def __init__(self, pad: Callable[[], keymap.Pad | None] | None = None) -> None:
         self.show_panel = True
         self._f9 = False
+        self.pad = pad
 
     def __call__(self) -> tuple[float, float]:
         import pygame
@@ -96,10 +120,13 @@ class PygameKeys:
         if k[pygame.K_F9] and not self._f9:
             self.show_panel = not self.show_panel
         self._f9 = bool(k[pygame.K_F9])
-        return (
-            float(k[pygame.K_UP]) - float(k[pygame.K_DOWN]),
-            float(k[pygame.K_RIGHT]) - float(k[pygame.K_LEFT]),
-        )
+        held = [name for const, name in PYGAME_NAMES.items() if k[getattr(pygame, const)]]
+        accel, steer = keymap.car_intent(held)
+        state = self.pad() if self.pad is not None else None
+        if state is not None:  # per axis, the larger of the keys and the pad
+            p_accel, p_steer = keymap.pad_car_intent(state)
+            accel, steer = max(accel, p_accel, key=abs), max(steer, p_steer, key=abs)
+        return accel, steer
 
 
 class PersonAtTheKeys:
@@ -163,16 +190,23 @@ def run_drive(
     keys: KeySource | None = None,
     window: bool = True,
     on_step: Callable[[dict[str, Any], list[str]], None] | None = None,
+    pad: Callable[[], keymap.Pad | None] | None = None,
     frames: Callable[[np.ndarray], None] | None = None,
     stop: Callable[[], str | None] | None = None,
 ) -> tuple[Path, dict[str, Any]]:
     """One Highway session driven by a person; returns the log's path and the last ``info``
-    (with ``real_time_factor``). ``keys`` defaults to the window's arrow keys; ``window``
-    false runs without one (tests); ``on_step(info, panel)`` sees each step's panel;
-    ``frames`` (without a window) gets each step's picture (highway-env's ``rgb_array``);
-    ``stop()`` returning a reason ends the session with it (a page's closed connection)."""
+    (with ``real_time_factor``, ``end_reason`` and ``time``). ``keys`` defaults to the
+    window's keys (and ``pad``'s); ``window`` false runs without one (tests);
+    ``on_step(info, panel)`` sees each step's panel; ``frames`` (without a window) gets each
+    step's picture (highway-env's ``rgb_array``); ``stop()`` returning a reason ends the
+    session with it (a page's closed connection)."""
     from strol_gym.benchmarks.engine.robots import robot_policy
-    from strol_gym.benchmarks.sessions.person import Pace, default_log_path
+    from strol_gym.benchmarks.sessions.person import (
+        Pace,
+        default_log_path,
+        sigterm_stops,
+        stop_reason,
+    )
 
     if not (np.isfinite(duration) and 0 < duration <= 86_400):
         raise ValueError(f"duration must be in (0, 86400] seconds, got {duration}")
@@ -204,71 +238,93 @@ def run_drive(
     hw: Any = learning.unwrapped  # the Highway env (its Task, θ*, highway-env's viewer)
     task = hw.task
     options = {"mode": "interactive-highway", "realtime": realtime, "blind": blind}
-    env = SessionLogger(learning, path, extra={"interact": options})
+    options["duration"] = duration
+    env = SessionLogger(learning, path, extra={"interact": options}, auto_end=False)
     policy = robot_policy("task", task)
     bound = np.asarray(task.robot_action_bound, dtype=np.float64)
     a_max = np.asarray(task.action_bound, dtype=np.float64)
     poll = keys
     info: dict[str, Any] = {}
     pace = Pace(dt, realtime)
+    n_corr, t, reason = 0, 0.0, ""
     try:
-        obs, info = env.reset(seed=seed)
-        if poll is None:
-            poll = PygameKeys()
-        teach = _words(task.feature_names, hw.theta_star)
-        n_corr, cue, t, ended = 0, "", 0.0, False
-        reason = "window closed"
-        if frames is not None:
-            frames(hw.render())
-        pace = Pace(dt, realtime)
-        while True:
-            # the keys over the step: polled until its end on the wall clock (or once)
-            samples = [poll()]
-            while realtime and time.perf_counter() < pace.t0 + (pace.scheduled + 1) * dt:
-                if window:
-                    shown = drive_panel(
-                        task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue
-                    )
-                    _draw_panel(shown if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
-                time.sleep(POLL_SECONDS)
-                samples.append(poll())
-            person.humans[-1].u = a_max * np.clip(np.mean(samples, axis=0), -1.0, 1.0)
-            x = np.asarray(obs["state"], dtype=np.float64)[None]
-            u_r = policy(x, np.asarray(learning.learner.theta, dtype=np.float64)[None])[0]
-            action = np.clip(u_r / bound, -1.0, 1.0).astype(np.float32)
-            obs, _, terminated, truncated, info = env.step(action)
-            t += dt
-            if info["is_correction"]:
-                n_corr += 1
-                u = ", ".join(f"{v:+.3f}" for v in info["correction"])
-                cue = f"CORRECTION RECORDED: u_H = ({u}); the robot car replans"
-            else:
-                cue = ""
-            panel = drive_panel(task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue)
-            if on_step is not None:
-                on_step(info, panel)
+        with sigterm_stops():
+            obs, info = env.reset(seed=seed)
+            if poll is None:
+                poll = PygameKeys(pad)
+            teach = _words(task.feature_names, hw.theta_star)
+            cue = ""
             if frames is not None:
                 frames(hw.render())
-            if window:
-                _draw_panel(panel if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
-            pace.wait()
-            if terminated or truncated:
-                ended = True
-                break
-            if window and hw.viewer is None:  # the person closed the window
-                break
-            why = stop() if stop is not None else None
-            if why:
-                reason = why
-                break
-        if not ended:
-            env.end_session(reason, info)
-    except KeyboardInterrupt:
-        env.end_session("interrupted", info, interrupted=True)
-        info = {**info, "interrupted": True}
+            pace = Pace(dt, realtime)
+            try:
+                while True:
+                    # the keys over the step: polled until its end on the wall clock (or once)
+                    samples = [poll()]
+                    while realtime and time.perf_counter() < pace.t0 + (pace.scheduled + 1) * dt:
+                        if window:
+                            shown = drive_panel(
+                                task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue
+                            )
+                            _draw_panel(
+                                shown if getattr(poll, "show_panel", True) else [PANEL_HIDDEN]
+                            )
+                        time.sleep(POLL_SECONDS)
+                        samples.append(poll())
+                    person.humans[-1].u = keymap.car_correction(samples, a_max)
+                    x = np.asarray(obs["state"], dtype=np.float64)[None]
+                    u_r = policy(x, np.asarray(learning.learner.theta, dtype=np.float64)[None])[0]
+                    action = np.clip(u_r / bound, -1.0, 1.0).astype(np.float32)
+                    obs, _, terminated, truncated, info = env.step(action)
+                    t += dt
+                    if info["is_correction"]:
+                        n_corr += 1
+                        u = ", ".join(f"{v:+.3f}" for v in info["correction"])
+                        cue = f"CORRECTION RECORDED: u_H = ({u}); the robot car replans"
+                    else:
+                        cue = ""
+                    if info.get("crashed"):
+                        cue = CRASHED
+                    panel = drive_panel(
+                        task, {**info, "time": t}, n_corr, teach, blind=blind, cue=cue
+                    )
+                    if on_step is not None:
+                        on_step(info, panel)
+                    if frames is not None:
+                        frames(hw.render())
+                    if window:
+                        _draw_panel(panel if getattr(poll, "show_panel", True) else [PANEL_HIDDEN])
+                    pace.wait()
+                    if info.get("crashed"):
+                        reason = "crash: the cars collided"
+                        print(f"{CRASHED} (at {t:.1f} s)", flush=True)
+                        if window and realtime:
+                            time.sleep(CRASH_SECONDS)  # the panel says so before the window goes
+                        break
+                    if terminated or truncated:
+                        reason = "time up"
+                        break
+                    if window and hw.viewer is None:  # the person closed the window
+                        reason = "window closed"
+                        break
+                    why = stop() if stop is not None else None
+                    if why:
+                        reason = why
+                        break
+                env.end_session(reason, {**info, "time": t})
+            except KeyboardInterrupt as e:
+                reason = stop_reason(e)
+                env.end_session(reason, {**info, "time": t}, interrupted=True)
+                info = {**info, "interrupted": True}
     finally:
         env.close()
-    return path, {**info, "corrections": n_corr, "real_time_factor": pace.factor}
+    return path, {
+        **info,
+        "corrections": n_corr,
+        "real_time_factor": pace.factor,
+        "end_reason": reason,
+        "time": t,
+    }
 
 
 def _words(names: Any, theta_star: np.ndarray) -> str:

@@ -82,11 +82,14 @@ ARM_KEYS: Mapping[str, tuple[str, float]] = {
 """Key name -> (axis, sign) for the arm. Two keys of one axis pressed together cancel."""
 HARDER_KEY = "shift"
 """Held with a push: push harder than the reflex allows (the arm brakes)."""
+CUP_KEY = "home"
+"""Pressed: the cup is what a mouse drag pushes again (after another link, or nothing, was
+selected)."""
 
 ARM_KEY_HELP = (
     "W/S (or Up/Down): push away / towards you; A/D (or Left/Right): left / right;",
     "E/Q (or Page Up/Down): up / down; I/K tilt, J/L turn, U/O roll the cup (Tasks 2-3);",
-    "hold Shift to push harder than the reflex allows (the arm brakes).",
+    "hold Shift to push harder than the reflex allows (the arm brakes); Home: select the cup.",
 )
 """The arm's keys in words, for a panel or a help page."""
 
@@ -163,7 +166,9 @@ def car_intent(held: Iterable[str]) -> tuple[float, float]:
     return _clip(out[0]), _clip(out[1])
 
 
-def car_correction(samples: Sequence[Sequence[float]], a_max: Sequence[float]) -> np.ndarray:
+def car_correction(
+    samples: Sequence[Sequence[float]], a_max: Sequence[float] | np.ndarray
+) -> np.ndarray:
     """u_H of one Highway step: ``a_max`` ⊙ the mean of the ``(accel, steer)`` intents
     sampled through it (clipped to [-1, 1]); no samples, no correction."""
     if len(samples) == 0:
@@ -274,6 +279,13 @@ class ArmPush:
             else:
                 out.append(s.harder * reflex if harder else min(plain, s.below * reflex))
         return out[0], out[1]
+
+    def ceiling(self, harder: bool) -> tuple[float, float]:
+        """The most force (N) and torque (N m) any push of the person's gets (a mouse drag's
+        cap): ``below`` of the reflex, or ``harder`` times it while "harder" is held (inf
+        where the env has no reflex)."""
+        share = self.sizes.harder if harder else self.sizes.below
+        return share * self.reflex_force, share * self.reflex_torque
 
     def step(self, intent: Intent, dt: float, azimuth: float) -> Wrench:
         """Advance ``dt`` seconds under ``intent`` with the camera at ``azimuth`` degrees."""
@@ -416,6 +428,7 @@ __all__ = [
     "AXES",
     "CAR_KEYS",
     "CAR_KEY_HELP",
+    "CUP_KEY",
     "DEAD_ZONE",
     "HARDER_KEY",
     "ArmPush",

@@ -3,9 +3,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
+import signal
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 
 def default_log_path() -> Path:
@@ -54,3 +59,41 @@ class Pace:
     def factor(self) -> float:
         wall = time.perf_counter() - self.start
         return self.steps * self.dt / wall if wall > 0 else float("nan")
+
+
+class Stopped(KeyboardInterrupt):
+    """A person session stopped from outside: Ctrl-C (``reason`` "interrupted") or SIGTERM
+    ("terminated"). A KeyboardInterrupt, so whatever already handles Ctrl-C handles it too."""
+
+    def __init__(self, reason: str = "interrupted") -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+def stop_reason(error: KeyboardInterrupt) -> str:
+    """The ``end`` line's reason for an interrupt: SIGTERM's, or Ctrl-C's."""
+    return error.reason if isinstance(error, Stopped) else "interrupted"
+
+
+@contextlib.contextmanager
+def sigterm_stops() -> Iterator[None]:
+    """Within: SIGTERM raises :class:`Stopped` ("terminated") in the main thread, so the session
+    writes its ``end`` line and exits as after Ctrl-C (status 130). Elsewhere than the main
+    thread (no signal handler can be set there), nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def stop(signum: int, frame: Any) -> None:
+        raise Stopped("terminated")
+
+    before = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
+def ended_words(reason: str, sim_time: float) -> str:
+    """The console's line on how a session ended."""
+    return f"session ended: {reason}, after {sim_time:.1f} simulated s"

@@ -351,6 +351,16 @@ def _losses(
             yield _train_step(model, opt, config.kind, alpha, batch)
 
 
+def _progress_bar(steps: range, desc: str) -> Any:
+    """tqdm's bar over ``steps``, or None without tqdm (the [bench] extra brings it; the core
+    install trains the same, silently)."""
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return None
+    return tqdm(steps, desc=desc, leave=False)
+
+
 def train_correction(
     task: Task, config: TrainConfig | None = None, *, quiet: bool = False, **overrides: Any
 ) -> tuple[CorrectionNet, dict[str, Any]]:
@@ -360,8 +370,6 @@ def train_correction(
     if not isinstance(task, Task):
         raise ValueError(f"task must be a strol_gym Task, got {type(task).__name__}")
     config = dataclasses.replace(config or TrainConfig(), **overrides)
-    from tqdm import tqdm
-
     start = time.perf_counter()
     rng = np.random.default_rng(config.seed)
     norm = sample_batch(task, np.random.default_rng([config.seed, 1]), NORM_SAMPLES, config)
@@ -373,13 +381,17 @@ def train_correction(
         model.in_std.copy_(z.std(0).clamp_min(1e-6))
         opt = torch.optim.Adam(model.parameters(), lr=config.lr)
         sched = torch.optim.lr_scheduler.StepLR(opt, step_size=config.lr_halve_every, gamma=0.5)
-        bar = tqdm(range(config.steps), disable=quiet, desc=f"train {config.kind}", leave=False)
-        for step, loss in zip(bar, _losses(model, opt, task, config, rng), strict=False):
+        steps = range(config.steps)
+        bar = None if quiet else _progress_bar(steps, f"train {config.kind}")
+        for step, loss in zip(
+            steps if bar is None else bar, _losses(model, opt, task, config, rng), strict=False
+        ):
             losses[step] = loss
             sched.step()
-            if step % 10 == 0 or step == config.steps - 1:
+            if bar is not None and (step % 10 == 0 or step == config.steps - 1):
                 bar.set_postfix(loss=f"{loss:+.4f}", refresh=False)
-        bar.close()
+        if bar is not None:
+            bar.close()
     model.eval()
     history = {
         "loss": losses,

@@ -51,9 +51,10 @@ from strol_gym.envs.study.people import (  # noqa: F401  (THRESHOLD: here until 
     FittedParams,
     ParticipantParams,
 )
-from strol_gym.envs.study.population import best_correction, draw_corrections
+from strol_gym.envs.study.population import aimed_correction, best_correction, draw_corrections
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
+from strol_gym.humans.timing import shortfall, step_in_probability
 from strol_gym.tasks.study import StudyTask
 
 
@@ -156,8 +157,8 @@ class Participant(SimulatedUser):
     def wrench(
         self, t: float, x: np.ndarray, theta_hat: Any = None
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(force N, torque N m) at time ``t`` with the cup at pose ``x`` (θ̂ is not used)."""
-        del theta_hat
+        """(force N, torque N m) at time ``t`` with the cup at pose ``x`` (θ̂ is used only by a
+        person who ``needs_theta_hat``)."""
         if self._home is None:
             self._home = np.array(x, dtype=np.float64)  # where the robot starts each trial
         self._seen.append((t, np.array(x, dtype=np.float64)))
@@ -165,7 +166,7 @@ class Participant(SimulatedUser):
             self._seen.popleft()
         if self.phase == "push" and self._stalled(t, x):
             self.phase, self._t0 = "release", t  # the cup no longer gives: let go
-        return super().wrench(t, x, None)
+        return super().wrench(t, x, theta_hat if self.needs_theta_hat else None)
 
     def _stalled(self, t: float, x: np.ndarray) -> bool:
         """Whether the push has stopped bringing the cup closer: over the last ``stall`` s its
@@ -274,17 +275,27 @@ class FittedParticipant(Participant):
         self.intended: list[np.ndarray] = []
         """Every push's intended correction (a_max units), as drawn: what v2's arm reads of
         them is measured against these (``participant_check``'s read scale)."""
-        self.done_at: float | None = 0.0 if params.budget == 0 else None
+        reactive = params.hazard is not None
+        self.needs_theta_hat = reactive
+        """A reactive person (``hazard``) judges the plan the robot plays: it is handed θ̂."""
+        self.done_at: float | None = 0.0 if params.budget == 0 and not reactive else None
         self._t_next = params.rest
+        self._last_release = 0.0
+        self._shortfalls: dict[bytes, float] = {}
         self._push_wrench = (np.zeros(3), np.zeros(3))
         self._started = 0.0
         self._pushed = 0.0
 
     def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: Any = None) -> np.ndarray:
-        """A correction drawn at pose ``x`` from this person's fitted aim and sizes."""
+        """A correction drawn at pose ``x`` from this person's fitted aim and sizes (or the
+        aimed person's, ``params.correction``)."""
         del u_r, theta_hat
-        best = best_correction(self.task, self._theta_star, x)
         p = self.params
+        if p.correction == "aimed":
+            u = aimed_correction(self.task, self._theta_star, x, self.rng)
+            self.intended.append(u)
+            return u * self._a_max
+        best = best_correction(self.task, self._theta_star, x)
         u = draw_corrections(
             best,
             self.rng,
@@ -310,9 +321,51 @@ class FittedParticipant(Participant):
         return target
 
     def _decide(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
+        if self.params.hazard is not None:
+            return self._decide_reactive(t, x, theta_hat)
         if self.made >= self.params.budget:
             return None
         return super()._decide(t, x, theta_hat)
+
+    def _decide_reactive(self, t: float, x: np.ndarray, theta_hat: Any) -> np.ndarray | None:
+        """The fitted timing hazard (``FittedParams.hazard``): every ``decide_every`` s it
+        steps in with probability 1 − exp(−rate·decide_every), rate from the shortfall of the
+        plan of the robot's θ̂ and the time since its last correction; it pushes ``reaction``
+        s later from what it sees then. Done after ``path_time`` s of the robot's motion."""
+        p = self.params
+        if self._push_at is not None:
+            if t + 1e-9 < self._push_at:
+                return None
+            self._push_at = None
+            return self._target(x, self.act(x, np.zeros(self.task.action_dim)))
+        if self.done_at is not None or t + 1e-9 < self._t_next:
+            return None
+        self._t_next = t + p.decide_every
+        if t - self._pushed >= p.path_time:
+            self.done_at = t
+            return None
+        assert p.hazard is not None
+        a, b, c = p.hazard
+        s = self.shortfall(theta_hat)
+        rate = math.exp(min(a + b * s + c * math.log1p(max(t - self._last_release, 0.0)), 50.0))
+        self.judgments += 1
+        if self.rng.random() < step_in_probability(rate, p.decide_every):
+            self.rejections += 1
+            self._push_at = t + p.reaction
+            if p.reaction <= 0.0:
+                return self._decide_reactive(t, x, theta_hat)
+        return None
+
+    def shortfall(self, theta_hat: Any) -> float:
+        """The shortfall of the plan of the robot's θ̂ under its θ* (``timing.shortfall``;
+        computed once per θ̂)."""
+        if theta_hat is None:
+            raise ValueError("a reactive participant (hazard) needs the robot's theta_hat")
+        th = np.asarray(theta_hat, dtype=np.float64)
+        key = th.tobytes()
+        if key not in self._shortfalls:
+            self._shortfalls[key] = float(shortfall(self.task, self._theta_star, th)[0])
+        return self._shortfalls[key]
 
     def wrench(
         self, t: float, x: np.ndarray, theta_hat: Any = None
@@ -354,5 +407,6 @@ class FittedParticipant(Participant):
         self.made += 1
         watched = self._started - self._pushed  # the robot's path time before this push
         self._pushed += t - self._started
-        if self.made >= self.params.budget:
+        self._last_release = t
+        if self.params.hazard is None and self.made >= self.params.budget:
             self.done_at = t + self.params.linger * watched

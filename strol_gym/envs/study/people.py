@@ -22,6 +22,8 @@ SATISFIED_REGRET = 1.0
 home, under its θ*) is at most this (calibrated on seeds 900-919, docs/study.md)."""
 TORQUE_LEVER = 0.1
 """A torque τ counts as a force ‖τ‖ / 0.1 m towards the correction threshold."""
+CORRECTIONS = ("population", "aimed")
+"""The models of a correction a fitted person may use (``FittedParams.correction``)."""
 THRESHOLD = 0.4
 """Default acceptance threshold of the participant on the motion's score (calibrated,
 docs/study.md)."""
@@ -154,7 +156,19 @@ class FittedParams(ParticipantParams):
     """Its aim's noise τ: the direction is b̂ + τ z (b̂ θ*'s steepest ascent in a_max units,
     z standard normal), then sized."""
     budget: int = 5
-    """The most corrections it makes this session (then it is done)."""
+    """The most corrections it makes this session (then it is done); unused with ``hazard``."""
+    hazard: tuple[float, float, float] | None = None
+    """(a, b, c): when it steps in, the fitted timing hazard (``strol_gym.humans.timing``):
+    at each judgment it corrects with probability 1 − exp(−rate·``decide_every``), rate =
+    exp(a + b·s + c·log(1 + τ)) per s, s the shortfall of the robot's plan, τ the s since its
+    last correction. None: it judges the motion's score against ``threshold`` and stops after
+    ``budget`` corrections (the learner-independent person)."""
+    correction: str = "population"
+    """Its model of a correction: ``population`` (its own aim and sizes above, the participant
+    fit's) or ``aimed`` (the aimed person fitted per Task, ``strol_gym.humans.aim``)."""
+    path_time: float = float("inf")
+    """With ``hazard``: the s of the robot's motion it watches (push time not counted), then it
+    is done: the logged path time of the real sessions of its Task."""
     linger: float = 0.5
     """After its last correction it watches this share of the session so far, then it is done
     (where along the path its corrections fall)."""
@@ -173,3 +187,17 @@ class FittedParams(ParticipantParams):
         lows |= dict.fromkeys(("size_within", "turn_within"), (0.0, False))
         _check_fields(self, lows)
         object.__setattr__(self, "budget", int_arg("user_kwargs['budget']", self.budget, 0))
+        if self.correction not in CORRECTIONS:
+            raise ValueError(
+                f"user_kwargs['correction'] must be one of {', '.join(CORRECTIONS)}, "
+                f"got {self.correction!r}"
+            )
+        watch = self.path_time
+        if isinstance(watch, bool) or not isinstance(watch, int | float) or not watch > 0:
+            raise ValueError(f"user_kwargs['path_time'] must be a number > 0 (s), got {watch!r}")
+        object.__setattr__(self, "path_time", float(watch))
+        if self.hazard is not None:
+            h = checks.vector("user_kwargs['hazard']", self.hazard, 3)
+            for name, v in zip(("a", "b", "c"), h.tolist(), strict=True):
+                checks.number(f"user_kwargs['hazard'] ({name})", v, low=-50.0, high=50.0)
+            object.__setattr__(self, "hazard", tuple(float(v) for v in h))

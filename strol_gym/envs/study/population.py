@@ -38,15 +38,22 @@ from typing import Any
 import numpy as np
 
 from strol_gym import checks
-from strol_gym.envs.study.people import FittedParams
+from strol_gym.envs.study.people import CORRECTIONS, FittedParams
 from strol_gym.files import loads_json, read_regular
+from strol_gym.humans.aim import aim_direction, aimed_corrections, fitted_aim_params
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
 
 FIT_FILE = Path(__file__).with_name("participant_fit.json")
 """The shipped fit (module docstring)."""
+TIMING_FILE = Path(__file__).with_name("timing_fit.json")
+"""The shipped timing hazard (``strol-bench fit-timing``): when a person steps in."""
+SHIPPED_CORRECTION = "aimed"
+"""The shipped population's model of a correction: the aimed person fitted per Task (better
+held-out likelihood than the scale-free fit on every Task, docs/humans.md)."""
 FORMAT = "strol-participant-fit"
+TIMING_FORMAT = "strol-timing-fit"
 MAX_FIT_BYTES = 1_000_000
 """A fit file larger than this is refused before it is read."""
 MAX_READ_SCALE = 10.0
@@ -152,15 +159,35 @@ class Population:
     """The :data:`FITTED` estimates."""
     priors: dict[str, Any]
     """The :data:`PRIORS` values the file names (``patience`` an int)."""
+    hazard: dict[int, tuple[float, float, float]] | None = None
+    """Per Task, the timing hazard's (a, b, c) (``FittedParams.hazard``); None: the budget."""
+    path_time: dict[int, float] | None = None
+    """Per Task, the s of the robot's motion a person watches (with ``hazard``)."""
+    correction: str = "population"
+    """Its people's model of a correction (``FittedParams.correction``)."""
+    rise: float | None = None
+    """s over which a push's force rises (and falls): the median logged samples per real
+    correction × 0.05 s (the authors' loop logged a sample at each new force maximum), in
+    place of the prior ``ramp``; None: the prior."""
 
     def draw(self, rng: np.random.Generator, task: int) -> FittedParams:
         """One person for a session of Task ``task`` (1-3), from ``rng``: its sizes, aim,
-        linger and budget (Poisson of the Task's mean times its own multiplier)."""
+        linger and when it steps in: the timing hazard of its Task where the population has
+        one (then it reacts to the robot), else a budget (Poisson of the Task's mean times its
+        own multiplier)."""
         f = self.fitted
         task = int(checks.number("task", task, low=1, high=3, integer=True))
         z = rng.standard_normal(5)
         sd_r = f["count_person_sd"]
         multiplier = math.exp(sd_r * z[4] - 0.5 * sd_r**2)  # mean 1
+        when: dict[str, Any] = {}
+        if self.hazard is not None and self.path_time is not None:
+            when = {"hazard": self.hazard[task], "path_time": self.path_time[task]}
+            if self.rise is not None:
+                when["ramp"] = self.rise
+        else:
+            when = {"budget": int(rng.poisson(self.count_mean[task] * multiplier))}
+        when["correction"] = self.correction
         return FittedParams(
             size=math.exp(f["size_log_mean"] + f["size_log_sd"] * z[0]),
             size_within=f["size_within"],
@@ -168,8 +195,7 @@ class Population:
             turn_within=f["turn_within"],
             aim=math.exp(f["aim_log_mean"] + f["aim_log_sd"] * z[2]),
             linger=math.exp(f["linger_log_mean"] + f["linger_log_sd"] * z[3]),
-            budget=int(rng.poisson(self.count_mean[task] * multiplier)),
-            **self.priors,
+            **{**self.priors, **when},
         )
 
 
@@ -208,17 +234,55 @@ def parse(obj: Any, what: str = "participant fit") -> Population:
     return Population(count_mean, est, priors)
 
 
-def read_fit(path: str | Path) -> Population:
-    """The population of fit file ``path`` (size-capped, plain JSON, checked)."""
+def parse_timing(
+    obj: Any, what: str = "timing fit"
+) -> tuple[dict[int, tuple[float, float, float]], dict[int, float], float]:
+    """Per Task (a, b, c) and path time, and the push's rise time, from a timing fit file's
+    JSON object (checked)."""
+    if not isinstance(obj, dict) or obj.get("format") != TIMING_FORMAT:
+        raise ValueError(f"{what} must be a JSON object with format {TIMING_FORMAT!r}")
+    hz = checks.mapping(f"{what}['hazard']", obj.get("hazard"), "an object")
+    pt = checks.mapping(f"{what}['path_time']", obj.get("path_time"), "an object")
+    hazard, path_time = {}, {}
+    for t in (1, 2, 3):
+        v = checks.vector(f"{what}['hazard']['{t}']", hz.get(str(t)), 3)
+        for name, c in zip("abc", v.tolist(), strict=True):
+            checks.number(f"{what}['hazard']['{t}'] ({name})", c, low=-50.0, high=50.0)
+        hazard[t] = (float(v[0]), float(v[1]), float(v[2]))
+        path_time[t] = float(
+            checks.number(f"{what}['path_time']['{t}']", pt.get(str(t)), low=0.0, low_open=True)
+        )
+    rise = float(checks.number(f"{what}['rise']", obj.get("rise"), low=0.01, high=10.0))
+    return hazard, path_time, rise
+
+
+def _read_json(path: Path, what: str) -> Any:
+    return loads_json(read_regular(path, MAX_FIT_BYTES, f"{what} file"), str(path))
+
+
+def read_fit(
+    path: str | Path, timing: str | Path | None = None, correction: str = "population"
+) -> Population:
+    """The population of fit file ``path`` (size-capped, plain JSON, checked), reacting to the
+    robot with the timing fit ``timing`` if given (else it keeps a budget), its corrections by
+    ``correction`` (``people.CORRECTIONS``)."""
+    if correction not in CORRECTIONS:
+        raise ValueError(f"correction must be one of {', '.join(CORRECTIONS)}, got {correction!r}")
     path = Path(path)
-    raw = read_regular(path, MAX_FIT_BYTES, "participant fit file")
-    return parse(loads_json(raw, str(path)), str(path))
+    pop = dataclasses.replace(
+        parse(_read_json(path, "participant fit"), str(path)), correction=correction
+    )
+    if timing is None:
+        return pop
+    hazard, path_time, rise = parse_timing(_read_json(Path(timing), "timing fit"), str(timing))
+    return dataclasses.replace(pop, hazard=hazard, path_time=path_time, rise=rise)
 
 
 @functools.cache
 def shipped() -> Population:
-    """The shipped fit (read once per process)."""
-    return read_fit(FIT_FILE)
+    """The shipped fit with its timing hazard and the aimed person's corrections (read once
+    per process)."""
+    return read_fit(FIT_FILE, TIMING_FILE, SHIPPED_CORRECTION)
 
 
 def best_correction(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -287,6 +351,29 @@ def shape_corrections(
     return out
 
 
+def aimed_draws(
+    task: StudyTask, theta_star: np.ndarray, x: np.ndarray, z: np.ndarray, pick: np.ndarray
+) -> np.ndarray:
+    """Corrections (n, a) in a_max units of the aimed person fitted for ``task``'s study Task
+    (``humans.aim.FITTED_AIM``) at poses ``x`` (n, s), from standard normals ``z`` (n, a + 1)
+    and uniforms ``pick`` (n,): about the aimed person's direction for θ* ⊙ its emphasis
+    (``humans.aim.aim_direction``, with its fitted ``reach``)."""
+    kw = fitted_aim_params(task)
+    emphasis, reach = kw.pop("emphasis"), kw.pop("reach")
+    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+    star = np.broadcast_to(np.asarray(theta_star, dtype=np.float64) * emphasis, (len(x), task.dim))
+    best = aim_direction(task, x, np.zeros((len(x), task.action_dim)), star, reach)
+    return aimed_corrections(best, z, pick, **kw)
+
+
+def aimed_correction(
+    task: StudyTask, theta_star: np.ndarray, x: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """One aimed correction (a,) at pose ``x`` (a_max units), its draws from ``rng``."""
+    z = rng.standard_normal((1, task.action_dim + 1))
+    return aimed_draws(task, theta_star, x, z, rng.random(1))[0]
+
+
 def cosine(u: np.ndarray, best: np.ndarray) -> np.ndarray:
     """cos(u, best) row by row, both in a_max units (NaN where either is zero): the data
     card's "cos(u_H, θ*'s best correction)"."""
@@ -314,7 +401,13 @@ class FittedPopulationModel(HumanModel):
         bias: float = 0.0,
         n_candidates: int = DEFAULT_CANDIDATES,
         read_scale: Sequence[float] = (1.0, 1.0),
+        correction: str = "population",
     ) -> None:
+        if correction not in CORRECTIONS:
+            raise ValueError(
+                f"correction must be one of {', '.join(CORRECTIONS)}, got {correction!r}"
+            )
+        self.correction = correction
         if not isinstance(task, StudyTask):
             raise ValueError(f"task must be a study Task, got {type(task).__name__}")
         super().__init__(task, sigma, bias, n_candidates)
@@ -327,7 +420,10 @@ class FittedPopulationModel(HumanModel):
 
     def draw_extra(self, rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
         a = self.task.action_dim
-        return {"person": rng.standard_normal((n, 3)), "z": rng.standard_normal((n, a + 2))}
+        out = {"person": rng.standard_normal((n, 3)), "z": rng.standard_normal((n, a + 2))}
+        if self.correction == "aimed":
+            out["pick"] = rng.random(n)
+        return out
 
     def choose(
         self,
@@ -339,6 +435,10 @@ class FittedPopulationModel(HumanModel):
         k: np.ndarray | int = 0,
     ) -> np.ndarray:
         task, f = self.study_task, self.fit.fitted
+        if self.correction == "aimed":
+            z1 = draws.extra["z"][:, : task.action_dim + 1]
+            u = aimed_draws(task, theta_star, x, z1, draws.extra["pick"])
+            return self._read(u) * task.a_max
         best = best_correction(task, theta_star, x)
         z = draws.extra["person"]
         u = shape_corrections(
@@ -350,17 +450,25 @@ class FittedPopulationModel(HumanModel):
             turn=np.exp(f["turn_log_mean"] + f["turn_log_sd"] * z[:, 2]),
             turn_within=f["turn_within"],
         )
+        return self._read(u) * task.a_max
+
+    def _read(self, u: np.ndarray) -> np.ndarray:
+        """``u`` scaled by ``read_scale`` (position, rotation), in place."""
         u[:, :3] *= self.read_scale[0]
         u[:, 3:] *= self.read_scale[1]
-        return u * task.a_max
+        return u
 
 
 __all__ = [
     "FITTED",
     "FIT_FILE",
     "PRIORS",
+    "SHIPPED_CORRECTION",
+    "TIMING_FILE",
     "FittedPopulationModel",
     "Population",
+    "aimed_correction",
+    "aimed_draws",
     "cosine",
     "draw_corrections",
     "parse",

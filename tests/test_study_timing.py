@@ -1,0 +1,184 @@
+"""When a person steps in: the timing hazard's likelihood and fit (``humans.timing``), the
+reactive fitted participant, ``strol-bench fit-timing`` on synthetic sessions in the authors'
+layout (written here, never their data) and ``strol-bench study --learners``."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+from test_study_import import _session, _write
+
+from strol_gym.benchmarks import cli
+from strol_gym.envs.study import population
+from strol_gym.envs.study.participant import FittedParticipant
+from strol_gym.envs.study.people import FittedParams
+from strol_gym.humans import timing
+from strol_gym.tasks.study import STUDY_TASKS_V2
+
+DT = 0.05
+
+
+def _simulate(coef: np.ndarray, n: int, seed: int) -> list[timing.TimedSession]:
+    """Sessions of a person with the hazard ``coef`` and a learner that halves the shortfall
+    at each correction (events by the discrete-time process the likelihood models)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        task = 1 + i % 3
+        s, events, falls, last = rng.uniform(0.5, 2.0), [], [], 0
+        falls.append(s)
+        while True:  # the next event after ``last``: the first sample whose draw hits
+            t = np.arange(last + (1 if events else 0), 800)
+            eta = coef[task - 1] + coef[3] * s + coef[4] * np.log1p((t - last) * DT)
+            hit = np.nonzero(rng.random(len(t)) < -np.expm1(-np.exp(eta) * DT))[0]
+            if not len(hit):
+                break
+            last, s = int(t[hit[0]]), s * 0.5
+            events.append(last)
+            falls.append(s)
+        out.append(timing.TimedSession(str(i % 10), task, "one", 800, np.array(events), falls))
+    return out
+
+
+def test_fit_recovers_a_reactive_hazard_and_beats_the_rate():
+    truth = np.array([-3.0, -2.6, -2.8, 1.2, 0.3])
+    sessions = _simulate(truth, 240, seed=3)
+    f = timing.fit(sessions, "reactive", DT)
+    assert f.coef[3] == pytest.approx(truth[3], abs=0.35)
+    assert f.coef[4] == pytest.approx(truth[4], abs=0.2)
+    rate = timing.fit(sessions, "rate", DT)
+    assert f.loglik > timing.fit(sessions, "wait", DT).loglik > rate.loglik - 1e-9
+    assert rate.coef[3] == rate.coef[4] == 0.0
+    # a held-out set: the true model beats the learner-independent one
+    test = _simulate(truth, 60, seed=4)
+    assert timing.loglik(f, test) > timing.loglik(rate, test)
+
+
+def test_fitted_counts_match_the_real_counts_in_sample():
+    """At the maximum the expected count along the fitted paths equals the real one per Task
+    (the score equation of each Task's intercept)."""
+    sessions = _simulate(np.array([-3.0, -2.6, -2.8, 1.2, 0.3]), 60, seed=5)
+    for model in timing.MODELS:
+        f = timing.fit(sessions, model, DT)
+        pred = timing.predicted_counts(f, sessions)
+        for task in (1, 2, 3):
+            rows = [i for i, s in enumerate(sessions) if s.task == task]
+            real = sum(len(sessions[i].events) for i in rows)
+            assert pred[rows].sum() == pytest.approx(real, rel=1e-6)
+
+
+def test_a_timed_session_is_checked():
+    with pytest.raises(ValueError, match="events must be sorted path samples"):
+        timing.TimedSession("1", 1, "one", 10, np.array([3, 12]), [0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="shortfall must hold 2"):
+        timing.TimedSession("1", 1, "one", 10, np.array([3]), [0.0])
+    with pytest.raises(ValueError, match="task must be one of"):
+        timing.TimedSession("1", 4, "one", 10, np.array([], dtype=int), [0.0])
+    with pytest.raises(ValueError, match="model must be one of"):
+        timing.fit([], "nope")
+
+
+def test_the_shipped_population_reacts_and_its_hazard_is_checked():
+    pop = population.shipped()
+    shipped = json.loads(population.TIMING_FILE.read_text())
+    assert shipped["format"] == population.TIMING_FORMAT and shipped["fit_learners"]
+    for t in (1, 2, 3):
+        person = pop.draw(np.random.default_rng(t), t)
+        assert person.hazard == tuple(shipped["hazard"][str(t)])
+        assert person.path_time == shipped["path_time"][str(t)]
+        assert person.ramp == shipped["rise"]  # the push rises as the real pushes logged
+    with pytest.raises(ValueError, match=r"user_kwargs\['hazard'\]"):
+        FittedParams(hazard=(0.0, 1.0))
+    with pytest.raises(ValueError, match=r"user_kwargs\['path_time'\]"):
+        FittedParams(path_time=0.0)
+    with pytest.raises(ValueError, match="timing fit"):
+        population.parse_timing({"format": "other"})
+
+
+def _judgments(hazard, path_time=1e9, steps=200):
+    task = STUDY_TASKS_V2[1]()
+    params = FittedParams(hazard=hazard, path_time=path_time, reaction=0.0)
+    p = FittedParticipant(task, task.theta_star, np.random.default_rng(0), params=params)
+    p._shortfalls[task.theta_star.tobytes()] = 0.0  # the robot's plan: the person's own
+    pushes = [
+        t for t in np.arange(steps) * 0.5 if p._decide(t, task.start, task.theta_star) is not None
+    ]
+    return p, pushes
+
+
+def test_a_reactive_participant_steps_in_by_its_hazard():
+    p, pushes = _judgments((5.0, 0.0, 0.0))  # rate e^5 per s: it steps in at once
+    assert p.needs_theta_hat and pushes and pushes[0] == p.params.rest  # reaction 0
+    p, pushes = _judgments((-40.0, 0.0, 0.0))  # never
+    assert pushes == [] and p.judgments > 100
+    p, pushes = _judgments((-40.0, 0.0, 0.0), path_time=10.0)  # done after 10 s watched
+    assert p.done_at == pytest.approx(10.0)
+    with pytest.raises(ValueError, match="needs the robot's theta_hat"):
+        p.shortfall(None)
+
+
+@pytest.fixture(scope="module")
+def timing_logs(tmp_path_factory):
+    """Four people × 3 Tasks × One, MOF, StROL, imported with θ̂ reconstructed."""
+    root = tmp_path_factory.mktemp("authors") / "data"
+    rng = np.random.default_rng(11)
+    for p in range(4):
+        for task in (1, 2, 3):
+            for alg in ("b1", "b2", "ours"):
+                moves = [rng.uniform(-0.05, 0.05, 6) * [1, 1, 1, task > 1, 0, 0] for _ in range(2)]
+                _write(root, f"user_{p + 1}", task, alg, _session(task, rng, moves, [5, 0, 1, 3]))
+    out = tmp_path_factory.mktemp("logs") / "logs"
+    assert cli.main(["import-study", str(root), "--out", str(out), "--theta0", "implied"]) == 0
+    return out
+
+
+def test_fit_timing_on_synthetic_sessions(timing_logs, tmp_path, capsys):
+    fit_file = tmp_path / "timing_fit.json"
+    argv = ["fit-timing", str(timing_logs), "--out", str(tmp_path), "--bootstrap", "3"]
+    assert cli.main([*argv, "--write-fit", str(fit_file)]) == 0
+    assert "held out strol (0 sessions)" in capsys.readouterr().out  # StROL's θ̂ unknown here
+    res = json.loads((tmp_path / "timing.json").read_text())
+    assert res["sessions"]["fit"] == 24 and len(res["skipped"]) == 12
+    assert set(res["models"]) == set(timing.MODELS)
+    assert res["lopo_loglik"]["rate"] < 0
+    hazard, path_time, rise = population.parse_timing(json.loads(fit_file.read_text()))
+    assert path_time[1] == pytest.approx(40 * DT) and set(hazard) == {1, 2, 3}
+    assert rise == pytest.approx(2 * DT)  # poses per correction 5, 0, 1, 3: median 2
+    with pytest.raises(SystemExit):
+        cli.main(["fit-timing", str(timing_logs), "--out", str(tmp_path), "--bootstrap", "0"])
+
+
+def test_study_with_learners_without_strol_says_h3_was_not_evaluated(tmp_path, capsys):
+    out = tmp_path / "study"
+    argv = ["study", "--task", "1", "--users", "1", "--jobs", "1", "--out", str(out), "--quiet"]
+    assert cli.main([*argv, "--env-version", "v0", "--learners", "one,gradient"]) == 0
+    assert "H3 was not evaluated" in capsys.readouterr().out
+    rows = list(csv.DictReader(open(out / "study_table.csv")))
+    assert {r["learner"] for r in rows} == {"one", "gradient"}
+    assert all(math.isfinite(float(r["all_mean"])) for r in rows if r["metric"] == "corrections")
+    study = json.loads((out / "study.json").read_text())
+    assert study["h3_evaluated"] is False and study["verdicts"] == []
+    with pytest.raises(SystemExit) as e:
+        cli.main([*argv, "--learners", "one,nope"])
+    assert e.value.code == 2
+
+
+def test_simulate_draws_the_process_the_likelihood_scores():
+    """A constant hazard's mean count is samples × P(step in per sample); a plan whose
+    shortfall falls at a logged switch lowers the rate after it; same seed, same events."""
+    rng = np.random.default_rng(8)
+    hazard, n = (-2.0, 1.5, 0.0), 800
+    p = timing.step_in_probability(math.exp(-2.0), DT)
+    counts = [len(timing.simulate(hazard, n, np.array([]), [0.0], DT, rng)) for _ in range(300)]
+    assert np.mean(counts) == pytest.approx(n * p, rel=0.1)
+    falls = [
+        len(timing.simulate(hazard, n, np.array([400]), [1.0, 0.0], DT, rng)) for _ in range(300)
+    ]
+    assert np.mean(falls) == pytest.approx(400 * p * (math.exp(1.5) + 1), rel=0.1)
+    a = timing.simulate(hazard, n, np.array([400]), [1.0, 0.0], DT, np.random.default_rng(1))
+    b = timing.simulate(hazard, n, np.array([400]), [1.0, 0.0], DT, np.random.default_rng(1))
+    assert np.array_equal(a, b)
