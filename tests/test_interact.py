@@ -480,13 +480,14 @@ def test_sigterm_ends_the_session_with_its_reason_and_130(tmp_path, monkeypatch,
     monkeypatch.setenv("DISPLAY", ":99")
     monkeypatch.setattr(interact, "passive_viewer", Terminated)
     log = tmp_path / "t.jsonl"
+    before = signal.getsignal(signal.SIGTERM)  # another test in this worker may have set one
     assert cli(["interact", "--task", "1", "--fast", "--log", str(log)]) == 130
     end = json.loads(log.read_text().splitlines()[-1])
     assert end["reason"] == "terminated" and end["interrupted"] is True
     assert end["steps"] >= 4 and end["sim_time"] == pytest.approx(end["steps"] * CONTROL_DT)
     out = capsys.readouterr()
     assert "session ended: terminated" in out.out and "interrupted:" in out.err
-    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL  # put back
+    assert signal.getsignal(signal.SIGTERM) is before  # put back
 
 
 def test_each_mode_has_its_own_help(capsys):

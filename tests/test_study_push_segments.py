@@ -6,12 +6,17 @@ drag sent as X events to ``strol-bench interact`` on v2 under Xvfb."""
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from test_interact_person import DRAG, drag_session, needs_x
+from test_interact_person import needs_x
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.envs.study.env import StudyEnvV2
@@ -200,6 +205,73 @@ def test_the_segmenter_on_its_own():
     assert not seg.active and seg.feed(5.0) is None
     first_drop = PushSegmenter.for_hold_off(15.0, 0.0, 0.05)
     assert [first_drop.feed(f) for f in (20.0, 10.0, 20.0)] == ["start", "end", "start"]
+
+
+# A drag on link 7 selected in code: this test is about how a drag is cut into corrections;
+# selecting by a person's click is test_interact_person's.
+ARM_DRIVER = """
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+from strol_gym.benchmarks.cli import main
+from strol_gym.benchmarks.sessions import interact
+
+ready = Path(sys.argv[1])
+
+
+class Selected(interact._Passive):
+    # The real viewer with link 7 selected, as a person's double-click on it leaves it.
+
+    def __init__(self, model, data):
+        super().__init__(model, data)
+        body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "panda0_link7")
+        with self.handle.lock():
+            self.handle.perturb.select = body
+        # The viewer maps its window on a thread of its own; X events sent before that are
+        # lost (under load a drag once read 0 N), so the physics starts once it is visible.
+        find = ["xdotool", "search", "--sync", "--onlyvisible", "--name", "^MuJoCo"]
+        subprocess.run(find, check=True, timeout=120, stdout=subprocess.DEVNULL)
+        ready.write_text("selected")
+
+
+interact.passive_viewer = Selected
+sys.exit(main(sys.argv[2:]))
+"""
+
+DRAG = """
+ready="$1"; shift
+"$@" &
+pid=$!
+for i in $(seq 1 1200); do [ -f "$ready" ] && break; sleep 0.1; done
+sleep 1.5
+# Ctrl + right-drag from the window's centre: the viewer's force on the selected body
+xdotool mousemove 512 384 keydown ctrl mousedown 3
+for i in $(seq 1 20); do xdotool mousemove_relative -- 4 -3; sleep 0.05; done
+# held 3 s: the viewer reads the mouse only when it draws a frame, and with software rendering
+# on a loaded machine a frame can take a second (held 1 s, the drag once never reached the arm)
+sleep 3.0
+xdotool mouseup 3 keyup ctrl
+wait $pid
+"""
+
+
+def drag_session(tmp_path: Path, drag: str, max_steps: int) -> tuple[Path, list[dict]]:
+    """`strol-bench interact --task 1` with link 7 selected, under Xvfb, while the shell script
+    ``drag`` sends its X events: the session log's path and its records."""
+    log, ready = tmp_path / "arm.jsonl", tmp_path / "ready"
+    (tmp_path / "driver.py").write_text(ARM_DRIVER)
+    (tmp_path / "drag.sh").write_text(drag)
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM")}
+    run = [sys.executable, str(tmp_path / "driver.py"), str(ready), "interact", "--task", "1"]
+    run += ["--max-steps", str(max_steps), "--log", str(log)]
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1024x768x24", "bash", str(tmp_path / "drag.sh")]
+    done = subprocess.run(
+        [*cmd, str(ready), *run], capture_output=True, text=True, timeout=240, env=env
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    return log, [json.loads(t) for t in log.read_text().splitlines()]
 
 
 SLOW_DRAG = DRAG.replace(
