@@ -4,6 +4,7 @@ carries the licence, CITATION.cff and CHANGELOG.md; neither holds a lab/ file, a
 or pickled weights (the shipped ĝ weights are safetensors)."""
 
 import configparser
+import subprocess
 import sys
 import tarfile
 import zipfile
@@ -39,6 +40,23 @@ for name in (
 ):
     if name not in wheel:
         fail(f"the wheel lacks {name}")
+
+# Every data file the package reads at run time is in the wheel: each file git tracks under the
+# installed trees that is not a module (a fit, a scene, weights, the page), under its import path.
+ROOMS = {
+    "strol_gym/": "strol_gym/",
+    "benchmarks/": "strol_gym/benchmarks/",
+    "wrappers/": "strol_gym/wrappers/",
+}
+tracked = subprocess.run(
+    ["git", "ls-files", *ROOMS], cwd=ROOT, capture_output=True, text=True, check=True
+).stdout.split()
+for name in tracked:
+    if name.endswith(".py"):
+        continue
+    room = next(r for r in ROOMS if name.startswith(r))
+    if ROOMS[room] + name[len(room) :] not in wheel:
+        fail(f"the wheel lacks the data file {name} (setup.cfg's [options.package_data])")
 
 sdist = [n.split("/", 1)[1] for n in tarfile.open(sdists[0]).getnames() if "/" in n]
 for name in ("LICENSE", "CITATION.cff", "CHANGELOG.md", "PKG-INFO", "setup.cfg"):
