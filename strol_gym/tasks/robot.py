@@ -272,7 +272,7 @@ class RobotTask(Task):
         )
         return best
 
-    def m6_drawn(self) -> Callable[..., np.ndarray] | None:
+    def m6_drawn(self) -> Callable[..., None] | None:
         """``_m6_drawn`` while ``m6_choice`` runs its kernel and the candidates and the noise's
         scale are ``Task``'s."""
         if not (self._unchanged(RobotTask, _M6_METHODS) and self._unchanged(Task, _DRAWN)):
