@@ -45,18 +45,18 @@ class NominalModel(HumanModel):
         if drawn is None:
             return None
         n, a = len(rngs), self.task.action_dim
-        c = np.ascontiguousarray
-        x, u_r = c(x, dtype=np.float64), c(u_r, dtype=np.float64)
-        theta_hat = c(theta_hat, dtype=np.float64)
-        pref = c(self.preference(theta_star, k), dtype=np.float64)
-        units = np.empty((min(n, DRAWN_CHUNK), self.n_candidates, a))
-        noise = np.empty((n, a))
+        c, f64 = np.ascontiguousarray, np.float64
+        x, u_r, theta_hat = c(x, dtype=f64), c(u_r, dtype=f64), c(theta_hat, dtype=f64)
+        pref = c(self.preference(theta_star, k), dtype=f64)
         out = np.empty((n, a))
         if n == 1:  # one person (a single env's every correction): no chunks
-            rngs[0].random(out=units[0])
-            rngs[0].standard_normal(out=noise[0])
+            rng = rngs[0]
+            units = rng.random((1, self.n_candidates, a))  # the same draws as ``out=`` a block
+            noise = rng.standard_normal((1, a))
             drawn(x, u_r, theta_hat, pref, units, noise, self.sigma, self.bias, out)
             return out
+        units = np.empty((DRAWN_CHUNK, self.n_candidates, a))
+        noise = np.empty((n, a))
         for lo in range(0, n, DRAWN_CHUNK):
             hi = min(lo + DRAWN_CHUNK, n)
             for rng, block, z in zip(rngs[lo:hi], units, noise[lo:hi], strict=False):

@@ -38,6 +38,16 @@ _LONG = 3000
 
 _M6_METHODS = ("g", "g_planes", "features", "dynamics", "_offsets", "_features_one", "dynamics_one")
 """What ``robot_m6`` computes over again: a subclass overriding one of them takes the plain path."""
+
+
+@functools.cache
+def _drawn_kernel() -> Callable[..., None]:
+    """``m6_kernels.robot_m6_drawn``, imported once (it loads numba; every correction asks)."""
+    from strol_gym.tasks.m6_kernels import robot_m6_drawn
+
+    return robot_m6_drawn
+
+
 _DRAWN = ("candidate_actions", "_unit_to_box", "_axis_scale", "a_max", "a_max_l")
 """What ``robot_m6_drawn`` computes over again of ``Task``: the candidates and the noise's scale."""
 
@@ -275,9 +285,12 @@ class RobotTask(Task):
     def m6_drawn(self) -> Callable[..., None] | None:
         """``_m6_drawn`` while ``m6_choice`` runs its kernel and the candidates and the noise's
         scale are ``Task``'s."""
-        if not (self._unchanged(RobotTask, _M6_METHODS) and self._unchanged(Task, _DRAWN)):
-            return None
-        return self._m6_drawn
+        ok = self.__dict__.get("_m6_drawn_ok")  # asked on every correction: answered once
+        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
+            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(
+                RobotTask, _M6_METHODS
+            ) and self._unchanged(Task, _DRAWN)
+        return self._m6_drawn if ok else None
 
     def _m6_drawn(
         self,
@@ -292,8 +305,6 @@ class RobotTask(Task):
         out: np.ndarray,
     ) -> None:
         """``Task.m6_drawn`` by ``strol_gym.tasks.m6_kernels.robot_m6_drawn``."""
-        from strol_gym.tasks.m6_kernels import robot_m6_drawn
-
         memo = self.__dict__.setdefault("_m6_drawn_memo", {})  # as ``_unchanged``'s
         prm = memo.get((sigma, bias))
         if prm is None:
@@ -301,7 +312,7 @@ class RobotTask(Task):
             prm = memo[sigma, bias] = np.concatenate(
                 [[alpha, sigma, bias], plate, cup, low, high, self._axis_scale, self.a_max]
             ).astype(np.float64)
-        robot_m6_drawn(x, u_r, theta_hat, theta_star, units, noise, prm, out)
+        _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, out)
 
     @functools.cached_property
     def _m6_params(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
