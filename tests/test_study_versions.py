@@ -218,3 +218,12 @@ def test_a_new_version_is_a_new_option_set():
     assert (v9.name, v9.env_id, v9.env_class) == ("v9", f"{STUDY_ENV}-v9", "StudyEnvV9")
     assert study_task_name(9, 2) == "study-task2-v9"
     assert study_task_id(9, 2) == f"{STUDY_ENV}-v9-task2"
+
+
+def test_a_task_that_names_itself_keeps_its_name():
+    """A Task built on a study Task with its own ``task_id`` (another setting) keeps it and
+    gets no study weights stem; one without takes the study's names."""
+    own = type("Own", (study_tasks.StudyTask2,), {"task_id": "own-task", "__module__": __name__})
+    assert (own.task_id, own.weights_stem) == ("own-task", None)
+    plain = type("Plain", (study_tasks.StudyTask2V1,), {"__module__": __name__})
+    assert (plain.task_id, plain.weights_stem) == (study_task_id(1, 2), "study2-v1")

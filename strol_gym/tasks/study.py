@@ -183,10 +183,15 @@ class StudyTask(Task):
     # ------------------------------------------------------------------ identity
     def __init_subclass__(cls, **kwargs: Any) -> None:
         """Its ``task_id`` (its ĝ's key) and ``weights_stem`` follow from its ``version`` and
-        ``number``."""
+        ``number``, unless it sets its own (a Task of another setting built on a study one)."""
         super().__init_subclass__(**kwargs)
+        if "task_id" in vars(cls):
+            cls.weights_stem = vars(cls).get("weights_stem")  # its own, or its registry name
+            return
         cls.task_id = study_task_id(cls.version, cls.number)
-        cls.weights_stem = study_weights_stem(cls.version, cls.number)
+        cls.weights_stem = vars(cls).get("weights_stem") or study_weights_stem(
+            cls.version, cls.number
+        )
 
     @property
     def theta_star(self) -> np.ndarray:
