@@ -118,8 +118,8 @@ def _slip_angles(steer: np.ndarray) -> np.ndarray:
 
 
 _M6_METHODS = ("g", "g_planes", "_phi", "_step_car", "dynamics")
-"""What ``highway_m6`` computes over again: a subclass overriding one of them takes the plain
-path."""
+"""What the Highway's compiled search (``highway_m6_screen``, ``highway_m6_kept``) computes
+over again: a subclass overriding one of them takes the plain path."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -195,7 +195,7 @@ class HighwayTask(Task):
         if x.shape == (8,):
             if use_fast() and self._unchanged(HighwayTask, ("_phi",)):
                 # compiled: the operations of ``_phi`` (its sine and cosine the C library's,
-                # as numpy's: what ``highway_m6`` relies on too)
+                # as numpy's: what ``highway_m6_kept`` relies on too)
                 from strol_gym.tasks.m6_kernels import highway_phi
 
                 return np.array(highway_phi(x, self._kernel_params))
@@ -262,34 +262,35 @@ class HighwayTask(Task):
         theta_star: np.ndarray,
         candidates: np.ndarray,
     ) -> np.ndarray | None:
-        """Eq. M6 by ``strol_gym.tasks.m6_kernels.highway_m6`` (the numbers of ``g``). numpy
-        computes the steering angles β = arctan(½ tan δ): its tangent and arctangent are its own
-        SIMD ones, not the C library's that a kernel would call."""
+        """Eq. M6 by ``strol_gym.tasks.m6_kernels``: a screen drops the candidates that provably
+        cannot be chosen (``highway_m6_screen``), an exact search picks among the rest
+        (``highway_m6_kept``, the numbers of ``g``). numpy computes the steering angles
+        β = arctan(½ tan δ) of the robot cars and of the kept candidates, in one call: its
+        tangent and arctangent are its own SIMD ones, not the C library's that a kernel would
+        call."""
         if not self._unchanged(HighwayTask, _M6_METHODS):
             return None
-        from strol_gym.tasks.m6_kernels import highway_m6
+        from strol_gym.tasks.m6_kernels import highway_m6_kept, highway_m6_screen
 
         c, f64 = np.ascontiguousarray, np.float64
-        u_r = np.asarray(u_r, dtype=f64)
+        x, u_r = c(x, dtype=f64), np.asarray(u_r, dtype=f64)
+        theta_hat, theta_star = c(theta_hat, dtype=f64), c(theta_star, dtype=f64)
         candidates = np.asarray(candidates, dtype=f64)
-        best = np.empty(len(candidates), dtype=np.int64)
-        beta = _slip_angles(candidates[..., 1])
-        highway_m6(
-            c(x, dtype=f64),
-            c(u_r[:, 0]),
-            _slip_angles(u_r[:, 1]),
-            c(theta_hat, dtype=f64),
-            c(theta_star, dtype=f64),
-            candidates,
-            beta,
-            self._kernel_params,
-            best,
+        acc_r, prm = c(u_r[:, 0]), self._kernel_params
+        b, k = candidates.shape[:2]
+        keep = np.empty((b, k), dtype=np.bool_)
+        steer = np.empty(b * (k + 1))
+        n = highway_m6_screen(
+            x, acc_r, c(u_r[:, 1]), theta_hat, theta_star, candidates, prm, keep, steer
         )
+        best = np.empty(b, dtype=np.int64)
+        beta = _slip_angles(steer[:n])
+        highway_m6_kept(x, acc_r, theta_hat, theta_star, candidates, keep, beta, prm, best)
         return best
 
     @functools.cached_property
     def _kernel_params(self) -> np.ndarray:
-        """The numbers ``highway_m6`` reads, in its order."""
+        """The numbers the compiled search reads, in its order."""
         return np.array(
             [
                 self.headway,
