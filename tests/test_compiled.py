@@ -98,7 +98,7 @@ def test_the_highway_screen_keeps_every_candidate_that_could_be_chosen(task, pat
     from strol_gym.tasks.m6_kernels import highway_m6_screen
 
     rng = np.random.default_rng(56)
-    kept = total = 0
+    kept = total = settled = 0
     for trial in range(40):
         b = 16
         x = task.sample_start(rng, b)
@@ -121,19 +121,15 @@ def test_the_highway_screen_keeps_every_candidate_that_could_be_chosen(task, pat
         assert fast.tobytes() == plain.tobytes()
         keep = np.empty(cand.shape[:2], dtype=bool)
         steer = np.empty(b * (cand.shape[1] + 1))
-        highway_m6_screen(
-            x,
-            u_r[:, 0].copy(),
-            u_r[:, 1].copy(),
-            theta_hat,
-            theta_star,
-            cand,
-            task._kernel_params,
-            keep,
-            steer,
-        )
+        best = np.empty(b, dtype=np.int64)
+        prm = task._kernel_params
+        highway_m6_screen(x, u_r, theta_hat, theta_star, cand, prm, keep, steer, best)
         kept, total = kept + keep[8:].sum(), total + keep[8:].size
-    assert kept < total / 20 if task.max_steering < 0.05 else kept > total / 2
+        settled += (best[8:] >= 0).sum()  # one candidate left: the screen's choice
+    if task.max_steering < 0.05:
+        assert kept < total / 20 and settled > 40 * 8 / 2
+    else:  # most candidates steer beyond the polynomials' range: kept for the exact search
+        assert kept > total / 2
 
 
 def test_highway_features_of_one_state_are_the_plain_bytes(path):

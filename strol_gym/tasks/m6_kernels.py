@@ -288,19 +288,21 @@ def _screen_error(
 @compiled
 def highway_m6_screen(
     x: np.ndarray,
-    acc_r: np.ndarray,
-    steer_r: np.ndarray,
+    u_r: np.ndarray,
     th_hat: np.ndarray,
     th_star: np.ndarray,
     cand: np.ndarray,
     prm: np.ndarray,
     keep: np.ndarray,
     steer: np.ndarray,
+    best: np.ndarray,
 ) -> int:
-    """Which candidates the exact search (``highway_m6_kept``) must still look at: ``keep``
-    (B, K) true for them; ``steer`` gets the robot's steering angles δ (``steer_r``, B) and
-    then those of the kept candidates in (person, candidate) order; returns how many in all
-    (numpy turns them into β = arctan(½ tan δ) in one call).
+    """Eq. M6's choice where a screen settles it, and what the exact search
+    (``highway_m6_kept``) must still look at elsewhere. ``u_r`` (B, 2): the robot's actions.
+    A person whose screen keeps one candidate has it as ``best[b]``; for each other person
+    ``best[b]`` = −1, ``keep[b]`` marks the candidates kept and ``steer`` gets, packed in
+    order, the robot's steering angle δ and then the kept candidates' (numpy turns them into
+    β = arctan(½ tan δ) in one call). Returns how many angles were packed.
 
     The screen computes each candidate's eq. M6 norm with Taylor polynomials in place of the
     sines, cosines, tangent and arctangent (``_sin_near``, ``_cos_near``, ``_slip_near``, the
@@ -308,10 +310,10 @@ def highway_m6_screen(
     within a proven error E of the exact one (``_screen_error``). A candidate whose screened
     distance ‖·‖ exceeds the smallest screened distance by more than 4E (and a relative 1e-12
     for the rounding of norms, roots and squares) has a norm larger than another candidate's:
-    it cannot be numpy's argmin, the first minimum, so it is dropped. Kept: every candidate
-    of a person with an unbounded or NaN input or a robot's |δ| above ``_SMALL_STEER``, and
-    every candidate outside the polynomials' ranges (|δ| <= ``_SMALL_STEER``, angles
-    <= ``_SMALL_ANGLE``)."""
+    it cannot be numpy's argmin, the first minimum, so it is dropped; one left is the
+    minimum. Kept: every candidate of a person with an unbounded or NaN input (where a norm
+    could be NaN) or a robot's |δ| above ``_SMALL_STEER``, and every candidate outside the
+    polynomials' ranges (|δ| <= ``_SMALL_STEER``, angles <= ``_SMALL_ANGLE``)."""
     alpha, dt, half, vmax, vmin = prm[9], prm[10], prm[11], prm[12], prm[13]
     t, min_gap, close, lane_w = prm[0], prm[1], prm[2], prm[3]
     lane0, lane_width, gap_scale, speed_ref, speed_scale = prm[4], prm[5], prm[6], prm[7], prm[8]
@@ -321,11 +323,10 @@ def highway_m6_screen(
     acc_k = np.empty(n_cand)
     steer_k = np.empty(n_cand)
     norm_k = np.empty(n_cand)
-    n_people = cand.shape[0]
-    steer[:n_people] = steer_r
-    n = n_people
-    for b in range(n_people):
-        may_screen = params_ok and _bounded(acc_r[b]) and abs(steer_r[b]) <= _SMALL_STEER
+    n = 0
+    for b in range(cand.shape[0]):
+        acc_r, steer_r = u_r[b, 0], u_r[b, 1]
+        may_screen = params_ok and _bounded(acc_r) and abs(steer_r) <= _SMALL_STEER
         for i in range(8):
             may_screen = may_screen and _bounded(x[b, i])
         for i in range(3):
@@ -339,12 +340,12 @@ def highway_m6_screen(
             acc_bound = a if a > acc_bound else acc_bound
         cut = math.inf
         if may_screen:
-            beta_r = _slip_near(steer_r[b])
-            r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], acc_r[b], beta_r, dt, half, vmax, vmin)
+            beta_r = _slip_near(steer_r)
+            r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], acc_r, beta_r, dt, half, vmax, vmin)
             z = _car(x[b, 4], x[b, 5], x[b, 6], x[b, 7], 0.0, 0.0, dt, half, vmax, vmin)
             ahead = _robot_ahead(r[0], r[1], r[2], r[3], prm[0])
             f0 = _phi(ahead, z[0], z[1], z[2], z[3], prm)
-            err = _screen_error(x, b, ahead, f0, th_hat, th_star, prm, acc_r[b], acc_bound)
+            err = _screen_error(x, b, ahead, f0, th_hat, th_star, prm, acc_r, acc_bound)
             px, py, v, h = x[b, 4], x[b, 5], x[b, 6], x[b, 7]
             v_dt, turn = v * dt, v / half * dt
             # _car's speed clip, as bounds on the acceleration (none within the limits)
@@ -380,11 +381,21 @@ def highway_m6_screen(
                 # beyond this, a screened candidate is farther than the nearest, exactly too
                 cut = (math.sqrt(low) * (1.0 + 1e-12) + 4.0 * err) * (1.0 + 2e-12)
                 cut = cut * cut * (1.0 + 1e-12)
+        count, last = 0, 0
         for k in range(n_cand):
             # kept: near the nearest, outside the polynomials' ranges (inf) or NaN
             kept = cut == math.inf or not norm_k[k] > cut or norm_k[k] == math.inf
             keep[b, k] = kept
             if kept:
+                count, last = count + 1, k
+        if count == 1 and cut < math.inf:
+            best[b] = last  # every other candidate's norm is larger
+            continue
+        best[b] = -1
+        steer[n] = steer_r
+        n += 1
+        for k in range(n_cand):
+            if keep[b, k]:
                 steer[n] = steer_k[k]
                 n += 1
     return n
@@ -393,7 +404,7 @@ def highway_m6_screen(
 @compiled
 def highway_m6_kept(
     x: np.ndarray,
-    acc_r: np.ndarray,
+    u_r: np.ndarray,
     th_hat: np.ndarray,
     th_star: np.ndarray,
     cand: np.ndarray,
@@ -402,15 +413,17 @@ def highway_m6_kept(
     prm: np.ndarray,
     best: np.ndarray,
 ) -> None:
-    """Eq. M6 over the candidates ``keep`` marks (``highway_m6_screen``): each person's first
-    minimum of the norm (or first NaN) among them, into ``best`` (B,), the numbers of
-    ``HighwayTask.g``. ``beta``: the steering angles β of the robot cars (B) and then of the
-    kept candidates in (person, candidate) order."""
+    """Eq. M6 for the people ``highway_m6_screen`` left open (``best[b]`` = −1): the first
+    minimum of the norm (or first NaN) among the candidates ``keep`` marks, into ``best``,
+    the numbers of ``HighwayTask.g``. ``beta``: the steering angles β the screen packed (per
+    open person, the robot car's and then the kept candidates')."""
     alpha, dt, half, vmax, vmin = prm[9], prm[10], prm[11], prm[12], prm[13]
-    n_people = cand.shape[0]
-    j = n_people
-    for b in range(n_people):
-        r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], acc_r[b], beta[b], dt, half, vmax, vmin)
+    j = 0
+    for b in range(cand.shape[0]):
+        if best[b] >= 0:
+            continue
+        r = _car(x[b, 0], x[b, 1], x[b, 2], x[b, 3], u_r[b, 0], beta[j], dt, half, vmax, vmin)
+        j += 1
         z = _car(x[b, 4], x[b, 5], x[b, 6], x[b, 7], 0.0, 0.0, dt, half, vmax, vmin)
         ahead = _robot_ahead(r[0], r[1], r[2], r[3], prm[0])
         f0 = _phi(ahead, z[0], z[1], z[2], z[3], prm)
