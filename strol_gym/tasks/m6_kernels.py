@@ -371,8 +371,9 @@ def highway_m6_screen(
                 q0 = s0 - ((slot * to_gap - g0) * alpha + h0)
                 q1 = s1 - (((vh - speed_ref) * to_speed - g1) * alpha + h1)
                 q2 = s2 - (((1.0 - abs(lane - 1.0)) - g2) * alpha + h2)
-                inside = abs(d) <= _SMALL_STEER and abs(hb) <= _SMALL_ANGLE
-                inside = inside and abs(hh) <= _SMALL_ANGLE
+                # (& rather than and: no branch in the loop, which the compiler then vectorises)
+                inside = (abs(d) <= _SMALL_STEER) & (abs(hb) <= _SMALL_ANGLE)
+                inside = inside & (abs(hh) <= _SMALL_ANGLE)
                 norm_k[k] = q0 * q0 + q1 * q1 + q2 * q2 if inside else math.inf
             low = math.inf
             for k in range(n_cand):
