@@ -119,6 +119,9 @@ class Car(Vehicle):
     reach: the rest is highway-env's to answer, its translation a zero vector). Everything
     else (near pairs, non-finite or huge numbers) goes to highway-env's own check."""
 
+    heading: float
+    speed: float
+
     def _is_colliding(self, other: Any, dt: float) -> Any:
         mine, theirs = self.position, getattr(other, "position", None)
         if type(mine) is np.ndarray and type(theirs) is np.ndarray and mine.shape == (2,):
