@@ -65,8 +65,8 @@ def test_a_nan_norm_is_chosen_first_as_numpys_argmin_does(task, path):
 
 
 def test_the_highway_search_skips_only_candidates_that_cannot_be_picked(path):
-    """``highway_m6`` skips a candidate by its speed term alone: ties keep the first minimum,
-    and a NaN or unbounded input (where a skipped norm could be NaN) turns the skip off."""
+    """The Highway's screen drops only candidates that cannot be picked: ties keep the first
+    minimum, and a NaN or unbounded input (where a dropped norm could be NaN) turns it off."""
     task = HighwayTask()
     rng = np.random.default_rng(33)
     x = task.sample_start(rng, 6)
@@ -86,6 +86,50 @@ def test_the_highway_search_skips_only_candidates_that_cannot_be_picked(path):
     fast = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
     assert fast.tobytes() == plain.tobytes()
     assert np.isnan(fast[1]).any()  # the NaN candidate was reached and chosen, as numpy does
+
+
+@pytest.mark.parametrize(
+    "task", [HighwayTask(), HighwayTask(max_steering=0.2)], ids=["default", "wide-steering"]
+)
+def test_the_highway_screen_keeps_every_candidate_that_could_be_chosen(task, path):
+    """The screen (polynomials for the trigonometry, a proven error bound) drops most
+    candidates and never the chosen one: near ties, exact repeats, angles at the edge of the
+    polynomials' range, steering beyond it, far positions and clipped speeds included."""
+    from strol_gym.tasks.m6_kernels import highway_m6_screen
+
+    rng = np.random.default_rng(56)
+    kept = total = settled = 0
+    for trial in range(40):
+        b = 16
+        x = task.sample_start(rng, b)
+        x[:4, 7] = rng.choice([0.45, -0.45, 0.3], 4)  # headings near the range's edge
+        x[4:6, [0, 4]] += 9e3  # far down the road
+        x[6, 6] = 45.0  # the speed clip
+        u_r = rng.uniform(-1.2, 1.2, (b, 2)) * task.action_bound
+        u_r[7, 1] = 0.06  # a robot steering beyond the polynomial's range
+        cand = task.candidate_actions(rng, b, 256)
+        cand[:, 200:230] = cand[:, 100:130]  # exact repeats: the first of equal norms wins
+        cand[:, 231, 0] = np.nextafter(cand[:, 101, 0], np.inf)  # a hair from another
+        theta_star = rng.standard_normal((b, 3))
+        # θ̂ one correction away from θ*: the best norm near zero, its rivals near it
+        g = task.g(x, cand[np.arange(b), rng.integers(1, 257, b)], u_r)
+        theta_hat = theta_star - task.alpha * g + rng.normal(0, 1e-9, (b, 3)) * (trial % 2)
+        path(False)
+        plain = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+        path(True)
+        fast = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+        assert fast.tobytes() == plain.tobytes()
+        keep = np.empty(cand.shape[:2], dtype=bool)
+        steer = np.empty(b * (cand.shape[1] + 1))
+        best = np.empty(b, dtype=np.int64)
+        prm = task._kernel_params
+        highway_m6_screen(x, u_r, theta_hat, theta_star, cand, prm, keep, steer, best)
+        kept, total = kept + keep[8:].sum(), total + keep[8:].size
+        settled += (best[8:] >= 0).sum()  # one candidate left: the screen's choice
+    if task.max_steering < 0.05:
+        assert kept < total / 20 and settled > 40 * 8 / 2
+    else:  # most candidates steer beyond the polynomials' range: kept for the exact search
+        assert kept > total / 2
 
 
 def test_highway_features_of_one_state_are_the_plain_bytes(path):
