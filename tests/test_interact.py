@@ -322,7 +322,7 @@ def test_a_person_meets_the_task_and_g_hat_of_strol_bench_study(task):
     assert person.unwrapped.spec.id == exp.env_id
     assert type(person.unwrapped.task) is type(env.unwrapped.task)
     assert person.unwrapped.task.version == env.unwrapped.task.version >= 1
-    assert person.unwrapped.human is None  # no simulated person pushes
+    assert person.unwrapped.person is None  # no simulated person pushes
     ours, theirs = person.learner.model.state_dict(), study_learner.model.state_dict()
     assert ours.keys() == theirs.keys()
     for k in ours:

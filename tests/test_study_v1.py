@@ -248,11 +248,11 @@ def test_v0_and_v1_are_deprecated_on_make_and_v2_is_not():
     for env_id in ("StROL-Study-v0", ENV_ID):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            gym.make(env_id, human=None).close()
+            gym.make(env_id, person=None).close()
         assert any("out of date" in str(w.message) for w in caught), env_id
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        gym.make("StROL-Study-v2", human=None).close()
+        gym.make("StROL-Study-v2", person=None).close()
     assert not any("out of date" in str(w.message) for w in caught)
 
 
@@ -289,7 +289,7 @@ def test_gymnasium_check_env_and_pickle(task):
         warnings.simplefilter("always")
         check_env(env.unwrapped, skip_render_check=True)
     assert unexpected(caught) == []
-    a = make(task=task, human="nominal", sigma=0.25)  # with the participant
+    a = make(task=task, person={"sigma": 0.25})  # with the participant
     a.reset(seed=SEED)
     steps(a, 30)
     b = pickle.loads(pickle.dumps(a))
@@ -312,7 +312,7 @@ def test_versions_are_option_sets_of_one_class_not_overrides():
         version = dataclasses.replace(V1, name="v9", env_id="StROL-Study-v9", reflex=False)
         env_id = "StROL-Study-v9"
 
-    env = StudyEnvV9(task=2, human=None, max_episode_steps=3)
+    env = StudyEnvV9(task=2, person=None, max_episode_steps=3)
     env.reset(seed=1)
     _, _, _, _, info = env.step(np.zeros(env.action_space.shape))
     assert "reflex" not in info and env.participant == "observer"

@@ -93,7 +93,9 @@ def test_vector_env_rejects_bad_arguments():
     with pytest.raises(ValueError, match="num_envs"):
         gym.make_vec("StROL-Robot-v0", num_envs=0, vectorization_mode="vector_entry_point")
     with pytest.raises(ValueError, match="sigma"):
-        gym.make_vec("StROL-Robot-v0", 2, vectorization_mode="vector_entry_point", sigma=-1)
+        gym.make_vec(
+            "StROL-Robot-v0", 2, vectorization_mode="vector_entry_point", person={"sigma": -1}
+        )
     env = gym.make_vec("StROL-Robot-v0", num_envs=2, vectorization_mode="vector_entry_point")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="actions must have shape"):

@@ -14,6 +14,7 @@ and the Fig. 6-style plots.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from collections.abc import Sequence
@@ -99,6 +100,8 @@ PAPER_POOLED = {
 """The paper's text: repeated-measures ANOVA over One, MOF, StROL, participants' values
 averaged over the Tasks (12 participants)."""
 USERS = Condition("simulated-users", sigma=SIGMA, bias=0.0, prior="bimodal")
+"""The study's condition for a person with a hand's noise (v0's and v1's: σ = 0.25, ε = 0);
+``study_condition`` gives each version's person its own."""
 
 
 def parse_tasks(text: str) -> tuple[int, ...]:
@@ -129,16 +132,25 @@ V0_WARNING = (
 )
 
 
-def study_env(task: int, version: str = DEFAULT_VERSION, participant: str | None = None) -> str:
-    """The env preset of a study Task: v0's, or v1's or v2's with its participant (None: the
-    version's default; ``conditions.py``)."""
-    if version == "v0":
-        return f"study{task}"
-    default = DEFAULT_PARTICIPANT[version]
+def study_env(task: int, version: str = DEFAULT_VERSION) -> str:
+    """The env preset of a study Task on ``version`` (``conditions.py``)."""
+    return f"study{task}" if version == "v0" else f"study{task}-{version}"
+
+
+def study_condition(version: str = DEFAULT_VERSION, participant: str | None = None) -> Condition:
+    """The study's condition: the version's person (``participant``; None: its default), with
+    σ = ``SIGMA`` and ε = 0 where the person takes them (the fitted person takes none: its
+    noise is fitted). ValueError naming ``--participant`` if the version lacks it."""
+    default = DEFAULT_PARTICIPANT.get(version)
     who = participant or default
-    if who not in PARTICIPANTS or (version == "v1" and who == "fitted"):
+    if version == "v0" and participant not in (None, "oracle"):
+        raise ValueError(f"--participant {participant!r} does not exist on StROL-Study-v0")
+    if who not in (*PARTICIPANTS, None) or (version == "v1" and who == "fitted"):
         raise ValueError(f"--participant {who!r} does not exist on StROL-Study-{version}")
-    return f"study{task}-{version}" + ("" if who == default else f"-{who}")
+    human = None if who in (default, None) else who
+    if who == "fitted":
+        return dataclasses.replace(USERS, sigma=None, bias=None)
+    return dataclasses.replace(USERS, human=human)
 
 
 def study_config(
@@ -150,9 +162,8 @@ def study_config(
     participant: str | None = None,
 ) -> BenchConfig:
     """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
-    exps = tuple(
-        Experiment(study_env(t, version, participant), USERS, runs=users, seed=seed) for t in tasks
-    )
+    condition = study_condition(version, participant)
+    exps = tuple(Experiment(study_env(t, version), condition, runs=users, seed=seed) for t in tasks)
     learners = tuple(dict.fromkeys(learners))
     if not learners:
         raise ValueError("--learners must name at least one learner")

@@ -619,7 +619,7 @@ def session_env(
     env_kwargs: dict[str, Any] | None = None,
 ) -> OnlineLearningWrapper:
     """The env and learner a person meets: ``strol-bench study``'s own (its default version's
-    env id and Task, hence its ĝ), with no simulated person (``human=None``). With a
+    env id and Task, hence its ĝ), with no simulated person (``person=None``). With a
     ``duration`` in ``env_kwargs`` the step limit is set from it (the registered one, 60 s,
     would end the session first)."""
     from strol_gym.benchmarks.engine.conditions import env_preset
@@ -628,7 +628,7 @@ def session_env(
     # strol-bench study's default preset (experiments.study.study_env(task), which this layer
     # may not import): v2, its Task and ĝ; tests/test_interact.py checks the two agree.
     preset = env_preset(f"study{task}-v2")
-    kwargs = {**(preset.make_kwargs or {}), "human": None, **(env_kwargs or {})}
+    kwargs = {**(preset.make_kwargs or {}), "person": None, **(env_kwargs or {})}
     if "duration" in kwargs and "max_episode_steps" not in kwargs:
         kwargs["max_episode_steps"] = max(1, math.ceil(kwargs["duration"] / CONTROL_DT - 1e-9))
     base = gym.make(preset.env_id, **kwargs)

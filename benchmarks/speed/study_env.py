@@ -41,11 +41,17 @@ from strol_gym.envs.study.env import StudyEnv, StudyEnvV1, StudyEnvV2  # noqa: E
 SEED = 20100
 
 
+def _person(version: str) -> dict[str, Any]:
+    """The simulated person the timed episodes use: the version's default, with σ = 0.25 where
+    it takes σ (v0's oracle, v1's observer; v2's fitted person's noise is fitted)."""
+    return {} if version == "v2" else {"person": {"sigma": 0.25}}
+
+
 def physics_ratio(
     task: int, repeats: int, env_steps: int = 200, version: str = "v0"
 ) -> tuple[float, float, float]:
     """(env physics steps/s, bare mj_step steps/s, ratio)."""
-    env = _ENVS[version](task=task, human=None)
+    env = _ENVS[version](task=task, person=None)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     n_sub = env._n_sub
     bare_data = mujoco.MjData(env.model)
@@ -87,7 +93,7 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
-        gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
+        gym.make(f"StROL-Study-{version}", task=task, **_person(version)), "strol"
     )
     inner: Any = env.unwrapped  # the study env itself: its physics step is timed in place
     spent = [0.0]
@@ -136,7 +142,7 @@ def realtime_factor(task: int, repeats: int, version: str = "v0") -> tuple[float
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
-        gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
+        gym.make(f"StROL-Study-{version}", task=task, **_person(version)), "strol"
     )
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     best, summary = 0.0, {}

@@ -53,7 +53,7 @@ def push_case(version: str, task: int, rng: np.random.Generator) -> dict:
 def run_push(
     version: str, task: int, seed: int, start: float, force: np.ndarray, torque: np.ndarray
 ) -> dict:
-    env: Any = gym.make(f"StROL-Study-{version}", task=task, human=None).unwrapped  # StudyEnv
+    env: Any = gym.make(f"StROL-Study-{version}", task=task, person=None).unwrapped  # StudyEnv
     env.reset(seed=seed)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
     for _ in range(round(start / 0.05)):
