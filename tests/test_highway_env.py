@@ -31,13 +31,13 @@ def make(**kw) -> HighwayEnv:
 @pytest.mark.parametrize(
     ("kwargs", "name"),
     [
-        ({"sigma": -0.1}, "sigma"),
-        ({"sigma": float("nan")}, "sigma"),
-        ({"bias": float("inf")}, "bias"),
+        ({"person": {"sigma": -0.1}}, "sigma"),
+        ({"person": {"sigma": float("nan")}}, "sigma"),
+        ({"person": {"bias": float("inf")}}, "bias"),
         ({"prior": "trimodal"}, "prior"),
         ({"prior": [[1.0, 2.0]]}, "prior"),
-        ({"human": "reckless"}, "human"),
-        ({"beta": -1.0}, "beta"),
+        ({"person": "reckless"}, "unknown human 'reckless'"),
+        ({"person": {"name": "boltzmann", "beta": -1.0}}, "beta"),
         ({"n_corrections": -1}, "n_corrections"),
         ({"n_corrections": 2.5}, "n_corrections"),
         ({"render_mode": "ascii"}, "render_mode"),

@@ -143,7 +143,7 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     assert info["correction_time"] == pytest.approx(1.0, abs=0.051)
     s = read_session(log)
     assert s.header["learner"] == "strol" and s.header["task"] == "study-task1-v2"
-    assert s.header["env_kwargs"]["human"] is None
+    assert s.header["env_kwargs"]["person"] is None
     (ep,) = s.episodes
     (c,) = ep.corrections
     assert c["u_h"][1] > 0.02  # the hand moved along +y by > 2 cm

@@ -142,3 +142,47 @@ def test_a_bad_field_is_named(fields, match):
 def test_a_dict_with_an_unknown_field_is_refused():
     with pytest.raises(ValueError, match=r"person \['noise'\] are not fields"):
         make("StROL-Robot-v0", person={"noise": 0.1})
+
+
+def test_the_cli_spellings_build_the_person_and_refuse_what_it_does_not_use(capsys, tmp_path):
+    from cli_checks import cli_error
+
+    from strol_gym.benchmarks.engine.conditions import custom_condition
+    from strol_gym.benchmarks.engine.config import Experiment
+
+    cond = custom_condition("robot", sigma=0.3, bias=0.1, human="boltzmann", beta=5.0)
+    assert cond.env_kwargs()["person"] == {
+        "name": "boltzmann",
+        "sigma": 0.3,
+        "bias": 0.1,
+        "beta": 5.0,
+    }
+    used = Experiment("robot", cond, runs=1).person_as_used()
+    assert used == {"name": "boltzmann", "sigma": 0.3, "bias": 0.1, "beta": 5.0}
+    argv = ["run", "--env", "study1-v2", "--sigma", "0.3", "--runs", "1", "--out", str(tmp_path)]
+    assert "sigma is not a parameter of person 'fitted'" in cli_error(argv, capsys)
+    argv = ["run", "--env", "robot", "--beta", "3", "--runs", "1", "--out", str(tmp_path)]
+    assert "beta is not a parameter of person 'nominal'" in cli_error(argv, capsys)
+    assert not any(tmp_path.iterdir())  # refused before a results folder was begun
+
+
+def test_the_results_folder_records_the_person_as_used(tmp_path):
+    import json
+
+    from strol_gym.benchmarks import cli
+    from strol_gym.benchmarks.experiments.study import study_config
+
+    v2 = study_config(tasks=(1,), users=1)
+    assert v2.persons() == {"study1-v2/simulated-users": {"name": "fitted"}}  # no σ = 0.25
+    assert v2.experiments[0].condition.sigma is None
+    v1 = study_config(tasks=(1,), users=1, version="v1")
+    assert v1.persons() == {
+        "study1-v1/simulated-users": {"name": "observer", "sigma": 0.25, "bias": 0.0}
+    }
+    oracle = study_config((1,), 1, version="v2", participant="oracle").persons()
+    assert oracle == {"study1-v2/simulated-users": {"name": "oracle", "sigma": 0.25, "bias": 0.0}}
+    argv = ["run", "--env", "highway", "--human", "driver", "--sigma", "0.2", "--runs", "1"]
+    argv += ["--learners", "gradient", "--jobs", "1", "--quiet", "--no-plots"]
+    assert cli.main([*argv, "--out", str(tmp_path / "r")]) == 0
+    meta = json.loads((tmp_path / "r" / "meta.json").read_text())
+    assert meta["persons"] == {"highway/custom": {"name": "driver", "sigma": 0.2, "bias": 0.0}}

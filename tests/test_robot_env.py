@@ -148,12 +148,12 @@ def test_an_action_means_the_same_whatever_its_type():
 @pytest.mark.parametrize(
     ("kw", "name"),
     [
-        ({"sigma": -0.1}, "sigma"),
-        ({"bias": float("nan")}, "bias"),
+        ({"person": {"sigma": -0.1}}, "sigma"),
+        ({"person": {"bias": float("nan")}}, "bias"),
         ({"prior": "trimodal"}, "prior"),
         ({"prior": [[1.0, 2.0, 3.0]]}, "prior"),
-        ({"human": "oracle"}, "human"),
-        ({"beta": -1.0}, "beta"),
+        ({"person": "oracle"}, "unknown human 'oracle'"),
+        ({"person": {"name": "boltzmann", "beta": -1.0}}, "beta"),
         ({"n_corrections": -1}, "n_corrections"),
         ({"n_corrections": 2.5}, "n_corrections"),
         ({"render_mode": "ascii"}, "render_mode"),

@@ -34,7 +34,7 @@ SEED = 20000  # the study's seed range: 20000-29999
 
 
 def make(**kw) -> StudyEnv:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make(ENV_ID, **kw).unwrapped
 
 
@@ -203,7 +203,7 @@ def test_huge_wrench_ends_unstable_without_nan(tmp_path, monkeypatch):
         ({"force_threshold": -3}, "force_threshold"),
         ({"duration": 0}, "duration"),
         ({"stiffness": float("nan")}, "stiffness"),
-        ({"user_kwargs": {"max_push": 0}}, "max_push"),
+        ({"person": {"kwargs": {"max_push": 0}}}, "max_push"),
     ],
 )
 def test_bad_arguments_name_themselves(kwargs, name):

@@ -43,7 +43,7 @@ def test_v2_default_participant_is_the_fitted_population():
     env = _v2(task=2)
     env.reset(seed=5)
     human = env.unwrapped.person
-    assert env.unwrapped.participant == "fitted"
+    assert env.unwrapped.person_spec.name == "fitted"
     assert isinstance(human, FittedParticipant)
     for name, entry in shipped["prior"].items():  # the priors, read back
         if name != "ramp":  # the shipped population's push rises as the real ones logged

@@ -31,7 +31,7 @@ HOLD_STEPS = round(HOLD_OFF / CONTROL_DT)
 
 
 def make(**kw) -> StudyEnvV2:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make("StROL-Study-v2", **kw).unwrapped
 
 

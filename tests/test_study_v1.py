@@ -23,7 +23,7 @@ docs/study.md gives the share)."""
 
 
 def make(**kw) -> StudyEnvV1:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make(ENV_ID, **kw).unwrapped
 
 
@@ -229,7 +229,7 @@ def test_reflex_threshold_is_configurable():
         ({"reflex_force": 0.0}, "reflex_force"),
         ({"reflex_torque": -1.0}, "reflex_torque"),
         ({"reflex_recover": float("nan")}, "reflex_recover"),
-        ({"participant": "mindreader"}, "participant"),
+        ({"person": "mindreader"}, "unknown human 'mindreader'"),
     ],
 )
 def test_bad_v1_arguments_name_themselves(kwargs, name):
@@ -315,13 +315,19 @@ def test_versions_are_option_sets_of_one_class_not_overrides():
     env = StudyEnvV9(task=2, person=None, max_episode_steps=3)
     env.reset(seed=1)
     _, _, _, _, info = env.step(np.zeros(env.action_space.shape))
-    assert "reflex" not in info and env.participant == "observer"
+    assert "reflex" not in info and StudyEnvV9.resolve_person({}).name == "observer"
     env.close()
 
 
-@pytest.mark.parametrize("kwargs", [{"participant": "observer"}, {"reflex_force": 50.0}])
-def test_v0_rejects_what_only_later_versions_take(kwargs):
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"person": "observer"}, "'observer' is not one of this version's people"),
+        ({"reflex_force": 50.0}, "reflex_force"),
+    ],
+)
+def test_v0_rejects_what_only_later_versions_take(kwargs, named):
     from strol_gym.envs.study.env import StudyEnv
 
-    with pytest.raises(ValueError, match=next(iter(kwargs))):
+    with pytest.raises(ValueError, match=named):
         StudyEnv(**kwargs)

@@ -29,7 +29,7 @@ ENTROPY = np.random.SeedSequence().entropy
 
 
 def make(**kw) -> StudyEnvV2:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make(ENV_ID, **kw).unwrapped
 
 

@@ -102,7 +102,7 @@ def _episode(env, seed, action=None):
 
 
 def test_wrapper_matches_a_direct_learner_loop():
-    env = OnlineLearningWrapper(gym.make(CONTRACT_ID, person={"sigma": 0.25}), "gradient")
+    env = OnlineLearningWrapper(gym.make(CONTRACT_ID, sigma=0.25), "gradient")
     obs, _ = env.reset(seed=3)
     ref = GradientLearner(env.unwrapped.task)
     np.testing.assert_array_equal(obs["theta_hat"], np.float32([0.5, 0.5]))

@@ -255,7 +255,7 @@ def test_run_by_name(name, tmp_path, capsys):
     argv += ["--learners", "gradient,strol", "--jobs", "1", "--quiet", "--no-plots"]
     assert cli.main([*argv, "--seed", str(SEED), "--out", str(out)]) == 0
     assert (out / "runs.csv").is_file()
-    assert f"{name} human" in (out / "summary.md").read_text()
+    assert f"{name} person" in (out / "summary.md").read_text()
 
 
 @pytest.mark.parametrize(

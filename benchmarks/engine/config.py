@@ -114,7 +114,9 @@ class Experiment:
     def person_as_used(self) -> dict[str, Any] | None:
         """The person the env uses here (``HumanSpec.to_dict``; None: no simulated person),
         resolved by the env's class without building the env (``resolve_person``): ValueError
-        naming a value the person does not use. ``{}`` for an env that is no strol-gym env."""
+        naming a value the person does not use. ``{}`` for an env that is no strol-gym env.
+        It imports what the experiment names: for the command's own config, never for one read
+        from a file (``BenchConfig.persons``)."""
         cls = env_class(self.env_id)
         resolve = getattr(cls, "resolve_person", None)
         if resolve is None:
@@ -135,7 +137,6 @@ class Experiment:
             "env": self.env,
             "env_id": self.env_id,
             "condition": self.condition.to_dict(),
-            "person": self.person_as_used(),
             "runs": int(self.runs),
             "seed": int(self.seed),
             "n_corrections": self.corrections,
@@ -232,6 +233,12 @@ class BenchConfig:
         }
         specs, stuck = user_specs(used)
         return dataclasses.replace(self, plugins=specs), stuck
+
+    def persons(self) -> dict[str, dict[str, Any] | None]:
+        """The person each experiment's env uses, by ``env/condition`` (``person_as_used``):
+        what a results folder records beside its config (meta.json ``persons``); ValueError
+        naming a value a person does not use, before any work."""
+        return {f"{e.env}/{e.condition.name}": e.person_as_used() for e in self.experiments}
 
     def kwargs_for(self, learner: str) -> dict[str, Any]:
         """Constructor keyword arguments for ``learner`` (beyond the task)."""

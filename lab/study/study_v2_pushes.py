@@ -4,7 +4,7 @@
 
 Each push: a random study seed (episode), a random time 2-8 s into the episode, a force of
 20-60 N in a random direction and (Tasks 2-3) a torque of 1-3 N m about a random axis, for
-1 s, through the public push API (``apply_wrench``; ``human=None``). Prints per Task the
+1 s, through the public push API (``apply_wrench``; ``person=None``). Prints per Task the
 angle between u_H's translation and the force, between u_H's rotation (the world-frame turn
 R(x + u) R(x)⁻¹) and the torque's axis, and the 30 N, 1 s displacement; the pushes the
 reflex stopped (no correction), and the same angles without the pushes that pressed the cup

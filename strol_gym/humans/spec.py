@@ -45,19 +45,11 @@ DEFAULT_BETA = 50.0
 SHARED_DEFAULTS: dict[str, float] = {"sigma": 0.0, "bias": 0.0, "beta": DEFAULT_BETA}
 """What a person that takes σ, ε or β gets when the spec leaves it unset."""
 PERSON_ARGUMENTS = ("human", "sigma", "bias", "beta", "human_kwargs", "participant", "user_kwargs")
-"""The envs' former person arguments, now all ``person=`` (named in the unknown-argument error)."""
+"""Keywords that describe the person: an env given one as its own argument refuses it and points
+to ``person=`` (the unknown-argument error)."""
 
 
-def check_shared(sigma: Any, bias: Any, beta: Any) -> tuple[float, float, float]:
-    """σ and ε (fractions of a_max; ε may be negative) and β, checked; errors name each."""
-    return (
-        check_fraction("sigma", sigma),
-        check_fraction("bias", bias, allow_negative=True),
-        check_beta(beta),
-    )
-
-
-_CHECKS = {
+_CHECKS = {  # the one check of each shared value (the envs, the benchmark's conditions)
     "sigma": lambda v: check_fraction("sigma", v),
     "bias": lambda v: check_fraction("bias", v, allow_negative=True),
     "beta": check_beta,
@@ -223,6 +215,5 @@ __all__ = [
     "SHARED_DEFAULTS",
     "HumanSpec",
     "Person",
-    "check_shared",
     "person_spec",
 ]
