@@ -104,15 +104,10 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
 
     ## Arguments
 
-    - ``person``: who corrects. Omitted: "nominal", the eq. M6 teacher with σ = ε = 0. A
-      name in ``strol_gym.humans.HUMANS`` ("nominal", "boltzmann", "driver", one registered
-      with ``register_human``), a ``"module:attr"`` or a callable ``factory(task, theta_star,
-      rng, sigma=, bias=, beta=, **kwargs) -> Human`` (given only the keyword arguments it
-      declares); or ``HumanSpec(name, sigma=, bias=, beta=, kwargs=)`` (or a dict of those
-      fields) with noise δ ~ N(ε a_max, (σ a_max)²) per axis (σ ≥ 0, ε as fractions of
-      a_max), rationality β ≥ 0 (default 50, the "boltzmann" human's) and the model's own
-      ``kwargs``. A value the person does not use raises ValueError naming it. ``None``: no
-      simulated person (nobody corrects).
+    - ``person``: who corrects, as for StROL-Robot-v0 (``RobotEnv``; ``strol_gym.humans.spec``):
+      omitted, "nominal" with σ = ε = 0; a registered name ("driver" is the paper's MPC
+      human), a ``HumanSpec`` or a dict of its fields (σ, ε per action axis in units of
+      a_max); ``None``: nobody corrects. A value the person does not use raises ValueError.
     - ``prior`` ("bimodal" | "uniform" | a ``Prior`` | array of modes, default "bimodal"):
       P(θ*). "bimodal": modes "tailgate" (1.0, 1.0, 0.1) and "pass on the right"
       (0.1, 1.0, 1.0) with N(0, 0.1²) jitter (see ``strol_gym.tasks.highway`` for the signs);
