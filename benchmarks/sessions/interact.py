@@ -41,7 +41,7 @@ from strol_gym.wrappers.session_log import SessionLogger
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "
     "`xvfb-run -a strol-bench interact ...`, or use the headless simulated users, "
-    'gymnasium.make("StROL-Study-v1", human="nominal")'
+    'gymnasium.make("StROL-Study-v2") (its default person, the fitted population)'
 )
 
 
