@@ -309,8 +309,9 @@ def test_versions_are_option_sets_of_one_class_not_overrides():
     assert not [k for k, v in vars(StudyEnvV1).items() if callable(v) and not k.startswith("__")]
 
     class StudyEnvV9(StudyEnv):  # a further version: a new option set
-        version = dataclasses.replace(V1, name="v9", env_id="StROL-Study-v9", reflex=False)
-        env_id = "StROL-Study-v9"
+        version = dataclasses.replace(V1, number=9, reflex=False)
+
+    assert StudyEnvV9.env_id == "StROL-Study-v9"  # from its version
 
     env = StudyEnvV9(task=2, person=None, max_episode_steps=3)
     env.reset(seed=1)

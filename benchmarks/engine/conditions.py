@@ -18,11 +18,13 @@ from collections.abc import Callable
 from typing import Any
 
 from strol_gym.benchmarks.engine.robots import ROBOTS
+from strol_gym.envs.study.versions import VERSIONS
 from strol_gym.humans.spec import DEFAULT_HUMAN, HumanSpec
 from strol_gym.limits import check_size
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.priors import PRIORS
 from strol_gym.registry import Registry, call_piece
+from strol_gym.tasks.study import study_task_name
 
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
 """The paper's five rules, in the order its figures use (e2e with ‖ĝ‖ ≤ ‖g‖, as shipped for
@@ -207,19 +209,20 @@ for _k in (1, 2, 3):  # the user study's Tasks (``strol-bench study``), not part
         corrections_kwarg=False,
         paper_conditions=False,
     )
-    # StROL-Study-v1 (u_H = the person's push; its default person, the participant who judges
-    # what it sees) and -v2 (the fitted population, whose noise is fitted: no training σ). Each
-    # version's other people are a condition's person (``strol-bench study --participant``).
-    # v1's and v2's Tasks by registered name (their own ids, so learners find their ĝ, and
-    # logs and datasets name them without a module path).
-    for _v, _sigma in (("v1", 0.25), ("v2", None)):
-        ENV_PRESETS[f"study{_k}-{_v}"] = dataclasses.replace(
-            ENV_PRESETS[f"study{_k}"],
-            key=f"study{_k}-{_v}",
-            env_id=f"StROL-Study-{_v}",
-            training_sigma=_sigma,
-            make_kwargs={"task": f"study-task{_k}-{_v}"},
-        )
+    # The later versions (u_H = the person's push), one preset per Task: the version's default
+    # person (v1's participant who judges what it sees; v2's fitted population, whose noise is
+    # fitted: no training σ); its other people are a condition's person (``strol-bench study
+    # --participant``). Their Tasks by registered name (their own ids, so learners find their
+    # ĝ, and logs and datasets name them without a module path).
+    for _v in VERSIONS.values():
+        if _v.participants:
+            ENV_PRESETS[f"study{_k}-{_v.name}"] = dataclasses.replace(
+                ENV_PRESETS[f"study{_k}"],
+                key=f"study{_k}-{_v.name}",
+                env_id=_v.env_id,
+                training_sigma=None if _v.participants[0] == "fitted" else 0.25,
+                make_kwargs={"task": study_task_name(_v.number, _k)},
+            )
 
 
 def _check_preset(key: str, preset: object) -> None:

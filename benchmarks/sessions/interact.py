@@ -623,11 +623,13 @@ def session_env(
     ``duration`` in ``env_kwargs`` the step limit is set from it (the registered one, 60 s,
     would end the session first)."""
     from strol_gym.benchmarks.engine.conditions import env_preset
+    from strol_gym.envs.study.versions import LATEST
     from strol_gym.tasks.study import CONTROL_DT
 
     # strol-bench study's default preset (experiments.study.study_env(task), which this layer
-    # may not import): v2, its Task and ĝ; tests/test_interact.py checks the two agree.
-    preset = env_preset(f"study{task}-v2")
+    # may not import): the latest version's, its Task and ĝ; tests/test_interact.py checks
+    # the two agree.
+    preset = env_preset(f"study{task}-{LATEST.name}")
     kwargs = {**(preset.make_kwargs or {}), "person": None, **(env_kwargs or {})}
     if "duration" in kwargs and "max_episode_steps" not in kwargs:
         kwargs["max_episode_steps"] = max(1, math.ceil(kwargs["duration"] / CONTROL_DT - 1e-9))

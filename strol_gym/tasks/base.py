@@ -79,6 +79,9 @@ class Task(ABC):
     action_dim: ClassVar[int]
     feature_high: ClassVar[float] = np.inf
     """An upper bound of every feature (the top of the envs' ``"phi"`` observation box)."""
+    weights_stem: ClassVar[str | None] = None
+    """The stem of its shipped ĝ files, ``<stem>_<kind>.safetensors`` (None: its registry
+    name). The files are found by their sidecars' ``task_id``; the stem only names them."""
 
     prior: Prior
     alpha: float

@@ -2,7 +2,8 @@
 
 One env class for every version: :class:`StudyEnv` reads what its version changes from its
 ``version`` (a :class:`~strol_gym.envs.study.versions.StudyVersion`); ``StudyEnv`` itself is
-v0 (as published) and :class:`StudyEnvV1` names v1. The controllers are in ``controller``, the
+v0 (as published), :class:`StudyEnvV1` and :class:`StudyEnvV2` name v1 and v2 (each version's
+``env_class``, registered from ``versions.VERSIONS``). The controllers are in ``controller``, the
 pose helpers in ``geometry``, the people who push in ``user`` and ``participant``.
 """
 
@@ -35,7 +36,6 @@ from strol_gym.tasks import make_task
 from strol_gym.tasks.study import (
     CONTROL_DT,
     SEGMENT_TIME,
-    STUDY_TASKS,
     StudyTask,
     StudyTaskV2,
     mat_to_rpy,
@@ -133,15 +133,18 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Version History
 
-    - v1 (``strol_gym.envs.study.env``): u_H is measured from the held setpoint, tracking that
-      makes the arm's catch-up negligible, the Panda's joint limits, a force reflex, and a
-      participant who judges what it sees. Use it.
+    - v2 (``StudyEnvV2``): u_H by counterfactual, an admittance layer, plans within reach
+      and outside the objects, one push one correction, the fitted population. Use it.
+    - v1 (``StudyEnvV1``): u_H is measured from the held setpoint, tracking that makes the
+      arm's catch-up negligible, the Panda's joint limits, a force reflex, and a participant
+      who judges what it sees (deprecated).
     - v0: initial version; kept unchanged for the published results (deprecated).
     """
 
     metadata: dict[str, Any] = render_metadata(fps=20)
     version: ClassVar[StudyVersion] = V0
-    """What this version changes (``strol_gym.envs.study.versions``)."""
+    """What this version changes (``strol_gym.envs.study.versions``); a subclass names its
+    version and nothing else (``env_id`` and ``reach`` follow from it)."""
     env_id: ClassVar[str] = V0.env_id
     reach: tuple[np.ndarray, np.ndarray, float] | None = V0.reach
     """The box the executed plans stay in (``within_reach``; None: the Task's plans as they
@@ -217,10 +220,14 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         )
         super().__init__(task=task, prior=prior, person=person, **kwargs)
 
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.env_id, cls.reach = cls.version.env_id, cls.version.reach
+
     def _make_task(self, task: Any) -> StudyTask:
         """1, 2 or 3 (the paper's Tasks), a ``StudyTask`` or its registered name."""
         if isinstance(task, int | np.integer) and not isinstance(task, bool):
-            return (self.version.tasks or STUDY_TASKS)[int_arg("task", task, 1, 3)]()
+            return self.version.numbered[int_arg("task", task, 1, 3)]()
         if not isinstance(task, StudyTask | str):
             raise ValueError(f"task must be 1, 2 or 3 (or a StudyTask), got {task!r}")
         return make_task(task, of=StudyTask)
@@ -785,8 +792,6 @@ class StudyEnvV1(StudyEnv):
     """
 
     version: ClassVar[StudyVersion] = V1
-    env_id: ClassVar[str] = V1.env_id
-    reach: tuple[np.ndarray, np.ndarray, float] | None = V1.reach
 
 
 class StudyEnvV2(StudyEnv):
@@ -860,8 +865,6 @@ class StudyEnvV2(StudyEnv):
     """
 
     version: ClassVar[StudyVersion] = V2
-    env_id: ClassVar[str] = V2.env_id
-    reach: tuple[np.ndarray, np.ndarray, float] | None = V2.reach
 
 
 __all__ = ["PARTICIPANTS", "StudyEnv", "StudyEnvV1", "StudyEnvV2", "rotation_error"]
