@@ -238,7 +238,7 @@ def test_cli_bad_inputs_exit_2(tmp_path, monkeypatch, capsys):
     assert "--task must be 1, 2 or 3" in capsys.readouterr().err
     assert cli(["interact", "--task", "1"]) == 2
     err = capsys.readouterr().err
-    assert "xvfb-run -a strol-bench interact" in err and "StROL-Study-v1" in err
+    assert "xvfb-run -a strol-bench interact" in err and "StROL-Study-v2" in err
     with pytest.raises(ValueError, match="task must be 1, 2 or 3"):
         run_interactive(task=5, viewer_factory=FakeViewer)
 
