@@ -130,6 +130,57 @@ def test_a_task_that_overrides_what_the_kernel_repeats_takes_the_plain_path(path
     )
 
 
+@pytest.mark.parametrize(("sigma", "bias"), [(0.0, 0.0), (0.3, -0.2)])
+def test_the_drawn_robot_correction_is_the_plain_draws_and_choice(sigma, bias, path):
+    """``NominalModel.drawn_corrections`` (one compiled call from each person's draws, by
+    chunks of people) against ``draw_each`` and ``corrections`` on the plain path: the same
+    bytes, the generators left in the same state; one person as ``act`` asks."""
+    from strol_gym.humans.builtin import DRAWN_CHUNK, NominalModel
+
+    task = RobotTask()
+    model = NominalModel(task, sigma=sigma, bias=bias)
+    rng = np.random.default_rng(5)
+    for b in (1, DRAWN_CHUNK + 5):
+        x = task.sample_start(rng, b)
+        u_r = rng.uniform(-1.5, 1.5, (b, 3)) * task.action_bound  # some clipped
+        theta_hat, theta_star = rng.standard_normal((2, b, 2))
+        theta_hat[0, 1] = np.nan if b > 1 else theta_hat[0, 1]  # argmin's NaN rule too
+        seeds = rng.integers(0, 2**32, b)
+        path(False)
+        plain_rngs = [np.random.default_rng(s) for s in seeds]
+        assert model.drawn_corrections(plain_rngs, x, u_r, theta_star, theta_hat) is None
+        draws = model.draw_each(plain_rngs)
+        plain = model.corrections(x, u_r, theta_star, draws, theta_hat)
+        path(True)
+        fast_rngs = [np.random.default_rng(s) for s in seeds]
+        fast = model.drawn_corrections(fast_rngs, x, u_r, theta_star, theta_hat)
+        assert fast is not None and fast.tobytes() == plain.tobytes()
+        for a, c in zip(plain_rngs, fast_rngs, strict=True):
+            assert a.random() == c.random()
+
+
+def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usual(path):
+    from strol_gym.humans.builtin import NominalModel
+
+    class Jittered(NominalModel):
+        def draw_extra(self, rng, n):
+            return {"jitter": rng.random((n, 1))}
+
+    class Shifted(RobotTask):
+        def candidate_actions(self, rng, n, k):
+            return super().candidate_actions(rng, n, k) * 0.5
+
+    path(True)
+    x, th = np.zeros((1, 3)), np.zeros((1, 2))
+    rng = np.random.default_rng(0)
+    state = rng.bit_generator.state
+    assert Jittered(RobotTask()).drawn_corrections([rng], x, x, th, th) is None
+    assert NominalModel(Shifted()).drawn_corrections([rng], x, x, th, th) is None
+    assert NominalModel(RobotTask()).drawn_corrections([rng], x, x, th, None) is None
+    assert rng.bit_generator.state == state  # nothing drawn
+    assert NominalModel(RobotTask()).drawn_corrections([rng], x, x, th, th) is not None
+
+
 def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
     env = gym.make(env_id, **kwargs)
     h = hashlib.sha256()

@@ -59,43 +59,95 @@ def robot_m6(
     best: np.ndarray,
 ) -> None:
     """Eq. M6 on ``RobotTask``: the index of each person's chosen candidate, into ``best`` (B,)."""
+    for b in range(cand.shape[0]):
+        best[b] = _robot_pick(
+            x[b], u_r[b], th_hat[b], th_star[b], cand[b], alpha, plate, cup, lo, hi
+        )
+
+
+@compiled
+def robot_m6_drawn(
+    x: np.ndarray,
+    u_r: np.ndarray,
+    th_hat: np.ndarray,
+    th_star: np.ndarray,
+    units: np.ndarray,
+    noise: np.ndarray,
+    prm: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """A nominal person's whole correction on ``RobotTask`` from their draws, into ``out`` (B, 3):
+    the candidates from the uniform draws ``units`` (B, K, 3) as ``Task._unit_to_box`` scales
+    them (zero first), eq. M6's pick (``robot_m6``) and the noise ``perturb`` adds,
+    (u + ε a) + (σ a) z. ``prm``: α, σ, ε, then 3 numbers each: the plate, the cup, the box's
+    low and high corners, the candidates' bound per axis and a_max."""
+    alpha, sigma, bias = prm[0], prm[1], prm[2]
+    plate, cup, lo, hi = prm[3:6], prm[6:9], prm[9:12], prm[12:15]
+    scale, a_max = prm[15:18], prm[18:21]
+    cand = np.empty((units.shape[1] + 1, 3))
+    for b in range(units.shape[0]):
+        for c in range(3):
+            cand[0, c] = 0.0
+        for k in range(units.shape[1]):
+            for c in range(3):
+                v = units[b, k, c] * 2.0
+                v = v + -1.0
+                cand[k + 1, c] = v * scale[c]
+        pick = _robot_pick(x[b], u_r[b], th_hat[b], th_star[b], cand, alpha, plate, cup, lo, hi)
+        for c in range(3):
+            out[b, c] = (cand[pick, c] + bias * a_max[c]) + (sigma * a_max[c]) * noise[b, c]
+
+
+@compiled
+def _robot_pick(
+    x: np.ndarray,
+    u_r: np.ndarray,
+    th_hat: np.ndarray,
+    th_star: np.ndarray,
+    cand: np.ndarray,
+    alpha: float,
+    plate: np.ndarray,
+    cup: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+) -> int:
+    """Eq. M6 for one person (x, u_R, θ̂, θ* rows; candidates (K, 3)): the chosen index."""
     p0, p1 = plate[0], plate[1]
     c0, c1, c2 = cup[0], cup[1], cup[2]
-    for b in range(cand.shape[0]):
-        base = np.empty(3)
-        xr = np.empty(3)
-        for a in range(3):
-            base[a] = x[b, a] + u_r[b, a]
-            v = base[a] + 0.0
-            v = lo[a] if v < lo[a] else v
-            xr[a] = hi[a] if v > hi[a] else v
-        d0, d1 = p0 - xr[0], p1 - xr[1]
-        e0, e1, e2 = c0 - xr[0], c1 - xr[1], c2 - xr[2]
-        phi0 = -math.sqrt(d0 * d0 + d1 * d1)
-        phi1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1)
-        h0, h1, s0, s1 = th_hat[b, 0], th_hat[b, 1], th_star[b, 0], th_star[b, 1]
-        pick, low = 0, math.inf
-        for k in range(cand.shape[1]):
-            xh0 = base[0] + cand[b, k, 0]
-            xh1 = base[1] + cand[b, k, 1]
-            xh2 = base[2] + cand[b, k, 2]
-            xh0 = lo[0] if xh0 < lo[0] else xh0
-            xh1 = lo[1] if xh1 < lo[1] else xh1
-            xh2 = lo[2] if xh2 < lo[2] else xh2
-            xh0 = hi[0] if xh0 > hi[0] else xh0
-            xh1 = hi[1] if xh1 > hi[1] else xh1
-            xh2 = hi[2] if xh2 > hi[2] else xh2
-            d0, d1 = p0 - xh0, p1 - xh1
-            e0, e1, e2 = c0 - xh0, c1 - xh1, c2 - xh2
-            g0 = -math.sqrt(d0 * d0 + d1 * d1) - phi0
-            g1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1) - phi1
-            r0 = s0 - (g0 * alpha + h0)
-            r1 = s1 - (g1 * alpha + h1)
-            norm = r0 * r0 + r1 * r1
-            pick, low, stop = _argmin_first(norm, k, pick, low)
-            if stop:
-                break
-        best[b] = pick
+    base = np.empty(3)
+    xr = np.empty(3)
+    for a in range(3):
+        base[a] = x[a] + u_r[a]
+        v = base[a] + 0.0
+        v = lo[a] if v < lo[a] else v
+        xr[a] = hi[a] if v > hi[a] else v
+    d0, d1 = p0 - xr[0], p1 - xr[1]
+    e0, e1, e2 = c0 - xr[0], c1 - xr[1], c2 - xr[2]
+    phi0 = -math.sqrt(d0 * d0 + d1 * d1)
+    phi1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1)
+    h0, h1, s0, s1 = th_hat[0], th_hat[1], th_star[0], th_star[1]
+    pick, low = 0, math.inf
+    for k in range(cand.shape[0]):
+        xh0 = base[0] + cand[k, 0]
+        xh1 = base[1] + cand[k, 1]
+        xh2 = base[2] + cand[k, 2]
+        xh0 = lo[0] if xh0 < lo[0] else xh0
+        xh1 = lo[1] if xh1 < lo[1] else xh1
+        xh2 = lo[2] if xh2 < lo[2] else xh2
+        xh0 = hi[0] if xh0 > hi[0] else xh0
+        xh1 = hi[1] if xh1 > hi[1] else xh1
+        xh2 = hi[2] if xh2 > hi[2] else xh2
+        d0, d1 = p0 - xh0, p1 - xh1
+        e0, e1, e2 = c0 - xh0, c1 - xh1, c2 - xh2
+        g0 = -math.sqrt(d0 * d0 + d1 * d1) - phi0
+        g1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1) - phi1
+        r0 = s0 - (g0 * alpha + h0)
+        r1 = s1 - (g1 * alpha + h1)
+        norm = r0 * r0 + r1 * r1
+        pick, low, stop = _argmin_first(norm, k, pick, low)
+        if stop:
+            break
+    return pick
 
 
 @compiled
