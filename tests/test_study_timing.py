@@ -90,9 +90,9 @@ def test_the_shipped_population_reacts_and_its_hazard_is_checked():
         assert person.hazard == tuple(shipped["hazard"][str(t)])
         assert person.path_time == shipped["path_time"][str(t)]
         assert person.ramp == shipped["rise"]  # the push rises as the real pushes logged
-    with pytest.raises(ValueError, match=r"user_kwargs\['hazard'\]"):
+    with pytest.raises(ValueError, match=r"person kwargs\['hazard'\]"):
         FittedParams(hazard=(0.0, 1.0))
-    with pytest.raises(ValueError, match=r"user_kwargs\['path_time'\]"):
+    with pytest.raises(ValueError, match=r"person kwargs\['path_time'\]"):
         FittedParams(path_time=0.0)
     with pytest.raises(ValueError, match="timing fit"):
         population.parse_timing({"format": "other"})

@@ -114,14 +114,13 @@ def test_ghat_keys_and_weight_names_are_the_versions():
 
 
 def test_presets_are_the_versions():
-    """The study presets are exactly ``study_env``'s keys over the versions' Tasks and people,
-    each making its version's env and Task."""
+    """The study presets are exactly ``study_env``'s keys over the versions' Tasks (a version's
+    people are a condition's person), each making its version's env and Task."""
     study = {k: p for k, p in ENV_PRESETS.items() if p.env_id.startswith(f"{STUDY_ENV}-")}
     derived = {}
     for v in VS:
         for k in NUMBERS:
-            for who in v.participants or (None,):
-                derived[study_env(k, v.name, who)] = (v, k)
+            derived[study_env(k, v.name)] = (v, k)
     assert set(study) == set(derived)
     for key, (v, k) in derived.items():
         preset = study[key]

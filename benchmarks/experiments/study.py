@@ -14,6 +14,7 @@ and the Fig. 6-style plots.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from collections.abc import Sequence
@@ -105,6 +106,8 @@ PAPER_POOLED = {
 """The paper's text: repeated-measures ANOVA over One, MOF, StROL, participants' values
 averaged over the Tasks (12 participants)."""
 USERS = Condition("simulated-users", sigma=SIGMA, bias=0.0, prior="bimodal")
+"""The study's condition for a person with a hand's noise (v0's and v1's: σ = 0.25, ε = 0);
+``study_condition`` gives each version's person its own."""
 
 
 def parse_tasks(text: str) -> tuple[int, ...]:
@@ -132,16 +135,25 @@ V0_WARNING = (
 )
 
 
-def study_env(task: int, version: str = DEFAULT_VERSION, participant: str | None = None) -> str:
-    """The env preset of a study Task: v0's, or a later version's with its participant (None:
-    the version's default, its first; ``conditions.py``)."""
-    people = VERSIONS[version].participants
-    if not people:
-        return f"study{task}"
+def study_env(task: int, version: str = DEFAULT_VERSION) -> str:
+    """The env preset of a study Task on ``version`` (``conditions.py``)."""
+    return f"study{task}-{version}" if VERSIONS[version].participants else f"study{task}"
+
+
+def study_condition(version: str = DEFAULT_VERSION, participant: str | None = None) -> Condition:
+    """The study's condition: the version's person (``participant``; None: its default, its
+    first, v0's the oracle), with σ = ``SIGMA`` and ε = 0 where the person takes them (the
+    fitted person takes none: its noise is fitted). ValueError naming ``--participant`` if the
+    version lacks it."""
+    from strol_gym.envs.study.persons import ORACLE
+
+    people = VERSIONS[version].participants or (ORACLE,)
     who = participant or people[0]
     if who not in people:
         raise ValueError(f"--participant {who!r} does not exist on {VERSIONS[version].env_id}")
-    return f"study{task}-{version}" + ("" if who == people[0] else f"-{who}")
+    if who == "fitted":
+        return dataclasses.replace(USERS, sigma=None, bias=None)
+    return dataclasses.replace(USERS, human=None if who == people[0] else who)
 
 
 def study_config(
@@ -153,9 +165,8 @@ def study_config(
     participant: str | None = None,
 ) -> BenchConfig:
     """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
-    exps = tuple(
-        Experiment(study_env(t, version, participant), USERS, runs=users, seed=seed) for t in tasks
-    )
+    condition = study_condition(version, participant)
+    exps = tuple(Experiment(study_env(t, version), condition, runs=users, seed=seed) for t in tasks)
     learners = tuple(dict.fromkeys(learners))
     if not learners:
         raise ValueError("--learners must name at least one learner")

@@ -42,11 +42,18 @@ from strol_gym.envs.study.versions import V0, V1, V2, VERSIONS  # noqa: E402
 SEED = 20100
 
 
+def _person(version: str) -> dict[str, Any]:
+    """The simulated person the timed episodes use: the version's default, with σ = 0.25 where
+    it takes σ (v0's oracle, v1's observer; v2's fitted person's noise is fitted)."""
+    takes_sigma = "fitted" not in VERSIONS[version].participants
+    return {"person": {"sigma": 0.25}} if takes_sigma else {}
+
+
 def physics_ratio(
     task: int, repeats: int, env_steps: int = 200, version: str = V0.name
 ) -> tuple[float, float, float]:
     """(env physics steps/s, bare mj_step steps/s, ratio)."""
-    env = _ENVS[version](task=task, human=None)
+    env = _ENVS[version](task=task, person=None)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     n_sub = env._n_sub
     bare_data = mujoco.MjData(env.model)
@@ -88,7 +95,7 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
-        gym.make(VERSIONS[version].env_id, task=task, human="nominal", sigma=0.25), "strol"
+        gym.make(VERSIONS[version].env_id, task=task, **_person(version)), "strol"
     )
     inner: Any = env.unwrapped  # the study env itself: its physics step is timed in place
     spent = [0.0]
@@ -137,7 +144,7 @@ def realtime_factor(task: int, repeats: int, version: str = V0.name) -> tuple[fl
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
-        gym.make(VERSIONS[version].env_id, task=task, human="nominal", sigma=0.25), "strol"
+        gym.make(VERSIONS[version].env_id, task=task, **_person(version)), "strol"
     )
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     best, summary = 0.0, {}

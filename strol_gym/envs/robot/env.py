@@ -93,17 +93,18 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Arguments
 
-    - ``sigma`` (float ≥ 0, default 0): noise, δ ~ N(ε a_max, (σ a_max)²) per axis, a_max = 0.1 m.
-    - ``bias`` (finite float, default 0): ε, as a fraction of a_max.
+    - ``person``: who corrects. Omitted: "nominal", the eq. M6 teacher with σ = ε = 0. A
+      name in ``strol_gym.humans.HUMANS`` ("nominal", "boltzmann", "driver", one registered
+      with ``register_human``), a ``"module:attr"`` or a callable ``factory(task, theta_star,
+      rng, sigma=, bias=, beta=, **kwargs) -> Human`` (given only the keyword arguments it
+      declares); or ``HumanSpec(name, sigma=, bias=, beta=, kwargs=)`` (or a dict of those
+      fields) with noise δ ~ N(ε a_max, (σ a_max)²) per axis (σ ≥ 0, ε as fractions of
+      a_max = 0.1 m), rationality β ≥ 0 (default 50, the "boltzmann" human's) and the
+      model's own ``kwargs``. A value the person does not use raises ValueError naming it.
+      ``None``: no simulated person (nobody corrects).
     - ``prior`` ("bimodal" | "uniform" | a ``Prior`` | array of modes, default "bimodal"): P(θ*).
       "bimodal": modes (0.8, −0.8) (reach the plate, avoid the cup) and (−0.8, 0.8), with
       N(0, 0.1²) jitter; "uniform": [−1, 1]².
-    - ``human`` (a name in ``strol_gym.humans.HUMANS``: "nominal", "boltzmann", "driver" or
-      one registered with ``register_human``; a ``"module:attr"``; or a callable
-      ``factory(task, theta_star, rng, sigma=, bias=, beta=, **human_kwargs) -> Human``, given
-      only the keyword arguments it declares; default "nominal", the eq. M6 teacher).
-    - ``human_kwargs`` (dict or None): the human model's own keyword arguments.
-    - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
     - ``n_corrections`` (int ≥ 0, default 5): steps during which the human corrects.
     - ``max_episode_steps`` (int ≥ 1 or None): through ``gymnasium.make`` this is gymnasium's
       own TimeLimit argument (registered default 10); given to ``RobotEnv`` directly, the env

@@ -11,7 +11,9 @@ that carries a cup, in MuJoCo.
 - ``people``: the interface of whoever pushes (``Pusher``); ``user`` (the regret-judging
   simulated user), ``participant`` (the simulated participant who judges what it sees, and
   ``FittedParticipant``, v2's default); ``population`` (the population fitted to the authors'
-  twelve participants, read from the shipped ``participant_fit.json``).
+  twelve participants, read from the shipped ``participant_fit.json``); ``persons``: those
+  people by the names ``person=`` gives them (``"fitted"``, ``"observer"``, ``"oracle"``), what
+  each takes and builds (``StudyPerson``, the env's ``person`` slot).
 - ``metrics``: the study's metrics the authors' way.
 
 Names load their module on first use.
