@@ -358,3 +358,41 @@ def test_the_study_walk_out_is_the_plain_bytes_in_any_batch(path):
         alone = _walk_out(plans[rows], KEEP_OUT, bound, low, high)
         path(True)
         assert _walk_out(plans[rows], KEEP_OUT, bound, low, high).tobytes() == alone.tobytes()
+
+
+def _study_rollout(task: int, seed: int, steps: int) -> tuple[str, int]:
+    """StROL-Study-v2 with its default person and a hard twist (the brake, the reflexes, the
+    counterfactual): (a hash of every step's observation, u_H and joint state, braked chunks)."""
+    from strol_gym.envs.study.controller import ImpedanceController
+
+    env = gym.make("StROL-Study-v2", task=task).unwrapped
+    braked = [0]
+    chunk = ImpedanceController._braked_steps
+
+    def counting(self, *args):
+        braked[0] += 1
+        return chunk(self, *args)
+
+    env._braked_steps = counting.__get__(env)
+    h = hashlib.sha256()
+    env.reset(seed=seed)
+    zero = np.zeros(env.action_space.shape, np.float32)
+    for step in range(steps):
+        if step == 40:
+            env.apply_wrench([0.0, 40.0, 0.0], [0.0, 0.0, 6.0], duration=0.5)
+        obs, _, _, trunc, info = env.step(zero)
+        for key in sorted(obs):
+            h.update(np.asarray(obs[key]).tobytes())
+        h.update(info["u_h"].tobytes() + env.data.qpos.tobytes() + env.data.qvel.tobytes())
+        if trunc:
+            break
+    env.close()
+    return h.hexdigest(), braked[0]
+
+
+def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path):
+    path(False)
+    plain, braked = _study_rollout(2, 20003, 160)
+    assert braked > 5  # the brake's chunks ran, not only watched ones
+    path(True)
+    assert _study_rollout(2, 20003, 160) == (plain, braked)

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import mujoco
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.envs.panda.model import N_ARM
 from strol_gym.envs.study.admittance import REST, Admittance, rotation
 from strol_gym.envs.study.scene import JOINT_DAMPING
@@ -181,6 +182,7 @@ class ImpedanceController:
         self._brake_vlim = (BRAKE_FROM * VELOCITY_LIMIT).tolist()
         self._exact_vlim = (EXACT_FROM * VELOCITY_LIMIT).tolist()
         self._watch_vlim = (WATCH_FROM * VELOCITY_LIMIT).tolist()
+        self._watch_cap, self._brake_cap = WATCH_FROM * VELOCITY_LIMIT, BRAKE_FROM * VELOCITY_LIMIT
         self._reflex_vlim = (SPEED_REFLEX * VELOCITY_LIMIT).tolist()
         self._qacc = self.data.qacc[:N_ARM]
         self._tlim = TORQUE_LIMIT.tolist()
@@ -544,17 +546,30 @@ class ImpedanceController:
         the chunk's torques held, the look-ahead read again after each step
         (:meth:`_watched_steps`)."""
         qd, ctrl = self._qvel, self._ctrl
-        if (
-            not pushed
-            and not any(abs(s) > h for s, h in zip(qd.tolist(), self._watch_vlim, strict=False))
-            and not any(
-                abs(s) > b
-                for s, b in zip(self._ahead(ctrl.tolist(), HOLD), self._brake_vlim, strict=False)
-            )
+        if pushed:
+            self._braked_steps(pushed, HOLD)
+        elif use_fast():  # the same tests in compiled loops (``kernels``)
+            from strol_gym.envs.study import kernels
+
+            if kernels.above(qd, self._watch_cap):
+                self._braked_steps(pushed, HOLD)
+                return
+            delta = [a - b for a, b in zip(ctrl.tolist(), self._tau_last, strict=True)]
+            extra = self._m_inv.dot(delta)
+            h = HOLD * self.model.opt.timestep
+            if kernels.ahead_above(qd, self._qacc, extra, h, self._brake_cap):
+                self._braked_steps(pushed, HOLD)
+            else:
+                self._watched_steps()
+        elif not any(
+            abs(s) > h for s, h in zip(qd.tolist(), self._watch_vlim, strict=False)
+        ) and not any(
+            abs(s) > b
+            for s, b in zip(self._ahead(ctrl.tolist(), HOLD), self._brake_vlim, strict=False)
         ):
             self._watched_steps()
-            return
-        self._braked_steps(pushed, HOLD)
+        else:
+            self._braked_steps(pushed, HOLD)
 
     def _watched_steps(self) -> None:
         """``HOLD`` physics steps under the chunk's torques, one ``mj_step`` at a time (the
@@ -565,12 +580,26 @@ class ImpedanceController:
         a wrist joint passed its limit (1.0022x) inside a chunk that look had let through."""
         m, d = self.model, self.data
         tau = self._ctrl.tolist()
+        qd, qacc, cap, h = self._qvel, self._qacc, self._brake_vlim, m.opt.timestep
+        drift_above = None
+        if use_fast():
+            from strol_gym.envs.study.kernels import drift_above
         for done in range(1, HOLD + 1):
             mujoco.mj_step(m, d)
             self._tau_last = tau
             left = HOLD - done
-            if left and any(
-                abs(s) > b for s, b in zip(self._ahead(tau, left), self._brake_vlim, strict=False)
+            # ``_ahead(tau, left)`` inlined: the torques are the last step's, so its M⁻¹ Δτ
+            # term is zero (+0.0: M⁻¹'s diagonal is positive), and a speed's magnitude is all
+            # that is compared
+            if not left:
+                continue
+            if (
+                drift_above(qd, qacc, left * h, self._brake_cap)
+                if drift_above is not None
+                else any(
+                    abs(s + (left * h) * a) > b
+                    for s, a, b in zip(qd.tolist(), qacc.tolist(), cap, strict=False)
+                )
             ):
                 self._note_contact()
                 self._braked_steps(False, left)
