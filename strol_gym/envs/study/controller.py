@@ -429,20 +429,21 @@ class ImpedanceController:
             )
             integ = self._integral
             if band:
-                ke = self._kmat.dot(e)
+                ke = self._kmat.dot(e).tolist()
                 if integrate:
                     integ = [
                         min(lim, max(-lim, a + g * b))
                         for a, b, g, lim in zip(
                             integ,
-                            ke.tolist(),
+                            ke,
                             (gp,) * 3 + (gr,) * 3,
                             (ip,) * 3 + (ir,) * 3,
                             strict=True,
                         )
                     ]
                     self._integral = integ
-                w = ke + integ + self._acc_ff
+                # in plain floats: numpy would convert each list (the same sums, in order)
+                w = np.array([a + b + c for a, b, c in zip(ke, integ, self._acc_ff, strict=True)])
             elif integrate:
                 integ = [
                     min(ip, max(-ip, a + gp * b)) for a, b in zip(integ[:3], e[:3], strict=False)
@@ -461,9 +462,10 @@ class ImpedanceController:
                 w += feed
             rest = self._gain.dot(np.concatenate((q, qd))).tolist()
             joints = zip(w.dot(jac).tolist(), self._const, rest, strict=False)
-            ctrl[:] = [t + c - g for t, c, g in joints]
-            if damp is not None:
-                ctrl[:] = [t + b for t, b in zip(ctrl.tolist(), damp, strict=True)]
+            tau = [t + c - g for t, c, g in joints]
+            if damp is not None:  # added to the torques as ctrl holds them (float64 as these)
+                tau = [t + b for t, b in zip(tau, damp, strict=True)]
+            ctrl[:] = tau
             if brake:
                 self._step_braked(bool(pushed))
                 if self._braked:  # the speed reflex tripped: the brakes hold from here
