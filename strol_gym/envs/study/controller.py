@@ -13,6 +13,7 @@ setpoint; the env calls ``_simulate`` once per control step.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import mujoco
@@ -583,9 +584,11 @@ class ImpedanceController:
         m, d = self.model, self.data
         tau = self._ctrl.tolist()
         qd, qacc, cap, h = self._qvel, self._qacc, self._brake_vlim, m.opt.timestep
-        drift_above = None
+        drift_above: Callable[[np.ndarray, np.ndarray, float, np.ndarray], bool] | None = None
         if use_fast():
-            from strol_gym.envs.study.kernels import drift_above
+            from strol_gym.envs.study import kernels
+
+            drift_above = kernels.drift_above
         for done in range(1, HOLD + 1):
             mujoco.mj_step(m, d)
             self._tau_last = tau
