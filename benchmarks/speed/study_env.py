@@ -4,7 +4,10 @@
     .venv/bin/python benchmarks/speed/study_env.py --episode [--task 1] [--repeats 1]
 
 ``--episode``: v2's figure, the physics over whole 60 s episodes with the default person,
-v1 and v2 alternately in one process (``episode_physics``).
+v1 and v2 alternately in one process (``episode_physics``); beside the ratio against bare
+``mj_step`` from the episode's last state, ``ratio_own_states``: against bare ``mj_step`` from
+every state the episode visited (a control step's ten physics steps from each, its torques
+held), since one state's physics cost can differ from the episode's by 1.7x.
 
 1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
    feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics
@@ -96,8 +99,11 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
     inner: Any = env.unwrapped  # the study env itself: its physics step is timed in place
     spent = [0.0]
     simulate = inner._simulate
+    visited: list[np.ndarray] = []  # the state at each control step (counterfactuals aside)
 
     def timed(v_sp: Any) -> None:
+        if not inner._rerun:
+            visited.append(_state(inner))
         t0 = _clock()
         simulate(v_sp)
         spent[0] += _clock() - t0
@@ -116,7 +122,16 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
         mujoco.mj_step(inner.model, bare, nstep=inner._n_sub)
     bare_rate = steps / (_clock() - t0)
     env_rate = steps / spent[0]
+    own = 0.0  # bare mj_step from each state the episode visited, its torques held
+    for state in visited:
+        mujoco.mj_setState(inner.model, bare, state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        t0 = _clock()
+        mujoco.mj_step(inner.model, bare, nstep=inner._n_sub)
+        own += _clock() - t0
+    own_rate = len(visited) * inner._n_sub / own
     summary = {
+        "bare_own_states": round(own_rate),
+        "ratio_own_states": round(env_rate / own_rate, 2),
         "corrections": info["corrections"],
         "correction_time_s": round(info["correction_time"], 2),
         "reflexes": info.get("reflexes"),
