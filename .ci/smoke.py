@@ -20,7 +20,7 @@ for env_id in ids:
     env.close()
 print("made, reset and stepped:", " ".join(ids))
 
-env = gym.make("StROL-Robot-v0", sigma=0.25)
+env = gym.make("StROL-Robot-v0", person={"sigma": 0.25})
 task = env.unwrapped.task
 env = OnlineLearningWrapper(env, strol_gym.make_learner("strol", task=task))
 obs, _ = env.reset(seed=0)

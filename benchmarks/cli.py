@@ -119,8 +119,8 @@ def cmd_list(args: argparse.Namespace, parser: argparse.ArgumentParser) -> int:
     print("humans in detail:")
     for name in regs["human"].names():
         print(f"  {name:14s} {human_summary(name)}")
-    print("conditions in detail:")
-    for key in ENV_PRESETS:
+    print("conditions in detail (the study's envs run the study's own: strol-bench study):")
+    for key in (k for k, p in ENV_PRESETS.items() if p.paper_conditions):
         for name in registries()["condition"].names():
             c = make_condition(key, name)
             print(f"  {key:8s} {c.name:14s} {c.describe()}")

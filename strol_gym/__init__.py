@@ -1,8 +1,8 @@
 """strol-gym: Gymnasium envs, online reward learners and benchmarks for StROL (RA-L 2024).
 
-Importing the package registers ``StROL-Robot-v0``, ``StROL-Highway-v0``, ``StROL-Study-v0``
-and ``StROL-Study-v1`` (strol_gym.registration; the envs live in strol_gym.envs, one
-subpackage per simulator).
+Importing the package registers ``StROL-Robot-v0``, ``StROL-Highway-v0`` and
+``StROL-Study-v0``, ``-v1`` and ``-v2`` (strol_gym.registration; the envs live in
+strol_gym.envs, one subpackage per simulator).
 """
 
 from __future__ import annotations

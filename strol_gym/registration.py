@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import gymnasium as gym
 
+from strol_gym.envs.study.versions import VERSIONS
+
 ENV_SPECS: dict[str, dict] = {
     # gymnasium's TimeLimit ends episodes: 10 steps unless make(..., max_episode_steps=N).
     "StROL-Robot-v0": {
@@ -11,20 +13,15 @@ ENV_SPECS: dict[str, dict] = {
         "vector_entry_point": "strol_gym.envs.robot.vector:VectorRobotEnv",
         "max_episode_steps": 10,
     },
-    # The study env truncates itself after 60 s of simulated time (1200 steps of 0.05 s).
-    # v0 and v1 are kept for the published results; gymnasium warns on make that v2
-    # supersedes them.
-    "StROL-Study-v0": {
-        "entry_point": "strol_gym.envs.study.env:StudyEnv",
-        "max_episode_steps": 1200,
-    },
-    "StROL-Study-v1": {
-        "entry_point": "strol_gym.envs.study.env:StudyEnvV1",
-        "max_episode_steps": 1200,
-    },
-    "StROL-Study-v2": {
-        "entry_point": "strol_gym.envs.study.env:StudyEnvV2",
-        "max_episode_steps": 1200,
+    # The study env truncates itself after 60 s of simulated time (1200 steps of 0.05 s); one
+    # id per version (versions.VERSIONS). v0 and v1 are kept for the published results;
+    # gymnasium warns on make that the latest supersedes them.
+    **{
+        v.env_id: {
+            "entry_point": f"strol_gym.envs.study.env:{v.env_class}",
+            "max_episode_steps": 1200,
+        }
+        for v in VERSIONS.values()
     },
     "StROL-Highway-v0": {
         "entry_point": "strol_gym.envs.highway.env:HighwayEnv",

@@ -22,11 +22,8 @@ from strol_gym.benchmarks.engine.config import BenchConfig, Experiment, paper_co
         (["run", "--env", "robot", "--condition", "windy"], "unknown condition 'windy'"),
         (
             ["run", "--env", "boat"],
-            "env must be one of ['highway', 'robot', 'study1', 'study1-v1', 'study1-v1-oracle', "
-            "'study1-v2', 'study1-v2-observer', 'study1-v2-oracle', 'study2', 'study2-v1', "
-            "'study2-v1-oracle', 'study2-v2', 'study2-v2-observer', 'study2-v2-oracle', 'study3', "
-            "'study3-v1', 'study3-v1-oracle', 'study3-v2', 'study3-v2-observer', "
-            "'study3-v2-oracle'], got 'boat'",
+            "env must be one of ['highway', 'robot', 'study1', 'study1-v1', 'study1-v2', "
+            "'study2', 'study2-v1', 'study2-v2', 'study3', 'study3-v1', 'study3-v2'], got 'boat'",
         ),
         (["paper", "--runs", "0"], "--runs must be an integer in [1, "),
         (["paper", "--jobs", "0"], "--jobs must be an integer >= 1"),
@@ -72,9 +69,8 @@ def test_paper_conditions_follow_design_table():
     assert paper_condition("robot", "uniform-prior").prior == "uniform"
     assert paper_condition("highway", "uniform-prior").sigma == 0.10
     assert paper_condition("robot", "clean").env_kwargs() == {
-        "sigma": 0.0,
-        "bias": 0.0,
         "prior": "bimodal",
+        "person": {"sigma": 0.0, "bias": 0.0},
     }
     with pytest.raises(ValueError, match="condition must be one of"):
         paper_condition("robot", "windy")

@@ -45,11 +45,12 @@ def test_study_defaults_to_v2_with_the_fitted_population():
     config = Study().plan(p.parse_args([]))
     assert [e.env for e in config.experiments] == ["study1-v2", "study2-v2", "study3-v2"]
     assert {e.env_id for e in config.experiments} == {"StROL-Study-v2"}
-    assert all(e.env_kwargs()["participant"] == "fitted" for e in config.experiments)
+    assert all("person" not in e.env_kwargs() for e in config.experiments)  # v2's default
+    assert all(p == {"name": "fitted"} for p in config.persons().values())
     # v1 keeps its hand-set participant; the fitted one exists on v2 only
     v1 = Study().plan(p.parse_args(["--env-version", "v1"]))
     assert [e.env for e in v1.experiments] == ["study1-v1", "study2-v1", "study3-v1"]
-    assert all(e.env_kwargs()["participant"] == "observer" for e in v1.experiments)
+    assert all(p["name"] == "observer" for p in v1.persons().values())
     with pytest.raises(SystemExit) as e:
         Study().plan(p.parse_args(["--env-version", "v1", "--participant", "fitted"]))
     assert e.value.code == 2

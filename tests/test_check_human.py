@@ -8,7 +8,6 @@ import json
 import numpy as np
 import pytest
 from cli_checks import cli_error
-from test_study_import import _session, _write
 
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.sessions.check_human import (
@@ -22,18 +21,9 @@ from strol_gym.benchmarks.sessions.check_human import (
 
 
 @pytest.fixture(scope="module")
-def logs(tmp_path_factory):
+def logs(authors_tree, tmp_path_factory):
     """Three people × Tasks 1-3 × every learner, two corrections each (StROL's one); imported."""
-    root = tmp_path_factory.mktemp("authors") / "data"
-    rng = np.random.default_rng(49)
-    for p in range(3):
-        for task in (1, 2, 3):
-            for alg in ("b1", "b2", "ours"):
-                moves = [rng.uniform(-0.1, 0.1, 6) * [1, 1, 1, 0.5, 0.5, 0.5] for _ in range(2)]
-                if task == 1:
-                    moves = [np.concatenate([v[:3], np.zeros(3)]) for v in moves]
-                sizes = [3, 4] if alg != "ours" else [3]
-                _write(root, f"user_{p + 1}", task, alg, _session(task, rng, moves, sizes))
+    root = authors_tree(people=3, seed=49, sizes=(3, 4), ours_sizes=(3,))
     out = tmp_path_factory.mktemp("logs") / "logs"
     assert cli.main(["import-study", str(root), "--out", str(out)]) == 0
     return out

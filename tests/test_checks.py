@@ -25,21 +25,18 @@ NOT_NUMBERS = (STR, DICT, OBJ)
 NOT_DICTS = (STR, OBJ)
 
 # The numeric (and keyword-dict) arguments of every registered env.
-SHARED = ["sigma", "bias", "beta", "n_corrections", "max_episode_steps", "width", "height"]
+# (The person's σ, ε, β and kwargs: tests/test_person.py.)
+SHARED = ["n_corrections", "max_episode_steps", "width", "height"]
 ENV_ARGS: dict[str, list[str]] = {
-    "StROL-Robot-v0": [*SHARED, "human_kwargs"],
-    "StROL-Highway-v0": [*SHARED, "human_kwargs"],
-    "StROL-Study-v0": [
-        *("sigma", "bias", "force_threshold", "duration", "stiffness", "rot_stiffness"),
-        "user_kwargs",
-    ],
+    "StROL-Robot-v0": SHARED,
+    "StROL-Highway-v0": SHARED,
+    "StROL-Study-v0": ["force_threshold", "duration", "stiffness", "rot_stiffness"],
     "StROL-Study-v1": [
         *("reflex_force", "reflex_torque", "reflex_recover", "force_threshold", "duration"),
-        "user_kwargs",
     ],
     "StROL-Study-v2": [
         *("reflex_force", "reflex_torque", "reflex_recover", "force_threshold", "duration"),
-        *("hold_off", "user_kwargs"),
+        "hold_off",
     ],
 }
 LEARNER_ARGS: dict[str, list[str]] = {
@@ -121,7 +118,7 @@ def test_the_cases_are_about_fifty_arguments():
 
 def test_the_command_line_says_what_python_says(capsys):
     with pytest.raises(ValueError) as py:
-        gym.make("StROL-Robot-v0", sigma="abc")
+        gym.make("StROL-Robot-v0", person={"sigma": "abc"})
     with pytest.raises(SystemExit) as cli:
         bench_main(["run", "--env", "robot", "--sigma", "abc"])
     assert cli.value.code == 2

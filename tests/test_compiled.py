@@ -65,8 +65,8 @@ def test_a_nan_norm_is_chosen_first_as_numpys_argmin_does(task, path):
 
 
 def test_the_highway_search_skips_only_candidates_that_cannot_be_picked(path):
-    """``highway_m6`` skips a candidate by its speed term alone: ties keep the first minimum,
-    and a NaN or unbounded input (where a skipped norm could be NaN) turns the skip off."""
+    """The Highway's screen drops only candidates that cannot be picked: ties keep the first
+    minimum, and a NaN or unbounded input (where a dropped norm could be NaN) turns it off."""
     task = HighwayTask()
     rng = np.random.default_rng(33)
     x = task.sample_start(rng, 6)
@@ -86,6 +86,50 @@ def test_the_highway_search_skips_only_candidates_that_cannot_be_picked(path):
     fast = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
     assert fast.tobytes() == plain.tobytes()
     assert np.isnan(fast[1]).any()  # the NaN candidate was reached and chosen, as numpy does
+
+
+@pytest.mark.parametrize(
+    "task", [HighwayTask(), HighwayTask(max_steering=0.2)], ids=["default", "wide-steering"]
+)
+def test_the_highway_screen_keeps_every_candidate_that_could_be_chosen(task, path):
+    """The screen (polynomials for the trigonometry, a proven error bound) drops most
+    candidates and never the chosen one: near ties, exact repeats, angles at the edge of the
+    polynomials' range, steering beyond it, far positions and clipped speeds included."""
+    from strol_gym.tasks.m6_kernels import highway_m6_screen
+
+    rng = np.random.default_rng(56)
+    kept = total = settled = 0
+    for trial in range(40):
+        b = 16
+        x = task.sample_start(rng, b)
+        x[:4, 7] = rng.choice([0.45, -0.45, 0.3], 4)  # headings near the range's edge
+        x[4:6, [0, 4]] += 9e3  # far down the road
+        x[6, 6] = 45.0  # the speed clip
+        u_r = rng.uniform(-1.2, 1.2, (b, 2)) * task.action_bound
+        u_r[7, 1] = 0.06  # a robot steering beyond the polynomial's range
+        cand = task.candidate_actions(rng, b, 256)
+        cand[:, 200:230] = cand[:, 100:130]  # exact repeats: the first of equal norms wins
+        cand[:, 231, 0] = np.nextafter(cand[:, 101, 0], np.inf)  # a hair from another
+        theta_star = rng.standard_normal((b, 3))
+        # θ̂ one correction away from θ*: the best norm near zero, its rivals near it
+        g = task.g(x, cand[np.arange(b), rng.integers(1, 257, b)], u_r)
+        theta_hat = theta_star - task.alpha * g + rng.normal(0, 1e-9, (b, 3)) * (trial % 2)
+        path(False)
+        plain = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+        path(True)
+        fast = optimal_correction(task, x, u_r, theta_hat, theta_star, cand)
+        assert fast.tobytes() == plain.tobytes()
+        keep = np.empty(cand.shape[:2], dtype=bool)
+        steer = np.empty(b * (cand.shape[1] + 1))
+        best = np.empty(b, dtype=np.int64)
+        prm = task._kernel_params
+        highway_m6_screen(x, u_r, theta_hat, theta_star, cand, prm, keep, steer, best)
+        kept, total = kept + keep[8:].sum(), total + keep[8:].size
+        settled += (best[8:] >= 0).sum()  # one candidate left: the screen's choice
+    if task.max_steering < 0.05:
+        assert kept < total / 20 and settled > 40 * 8 / 2
+    else:  # most candidates steer beyond the polynomials' range: kept for the exact search
+        assert kept > total / 2
 
 
 def test_highway_features_of_one_state_are_the_plain_bytes(path):
@@ -128,6 +172,57 @@ def test_a_task_that_overrides_what_the_kernel_repeats_takes_the_plain_path(path
     assert (
         RobotTask().m6_choice(x, x, np.zeros((1, 2)), np.ones((1, 2)), np.zeros((1, 2, 3)))[0] == 0
     )
+
+
+@pytest.mark.parametrize(("sigma", "bias"), [(0.0, 0.0), (0.3, -0.2)])
+def test_the_drawn_robot_correction_is_the_plain_draws_and_choice(sigma, bias, path):
+    """``NominalModel.drawn_corrections`` (one compiled call from each person's draws, by
+    chunks of people) against ``draw_each`` and ``corrections`` on the plain path: the same
+    bytes, the generators left in the same state; one person as ``act`` asks."""
+    from strol_gym.humans.builtin import DRAWN_CHUNK, NominalModel
+
+    task = RobotTask()
+    model = NominalModel(task, sigma=sigma, bias=bias)
+    rng = np.random.default_rng(5)
+    for b in (1, DRAWN_CHUNK + 5):
+        x = task.sample_start(rng, b)
+        u_r = rng.uniform(-1.5, 1.5, (b, 3)) * task.action_bound  # some clipped
+        theta_hat, theta_star = rng.standard_normal((2, b, 2))
+        theta_hat[0, 1] = np.nan if b > 1 else theta_hat[0, 1]  # argmin's NaN rule too
+        seeds = rng.integers(0, 2**32, b)
+        path(False)
+        plain_rngs = [np.random.default_rng(s) for s in seeds]
+        assert model.drawn_corrections(plain_rngs, x, u_r, theta_star, theta_hat) is None
+        draws = model.draw_each(plain_rngs)
+        plain = model.corrections(x, u_r, theta_star, draws, theta_hat)
+        path(True)
+        fast_rngs = [np.random.default_rng(s) for s in seeds]
+        fast = model.drawn_corrections(fast_rngs, x, u_r, theta_star, theta_hat)
+        assert fast is not None and fast.tobytes() == plain.tobytes()
+        for a, c in zip(plain_rngs, fast_rngs, strict=True):
+            assert a.random() == c.random()
+
+
+def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usual(path):
+    from strol_gym.humans.builtin import NominalModel
+
+    class Jittered(NominalModel):
+        def draw_extra(self, rng, n):
+            return {"jitter": rng.random((n, 1))}
+
+    class Shifted(RobotTask):
+        def candidate_actions(self, rng, n, k):
+            return super().candidate_actions(rng, n, k) * 0.5
+
+    path(True)
+    x, th = np.zeros((1, 3)), np.zeros((1, 2))
+    rng = np.random.default_rng(0)
+    state = rng.bit_generator.state
+    assert Jittered(RobotTask()).drawn_corrections([rng], x, x, th, th) is None
+    assert NominalModel(Shifted()).drawn_corrections([rng], x, x, th, th) is None
+    assert NominalModel(RobotTask()).drawn_corrections([rng], x, x, th, None) is None
+    assert rng.bit_generator.state == state  # nothing drawn
+    assert NominalModel(RobotTask()).drawn_corrections([rng], x, x, th, th) is not None
 
 
 def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:

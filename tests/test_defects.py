@@ -42,7 +42,7 @@ def test_non_numeric_noise_bias_beta_name_the_argument(human, arg):
     with pytest.raises(ValueError, match=rf"^{arg} must be a number in \["):
         make_human(human, ROBOT, np.zeros(2), rng, **{arg: "abc"})
     with pytest.raises(ValueError, match=rf"^{arg} must be a number in \["):
-        gym.make("StROL-Highway-v0", **{arg: [1, 2]})
+        gym.make("StROL-Highway-v0", person={"name": human, arg: [1, 2]})
 
 
 @pytest.mark.parametrize("arg", ["sigma", "bias", "beta"])

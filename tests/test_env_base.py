@@ -9,6 +9,7 @@ from test_wrapper import CONTRACT_ID, ContractEnv
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.humans import NominalHuman
+from strol_gym.humans.spec import HumanSpec
 from strol_gym.learners.rules import GradientLearner
 from strol_gym.wrappers import OnlineLearningWrapper
 
@@ -41,9 +42,8 @@ def test_observation_carries_phi_and_matches_the_space(env_id):
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_a_human_factory_gets_sigma_bias_beta_and_its_own_kwargs(env_id):
     seen = Seen()
-    env = gym.make(
-        env_id, human=seen, sigma=0.2, bias=-0.1, beta=7.0, human_kwargs={"tone": "stern"}
-    )
+    person = HumanSpec(seen, sigma=0.2, bias=-0.1, beta=7.0, kwargs={"tone": "stern"})
+    env = gym.make(env_id, person=person)
     env.reset(seed=1)
     # (highway-env's constructor resets once itself)
     assert seen.calls and all(
@@ -59,26 +59,28 @@ def test_a_factory_gets_only_the_arguments_it_declares():
         got.append(True)
         return NominalHuman(task, theta_star, rng)
 
-    env = gym.make("StROL-Highway-v0", human=plain, sigma=0.3)
+    env = gym.make("StROL-Highway-v0", person=plain)
     env.reset(seed=0)
     env.step(env.action_space.sample())
     assert got
+    with pytest.raises(ValueError, match=r"^sigma is not a parameter of person .*plain"):
+        gym.make("StROL-Highway-v0", person={"name": plain, "sigma": 0.3})
 
 
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
-        ({"human_kwargs": {"mood": 1}}, r"human_kwargs \['mood'\] are not parameters"),
-        ({"human_kwargs": {"sigma": 1}}, "must not hold"),
-        ({"human_kwargs": [1]}, "human_kwargs must be a dict"),
-        ({"human": "no-such-human"}, "unknown human 'no-such-human'"),
-        ({"human": "no_such_module:Human"}, "cannot import"),
-        ({"human": 3}, "human must be"),
+        ({"kwargs": {"mood": 1}}, r"person kwargs \['mood'\] are not parameters"),
+        ({"kwargs": {"sigma": 1}}, "must not hold"),
+        ({"kwargs": [1]}, "kwargs must be a dict"),
+        ({"name": "no-such-human"}, "unknown human 'no-such-human'"),
+        ({"name": "no_such_module:Human"}, "cannot import"),
+        ({"name": 3}, "person must be"),
     ],
 )
 def test_bad_human_arguments_name_the_argument(kwargs, match):
     with pytest.raises(ValueError, match=match):
-        gym.make("StROL-Highway-v0", **kwargs)
+        gym.make("StROL-Highway-v0", person=kwargs)
 
 
 class Drifting:
@@ -96,7 +98,7 @@ class Drifting:
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_info_theta_star_is_the_humans_current_preference(env_id):
-    env = gym.make(env_id, human=Drifting)
+    env = gym.make(env_id, person=Drifting)
     _, info0 = env.reset(seed=2)
     _, reward, _, _, info = env.step(np.zeros(env.action_space.shape, np.float32))
     np.testing.assert_allclose(info["theta_star"], -info0["theta_star"])

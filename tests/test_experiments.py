@@ -39,7 +39,9 @@ def test_changing_human_switches_after_k_corrections():
 
 def test_changing_human_env_reports_final_preference():
     env = gym.make(
-        "StROL-Robot-v0", human="changing", human_kwargs={"switch_after": 1}, n_corrections=3
+        "StROL-Robot-v0",
+        person={"name": "changing", "kwargs": {"switch_after": 1}},
+        n_corrections=3,
     )
     try:
         env.reset(seed=SEED)

@@ -124,7 +124,9 @@ def test_censored_gaussian_recovers_sigma_from_clipped_corrections():
 def _log(path, seed0: int = 0) -> None:
     env = SessionLogger(
         OnlineLearningWrapper(
-            gym.make("StROL-Robot-v0", human="mistaken", sigma=0.3, human_kwargs={"rate": 0.2}),
+            gym.make(
+                "StROL-Robot-v0", person={"name": "mistaken", "sigma": 0.3, "kwargs": {"rate": 0.2}}
+            ),
             "gradient",
         ),
         path,

@@ -473,7 +473,7 @@ def test_train_refuses_sigma_in_human_kwargs(capsys, tmp_path):
 @pytest.mark.parametrize("env_id", ["StROL-Robot-v0", "StROL-Highway-v0"])
 def test_env_arguments(env_id):
     with pytest.raises(ValueError, match="sigma must be a number"):
-        gym.make(env_id, sigma=True)
+        gym.make(env_id, person={"sigma": True})
     # -1 is gymnasium's documented "no TimeLimit" (accepted, docs); built directly it is refused
     assert not isinstance(gym.make(env_id, max_episode_steps=-1), gym.wrappers.TimeLimit)
     with pytest.raises(ValueError, match="max_episode_steps must be an integer >= 1"):
@@ -481,8 +481,8 @@ def test_env_arguments(env_id):
     with pytest.raises(ValueError, match="render_mode must be None or one of"):
         gym.make(env_id, render_mode=5)
     # deliberately accepted (docs): a numeric string, as a command line gives it
-    env = gym.make(env_id, sigma="0.1")
-    assert env.unwrapped.sigma == 0.1
+    env = gym.make(env_id, person={"sigma": "0.1"})
+    assert env.unwrapped.person_spec.sigma == 0.1
     env.reset(seed=0)
     with pytest.raises(ValueError, match="action must be real numbers"):
         env.step(np.array([0.1j] * env.action_space.shape[0]))

@@ -31,13 +31,13 @@ def make(**kw) -> HighwayEnv:
 @pytest.mark.parametrize(
     ("kwargs", "name"),
     [
-        ({"sigma": -0.1}, "sigma"),
-        ({"sigma": float("nan")}, "sigma"),
-        ({"bias": float("inf")}, "bias"),
+        ({"person": {"sigma": -0.1}}, "sigma"),
+        ({"person": {"sigma": float("nan")}}, "sigma"),
+        ({"person": {"bias": float("inf")}}, "bias"),
         ({"prior": "trimodal"}, "prior"),
         ({"prior": [[1.0, 2.0]]}, "prior"),
-        ({"human": "reckless"}, "human"),
-        ({"beta": -1.0}, "beta"),
+        ({"person": "reckless"}, "unknown human 'reckless'"),
+        ({"person": {"name": "boltzmann", "beta": -1.0}}, "beta"),
         ({"n_corrections": -1}, "n_corrections"),
         ({"n_corrections": 2.5}, "n_corrections"),
         ({"render_mode": "ascii"}, "render_mode"),
@@ -64,10 +64,10 @@ def test_gymnasium_and_sb3_check_env_pass():
 
 @pytest.mark.parametrize("human", ["nominal", "boltzmann", "driver"])
 def test_same_seed_same_rollout(human):
-    a = rollout(make(human=human, sigma=0.3, bias=0.1), seed=3)
-    b = rollout(make(human=human, sigma=0.3, bias=0.1), seed=3)
+    a = rollout(make(person={"name": human, "sigma": 0.3, "bias": 0.1}), seed=3)
+    b = rollout(make(person={"name": human, "sigma": 0.3, "bias": 0.1}), seed=3)
     assert same(a, b)
-    c = rollout(make(human=human, sigma=0.3, bias=0.1), seed=4)
+    c = rollout(make(person={"name": human, "sigma": 0.3, "bias": 0.1}), seed=4)
     assert not np.array_equal(a[0][0]["state"], c[0][0]["state"])
 
 
@@ -146,7 +146,7 @@ def test_priors_and_reset_options():
 
 
 def test_collision_terminates():
-    env = make(human="driver")
+    env = make(person="driver")
     state = np.array([112.0, 0.0, 20.0, 0.0, 100.0, 0.0, 35.0, 0.0])  # 12 m behind, 15 m/s faster
     env.reset(seed=0, options={"state": state, "theta_star": [0.0, 1.0, 0.0]})
     for _ in range(10):
@@ -157,7 +157,7 @@ def test_collision_terminates():
 
 
 def test_pickles_mid_episode():
-    env = make(sigma=0.2)
+    env = make(person={"sigma": 0.2})
     env.reset(seed=5)
     env.step(np.zeros(2, dtype=np.float32))
     clone = pickle.loads(pickle.dumps(env))
@@ -174,7 +174,7 @@ def test_make_vec_sync_and_async_spawn():
             num_envs=2,
             vectorization_mode=mode,
             vector_kwargs=kw,
-            sigma=0.1,
+            person={"sigma": 0.1},
         )
         try:
             obs, _ = envs.reset(seed=[0, 1])
@@ -201,7 +201,7 @@ def test_rgb_array_renders_a_non_blank_frame_headless():
 
 def run_episode(human: str, mode: int, seed: int, learn: bool) -> tuple[np.ndarray, np.ndarray]:
     """States of a 10-step episode with the robot holding its lane and speed; θ̂ by Gradient."""
-    env = make(human=human)
+    env = make(person=human)
     start = env.task.sample_episode_start(np.random.default_rng(seed), 1)[0]
     start[[1, 3, 5, 7]] = 0.0  # both cars straight in the left lane's centre
     obs, info = env.reset(seed=seed, options={"theta_star": HIGHWAY_MODES[mode], "state": start})

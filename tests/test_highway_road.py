@@ -87,3 +87,74 @@ def test_far_pairs_are_ruled_out_with_highway_envs_answer(monkeypatch):
         near += bool(theirs[1])
     assert far > 1000 and near > 20  # both answers came up
     assert 0 < len(asked) < 3000 - far / 2  # near pairs went to highway-env, most far ones not
+
+
+def test_near_pairs_apart_along_an_axis_get_highway_envs_answer(monkeypatch):
+    """The second pre-check (apart along one of the car's own axes) answers as highway-env's
+    rectangle test would, and takes most pairs that are within the spherical reach but apart."""
+    _, network = _networks()
+    road = Road(network=network, np_random=np.random.default_rng(0))
+    rng = np.random.default_rng(2)
+    asked = []
+    check = Vehicle._is_colliding
+
+    def counting(self, other, dt):
+        asked.append(1)
+        return check(self, other, dt)
+
+    answers = set()
+    for _ in range(3000):
+        a = Car(
+            road, rng.uniform(-5, 5, 2), heading=rng.uniform(-0.3, 0.3), speed=rng.uniform(0, 35)
+        )
+        d = rng.uniform(0.0, a.diagonal + a.speed * 0.5)  # within the spherical reach
+        angle = rng.uniform(0, 2 * np.pi)
+        b = Car(
+            road,
+            a.position + d * np.array([np.cos(angle), np.sin(angle)]),
+            heading=rng.uniform(-0.3, 0.3),
+            speed=rng.uniform(0, 35),
+        )
+        monkeypatch.setattr(Vehicle, "_is_colliding", counting)
+        ours = a._is_colliding(b, 0.5)
+        monkeypatch.setattr(Vehicle, "_is_colliding", check)
+        theirs = Vehicle._is_colliding(a, b, 0.5)
+        assert ours[:2] == theirs[:2]
+        assert (ours[2] is None) == (theirs[2] is None)
+        if ours[2] is not None:
+            assert ours[2].tobytes() == theirs[2].tobytes()
+        answers.add(ours[:2])
+    assert answers >= {(False, False), (False, True), (True, True)}  # apart, impact, crash
+    assert 500 < len(asked) < 2900  # some pairs answered here, the others by highway-env
+
+
+def test_a_car_steps_as_highway_envs_vehicle():
+    """``Car.step`` in plain floats: highway-env's ``Vehicle.step`` to the bit, crashed, with an
+    impact, at the speed limits and with extreme steering included."""
+    _, network = _networks()
+    road = Road(network=network, np_random=np.random.default_rng(0))
+    rng = np.random.default_rng(3)
+    for i in range(3000):
+        state = dict(heading=rng.uniform(-3, 3), speed=rng.choice([rng.uniform(-45, 45), 0.0]))
+        position = rng.uniform([-20, -8], [1e4, 12])
+        ours = Car(road, position.copy(), **state)
+        theirs = Vehicle(road, position.copy(), **state)
+        action = {
+            "acceleration": rng.uniform(-10, 10),
+            "steering": rng.choice([rng.uniform(-0.05, 0.05), rng.uniform(-1.5, 1.5), 0.0]),
+        }
+        for v in (ours, theirs):
+            v.act(dict(action))
+            v.crashed = i % 7 == 0
+            v.impact = np.array([0.3, -0.1]) if i % 11 == 0 else None
+        for _ in range(3):
+            ours.step(0.5)
+            theirs.step(0.5)
+            assert ours.position.tobytes() == theirs.position.tobytes()
+            for name in ("heading", "speed"):  # the bits, the sign of a zero included
+                assert (
+                    np.float64(getattr(ours, name)).tobytes()
+                    == np.float64(getattr(theirs, name)).tobytes()
+                )
+            assert ours.lane_index == theirs.lane_index and ours.crashed == theirs.crashed
+            assert ours.action == theirs.action

@@ -101,6 +101,19 @@ def test_features_are_order_one_at_start_and_zero_at_the_slot():
     assert TASK.features(right)[2] == pytest.approx(1.0)
 
 
+def test_one_start_in_plain_floats_is_the_batchs_row():
+    """A single env's reset maps its draws to a state in plain floats: the batch's bytes."""
+    task = HighwayTask(start_x=(0.0, 1e4))
+    u = np.random.default_rng(5).uniform(size=(500, 8))
+    u[:3] = [np.zeros(8), np.nextafter(1.0, 0.0) * np.ones(8), np.full(8, 0.5)]
+    batch = task._episode_start(u)
+    for i in range(len(u)):
+        assert task._episode_start(u[i : i + 1]).tobytes() == batch[i : i + 1].tobytes()
+    one = [task.sample_episode_starts([np.random.default_rng(s)]) for s in range(20)]
+    many = task.sample_episode_starts([np.random.default_rng(s) for s in range(20)])
+    assert np.concatenate(one).tobytes() == many.tobytes()
+
+
 def test_prior_modes_are_the_two_styles_with_jitter():
     assert isinstance(TASK.prior, MixturePrior)
     np.testing.assert_array_equal(TASK.prior_modes, [[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])

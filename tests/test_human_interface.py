@@ -87,7 +87,7 @@ def test_the_env_hands_theta_hat_only_to_humans_who_declare_they_need_it(needs):
         made.append(_Recorder(task, theta_star, rng, needs))
         return made[-1]
 
-    env = gym.make("StROL-Robot-v0", human=factory)
+    env = gym.make("StROL-Robot-v0", person=factory)
     env.reset(seed=0)
     env.step(np.zeros(env.action_space.shape))
     seen = made[-1].seen[0]
@@ -108,7 +108,7 @@ def test_a_registered_model_is_one_file_and_serves_env_training_and_the_loop():
     register_human("test-lazy", Lazy)
     try:
         assert isinstance(human_model("test-lazy", TASK), Lazy)
-        env = gym.make("StROL-Robot-v0", human="test-lazy", sigma=0.0)
+        env = gym.make("StROL-Robot-v0", person={"name": "test-lazy", "sigma": 0.0})
         obs, _ = env.reset(seed=1)
         obs, *_ = env.step(np.zeros(env.action_space.shape))
         assert np.abs(obs["correction"]).max() <= 0.5 * TASK.step_bound + 1e-6

@@ -143,7 +143,7 @@ def test_push_is_one_logged_correction_and_the_learner_updates(session):
     assert info["correction_time"] == pytest.approx(1.0, abs=0.051)
     s = read_session(log)
     assert s.header["learner"] == "strol" and s.header["task"] == "study-task1-v2"
-    assert s.header["env_kwargs"]["human"] is None
+    assert s.header["env_kwargs"]["person"] is None
     (ep,) = s.episodes
     (c,) = ep.corrections
     assert c["u_h"][1] > 0.02  # the hand moved along +y by > 2 cm
@@ -238,7 +238,7 @@ def test_cli_bad_inputs_exit_2(tmp_path, monkeypatch, capsys):
     assert "--task must be 1, 2 or 3" in capsys.readouterr().err
     assert cli(["interact", "--task", "1"]) == 2
     err = capsys.readouterr().err
-    assert "xvfb-run -a strol-bench interact" in err and "StROL-Study-v1" in err
+    assert "xvfb-run -a strol-bench interact" in err and "StROL-Study-v2" in err
     with pytest.raises(ValueError, match="task must be 1, 2 or 3"):
         run_interactive(task=5, viewer_factory=FakeViewer)
 
@@ -322,7 +322,7 @@ def test_a_person_meets_the_task_and_g_hat_of_strol_bench_study(task):
     assert person.unwrapped.spec.id == exp.env_id
     assert type(person.unwrapped.task) is type(env.unwrapped.task)
     assert person.unwrapped.task.version == env.unwrapped.task.version >= 1
-    assert person.unwrapped.human is None  # no simulated person pushes
+    assert person.unwrapped.person is None  # no simulated person pushes
     ours, theirs = person.learner.model.state_dict(), study_learner.model.state_dict()
     assert ours.keys() == theirs.keys()
     for k in ours:

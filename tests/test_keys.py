@@ -12,6 +12,7 @@ import pytest
 
 from strol_gym.benchmarks.sessions import keys
 from strol_gym.benchmarks.sessions.keys import ArmPush, Intent, Pad, PushSizes
+from strol_gym.envs.study.people import PushParams
 
 
 def test_keys_name_axes_and_cancel():
@@ -23,6 +24,16 @@ def test_keys_name_axes_and_cancel():
     assert keys.arm_intent(["i", "l", "o", "x", "f1"]) == Intent(tilt=1.0, turn=1.0, roll=1.0)
     assert keys.car_intent(["arrowup", "arrowleft"]) == (1.0, -1.0)
     assert keys.car_intent(["arrowdown", "arrowup", "d"]) == (0.0, 1.0)
+
+
+def test_a_key_push_is_the_simulated_users_push():
+    """One source for the push's size: ``PushParams``'s defaults, whatever they become."""
+    plain, person = PushSizes(), PushParams()
+    assert (plain.force, plain.torque, plain.ramp) == (
+        person.push_force,
+        person.push_torque,
+        person.ramp,
+    )
 
 
 def test_module_imports_no_window_library():

@@ -38,7 +38,10 @@ def log(tmp_path, monkeypatch):
 def robot_session(path):
     """Log two Robot episodes (seeds 3, 4) of StROL under noisy corrections into ``path``."""
     env = SessionLogger(
-        OnlineLearningWrapper(gym.make("StROL-Robot-v0", sigma=0.25, bias=0.1), "strol"), path
+        OnlineLearningWrapper(
+            gym.make("StROL-Robot-v0", person={"sigma": 0.25, "bias": 0.1}), "strol"
+        ),
+        path,
     )
     task = env.unwrapped.task
     for seed in (3, 4):
@@ -111,7 +114,7 @@ def test_benchmark_runs_as_a_dataset(tmp_path, monkeypatch, capsys):
     session = read_any("strol/robot-runs-v0")
     assert session.header["extra"]["benchmark"]["condition"]["name"] == "noisy-biased"
     for ep, seed in zip(session.episodes, (7, 8), strict=True):
-        env = gym.make("StROL-Robot-v0", sigma=0.5, bias=0.5)
+        env = gym.make("StROL-Robot-v0", person={"sigma": 0.5, "bias": 0.5})
         _, info = env.reset(seed=seed)
         env.close()
         np.testing.assert_array_equal(ep.theta_star, info["theta_star"])

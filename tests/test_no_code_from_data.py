@@ -380,7 +380,7 @@ def test_headers_name_registered_pieces_and_study_v1_exports_replay(tmp_path, mo
     naming our Task by module path is read through the fixed table, another path refused."""
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
     log = tmp_path / "v1.jsonl"
-    base = gym.make("StROL-Study-v1", task="study-task1-v1", participant="observer")
+    base = gym.make("StROL-Study-v1", task="study-task1-v1", person="observer")
     env = SessionLogger(OnlineLearningWrapper(base, "gradient"), log)
     env.reset(seed=1)
     task, learner = env.unwrapped.task, env.learner

@@ -65,10 +65,10 @@ import numpy as np
 import my_human, my_learner, my_task  # noqa: F401  (they register their pieces)
 from strol_gym.wrappers import OnlineLearningWrapper
 
-env = gym.make("StROL-Robot-v0", human="shy", task="near-cup", sigma=0.2,
-               human_kwargs={"shyness": 0.3})
+env = gym.make("StROL-Robot-v0", person={"name": "shy", "sigma": 0.2, "kwargs": {"shyness": 0.3}},
+               task="near-cup")
 assert type(env.unwrapped.task).__name__ == "NearCupTask"
-assert env.unwrapped.human_model == "shy"
+assert env.unwrapped.person_spec.name == "shy"
 env = OnlineLearningWrapper(env, "half-step")
 obs, info = env.reset(seed=1_391)
 assert env.unwrapped.human.shyness == 0.3 and env.unwrapped.human.sigma == 0.2

@@ -42,6 +42,8 @@ SHOWN = [
     # humans
     "strol_gym.humans:HumanModel",
     "strol_gym.humans:HumanSpec",
+    "strol_gym.humans.spec:person_spec",
+    "strol_gym.humans.spec:DEFAULT_PERSON",
     "strol_gym.humans:NominalHuman",
     "strol_gym.humans:register_human",
     "strol_gym.humans.zoo",
@@ -67,6 +69,7 @@ SHOWN = [
     "strol_gym.envs.robot.vector:VectorRobotEnv",
     "strol_gym.envs.highway.vector:VectorHighwayEnv",
     "strol_gym.envs.study.user:SimulatedUser",
+    "strol_gym.envs.study.persons:StudyPerson",
     "strol_gym.envs.robot.seeds",
     "strol_gym.envs.panda.ik_batched",
     # wrappers
@@ -124,6 +127,7 @@ REMOVED_NAMES = [
     "strol_gym.envs.study:D_NULL",
     "strol_gym.envs.study:END_HOLD",
     "strol_gym.envs.study:TORQUE_LEVER",
+    "strol_gym.humans.spec:check_shared",
 ]
 
 # Dotted names in the docs that are not import paths: an entry-point group, a placeholder, the

@@ -443,50 +443,48 @@ def test_study_v1_reflex_thresholds_must_be_finite_and_positive(value):
 
 @pytest.mark.parametrize("version", ["v1", "v2"])
 @pytest.mark.parametrize(
-    ("kwargs", "named"),
+    ("person", "named"),
     [
-        ({"human": "boltzmann"}, "human"),
         ({"beta": 5.0}, "beta"),
-        ({"human_kwargs": {"n_candidates": 8}}, "human_kwargs"),
+        ({"kwargs": {"n_candidates": 8}}, "n_candidates"),
     ],
 )
-def test_study_observer_refuses_the_human_model_it_would_ignore(version, kwargs, named):
+def test_study_participants_refuse_what_they_would_ignore(version, person, named):
     """v1's default participant ("observer") pushes θ*-greedy by itself, v2's ("fitted") from
-    its fitted aim and sizes: a human model it was given would be ignored (issue 31, item 11),
-    so it is refused, naming the argument."""
+    its fitted aim and sizes: a human model's parameter would be ignored, so it is refused,
+    naming it."""
     import gymnasium as gym
 
-    who = "observer" if version == "v1" else "fitted"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # v1 is deprecated
-        with pytest.raises(ValueError, match=rf"^{named} must be .*participant='{who}'"):
-            gym.make(f"StROL-Study-{version}", **kwargs)
-        with pytest.raises(ValueError, match=rf"^{named} must be .*participant='observer'"):
-            gym.make(f"StROL-Study-{version}", participant="observer", **kwargs)
+        with pytest.raises(ValueError, match=named):
+            gym.make(f"StROL-Study-{version}", person=person)
+        with pytest.raises(ValueError, match=named):
+            gym.make(f"StROL-Study-{version}", person={"name": "observer", **person})
 
 
-BOLTZMANN = {"human": "boltzmann", "beta": 5.0}
+BOLTZMANN = {"name": "boltzmann", "beta": 5.0}
 
 
 @pytest.mark.parametrize(
-    ("env_id", "kwargs", "user"),
+    ("env_id", "person", "user"),
     [
         ("StROL-Study-v0", BOLTZMANN, "BoltzmannHuman"),
-        ("StROL-Study-v1", {**BOLTZMANN, "participant": "oracle"}, "BoltzmannHuman"),
-        ("StROL-Study-v2", {**BOLTZMANN, "participant": "oracle"}, "BoltzmannHuman"),
-        ("StROL-Study-v1", {"human": "nominal"}, "Participant"),  # the default still builds
-        ("StROL-Study-v2", {"human": None}, None),  # and so does no simulated user
+        ("StROL-Study-v1", BOLTZMANN, "BoltzmannHuman"),
+        ("StROL-Study-v2", BOLTZMANN, "BoltzmannHuman"),
+        ("StROL-Study-v1", {}, "Participant"),  # the default still builds
+        ("StROL-Study-v2", None, None),  # and so does no simulated person
     ],
 )
-def test_study_human_model_is_honoured_where_it_is_used(env_id, kwargs, user):
+def test_study_human_model_is_honoured_where_it_is_used(env_id, person, user):
     """Where the simulated user chooses its pushes from a human model, it is the one given."""
     import gymnasium as gym
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
-        env = gym.make(env_id, **kwargs)
+        env = gym.make(env_id, person=person)
     env.reset(seed=0)
-    got = env.unwrapped.human
+    got = env.unwrapped.person
     if user == "BoltzmannHuman":
         assert type(got.model).__name__ == user and got.model.beta == 5.0
     else:

@@ -76,7 +76,9 @@ def test_names_and_module_attr_work_everywhere(registered):
     for human, task in (("shy", "near-cup"), (f"{PIECES}:shy_human", f"{PIECES}:NearCupTask")):
         registry_pieces.SEEN.clear()
         env = gym.make(
-            "StROL-Robot-v0", human=human, task=task, sigma=0.1, human_kwargs={"shyness": 0.25}
+            "StROL-Robot-v0",
+            person={"name": human, "sigma": 0.1, "kwargs": {"shyness": 0.25}},
+            task=task,
         )
         assert isinstance(env.unwrapped.task, NearCupTask)
         # the wrapper and make_learner: a name and a module:attr
@@ -92,7 +94,7 @@ def test_names_and_module_attr_work_everywhere(registered):
     assert isinstance(strol_gym.make_learner("half", task=make_task("robot")), HalfGradient)
     assert isinstance(make_task("StROL-Highway-v0"), strol_gym.HighwayTask)  # an env id
     cond = make_condition("robot", "shy-clean")
-    assert cond.env_kwargs()["human"] == "shy"
+    assert cond.env_kwargs()["person"]["name"] == "shy"
 
 
 def test_a_custom_human_trains_by_name(registered):

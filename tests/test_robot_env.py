@@ -79,7 +79,7 @@ def test_state_is_the_real_end_effector():
 
 
 def test_step_contract_corrections_reward_truncation():
-    env = RobotEnv(n_corrections=3, max_episode_steps=6, sigma=0.1)
+    env = RobotEnv(n_corrections=3, max_episode_steps=6, person={"sigma": 0.1})
     env.reset(seed=1)
     for t in range(6):
         obs, reward, terminated, truncated, info = env.step(np.zeros(3))
@@ -148,12 +148,12 @@ def test_an_action_means_the_same_whatever_its_type():
 @pytest.mark.parametrize(
     ("kw", "name"),
     [
-        ({"sigma": -0.1}, "sigma"),
-        ({"bias": float("nan")}, "bias"),
+        ({"person": {"sigma": -0.1}}, "sigma"),
+        ({"person": {"bias": float("nan")}}, "bias"),
         ({"prior": "trimodal"}, "prior"),
         ({"prior": [[1.0, 2.0, 3.0]]}, "prior"),
-        ({"human": "oracle"}, "human"),
-        ({"beta": -1.0}, "beta"),
+        ({"person": "oracle"}, "unknown human 'oracle'"),
+        ({"person": {"name": "boltzmann", "beta": -1.0}}, "beta"),
         ({"n_corrections": -1}, "n_corrections"),
         ({"n_corrections": 2.5}, "n_corrections"),
         ({"render_mode": "ascii"}, "render_mode"),
@@ -183,7 +183,7 @@ def test_reset_options():
 
 # ------------------------------------------------------------------------------ seeding, pickling
 def test_same_seed_same_rollout_and_different_seed_differs():
-    a, b = make(sigma=0.25), make(sigma=0.25)
+    a, b = make(person={"sigma": 0.25}), make(person={"sigma": 0.25})
     ra, rb = rollout(a, 7, action_scale=1.2), rollout(b, 7, action_scale=1.2)
     assert same(ra, rb)
     assert not same(ra, rollout(a, 8, action_scale=1.2))
@@ -191,7 +191,7 @@ def test_same_seed_same_rollout_and_different_seed_differs():
 
 def test_pairing_draws_come_from_env_np_random():
     """Same seed: same θ*, start and human draws, whatever the env did before (paired runs)."""
-    a, b = make(sigma=0.5), make(sigma=0.5)
+    a, b = make(person={"sigma": 0.5}), make(person={"sigma": 0.5})
     rollout(b, 123, steps=4, action_scale=1.2)  # b has history; a is fresh
     oa, ia = a.reset(seed=5)
     ob, ib = b.reset(seed=5)
@@ -202,7 +202,7 @@ def test_pairing_draws_come_from_env_np_random():
 
 
 def test_pickle_round_trip_continues_identically():
-    env = make(sigma=0.25)
+    env = make(person={"sigma": 0.25})
     env.reset(seed=11)
     env.step(np.array([0.5, 0.5, -0.5]))
     clone = pickle.loads(pickle.dumps(env))
@@ -226,7 +226,7 @@ def test_make_vec_async_spawn():
         num_envs=2,
         vectorization_mode="async",
         vector_kwargs={"context": "spawn"},
-        sigma=0.25,
+        person={"sigma": 0.25},
     )
     obs, info = envs.reset(seed=[1, 2])
     obs, rew, _, _, info = envs.step(np.zeros((2, 3), dtype=np.float32))
@@ -357,7 +357,7 @@ def test_set_theta_hat_reaches_the_human_and_the_observation():
             seen.append(np.array(theta_hat))
             return np.zeros(3)
 
-    env = make(human=Recorder)
+    env = make(person=Recorder)
     env.reset(seed=0)
     env.step(np.zeros(3))
     np.testing.assert_allclose(seen[-1], env.task.prior_modes.mean(0))
@@ -375,7 +375,7 @@ def test_default_human_is_nominal_with_the_env_rng_and_boltzmann_works():
     env = make()
     env.reset(seed=0)
     assert isinstance(env.human, NominalHuman) and env.human.rng is env.np_random
-    env = make(human="boltzmann", beta=10.0, sigma=0.1)
+    env = make(person={"name": "boltzmann", "beta": 10.0, "sigma": 0.1})
     env.reset(seed=0)
     *_, info = env.step(np.zeros(3))
     assert info["is_correction"] and np.isfinite(info["correction"]).all()

@@ -34,7 +34,7 @@ SEED = 20000  # the study's seed range: 20000-29999
 
 
 def make(**kw) -> StudyEnv:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make(ENV_ID, **kw).unwrapped
 
 
@@ -110,7 +110,7 @@ def test_gymnasium_check_env(k):
 def test_sb3_multi_input_policy_accepts_the_spaces():
     from stable_baselines3 import PPO
 
-    env = gym.make(ENV_ID, task=2, human=None, max_episode_steps=8)
+    env = gym.make(ENV_ID, task=2, person=None, max_episode_steps=8)
     model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=8, device="cpu")
     obs, _ = env.reset(seed=SEED)
     action, _ = model.predict(obs, deterministic=True)
@@ -203,7 +203,7 @@ def test_huge_wrench_ends_unstable_without_nan(tmp_path, monkeypatch):
         ({"force_threshold": -3}, "force_threshold"),
         ({"duration": 0}, "duration"),
         ({"stiffness": float("nan")}, "stiffness"),
-        ({"user_kwargs": {"max_push": 0}}, "max_push"),
+        ({"person": {"kwargs": {"max_push": 0}}}, "max_push"),
     ],
 )
 def test_bad_arguments_name_themselves(kwargs, name):
@@ -226,13 +226,13 @@ def test_bad_wrenches_raise():
 
 # ------------------------------------------------------------------------------ determinism, pickle
 def test_same_seed_same_rollout_with_a_user():
-    a = rollout(make(task=2, human="nominal", sigma=0.25), SEED, steps=40)
-    b = rollout(make(task=2, human="nominal", sigma=0.25), SEED, steps=40)
+    a = rollout(make(task=2, person={"name": "nominal", "sigma": 0.25}), SEED, steps=40)
+    b = rollout(make(task=2, person={"name": "nominal", "sigma": 0.25}), SEED, steps=40)
     assert same(a, b)
 
 
 def test_pickle_roundtrip_continues_identically():
-    env = make(task=1, human="nominal")
+    env = make(task=1, person="nominal")
     env.reset(seed=SEED)
     run(env, 5)
     clone = pickle.loads(pickle.dumps(env))
@@ -261,7 +261,9 @@ def test_strol_learns_from_the_simulated_user_on_task1():
 
     ratios = []
     for seed in (SEED, SEED + 1, SEED + 2, SEED + 3):
-        env = gym.make(ENV_ID, task=1, human="nominal", sigma=0.0, max_episode_steps=400)
+        env = gym.make(
+            ENV_ID, task=1, person={"name": "nominal", "sigma": 0.0}, max_episode_steps=400
+        )
         env = OnlineLearningWrapper(env, "strol")
         _, info = env.reset(seed=seed)
         np.testing.assert_allclose(info["theta_hat"], info["theta_hat0"])
@@ -325,13 +327,13 @@ def test_observed_wrench_is_finite_for_absurd_wrenches(tmp_path, monkeypatch):
 def test_satisfied_user_does_not_push():
     """The user pushes only while the regret of the robot's plan (for θ̂, from home, under its
     θ*) exceeds ``satisfied_regret``: with θ* = θ̂0 it never pushes, with a far-off θ* it does."""
-    env = make(task=1, human="nominal", sigma=0.25)
+    env = make(task=1, person={"name": "nominal", "sigma": 0.25})
     _, info = env.reset(seed=SEED)
     theta_hat0 = info["theta_hat0"]
     for theta_star, pushes in ((theta_hat0, False), (-theta_hat0, True)):
         _, info = env.reset(seed=SEED, options={"theta_star": theta_star})
         np.testing.assert_array_equal(info["theta_hat0"], theta_hat0)
-        user = env.human
+        user = env.person
         assert user.satisfied(theta_hat0) is not pushes, user.regret(theta_hat0)
         _, info = run(env, 200)
         assert (info["corrections"] > 0) is pushes, info["corrections"]
@@ -341,4 +343,4 @@ def test_satisfied_user_does_not_push():
 @pytest.mark.parametrize("value", [-0.1, float("nan"), float("inf")])
 def test_satisfied_regret_is_validated(value):
     with pytest.raises(ValueError, match="satisfied_regret"):
-        StudyEnv(user_kwargs={"satisfied_regret": value})
+        StudyEnv(person={"kwargs": {"satisfied_regret": value}})

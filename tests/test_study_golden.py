@@ -1,5 +1,5 @@
 """Golden rollouts of StROL-Study-v0, -v1 and -v2: one short episode per Task with no simulated
-person (``human=None``), one scripted push and the Gradient learner, hashed. Neither ĝ nor the
+person (``person=None``), one scripted push and the Gradient learner, hashed. Neither ĝ nor the
 fitted population takes part, so retraining one or refitting the other does not move them; a
 change to the arm, its controller, the scene, u_H's reading or a Task's planner does.
 
@@ -44,7 +44,7 @@ GOLDEN = {
 def rollout(version: str, task: int) -> str:
     """The episode's hash: every step's state, reward, u_H and flags, and the learner's θ̂,
     rounded to 1e-9 (bytes below that are the machine's, not the model's)."""
-    env = gym.make(f"StROL-Study-{version}", task=task, human=None)
+    env = gym.make(f"StROL-Study-{version}", task=task, person=None)
     learner = make_learner("gradient", task=learning_env(env).task)
     wrapped = OnlineLearningWrapper(env, learner)
     h = hashlib.sha256()

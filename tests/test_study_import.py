@@ -66,19 +66,10 @@ def _write(root, user: str, task: int, alg: str, data) -> None:
 
 
 @pytest.fixture(scope="module")
-def tree(tmp_path_factory):
+def tree(authors_tree):
     """user_1 and user_2, Tasks 1 and 2, every algorithm; a user_pilot folder to skip."""
-    root = tmp_path_factory.mktemp("authors") / "data"
-    rng = np.random.default_rng(RNG_SEED)
-    moves = {}
-    for user in ("user_1", "user_2"):
-        for task in (1, 2):
-            for alg in ("b1", "b2", "ours"):
-                mv = [rng.uniform(-0.1, 0.1, 6) * [1, 1, 1, 0.5, 0.5, 0.5] for _ in range(2)]
-                if task == 1:
-                    mv = [np.concatenate([v[:3], np.zeros(3)]) for v in mv]
-                moves[(user, task, alg)] = mv
-                _write(root, user, task, alg, _session(task, rng, mv, [5, 0, 1, 3]))
+    moves: dict = {}
+    root = authors_tree(people=2, seed=RNG_SEED, tasks=(1, 2), moves=moves)
     _write(root, "user_pilot", 1, "b1", {"not": "a session"})
     return root, moves
 

@@ -2,7 +2,7 @@
 
 Nothing of the authors' is in the repository: each test writes its own tiny ĝ files in their
 layout (``g_data/model_t1``, ``model_t2``: torch state dicts of their MLP's shapes, random
-weights drawn here) and its own session pickles (``test_study_import``'s writer).
+weights drawn here) and its own session pickles (the ``authors_tree`` fixture, ``conftest.py``).
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ import numpy as np
 import pytest
 import torch
 from cli_checks import cli_error
-from test_study_import import _session, _write
 
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.sessions.authors_ghat import (
@@ -115,18 +114,9 @@ def test_wrong_shape_missing_and_payload_refused(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def tree(tmp_path_factory):
+def tree(authors_tree):
     """user_1 and user_2, Tasks 1 and 2, every algorithm."""
-    root = tmp_path_factory.mktemp("paper") / "data"
-    rng = np.random.default_rng(SEED)
-    for user in ("user_1", "user_2"):
-        for task in (1, 2):
-            for alg in ("b1", "b2", "ours"):
-                mv = [rng.uniform(-0.1, 0.1, 6) * [1, 1, 1, 0.5, 0.5, 0.5] for _ in range(2)]
-                if task == 1:
-                    mv = [np.concatenate([v[:3], np.zeros(3)]) for v in mv]
-                _write(root, user, task, alg, _session(task, rng, mv, [5, 0, 1, 3]))
-    return root
+    return authors_tree(people=2, seed=SEED, tasks=(1, 2))
 
 
 @pytest.fixture(scope="module")

@@ -41,25 +41,25 @@ def test_participant_sees_no_theta_hat_and_never_asks_the_regret(monkeypatch):
         return wrench(self, t, x, theta_hat)
 
     monkeypatch.setattr(Participant, "wrench", spy)
-    env = gym.make("StROL-Study-v1", task=SpyTask(), sigma=0.0).unwrapped
+    env = gym.make("StROL-Study-v1", task=SpyTask(), person={"sigma": 0.0}).unwrapped
     env.reset(seed=SEED)
-    assert isinstance(env.human, Participant)
+    assert isinstance(env.person, Participant)
     infos = run(env, 300)
     assert infos[-1]["corrections"] >= 1  # it did judge and push
     assert len(seen) == 300 and all(t is None for t in seen)
     with pytest.raises(AttributeError):
-        env.human.satisfied(env.theta_hat)
+        env.person.satisfied(env.theta_hat)
 
 
 def test_oracle_participant_is_v0s_user_and_reads_theta_hat():
-    env = gym.make("StROL-Study-v1", task=1, participant="oracle").unwrapped
+    env = gym.make("StROL-Study-v1", task=1, person="oracle").unwrapped
     env.reset(seed=SEED)
-    assert type(env.human) is SimulatedUser
+    assert type(env.person) is SimulatedUser
 
 
 def test_same_seed_same_participant_rollout():
     def rollout():
-        env = gym.make("StROL-Study-v1", task=2, sigma=0.25).unwrapped
+        env = gym.make("StROL-Study-v1", task=2, person={"sigma": 0.25}).unwrapped
         env.reset(seed=SEED)
         return [(i["corrections"], i["wrench"].tolist()) for i in run(env, 200)]
 
@@ -68,7 +68,9 @@ def test_same_seed_same_participant_rollout():
 
 def test_reaction_time_delays_the_first_push():
     def first_push(reaction: float) -> float:
-        env = gym.make("StROL-Study-v1", task=1, user_kwargs={"reaction": reaction}).unwrapped
+        env = gym.make(
+            "StROL-Study-v1", task=1, person={"kwargs": {"reaction": reaction}}
+        ).unwrapped
         env.reset(seed=SEED)
         return next(i["time"] for i in run(env, 200) if i["correction_active"])
 
@@ -79,14 +81,14 @@ def test_reaction_time_delays_the_first_push():
 def test_an_impatient_participant_gives_up_on_a_robot_that_never_learns():
     # No learner, and θ̂ = −θ*: the robot does the opposite of what the participant wants and
     # no push changes θ̂, so no push improves what it sees.
-    env = gym.make("StROL-Study-v1", task=1, user_kwargs={"patience": 2}).unwrapped
+    env = gym.make("StROL-Study-v1", task=1, person={"kwargs": {"patience": 2}}).unwrapped
     env.reset(seed=SEED)
     env.theta_hat = -env.theta_star
     infos = run(env, 1200)
-    assert env.human.gave_up
+    assert env.person.gave_up
     last = max(k for k, i in enumerate(infos) if i["correction_active"])
     assert infos[-1]["corrections"] == infos[last]["corrections"] + 1  # none after giving up
-    assert env.human.rejections >= 1
+    assert env.person.rejections >= 1
 
 
 def test_its_push_is_greedy_under_its_theta_star():
@@ -112,7 +114,7 @@ def test_its_push_is_greedy_under_its_theta_star():
 )
 def test_bad_participant_parameters_name_themselves(kwargs, name):
     with pytest.raises(ValueError, match=name):
-        gym.make("StROL-Study-v1", user_kwargs=kwargs)
+        gym.make("StROL-Study-v1", person={"kwargs": kwargs})
 
 
 def test_every_pusher_has_the_one_interface_and_frozen_checked_parameters():
@@ -143,7 +145,7 @@ def test_every_pusher_has_the_one_interface_and_frozen_checked_parameters():
     assert people[1].params.push_force == 60.0 and people[0].params.push_force == 40.0
     with pytest.raises(dataclasses.FrozenInstanceError):
         people[0].params.tol = 1.0  # type: ignore[misc]
-    with pytest.raises(ValueError, match=r"user_kwargs\['ramp'\] must be a finite number > 0"):
+    with pytest.raises(ValueError, match=r"person kwargs\['ramp'\] must be a finite number > 0"):
         PushParams(ramp=0.0)
-    with pytest.raises(ValueError, match=r"user_kwargs\['patience'\] must be an integer >= 1"):
+    with pytest.raises(ValueError, match=r"person kwargs\['patience'\] must be an integer >= 1"):
         ParticipantParams(patience=0)

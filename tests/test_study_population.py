@@ -42,8 +42,8 @@ def test_v2_default_participant_is_the_fitted_population():
         assert entry["status"] == "prior, not fitted" and entry["source"]
     env = _v2(task=2)
     env.reset(seed=5)
-    human = env.unwrapped.human
-    assert env.unwrapped.participant == "fitted"
+    human = env.unwrapped.person
+    assert env.unwrapped.person_spec.name == "fitted"
     assert isinstance(human, FittedParticipant)
     for name, entry in shipped["prior"].items():  # the priors, read back
         if name != "ramp":  # the shipped population's push rises as the real ones logged
@@ -70,7 +70,7 @@ def test_two_users_draw_different_people_and_a_seed_the_same():
     drawn = []
     for seed in (11, 12, 11):
         env.reset(seed=seed)
-        p = env.unwrapped.human.params
+        p = env.unwrapped.person.params
         drawn.append((p.size, p.turn, p.aim, p.linger, p.hazard))
     env.close()
     assert drawn[0] != drawn[1]
@@ -78,9 +78,9 @@ def test_two_users_draw_different_people_and_a_seed_the_same():
 
 
 def test_fitted_params_are_checked():
-    with pytest.raises(ValueError, match=r"user_kwargs\['size'\]"):
+    with pytest.raises(ValueError, match=r"person kwargs\['size'\]"):
         FittedParams(size=-1.0)
-    with pytest.raises(ValueError, match=r"user_kwargs\['budget'\]"):
+    with pytest.raises(ValueError, match=r"person kwargs\['budget'\]"):
         FittedParams(budget=-2)
     with pytest.raises(ValueError, match="participant fit"):
         population.parse({"format": "something else"})
@@ -139,8 +139,8 @@ def test_no_rebounds_on_v2():
     for task, seed in ((1, 3), (2, 4)):
         env = _v2(task=task, duration=25.0)
         env.reset(seed=seed)
-        env.unwrapped.human.params = FittedParams(
-            **{**env.unwrapped.human.params.__dict__, "budget": 6, "hazard": None}
+        env.unwrapped.person.params = FittedParams(
+            **{**env.unwrapped.person.params.__dict__, "budget": 6, "hazard": None}
         )
         zero = np.zeros(env.action_space.shape, dtype=np.float32)
         truncated, recs = False, []
@@ -321,5 +321,5 @@ def test_the_aimed_population_pushes_and_trains_with_one_model():
     np.testing.assert_allclose(person.act(task.start, np.zeros(6)), expect * task.action_bound)
     with pytest.raises(ValueError, match="correction must be one of"):
         population.FittedPopulationModel(task, correction="nope")
-    with pytest.raises(ValueError, match=r"user_kwargs\['correction'\]"):
+    with pytest.raises(ValueError, match=r"person kwargs\['correction'\]"):
         FittedParams(correction="nope")

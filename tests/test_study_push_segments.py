@@ -31,7 +31,7 @@ HOLD_STEPS = round(HOLD_OFF / CONTROL_DT)
 
 
 def make(**kw) -> StudyEnvV2:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make("StROL-Study-v2", **kw).unwrapped
 
 
@@ -154,7 +154,7 @@ def test_a_jittery_drag_held_each_step_is_one_correction():
     force[rng.choice(np.arange(12, 40), size=7, replace=False)] = 8.0
     counts = {}
     for env_id in ("StROL-Study-v2", "StROL-Study-v1"):
-        env = gym.make(env_id, human=None, task=1).unwrapped
+        env = gym.make(env_id, person=None, task=1).unwrapped
         env.reset(seed=61010)
         run(env, 20)
         infos = []
@@ -189,7 +189,7 @@ def test_only_versions_with_a_hold_off_take_the_argument():
     assert make(hold_off=0.5).hold_off == 0.5
     assert make().hold_off == HOLD_OFF
     with pytest.raises(ValueError, match="hold_off"):
-        gym.make("StROL-Study-v1", human=None, hold_off=0.3)
+        gym.make("StROL-Study-v1", person=None, hold_off=0.3)
 
 
 def test_the_segmenter_on_its_own():

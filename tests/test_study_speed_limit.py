@@ -17,7 +17,7 @@ from strol_gym.envs.study.controller import VELOCITY_LIMIT
 
 
 def _env(task: int, seed: int, lead_steps: int) -> tuple[Any, np.ndarray]:
-    env: Any = gym.make("StROL-Study-v2", task=task, human=None).unwrapped
+    env: Any = gym.make("StROL-Study-v2", task=task, person=None).unwrapped
     env.reset(seed=seed)
     zero = np.zeros(env.action_space.shape, np.float32)
     for _ in range(lead_steps):

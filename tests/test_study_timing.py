@@ -10,7 +10,6 @@ import math
 
 import numpy as np
 import pytest
-from test_study_import import _session, _write
 
 from strol_gym.benchmarks import cli
 from strol_gym.envs.study import population
@@ -91,9 +90,9 @@ def test_the_shipped_population_reacts_and_its_hazard_is_checked():
         assert person.hazard == tuple(shipped["hazard"][str(t)])
         assert person.path_time == shipped["path_time"][str(t)]
         assert person.ramp == shipped["rise"]  # the push rises as the real pushes logged
-    with pytest.raises(ValueError, match=r"user_kwargs\['hazard'\]"):
+    with pytest.raises(ValueError, match=r"person kwargs\['hazard'\]"):
         FittedParams(hazard=(0.0, 1.0))
-    with pytest.raises(ValueError, match=r"user_kwargs\['path_time'\]"):
+    with pytest.raises(ValueError, match=r"person kwargs\['path_time'\]"):
         FittedParams(path_time=0.0)
     with pytest.raises(ValueError, match="timing fit"):
         population.parse_timing({"format": "other"})
@@ -122,15 +121,9 @@ def test_a_reactive_participant_steps_in_by_its_hazard():
 
 
 @pytest.fixture(scope="module")
-def timing_logs(tmp_path_factory):
+def timing_logs(authors_tree, tmp_path_factory):
     """Four people × 3 Tasks × One, MOF, StROL, imported with θ̂ reconstructed."""
-    root = tmp_path_factory.mktemp("authors") / "data"
-    rng = np.random.default_rng(11)
-    for p in range(4):
-        for task in (1, 2, 3):
-            for alg in ("b1", "b2", "ours"):
-                moves = [rng.uniform(-0.05, 0.05, 6) * [1, 1, 1, task > 1, 0, 0] for _ in range(2)]
-                _write(root, f"user_{p + 1}", task, alg, _session(task, rng, moves, [5, 0, 1, 3]))
+    root = authors_tree(people=4, seed=11, scale=0.05, turn=(1.0, 0.0, 0.0))
     out = tmp_path_factory.mktemp("logs") / "logs"
     assert cli.main(["import-study", str(root), "--out", str(out), "--theta0", "implied"]) == 0
     return out

@@ -23,7 +23,7 @@ docs/study.md gives the share)."""
 
 
 def make(**kw) -> StudyEnvV1:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make(ENV_ID, **kw).unwrapped
 
 
@@ -229,7 +229,7 @@ def test_reflex_threshold_is_configurable():
         ({"reflex_force": 0.0}, "reflex_force"),
         ({"reflex_torque": -1.0}, "reflex_torque"),
         ({"reflex_recover": float("nan")}, "reflex_recover"),
-        ({"participant": "mindreader"}, "participant"),
+        ({"person": "mindreader"}, "unknown human 'mindreader'"),
     ],
 )
 def test_bad_v1_arguments_name_themselves(kwargs, name):
@@ -248,11 +248,11 @@ def test_v0_and_v1_are_deprecated_on_make_and_v2_is_not():
     for env_id in ("StROL-Study-v0", ENV_ID):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            gym.make(env_id, human=None).close()
+            gym.make(env_id, person=None).close()
         assert any("out of date" in str(w.message) for w in caught), env_id
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        gym.make("StROL-Study-v2", human=None).close()
+        gym.make("StROL-Study-v2", person=None).close()
     assert not any("out of date" in str(w.message) for w in caught)
 
 
@@ -289,7 +289,7 @@ def test_gymnasium_check_env_and_pickle(task):
         warnings.simplefilter("always")
         check_env(env.unwrapped, skip_render_check=True)
     assert unexpected(caught) == []
-    a = make(task=task, human="nominal", sigma=0.25)  # with the participant
+    a = make(task=task, person={"sigma": 0.25})  # with the participant
     a.reset(seed=SEED)
     steps(a, 30)
     b = pickle.loads(pickle.dumps(a))
@@ -309,19 +309,26 @@ def test_versions_are_option_sets_of_one_class_not_overrides():
     assert not [k for k, v in vars(StudyEnvV1).items() if callable(v) and not k.startswith("__")]
 
     class StudyEnvV9(StudyEnv):  # a further version: a new option set
-        version = dataclasses.replace(V1, name="v9", env_id="StROL-Study-v9", reflex=False)
-        env_id = "StROL-Study-v9"
+        version = dataclasses.replace(V1, number=9, reflex=False)
 
-    env = StudyEnvV9(task=2, human=None, max_episode_steps=3)
+    assert StudyEnvV9.env_id == "StROL-Study-v9"  # from its version
+
+    env = StudyEnvV9(task=2, person=None, max_episode_steps=3)
     env.reset(seed=1)
     _, _, _, _, info = env.step(np.zeros(env.action_space.shape))
-    assert "reflex" not in info and env.participant == "observer"
+    assert "reflex" not in info and StudyEnvV9.resolve_person({}).name == "observer"
     env.close()
 
 
-@pytest.mark.parametrize("kwargs", [{"participant": "observer"}, {"reflex_force": 50.0}])
-def test_v0_rejects_what_only_later_versions_take(kwargs):
+@pytest.mark.parametrize(
+    ("kwargs", "named"),
+    [
+        ({"person": "observer"}, "'observer' is not one of this version's people"),
+        ({"reflex_force": 50.0}, "reflex_force"),
+    ],
+)
+def test_v0_rejects_what_only_later_versions_take(kwargs, named):
     from strol_gym.envs.study.env import StudyEnv
 
-    with pytest.raises(ValueError, match=next(iter(kwargs))):
+    with pytest.raises(ValueError, match=named):
         StudyEnv(**kwargs)

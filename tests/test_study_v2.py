@@ -1,4 +1,4 @@
-"""StROL-Study-v2 from outside (``human=None``, pushes through the public push API): u_H reads
+"""StROL-Study-v2 from outside (``person=None``, pushes through the public push API): u_H reads
 random pushes at seeds the test draws itself, the arm reaches its setpoint, the cup touches
 nothing by itself and the contact is reported when pushed, joint speeds at every physics step,
 bounded reflex settings."""
@@ -29,7 +29,7 @@ ENTROPY = np.random.SeedSequence().entropy
 
 
 def make(**kw) -> StudyEnvV2:
-    kw.setdefault("human", None)
+    kw.setdefault("person", None)
     return gym.make(ENV_ID, **kw).unwrapped
 
 

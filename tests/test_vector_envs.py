@@ -46,14 +46,14 @@ def worst_difference(a, b, path: str = "") -> float:
 
 CASES = [
     ("StROL-Robot-v0", {}),
-    ("StROL-Robot-v0", {"sigma": 0.5, "bias": 0.5, "n_corrections": 3}),
-    ("StROL-Robot-v0", {"human": "boltzmann", "sigma": 0.25}),
-    ("StROL-Robot-v0", {"human": "changing", "max_episode_steps": 7}),
+    ("StROL-Robot-v0", {"person": {"sigma": 0.5, "bias": 0.5}, "n_corrections": 3}),
+    ("StROL-Robot-v0", {"person": {"name": "boltzmann", "sigma": 0.25}}),
+    ("StROL-Robot-v0", {"person": "changing", "max_episode_steps": 7}),
     ("StROL-Highway-v0", {}),
-    ("StROL-Highway-v0", {"sigma": 0.5, "bias": 0.5, "human": "driver"}),
-    # No simulated human: no step corrects, as in the single env.
-    ("StROL-Robot-v0", {"human": None}),
-    ("StROL-Highway-v0", {"human": None}),
+    ("StROL-Highway-v0", {"person": {"name": "driver", "sigma": 0.5, "bias": 0.5}}),
+    # No simulated person: no step corrects, as in the single env.
+    ("StROL-Robot-v0", {"person": None}),
+    ("StROL-Highway-v0", {"person": None}),
 ]
 
 
@@ -93,7 +93,9 @@ def test_vector_env_rejects_bad_arguments():
     with pytest.raises(ValueError, match="num_envs"):
         gym.make_vec("StROL-Robot-v0", num_envs=0, vectorization_mode="vector_entry_point")
     with pytest.raises(ValueError, match="sigma"):
-        gym.make_vec("StROL-Robot-v0", 2, vectorization_mode="vector_entry_point", sigma=-1)
+        gym.make_vec(
+            "StROL-Robot-v0", 2, vectorization_mode="vector_entry_point", person={"sigma": -1}
+        )
     env = gym.make_vec("StROL-Robot-v0", num_envs=2, vectorization_mode="vector_entry_point")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="actions must have shape"):
@@ -110,7 +112,7 @@ def test_vector_env_rejects_bad_arguments():
 def test_vector_highway_crashes_and_autoresets_like_sync():
     # The "driver" human closes in on the robot car: crashes end sub-envs at different steps,
     # so the autoresets desynchronise; highway-env's impact step must match too.
-    kwargs = {"human": "driver", "sigma": 0.5}
+    kwargs = {"person": {"name": "driver", "sigma": 0.5}}
     sync, _ = rollout("StROL-Highway-v0", "sync", 24, 1, 30, **kwargs)
     vec, _ = rollout("StROL-Highway-v0", "vector_entry_point", 24, 1, 30, **kwargs)
     crashes = sum(int(step[2].sum()) for step in vec[1:])

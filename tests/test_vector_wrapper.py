@@ -52,7 +52,7 @@ def test_vector_wrapper_theta_hat_equals_single_wrappers(learner, tol):
 
 def test_vector_wrapper_out_of_step_sub_envs_and_regret():
     # Highway crashes end episodes at different steps: per-row resets and updates.
-    kwargs = {"human": "driver", "sigma": 0.5}
+    kwargs = {"person": {"name": "driver", "sigma": 0.5}}
     sync, vec = pair("StROL-Highway-v0", "gradient", 8, 1, 26, env_kwargs=kwargs)
     assert sum(int(step[2].sum()) for step in vec[1:]) >= 1
     assert max(worst_difference(s, v) for s, v in zip(sync, vec, strict=True)) < TOL

@@ -140,7 +140,7 @@ def test_feature_noise_grows_with_g_or_the_feature(noise_with):
     ],
 )
 def test_early_and_late_correct_only_in_their_window(name, params, active):
-    env = gym.make("StROL-Robot-v0", human=name, sigma=0.1, human_kwargs=params)
+    env = gym.make("StROL-Robot-v0", person={"name": name, "sigma": 0.1, "kwargs": params})
     try:
         env.reset(seed=SEED)
         seen = [env.step(np.zeros(3, dtype=np.float32))[4] for _ in range(5)]
@@ -196,7 +196,9 @@ def test_a_skipped_correction_leaves_the_rules_where_they_were():
     reads "no correction" as evidence."""
     moved = {}
     for learner in ("gradient", "one", "mof", "e2e", "strol", "bayes"):
-        env = gym.make("StROL-Robot-v0", human="skipping", human_kwargs={"p": 1.0}, sigma=0.3)
+        env = gym.make(
+            "StROL-Robot-v0", person={"name": "skipping", "kwargs": {"p": 1.0}, "sigma": 0.3}
+        )
         w = OnlineLearningWrapper(env, make_learner(learner, task=env.unwrapped.task))
         try:
             w.reset(seed=SEED)
@@ -213,7 +215,7 @@ def test_a_skipped_correction_leaves_the_rules_where_they_were():
 @pytest.mark.parametrize("env_id", ["StROL-Highway-v0"])
 @pytest.mark.parametrize("name", sorted(ZOO))
 def test_zoo_member_runs_by_name_in_the_highway_env(name, env_id):
-    env = gym.make(env_id, human=name, sigma=0.1, n_corrections=3)
+    env = gym.make(env_id, person={"name": name, "sigma": 0.1}, n_corrections=3)
     try:
         env.reset(seed=SEED)
         for _ in range(3):
@@ -253,15 +255,15 @@ def test_run_by_name(name, tmp_path, capsys):
     argv += ["--learners", "gradient,strol", "--jobs", "1", "--quiet", "--no-plots"]
     assert cli.main([*argv, "--seed", str(SEED), "--out", str(out)]) == 0
     assert (out / "runs.csv").is_file()
-    assert f"{name} human" in (out / "summary.md").read_text()
+    assert f"{name} person" in (out / "summary.md").read_text()
 
 
 @pytest.mark.parametrize(
     "kwargs",
     [
-        {"human": "mistaken", "sigma": 0.2, "human_kwargs": {"rate": 0.5}},
-        {"human": "early", "sigma": 0.2, "human_kwargs": {"until": 2}},
-        {"human": "feature-noise", "sigma": 0.1},
+        {"person": {"name": "mistaken", "sigma": 0.2, "kwargs": {"rate": 0.5}}},
+        {"person": {"name": "early", "sigma": 0.2, "kwargs": {"until": 2}}},
+        {"person": {"name": "feature-noise", "sigma": 0.1}},
     ],
     ids=["mistaken", "early", "feature-noise"],
 )
@@ -286,9 +288,7 @@ def test_skipping_in_the_study_env_means_no_push(p):
         env = gym.make(
             "StROL-Study-v0",
             task=1,
-            human="skipping",
-            human_kwargs={"p": p},
-            sigma=0.25,
+            person={"name": "skipping", "sigma": 0.25, "kwargs": {"p": p}},
             max_episode_steps=60,
         )
     try:

@@ -1,7 +1,10 @@
 """The paper's evaluation conditions (Fig. 4 columns) and the per-env presets.
 
-A :class:`Condition` is everything about the simulated human that the benchmark varies: noise σ
-and bias ε (fractions of a_max, docs/benchmark.md), the prior θ* is drawn from, and the human model.
+A :class:`Condition` is everything about the simulated person that the benchmark varies: noise σ
+and bias ε (fractions of a_max, docs/benchmark.md), the prior θ* is drawn from, and the person
+(a human model, or an env's own person such as the study's "observer"). σ, ε, β and the
+person's name are spellings of the env's one ``person=`` argument (``Condition.person``): a
+value the person does not use is refused when the env resolves it.
 The robot's initial estimate θ̂0 is *not* part of a condition: in every condition it is the mean
 of the designer's bimodal prior modes (``task.prior_modes.mean(0)``), which is what the envs and
 learners use by default. The uniform-prior condition changes only where θ* comes from.
@@ -15,11 +18,13 @@ from collections.abc import Callable
 from typing import Any
 
 from strol_gym.benchmarks.engine.robots import ROBOTS
-from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec, check_shared
+from strol_gym.envs.study.versions import VERSIONS
+from strol_gym.humans.spec import DEFAULT_HUMAN, HumanSpec
 from strol_gym.limits import check_size
 from strol_gym.metrics import RUN_METRICS
 from strol_gym.priors import PRIORS
 from strol_gym.registry import Registry, call_piece
+from strol_gym.tasks.study import study_task_name
 
 PAPER_LEARNERS: tuple[str, ...] = ("gradient", "one", "mof", "e2e", "strol")
 """The paper's five rules, in the order its figures use (e2e with ‖ĝ‖ ≤ ‖g‖, as shipped for
@@ -35,16 +40,18 @@ REFERENCE_LEARNER = "strol"
 
 @dataclasses.dataclass(frozen=True)
 class Condition:
-    """A simulated-human setting: σ, ε (fractions of a_max), prior, human model (and its β).
+    """A simulated-person setting: σ, ε (fractions of a_max), prior, person (and its β).
 
-    ``human=None`` leaves the env's default human model (the eq. M6 teacher for the Robot);
-    otherwise it names a human (``strol_gym.humans.HUMANS``) or is a ``"module:attr"``.
-    ``beta`` reaches the human only if its factory declares it.
+    ``human=None`` leaves the env's default person (the eq. M6 teacher for the Robot, the
+    fitted population for StROL-Study-v2); otherwise it names a human
+    (``strol_gym.humans.HUMANS``), an env's own person or a ``"module:attr"``. σ, ε and β left
+    None are not given (the person's default, or unused); a value given that the person does
+    not use is refused when the env is made.
     """
 
     name: str
-    sigma: float
-    bias: float = 0.0
+    sigma: float | None = None
+    bias: float | None = None
     prior: str = "bimodal"
     human: str | None = None
     beta: float | None = None
@@ -53,8 +60,8 @@ class Condition:
     def __post_init__(self) -> None:
         if not self.name or not isinstance(self.name, str):
             raise ValueError(f"condition name must be a non-empty string, got {self.name!r}")
-        beta = DEFAULT_BETA if self.beta is None else self.beta
-        check_shared(self.sigma, self.bias, beta)  # the human's own checks, named as the env's
+        # the ranges, by the one check the envs' person= uses (the name is resolved by the env)
+        HumanSpec(DEFAULT_HUMAN, self.sigma, self.bias, self.beta)
         if not isinstance(self.prior, str) or (self.prior not in PRIORS and ":" not in self.prior):
             raise ValueError(
                 f"prior must be one of {PRIORS.names()} (registered priors) or 'module:attr', "
@@ -70,42 +77,38 @@ class Condition:
             if self.human_kwargs and key in self.human_kwargs:
                 check_size(f"human_kwargs[{key!r}]", self.human_kwargs[key], key)
 
-    def human_spec(self) -> HumanSpec:
-        """The condition's human as the envs take it (the env's default model when unset);
-        resolves the model, so a user's human must be registered by then."""
-        return HumanSpec(
-            self.human or DEFAULT_HUMAN,
-            self.sigma,
-            self.bias,
-            DEFAULT_BETA if self.beta is None else self.beta,
-            dict(self.human_kwargs or {}),
-        )
+    def person(self) -> dict[str, Any] | None:
+        """The env's ``person=`` argument as a dict of ``HumanSpec`` fields (no ``name``: the
+        env's default person), or None when the condition sets nothing (the env's default)."""
+        d: dict[str, Any] = {} if self.human is None else {"name": self.human}
+        d |= {k: v for k in ("sigma", "bias", "beta") if (v := getattr(self, k)) is not None}
+        if self.human_kwargs:
+            d["kwargs"] = dict(self.human_kwargs)
+        return d or None
 
     def env_kwargs(self) -> dict[str, Any]:
         """Keyword arguments for ``gymnasium.make`` (the env contract in docs/extending.md)."""
-        kw: dict[str, Any] = {"sigma": self.sigma, "bias": self.bias, "prior": self.prior}
-        if self.human is not None:
-            kw["human"] = self.human
-        if self.beta is not None:
-            kw["beta"] = self.beta
-        if self.human_kwargs:
-            kw["human_kwargs"] = dict(self.human_kwargs)
+        kw: dict[str, Any] = {"prior": self.prior}
+        person = self.person()
+        if person is not None:
+            kw["person"] = person
         return kw
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON form; ``human_kwargs`` only when set (older results folders keep their hash)."""
+        """JSON form; ``human_kwargs`` only when set."""
         d = dataclasses.asdict(self)
         if d["human_kwargs"] is None:
             del d["human_kwargs"]
         return d
 
     def describe(self) -> str:
-        """One line for tables: σ, ε, prior, human."""
+        """One line for tables: σ, ε (those set), prior, person."""
         h = self.human or "env-default"
         h = h if self.beta is None else f"{h} (β={self.beta:g})"
         if self.human_kwargs:
             h += " " + ", ".join(f"{k}={v}" for k, v in sorted(self.human_kwargs.items()))
-        return f"σ={self.sigma:g}, ε={self.bias:g}, {self.prior} prior, {h} human"
+        shared = [f"{s}={v:g}" for s, v in (("σ", self.sigma), ("ε", self.bias)) if v is not None]
+        return ", ".join([*shared, f"{self.prior} prior, {h} person"])
 
 
 PRIMARY_METRICS = RUN_METRICS
@@ -122,7 +125,8 @@ class EnvPreset:
     env_id: str
     runs: int
     n_corrections: int
-    training_sigma: float
+    training_sigma: float | None
+    """The training condition's σ (None: the env's person takes none, its noise is fitted)."""
     primary_metric: str
     make_kwargs: dict[str, Any] | None = None
     """Extra ``gymnasium.make`` kwargs (the study presets' ``task``)."""
@@ -137,6 +141,9 @@ class EnvPreset:
     """The human of the paper's four conditions (None: the env's default human). The Highway's
     is the driver, the paper's "model predictive controller" (l. 323), not the env's default
     eq. M6 teacher."""
+    paper_conditions: bool = True
+    """Whether the paper's four conditions (Fig. 4) apply to this env (``conditions``,
+    ``strol-bench list``); the study's envs run the study's own condition."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.key, str) or not self.key or ":" in self.key:
@@ -147,10 +154,9 @@ class EnvPreset:
             v = getattr(self, name)
             if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {v!r}")
-        if not (math.isfinite(self.training_sigma) and self.training_sigma >= 0):
-            raise ValueError(
-                f"training_sigma must be a finite number >= 0, got {self.training_sigma}"
-            )
+        sigma = self.training_sigma
+        if sigma is not None and not (math.isfinite(sigma) and sigma >= 0):
+            raise ValueError(f"training_sigma must be None or a finite number >= 0, got {sigma}")
         if self.primary_metric not in PRIMARY_METRICS:
             raise ValueError(
                 f"primary_metric must be one of {PRIMARY_METRICS}, got {self.primary_metric!r}"
@@ -164,7 +170,10 @@ class EnvPreset:
             raise ValueError(f"make_kwargs must be a dict or None, got {self.make_kwargs!r}")
 
     def conditions(self) -> dict[str, Condition]:
-        """The paper's four conditions for this env (docs/benchmark.md's table), in figure order."""
+        """The paper's four conditions for this env (docs/benchmark.md's table), in figure
+        order; none for an env they do not apply to (``paper_conditions``)."""
+        if not self.paper_conditions:
+            return {}
         return {name: make_condition(self.key, name) for name in CONDITION_NAMES}
 
 
@@ -176,6 +185,8 @@ ENV_PRESETS: dict[str, EnvPreset] = {
         ("highway", "StROL-Highway-v0", 250, 10, 0.10, "error"),
     )
 }
+"""The paper's envs; the study's, below, run the study's own condition (``strol-bench study``),
+not the paper's four (``paper_conditions``)."""
 ENV_PRESETS["highway"] = dataclasses.replace(ENV_PRESETS["highway"], paper_human="driver")
 
 
@@ -196,28 +207,22 @@ for _k in (1, 2, 3):  # the user study's Tasks (``strol-bench study``), not part
         make_kwargs={"task": _k},
         robot="zeros",
         corrections_kwarg=False,
+        paper_conditions=False,
     )
-    # StROL-Study-v1 (u_H = the person's push): the held-out participant who judges what it
-    # sees, and v0's regret-judging user with the training human's corrections ("oracle").
-    for _who in ("observer", "oracle"):
-        _key = f"study{_k}-v1" + ("" if _who == "observer" else "-oracle")
-        ENV_PRESETS[_key] = dataclasses.replace(
-            ENV_PRESETS[f"study{_k}"],
-            key=_key,
-            env_id="StROL-Study-v1",
-            # v1's Tasks (their own ids, so learners find v1's ĝ), by registered name, so
-            # logs and datasets name them without a module path.
-            make_kwargs={"task": f"study-task{_k}-v1", "participant": _who},
-        )
-    # StROL-Study-v2: the fitted population (default), and v1's two for comparison.
-    for _who in ("fitted", "observer", "oracle"):
-        _key = f"study{_k}-v2" + ("" if _who == "fitted" else f"-{_who}")
-        ENV_PRESETS[_key] = dataclasses.replace(
-            ENV_PRESETS[f"study{_k}"],
-            key=_key,
-            env_id="StROL-Study-v2",
-            make_kwargs={"task": f"study-task{_k}-v2", "participant": _who},
-        )
+    # The later versions (u_H = the person's push), one preset per Task: the version's default
+    # person (v1's participant who judges what it sees; v2's fitted population, whose noise is
+    # fitted: no training σ); its other people are a condition's person (``strol-bench study
+    # --participant``). Their Tasks by registered name (their own ids, so learners find their
+    # ĝ, and logs and datasets name them without a module path).
+    for _v in VERSIONS.values():
+        if _v.participants:
+            ENV_PRESETS[f"study{_k}-{_v.name}"] = dataclasses.replace(
+                ENV_PRESETS[f"study{_k}"],
+                key=f"study{_k}-{_v.name}",
+                env_id=_v.env_id,
+                training_sigma=None if _v.participants[0] == "fitted" else 0.25,
+                make_kwargs={"task": study_task_name(_v.number, _k)},
+            )
 
 
 def _check_preset(key: str, preset: object) -> None:
@@ -334,23 +339,22 @@ def custom_condition(
     *,
     name: str = "custom",
     sigma: float | None = None,
-    bias: float = 0.0,
+    bias: float | None = None,
     prior: str = "bimodal",
     human: str | None = None,
     beta: float | None = None,
     human_kwargs: dict[str, Any] | None = None,
 ) -> Condition:
-    """An explicit condition; σ defaults to the env's training noise. ``human`` must be a
-    registered human or an importable "module:attr" (checked here)."""
-    if human is not None:
-        from strol_gym.humans import HUMANS
-
-        HUMANS.check_name(human)
+    """An explicit condition; σ defaults to the env's training noise (none where the env's
+    person takes none). ``human`` names the person (checked when the env is made: a
+    registered human, an env's own person or an importable "module:attr")."""
     preset = env_preset(env)
+    if sigma is None:
+        sigma = preset.training_sigma
     return Condition(
         name=name,
-        sigma=preset.training_sigma if sigma is None else float(sigma),
-        bias=float(bias),
+        sigma=None if sigma is None else float(sigma),
+        bias=None if bias is None else float(bias),
         prior=prior,
         human=human,
         beta=beta,

@@ -23,6 +23,7 @@ from strol_gym.benchmarks.engine.conditions import (
     env_preset,
     is_paper_condition,
 )
+from strol_gym.humans.spec import DEFAULT_PERSON
 from strol_gym.registry import install_specs, user_specs
 
 DEFAULT_BLOCK = 25
@@ -38,6 +39,24 @@ MAX_TOTAL_RUNS = 10_000_000
 experiments × 10⁶ runs would plan 1.2·10⁷ units before anything ran)."""
 MAX_EXPERIMENTS = 10_000
 """The most experiments in one config (the paper's tables have 8)."""
+
+
+def env_class(env_id: str) -> Any:
+    """The class (or creator) ``gymnasium.make(env_id)`` calls, its module imported first for a
+    ``"module:Env-v0"`` id, as ``gymnasium.make`` does; None when it cannot be found."""
+    import importlib
+
+    import gymnasium as gym
+    from gymnasium.envs.registration import load_env_creator
+
+    module, _, name = env_id.rpartition(":")
+    try:
+        if module:
+            importlib.import_module(module)
+        entry = gym.spec(name).entry_point
+        return load_env_creator(entry) if isinstance(entry, str) else entry
+    except (ImportError, gym.error.Error, AttributeError):
+        return None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,6 +110,19 @@ class Experiment:
         if self.task is not None:
             kw["task"] = self.task
         return kw
+
+    def person_as_used(self) -> dict[str, Any] | None:
+        """The person the env uses here (``HumanSpec.to_dict``; None: no simulated person),
+        resolved by the env's class without building the env (``resolve_person``): ValueError
+        naming a value the person does not use. ``{}`` for an env that is no strol-gym env.
+        It imports what the experiment names: for the command's own config, never for one read
+        from a file (``BenchConfig.persons``)."""
+        cls = env_class(self.env_id)
+        resolve = getattr(cls, "resolve_person", None)
+        if resolve is None:
+            return {}
+        spec = resolve(self.env_kwargs().get("person", DEFAULT_PERSON))
+        return None if spec is None else spec.to_dict()
 
     def is_paper(self) -> bool:
         """The paper's setting: its condition, the env's own Task and correction count."""
@@ -201,6 +233,12 @@ class BenchConfig:
         }
         specs, stuck = user_specs(used)
         return dataclasses.replace(self, plugins=specs), stuck
+
+    def persons(self) -> dict[str, dict[str, Any] | None]:
+        """The person each experiment's env uses, by ``env/condition`` (``person_as_used``):
+        what a results folder records beside its config (meta.json ``persons``); ValueError
+        naming a value a person does not use, before any work."""
+        return {f"{e.env}/{e.condition.name}": e.person_as_used() for e in self.experiments}
 
     def kwargs_for(self, learner: str) -> dict[str, Any]:
         """Constructor keyword arguments for ``learner`` (beyond the task)."""

@@ -2,7 +2,8 @@
 
 Layout::
 
-    OUT/meta.json                   resolved config, config hash, seeds, versions, git, wall times
+    OUT/meta.json                   resolved config, config hash, seeds, the persons as used,
+                                    versions, git, wall times
     OUT/records/<unit>.json         one file per finished unit of work (a block of run seeds ×
                                     every learner), written to a temp file, fsync'ed, os.replace'd
     OUT/runs.csv, curves.csv        per-run records in long format (rebuilt from records/)
@@ -110,6 +111,7 @@ class ResultsDir:
         cls, path: Path, config: BenchConfig, extra: dict[str, Any] | None, force: bool
     ) -> ResultsDir:
         chash = config.hash(extra)
+        persons = config.persons()  # the command's own config: a person refused stops here
         meta_path = path / META
         if path.exists() and not path.is_dir():
             raise ResultsError(f"--out {path} exists and is not a folder")
@@ -156,6 +158,7 @@ class ResultsDir:
             "config_hash": chash,
             "extra": extra or {},
             "seeds": seeds,
+            "persons": persons,
             "created": _now(),
             "versions": package_versions(),
             "git": git_revision(),

@@ -32,7 +32,7 @@ def main() -> None:
 
     env = gym.make(
         "StROL-Robot-v0",
-        sigma=0.25,
+        person={"sigma": 0.25},
         render_mode="rgb_array",
         width=480,
         height=360,

@@ -146,7 +146,9 @@ class Changing(BenchExperiment):
         kwargs = exp.condition.human_kwargs
         assert kwargs is not None  # the changing human's condition always sets switch_after
         k = kwargs["switch_after"]
-        md = table_markdown(rows, metric, k, exp.corrections, exp.condition.sigma)
+        sigma = exp.condition.sigma
+        assert sigma is not None  # the changing experiment always sets σ
+        md = table_markdown(rows, metric, k, exp.corrections, sigma)
         meta = {
             "config": config.to_dict(),
             "sigma": exp.condition.sigma,

@@ -72,8 +72,9 @@ def default_humans() -> list[str]:
 
 
 def default_sigmas(env: str) -> list[float]:
-    """The env's training noise and ``HIGH_SIGMA``."""
-    return list(dict.fromkeys([env_preset(env).training_sigma, HIGH_SIGMA]))
+    """The env's training noise (if its person takes σ) and ``HIGH_SIGMA``."""
+    training = env_preset(env).training_sigma
+    return list(dict.fromkeys([*([] if training is None else [training]), HIGH_SIGMA]))
 
 
 def human_kwargs(env: str, human: str) -> dict[str, Any] | None:

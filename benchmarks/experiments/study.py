@@ -14,6 +14,7 @@ and the Fig. 6-style plots.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from collections.abc import Sequence
@@ -40,13 +41,19 @@ from strol_gym.benchmarks.args import (
     nonneg_int,
     positive_int,
 )
-from strol_gym.benchmarks.engine.conditions import PAPER_LEARNERS, REFERENCE_LEARNER, Condition
+from strol_gym.benchmarks.engine.conditions import (
+    PAPER_LEARNERS,
+    REFERENCE_LEARNER,
+    Condition,
+    env_preset,
+)
 from strol_gym.benchmarks.engine.config import BenchConfig, Experiment
 from strol_gym.benchmarks.engine.episodes import regret_inputs
 from strol_gym.benchmarks.engine.record import RunRecord, value
 from strol_gym.benchmarks.engine.results import ResultsDir, write_csv
 from strol_gym.benchmarks.experiments.base import BenchExperiment, Outcome
 from strol_gym.envs.study import metrics as study_authors
+from strol_gym.envs.study.versions import LATEST, V0, V2, VERSIONS, version_of
 from strol_gym.files import write_text_atomic
 
 TASKS = (1, 2, 3)
@@ -99,6 +106,8 @@ PAPER_POOLED = {
 """The paper's text: repeated-measures ANOVA over One, MOF, StROL, participants' values
 averaged over the Tasks (12 participants)."""
 USERS = Condition("simulated-users", sigma=SIGMA, bias=0.0, prior="bimodal")
+"""The study's condition for a person with a hand's noise (v0's and v1's: σ = 0.25, ε = 0);
+``study_condition`` gives each version's person its own."""
 
 
 def parse_tasks(text: str) -> tuple[int, ...]:
@@ -115,30 +124,36 @@ def parse_tasks(text: str) -> tuple[int, ...]:
     return tasks
 
 
-ENV_VERSIONS = ("v0", "v1", "v2")
-PARTICIPANTS = ("fitted", "observer", "oracle")
+ENV_VERSIONS = tuple(VERSIONS)
+PARTICIPANTS = tuple(sorted({who for v in VERSIONS.values() for who in v.participants}))
 """``fitted``: the population fitted to the twelve people (v2 only, its default); ``observer``:
 v1's hand-set participant (v1's default); ``oracle``: v0's regret-judging user."""
-DEFAULT_PARTICIPANT = {"v1": "observer", "v2": "fitted"}
-
-
-DEFAULT_VERSION = "v2"
+DEFAULT_VERSION = LATEST.name
 V0_WARNING = (
     "warning: StROL-Study-v0 is deprecated (u_H carries the arm's own motion, the user is an "
     "oracle); it stays for the published results. The study's default is v2."
 )
 
 
-def study_env(task: int, version: str = DEFAULT_VERSION, participant: str | None = None) -> str:
-    """The env preset of a study Task: v0's, or v1's or v2's with its participant (None: the
-    version's default; ``conditions.py``)."""
-    if version == "v0":
-        return f"study{task}"
-    default = DEFAULT_PARTICIPANT[version]
-    who = participant or default
-    if who not in PARTICIPANTS or (version == "v1" and who == "fitted"):
-        raise ValueError(f"--participant {who!r} does not exist on StROL-Study-{version}")
-    return f"study{task}-{version}" + ("" if who == default else f"-{who}")
+def study_env(task: int, version: str = DEFAULT_VERSION) -> str:
+    """The env preset of a study Task on ``version`` (``conditions.py``)."""
+    return f"study{task}-{version}" if VERSIONS[version].participants else f"study{task}"
+
+
+def study_condition(version: str = DEFAULT_VERSION, participant: str | None = None) -> Condition:
+    """The study's condition: the version's person (``participant``; None: its default, its
+    first, v0's the oracle), with σ = ``SIGMA`` and ε = 0 where the person takes them (the
+    fitted person takes none: its noise is fitted). ValueError naming ``--participant`` if the
+    version lacks it."""
+    from strol_gym.envs.study.persons import ORACLE
+
+    people = VERSIONS[version].participants or (ORACLE,)
+    who = participant or people[0]
+    if who not in people:
+        raise ValueError(f"--participant {who!r} does not exist on {VERSIONS[version].env_id}")
+    if who == "fitted":
+        return dataclasses.replace(USERS, sigma=None, bias=None)
+    return dataclasses.replace(USERS, human=None if who == people[0] else who)
 
 
 def study_config(
@@ -150,9 +165,8 @@ def study_config(
     participant: str | None = None,
 ) -> BenchConfig:
     """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
-    exps = tuple(
-        Experiment(study_env(t, version, participant), USERS, runs=users, seed=seed) for t in tasks
-    )
+    condition = study_condition(version, participant)
+    exps = tuple(Experiment(study_env(t, version), condition, runs=users, seed=seed) for t in tasks)
     learners = tuple(dict.fromkeys(learners))
     if not learners:
         raise ValueError("--learners must name at least one learner")
@@ -418,11 +432,11 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
 def _who(config: BenchConfig) -> str:
     """The env and the simulated person of a study config, in words."""
     exp = config.experiments[0]
-    if exp.env_id.endswith("-v0"):
+    if exp.env_id == V0.env_id:
         return f"{exp.env_id}, v0's user and the training human"
     if exp.env.endswith("-oracle"):
         kind = "oracle"
-    elif exp.env_id.endswith("-v2") and not exp.env.endswith("-observer"):
+    elif exp.env_id == V2.env_id and not exp.env.endswith("-observer"):
         kind = "the fitted population"
     else:
         kind = "v1's held-out participant"
@@ -431,14 +445,11 @@ def _who(config: BenchConfig) -> str:
 
 def add_authors_regret(records: list[RunRecord]) -> None:
     """Each record's regret the authors' way (``study_authors.regret``), batched per Task."""
-    from strol_gym.tasks.study import STUDY_TASKS, STUDY_TASKS_V2
-
     for env in dict.fromkeys(r["env"] for r in records):
         rs = [r for r in records if r["env"] == env]
         cols = regret_inputs(rs)
         # the env's own planner (v2's keeps to the reachable set), scored the authors' way
-        tasks = STUDY_TASKS_V2 if env.split("-")[1:2] == ["v2"] else STUDY_TASKS
-        task = tasks[_task_of(env)]()
+        task = version_of(env_preset(env).env_id).numbered[_task_of(env)]()
         for r, v in zip(rs, study_authors.regret(task, *cols), strict=True):
             r["regret_authors"] = float(v)
 
@@ -536,7 +547,7 @@ class Study(BenchExperiment):
 
         version = getattr(args, "env_version", DEFAULT_VERSION)
         who = getattr(args, "participant", None)
-        if version == "v0":
+        if version == V0.name:
             print(V0_WARNING, file=sys.stderr)
         try:
             learners = getattr(args, "learners", None) or list(PAPER_LEARNERS)

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from strol_gym.envs.study.env import StudyEnv
+from strol_gym.envs.study.versions import V0
 from strol_gym.tasks.study import STUDY_TASKS, mat_to_rpy, rpy_to_mat, wrap_angle
 
 # Franka Panda modified-DH parameters (a, d, alpha) per joint, metres and radians (datasheet).
@@ -152,7 +153,7 @@ def cup_frames_at_homes() -> dict[int, np.ndarray]:
     for number in (1, 2):
         with warnings.catch_warnings():  # v0 is the version whose Tasks the logs name
             warnings.simplefilter("ignore", DeprecationWarning)
-            env = gym.make("StROL-Study-v0", task=number)
+            env = gym.make(V0.env_id, task=number)
         try:
             env.reset(seed=0)
             base = env.unwrapped

@@ -225,7 +225,7 @@ def run_drive(
     steps = max(1, round(duration / dt))
     base = gym.make(
         "StROL-Highway-v0",
-        human=person,
+        person=person,
         n_corrections=steps,
         max_episode_steps=steps,
         render_mode="human" if window else ("rgb_array" if frames is not None else None),

@@ -41,7 +41,7 @@ from strol_gym.wrappers.session_log import SessionLogger
 NO_DISPLAY = (
     "interact needs a display (DISPLAY is not set): run it on a virtual one with "
     "`xvfb-run -a strol-bench interact ...`, or use the headless simulated users, "
-    'gymnasium.make("StROL-Study-v1", human="nominal")'
+    'gymnasium.make("StROL-Study-v2") (its default person, the fitted population)'
 )
 
 
@@ -619,16 +619,18 @@ def session_env(
     env_kwargs: dict[str, Any] | None = None,
 ) -> OnlineLearningWrapper:
     """The env and learner a person meets: ``strol-bench study``'s own (its default version's
-    env id and Task, hence its ĝ), with no simulated person (``human=None``). With a
+    env id and Task, hence its ĝ), with no simulated person (``person=None``). With a
     ``duration`` in ``env_kwargs`` the step limit is set from it (the registered one, 60 s,
     would end the session first)."""
     from strol_gym.benchmarks.engine.conditions import env_preset
+    from strol_gym.envs.study.versions import LATEST
     from strol_gym.tasks.study import CONTROL_DT
 
     # strol-bench study's default preset (experiments.study.study_env(task), which this layer
-    # may not import): v2, its Task and ĝ; tests/test_interact.py checks the two agree.
-    preset = env_preset(f"study{task}-v2")
-    kwargs = {**(preset.make_kwargs or {}), "human": None, **(env_kwargs or {})}
+    # may not import): the latest version's, its Task and ĝ; tests/test_interact.py checks
+    # the two agree.
+    preset = env_preset(f"study{task}-{LATEST.name}")
+    kwargs = {**(preset.make_kwargs or {}), "person": None, **(env_kwargs or {})}
     if "duration" in kwargs and "max_episode_steps" not in kwargs:
         kwargs["max_episode_steps"] = max(1, math.ceil(kwargs["duration"] / CONTROL_DT - 1e-9))
     base = gym.make(preset.env_id, **kwargs)

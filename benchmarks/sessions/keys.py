@@ -211,8 +211,8 @@ def to_world(intent: Intent, azimuth: float) -> tuple[np.ndarray, np.ndarray]:
 # ---------------------------------------------------------------------- a hand's push
 @dataclass(frozen=True)
 class PushSizes:
-    """How hard the keys push. Defaults: the simulated users' push (``PushParams``: 40 N,
-    6 N m, 0.2 s ramp)."""
+    """How hard the keys push. Defaults: the simulated users' push (``PushParams``'s
+    ``push_force``, ``push_torque`` and ``ramp``, read from there)."""
 
     force: float = PushParams.push_force
     """N: a plain push's force."""

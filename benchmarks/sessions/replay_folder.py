@@ -66,10 +66,10 @@ def versioned(task: Task, version: int | None) -> Task:
     """``task`` as version ``version`` of its Task (None: as logged)."""
     if version is None or task.version == version:
         return task
-    from strol_gym.tasks.study import STUDY_TASKS, STUDY_TASKS_V1, StudyTask
+    from strol_gym.tasks.study import STUDY_TASK_SETS, StudyTask
 
-    if isinstance(task, StudyTask) and version in (0, 1):
-        return (STUDY_TASKS_V1 if version == 1 else STUDY_TASKS)[task.number]()
+    if isinstance(task, StudyTask) and version in (0, 1):  # the versions of the same Tasks
+        return STUDY_TASK_SETS[version][task.number]()
     raise ValueError(f"--task-version {version}: {task.task_id} has no version {version}")
 
 

@@ -59,9 +59,11 @@ def main() -> None:
         "nominal human correcting every step": HighwayEnv(
             n_corrections=long, max_episode_steps=long
         ),
-        "boltzmann human, 10-step episodes": gym.make("StROL-Highway-v0", human="boltzmann"),
-        "driver human, 10-step episodes": gym.make("StROL-Highway-v0", human="driver"),
-        "sigma=0.5, bias=0.5 (nominal)": gym.make("StROL-Highway-v0", sigma=0.5, bias=0.5),
+        "boltzmann human, 10-step episodes": gym.make("StROL-Highway-v0", person="boltzmann"),
+        "driver human, 10-step episodes": gym.make("StROL-Highway-v0", person="driver"),
+        "sigma=0.5, bias=0.5 (nominal)": gym.make(
+            "StROL-Highway-v0", person={"sigma": 0.5, "bias": 0.5}
+        ),
     }
     for name, env in rows.items():
         print(f"{name:45s} {env_steps_per_second(env, args.steps, args.repeats):8.0f} steps/s")
@@ -96,7 +98,7 @@ def learning(episodes: int, sigma: float, bias: float, prior: str) -> None:
     print(f"{episodes} episodes, sigma={sigma}, bias={bias}, prior={prior}, default robot policy")
     errors = {}
     for name in ("gradient", "one", "mof", "e2e", "strol"):
-        env = gym.make("StROL-Highway-v0", sigma=sigma, bias=bias, prior=prior)
+        env = gym.make("StROL-Highway-v0", person={"sigma": sigma, "bias": bias}, prior=prior)
         task = learning_env(env).task
         wrapped = OnlineLearningWrapper(env, strol_gym.make_learner(name, task=task))
         err, cos, crashes = [], [], 0

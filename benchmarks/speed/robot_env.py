@@ -63,7 +63,7 @@ def main() -> None:
         ("default (nominal human, 5 of 10 steps)", {}),
         ("human corrects every step", {"n_corrections": 10**9}),
         ("no human (arm + IK only)", {"n_corrections": 0}),
-        ("boltzmann human", {"human": "boltzmann"}),
+        ("boltzmann human", {"person": "boltzmann"}),
     ]
     print("StROL-Robot-v0, rendering off, one core")
     for name, kw in rows:

@@ -40,7 +40,8 @@ import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
 from strol_gym import checks  # noqa: E402
-from strol_gym.envs.study.env import StudyEnv, StudyEnvV1, StudyEnvV2  # noqa: E402
+from strol_gym.envs.study import env as study_env  # noqa: E402
+from strol_gym.envs.study.versions import V0, V1, V2, VERSIONS  # noqa: E402
 
 SEED = 20100
 _clock = time.process_time
@@ -48,11 +49,18 @@ _clock = time.process_time
 on a shared machine do not count as the env's or the bare physics' cost."""
 
 
+def _person(version: str) -> dict[str, Any]:
+    """The simulated person the timed episodes use: the version's default, with σ = 0.25 where
+    it takes σ (v0's oracle, v1's observer; v2's fitted person's noise is fitted)."""
+    takes_sigma = "fitted" not in VERSIONS[version].participants
+    return {"person": {"sigma": 0.25}} if takes_sigma else {}
+
+
 def physics_ratio(
-    task: int, repeats: int, env_steps: int = 200, version: str = "v0"
+    task: int, repeats: int, env_steps: int = 200, version: str = V0.name
 ) -> tuple[float, float, float]:
     """(env physics steps/s, bare mj_step steps/s, ratio)."""
-    env = _ENVS[version](task=task, human=None)
+    env = _ENVS[version](task=task, person=None)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     n_sub = env._n_sub
     bare_data = mujoco.MjData(env.model)
@@ -79,7 +87,7 @@ def physics_ratio(
     return best_env, best_bare, best_env / best_bare
 
 
-_ENVS = {"v0": StudyEnv, "v1": StudyEnvV1, "v2": StudyEnvV2}
+_ENVS = {v.name: getattr(study_env, v.env_class) for v in VERSIONS.values()}
 
 
 def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, float, float, dict]:
@@ -94,7 +102,7 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
-        gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
+        gym.make(VERSIONS[version].env_id, task=task, **_person(version)), "strol"
     )
     inner: Any = env.unwrapped  # the study env itself: its physics step is timed in place
     spent = [0.0]
@@ -140,14 +148,14 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
     return env_rate, bare_rate, env_rate / bare_rate, summary
 
 
-def _state(env: StudyEnv) -> np.ndarray:
+def _state(env: study_env.StudyEnv) -> np.ndarray:
     spec = mujoco.mjtState.mjSTATE_INTEGRATION
     out = np.empty(mujoco.mj_stateSize(env.model, spec))
     mujoco.mj_getState(env.model, env.data, out, spec)
     return out
 
 
-def realtime_factor(task: int, repeats: int, version: str = "v0") -> tuple[float, dict]:
+def realtime_factor(task: int, repeats: int, version: str = V0.name) -> tuple[float, dict]:
     """(best simulated s / wall s over ``repeats`` episodes, the last episode's summary)."""
     import torch
 
@@ -155,7 +163,7 @@ def realtime_factor(task: int, repeats: int, version: str = "v0") -> tuple[float
 
     torch.set_num_threads(1)
     env = OnlineLearningWrapper(
-        gym.make(f"StROL-Study-{version}", task=task, human="nominal", sigma=0.25), "strol"
+        gym.make(VERSIONS[version].env_id, task=task, **_person(version)), "strol"
     )
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     best, summary = 0.0, {}
@@ -183,7 +191,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--task", type=int, default=1, choices=(1, 2, 3))
     p.add_argument("--repeats", type=int, default=3)
-    p.add_argument("--version", default="v1", choices=("v0", "v1", "v2"), help="the env version")
+    p.add_argument("--version", default=V1.name, choices=tuple(VERSIONS), help="the env version")
     p.add_argument(
         "--episode",
         action="store_true",
@@ -194,7 +202,7 @@ def main() -> None:
     if args.episode:
         print(f"task {args.task}; load average before: {os.getloadavg()[0]:.2f}")
         for r in range(args.repeats):
-            for version in ("v1", "v2"):
+            for version in (V1.name, V2.name):
                 env_rate, bare_rate, ratio, summary = episode_physics(args.task, version, SEED + r)
                 print(
                     f"{version} seed {SEED + r}: physics {env_rate:,.0f} steps/s, bare mj_step "
@@ -203,7 +211,7 @@ def main() -> None:
         print(f"load average after: {os.getloadavg()[0]:.2f}")
         return
     load = os.getloadavg()
-    print(f"StROL-Study-{args.version} task {args.task}; load average before: {load[0]:.2f}")
+    print(f"{VERSIONS[args.version].env_id} task {args.task}; load average before: {load[0]:.2f}")
     env_rate, bare_rate, ratio = physics_ratio(args.task, args.repeats, version=args.version)
     print(
         f"physics overhead: env {env_rate:,.0f} physics steps/s, bare mj_step "

@@ -33,7 +33,7 @@ TOL = 1e-9
 ENV_IDS = {"robot": "StROL-Robot-v0", "highway": "StROL-Highway-v0"}
 SETTINGS: dict[str, dict[str, Any]] = {
     "default human": {},
-    "noisy-biased (σ = ε = 0.5)": {"sigma": 0.5, "bias": 0.5},
+    "noisy-biased (σ = ε = 0.5)": {"person": {"sigma": 0.5, "bias": 0.5}},
     "no human (n_corrections=0)": {"n_corrections": 0},
 }
 INFO_KEYS = ("phi", "correction", "robot_action", "theta_star", "theta_hat")

@@ -81,9 +81,12 @@ def simulate(who: str, task: int, learner: str, seed: int) -> dict[str, Any]:
 
     warnings.simplefilter("ignore")
     env_id, participant, _ = WHO[who]
-    kwargs: dict[str, Any] = {"participant": participant, "sigma": 0.25}
+    # σ = 0.25 for v1's observer (its hand's noise); the fitted person's noise is fitted
+    person: dict[str, Any] = {"name": participant}
+    if participant != "fitted":
+        person["sigma"] = 0.25
     task_arg: Any = f"study-task{task}-v1" if who == "v1" else task
-    env = gym.make(env_id, task=task_arg, **kwargs)
+    env = gym.make(env_id, task=task_arg, person=person)
     t = learning_env(env).task
     if not isinstance(t, StudyTask):
         raise TypeError(f"{env_id} built a {type(t).__name__}, not a study Task")
@@ -91,7 +94,7 @@ def simulate(who: str, task: int, learner: str, seed: int) -> dict[str, Any]:
     env.reset(seed=seed)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), dtype=np.float32)
     records, truncated, info = [], False, {}
-    human = env.unwrapped.human  # type: ignore[attr-defined]
+    human = env.unwrapped.person  # type: ignore[attr-defined]
     push_reflexes = 0
     while not truncated:
         _, _, _, truncated, info = env.step(zero)

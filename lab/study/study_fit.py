@@ -49,7 +49,7 @@ def corrections(
     task: int, seed: int, participant: str, learner: str, version: str = "v1"
 ) -> list[dict]:
     """Every correction of one episode: pose, θ̂ before it, u_H."""
-    env = make_env(version, task, participant=participant, sigma=0.0)
+    env = make_env(version, task, person=participant)
     online = make_learner(learner, task=learning_env(env).task)
     env = OnlineLearningWrapper(env, online)
     env.reset(seed=seed)
@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = []
         for s in range(SEED, SEED + args.seeds):
             rows += corrections(task, s, args.participant, args.learner, args.env_version)
-        env = make_env(args.env_version, task, human=None)
+        env = make_env(args.env_version, task, person=None)
         t = learning_env(env).task
         assert isinstance(t, StudyTask)  # both versions build one
         env.close()

@@ -5,7 +5,7 @@
 
 Pushes: a random study seed (40000-59999, no test's), Task and 30 N direction; the arm either
 settled (1 s along its plan, then a 1 s pause) or moving along its plan (0.5-5 s in); a 30 N
-push for 0.8 s through ``apply_wrench`` (``human=None``), once with ``hold_off=0`` and once
+push for 0.8 s through ``apply_wrench`` (``person=None``), once with ``hold_off=0`` and once
 with ``--hold-off``. Prints the relative change of u_H's translation, |u(h) − u(0)| / |u(0)|:
 median, 90th percentile, max, share within 10 %. Episodes: the default participant over 30 s
 with StROL learning (Tasks 1-3, seeds 71001-...), at ``hold_off`` 0 and ``--hold-off``:
@@ -33,7 +33,7 @@ def _run(env: Any, n: int) -> list[dict]:
 
 def push_u_h(task: int, seed: int, moving: int, force: np.ndarray, hold_off: float) -> Any:
     """u_H's translation for the push (None if the speed reflex stopped it)."""
-    env: Any = gym.make("StROL-Study-v2", task=task, human=None, hold_off=hold_off).unwrapped
+    env: Any = gym.make("StROL-Study-v2", task=task, person=None, hold_off=hold_off).unwrapped
     env.reset(seed=seed)
     if moving:
         _run(env, moving)

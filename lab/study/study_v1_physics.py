@@ -35,7 +35,7 @@ SEED = 20000
 
 
 def make(task: int) -> StudyEnvV1:
-    env = gym.make("StROL-Study-v1", task=task, human=None).unwrapped
+    env = gym.make("StROL-Study-v1", task=task, person=None).unwrapped
     assert isinstance(env, StudyEnvV1)
     return env
 

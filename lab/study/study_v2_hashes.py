@@ -30,8 +30,8 @@ def feed(h: Any, value: Any) -> None:
         h.update(np.asarray(value).tobytes())
 
 
-def episode_hash(task: int, seed: int, steps: int, human: str | None) -> tuple[str, int, int]:
-    env: Any = gym.make("StROL-Study-v2", task=task, human=human).unwrapped
+def episode_hash(task: int, seed: int, steps: int, person: str | None) -> tuple[str, int, int]:
+    env: Any = gym.make("StROL-Study-v2", task=task, person=person).unwrapped
     obs, info = env.reset(seed=seed)
     h = hashlib.sha256()
     feed(h, (obs, info))
@@ -56,11 +56,11 @@ def main() -> None:
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--steps", type=int, default=400)
     args = p.parse_args()
-    for human in ("nominal", None):
+    for person in ("fitted", None):
         for task in (1, 2, 3):
             for seed in range(args.seeds):
-                digest, n, c = episode_hash(task, seed, args.steps, human)
-                print(f"human={human} task={task} seed={seed}: {digest} ({n} steps, {c} corr)")
+                digest, n, c = episode_hash(task, seed, args.steps, person)
+                print(f"person={person} task={task} seed={seed}: {digest} ({n} steps, {c} corr)")
 
 
 if __name__ == "__main__":

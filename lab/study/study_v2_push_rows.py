@@ -51,7 +51,7 @@ def draw(
 
 def peak_share(task: int, case: dict[str, Any], after_s: float = 3.0) -> dict[str, Any]:
     """The case's largest |q̇| / limit over every physics step, where it came, and the reflex."""
-    env: Any = gym.make("StROL-Study-v2", task=task, human=None).unwrapped
+    env: Any = gym.make("StROL-Study-v2", task=task, person=None).unwrapped
     env.reset(seed=case["seed"])
     zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
     for _ in range(round(case["start"] / 0.05)):

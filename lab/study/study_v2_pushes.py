@@ -4,7 +4,7 @@
 
 Each push: a random study seed (episode), a random time 2-8 s into the episode, a force of
 20-60 N in a random direction and (Tasks 2-3) a torque of 1-3 N m about a random axis, for
-1 s, through the public push API (``apply_wrench``; ``human=None``). Prints per Task the
+1 s, through the public push API (``apply_wrench``; ``person=None``). Prints per Task the
 angle between u_H's translation and the force, between u_H's rotation (the world-frame turn
 R(x + u) R(x)⁻¹) and the torque's axis, and the 30 N, 1 s displacement; the pushes the
 reflex stopped (no correction), and the same angles without the pushes that pressed the cup
@@ -53,7 +53,7 @@ def push_case(version: str, task: int, rng: np.random.Generator) -> dict:
 def run_push(
     version: str, task: int, seed: int, start: float, force: np.ndarray, torque: np.ndarray
 ) -> dict:
-    env: Any = gym.make(f"StROL-Study-{version}", task=task, human=None).unwrapped  # StudyEnv
+    env: Any = gym.make(f"StROL-Study-{version}", task=task, person=None).unwrapped  # StudyEnv
     env.reset(seed=seed)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
     for _ in range(round(start / 0.05)):

@@ -2,7 +2,7 @@
 
     .venv/bin/python lab/study/study_v2_tracking.py [--seeds 200] [--seed 0] [--version v2]
 
-Per Task and random study seed (no person: ``human=None``; the robot follows its plan for the
+Per Task and random study seed (no person: ``person=None``; the robot follows its plan for the
 episode's random θ̂0): after a random 0.5-9 s of the plan, ``pause(2)`` holds the setpoint;
 the cup's distance (m) and rotation (rad) to its setpoint after the 2 s, and whether they are
 within 2 mm and 0.01 rad. Then the episode goes on to 20 s (the plan's end, the 2 s wait and
@@ -27,7 +27,7 @@ STEPS = 400  # 20 s
 
 
 def one_seed(version: str, task: int, seed: int, pause_at: float) -> tuple[float, float, int, int]:
-    env: Any = gym.make(f"StROL-Study-{version}", task=task, human=None).unwrapped  # StudyEnv
+    env: Any = gym.make(f"StROL-Study-{version}", task=task, person=None).unwrapped  # StudyEnv
     env.reset(seed=seed)
     zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
     touched = 0

@@ -4,7 +4,8 @@
   observation and info; ``vector``: :class:`VectorCorrectionEnv`, N of one env batched.
 - ``panda``: the Franka Panda arm (MuJoCo model, IK for one arm and for N).
 - ``robot``: StROL-Robot-v0 (single and vector); ``highway``: StROL-Highway-v0 (single and
-  vector); ``study``: StROL-Study-v0 and -v1 (the user study: scene, people who push, metrics).
+  vector); ``study``: StROL-Study-v0, -v1 and -v2 (the user study: scene, people who push,
+  metrics).
 
 Modules are imported by ``gymnasium.make`` through the entry points in
 strol_gym.registration, so importing this package loads neither MuJoCo nor highway-env.

@@ -11,10 +11,10 @@ the learners, the wrapper and the benchmark rely on:
   *current* preference), ``theta_hat``, ``is_correction``; an env whose corrections span
   several steps adds ``correction_state`` (the state where the correction began);
 - reward R(x', θ*) = θ*·φ(x');
-- the human described by one :class:`~strol_gym.humans.spec.HumanSpec` (model, σ, ε, β and
-  its own arguments), given as ``human=HumanSpec(...)`` or as the flat keyword arguments
-  ``human``, ``sigma``, ``bias``, ``beta``, ``human_kwargs``; ``human=None``: no simulated
-  human (the corrections come from elsewhere, or none come);
+- the simulated person given as one ``person=`` argument (``strol_gym.humans.spec``: omitted,
+  the env's ``default_person``; a name; a :class:`~strol_gym.humans.spec.HumanSpec` or a dict
+  of its fields; ``None``: no simulated person, the corrections come from elsewhere or none
+  come), kept as the person as used (``person_spec``);
 - episodes end through gymnasium's ``TimeLimit`` (``gymnasium.make``); an env built directly
   truncates itself only when given ``max_episode_steps``. One rule, one place: ``_truncated``.
 
@@ -59,7 +59,14 @@ from gymnasium import spaces
 
 from strol_gym import checks
 from strol_gym.humans import Human, HumanFactory, needs_theta_hat
-from strol_gym.humans.spec import HumanSpec
+from strol_gym.humans.population import HumanMaker
+from strol_gym.humans.spec import (
+    DEFAULT_HUMAN,
+    DEFAULT_PERSON,
+    PERSON_ARGUMENTS,
+    HumanSpec,
+    person_spec,
+)
 from strol_gym.priors import Prior, check_theta_range, make_prior, sample_each
 from strol_gym.tasks import make_task
 from strol_gym.tasks.base import Task, vector_arg
@@ -166,32 +173,29 @@ class CorrectionEnv:
     """``n_corrections`` when not given."""
     default_size: ClassVar[tuple[int, int]] = (480, 360)
     """Frame ``width`` and ``height`` (pixels) when not given."""
+    default_person: ClassVar[str | HumanFactory] = DEFAULT_HUMAN
+    """The person when ``person=`` is omitted (or a dict of its fields names none)."""
 
     def __init__(
         self,
-        sigma: float = 0.0,
-        bias: float = 0.0,
+        person: Any = DEFAULT_PERSON,
         prior: str | Prior | Any | None = "bimodal",
-        human: str | HumanFactory | HumanSpec | None = "nominal",
-        beta: float = 50.0,
         n_corrections: int | None = None,
         max_episode_steps: int | None = None,
         render_mode: str | None = None,
         width: int | None = None,
         height: int | None = None,
         task: Any = None,
-        human_kwargs: dict[str, Any] | None = None,
         **unknown: Any,
     ) -> None:
         """The shared arguments (the env's docstring lists them); ``None`` for
         ``n_corrections``, ``width`` or ``height`` means the env's default, for ``prior`` the
-        Task's own prior. σ, ε, β and ``human_kwargs`` become one :class:`HumanSpec`
-        (``human`` may be one already)."""
+        Task's own prior. ``person``: ``strol_gym.humans.spec`` (omitted: ``default_person``)."""
         self._configure(
             task,
             unknown,
             prior=prior,
-            human=HumanSpec.from_args(human, sigma, bias, beta, human_kwargs),
+            person=person,
             n_corrections=self.default_corrections if n_corrections is None else n_corrections,
             render_mode=render_mode,
             max_episode_steps=max_episode_steps,
@@ -301,7 +305,7 @@ class CorrectionEnv:
         unknown: dict[str, Any],
         *,
         prior: str | Prior | Any | None,
-        human: HumanSpec,
+        person: Any,
         n_corrections: int,
         render_mode: str | None,
         max_episode_steps: int | None = None,
@@ -309,18 +313,30 @@ class CorrectionEnv:
         """Validate the shared keyword arguments; each error names the argument and its range."""
         if unknown:
             takes = sorted(
-                p
-                for cls in type(self).__mro__
-                if "__init__" in vars(cls) and issubclass(cls, CorrectionEnv)
-                for p in inspect.signature(vars(cls)["__init__"]).parameters
-                if p not in ("self", "unknown", "kwargs")
+                {
+                    p
+                    for cls in type(self).__mro__
+                    if "__init__" in vars(cls) and issubclass(cls, CorrectionEnv)
+                    for p in inspect.signature(vars(cls)["__init__"]).parameters
+                    if p not in ("self", "unknown", "kwargs")
+                }
             )
-            raise ValueError(f"unknown argument(s) {sorted(unknown)}; {self.env_id} takes {takes}")
+            moved = [k for k in sorted(unknown) if k in PERSON_ARGUMENTS]
+            hint = (
+                f" ({', '.join(moved)}: the person's, given as person=HumanSpec(name, sigma=..., "
+                "bias=..., beta=..., kwargs={...}) or a dict of those fields)"
+                if moved
+                else ""
+            )
+            raise ValueError(
+                f"unknown argument(s) {sorted(unknown)}; {self.env_id} takes {takes}{hint}"
+            )
         task = self._make_task(task)
         self.task = task.with_prior(
             task.prior if prior is None else make_prior(prior, task.prior_modes)
         )
-        self.human_spec = human
+        self.person_spec = self.resolve_person(person)
+        """The person as used (every parameter it takes, defaults filled in), None for none."""
         self.n_corrections = int_arg("n_corrections", n_corrections, 0)
         if max_episode_steps is not None:
             max_episode_steps = int_arg("max_episode_steps", max_episode_steps, 1)
@@ -345,26 +361,16 @@ class CorrectionEnv:
             return self.task_cls()  # type: ignore[call-arg]  # see the line above
         return make_task(task, of=self.task_cls)
 
-    # The human's arguments, read from the spec (what the humans and the vector envs use).
-    @property
-    def human_model(self) -> str | HumanFactory | None:
-        return self.human_spec.name
+    @classmethod
+    def resolve_person(cls, person: Any) -> HumanSpec | None:
+        """The ``person=`` argument as the env uses it (a human model's: ``HumanSpec.as_used``),
+        without building the env; ValueError naming what it does not use."""
+        spec = person_spec(person, cls.default_person)
+        return None if spec is None else spec.as_used()
 
-    @property
-    def sigma(self) -> float:
-        return self.human_spec.sigma
-
-    @property
-    def bias(self) -> float:
-        return self.human_spec.bias
-
-    @property
-    def beta(self) -> float:
-        return self.human_spec.beta
-
-    @property
-    def human_kwargs(self) -> dict[str, Any]:
-        return self.human_spec.kwargs
+    def human_maker(self) -> HumanMaker | None:
+        """What builds the episode's human from θ* and a generator (None: no simulated one)."""
+        return None if self.person_spec is None else self.person_spec.maker(self.task)
 
     def _observation_space(self, state: spaces.Box, phi: spaces.Box | None = None) -> spaces.Dict:
         """The shared observation space: ``state`` as given; φ unbounded unless given."""
@@ -408,10 +414,10 @@ class CorrectionEnv:
 
     def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
         # One maker per (spec, Task): a reset then costs a person, not a signature lookup.
-        spec, task = self.human_spec, self.task
+        spec, task = self.person_spec, self.task
         made_for = self.__dict__.get("_maker_for")
         if made_for is None or made_for[0] is not spec or made_for[1] is not task:
-            self._maker, self._maker_for = spec.maker(task), (spec, task)
+            self._maker, self._maker_for = self.human_maker(), (spec, task)
         return None if self._maker is None else self._maker(theta_star, rng)
 
     def _start_episode(self, theta_star: np.ndarray, human_rng: np.random.Generator) -> None:

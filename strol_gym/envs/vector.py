@@ -73,9 +73,9 @@ class VectorCorrectionEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.render_mode = None
         n, t = self.num_envs, self.task
-        # The single env's human maker; with no simulated human (human=None) no step corrects,
-        # as in the single env.
-        self._make_human = self.template.human_spec.maker(t)
+        # The single env's human maker; with no simulated person (person=None) no step
+        # corrects, as in the single env.
+        self._make_human = self.template.human_maker()
         self.n_corrections = self.template.n_corrections if self._make_human is not None else 0
         self.action_scale = self.template.action_scale
         self._rngs: list[np.random.Generator | None] = [None] * n

@@ -54,7 +54,7 @@ from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
 from strol_gym.humans.zoo import check_probability
 from strol_gym.lazy import LazyModule
 from strol_gym.tasks.base import Task
-from strol_gym.tasks.study import StudyTask
+from strol_gym.tasks.study import StudyTask, study_task_name
 
 if TYPE_CHECKING:
     from scipy import special
@@ -477,7 +477,7 @@ def fitted_aim_params(task: Task) -> dict[str, Any]:
     """:data:`FITTED_AIM`'s values for ``task`` as :class:`AimedModel`'s keyword arguments: its
     study Task's (``study-taskN``), else Task 3's (no emphasis: any Task's features)."""
     number = getattr(task, "number", None)
-    per = FITTED_AIM["per_task"].get(f"study-task{number}") if number is not None else None
+    per = FITTED_AIM["per_task"].get(study_task_name(0, number)) if number is not None else None
     if per is None:
         mean = FITTED_AIM["params"]  # Task 3's
         return {**{k: float(mean[k]) for k in AIM_PARAMS}, "reach": float(mean["reach"])}

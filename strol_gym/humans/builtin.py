@@ -6,10 +6,12 @@ randomness drawn by the caller's generator. Noise and bias are fractions of a_ma
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.humans.checks import check_beta
 from strol_gym.humans.choices import boltzmann_correction, driver_correction, optimal_correction
 from strol_gym.humans.interface import (
@@ -33,6 +35,59 @@ class NominalModel(HumanModel):
 
     def choose(self, x, u_r, theta_star, draws, theta_hat=None, k=0):
         return optimal_correction(self.task, x, u_r, theta_hat, theta_star, draws.candidates)
+
+    def drawn_corrections(self, rngs, x, u_r, theta_star, theta_hat=None, k=0):
+        """The Task's compiled correction from the draws (``Task.m6_drawn``), where the model
+        and its Task are the ones it repeats; person b's uniform candidates and noise are drawn
+        from ``rngs[b]`` as ``draw_each`` draws them, a chunk of people at a time (their
+        candidates stay in the cache instead of one (B, K, a) array)."""
+        drawn = _drawn_as_nominal(self) if use_fast() and theta_hat is not None else None
+        if drawn is None:
+            return None
+        n, a = len(rngs), self.task.action_dim
+        c, f64 = np.ascontiguousarray, np.float64
+        x, u_r, theta_hat = c(x, dtype=f64), c(u_r, dtype=f64), c(theta_hat, dtype=f64)
+        pref = c(self.preference(theta_star, k), dtype=f64)
+        out = np.empty((n, a))
+        if n == 1:  # one person (a single env's every correction): no chunks
+            rng = rngs[0]
+            units = rng.random((1, self.n_candidates, a))  # the same draws as ``out=`` a block
+            noise = rng.standard_normal((1, a))
+            drawn(x, u_r, theta_hat, pref, units, noise, self.sigma, self.bias, out)
+            return out
+        units = np.empty((DRAWN_CHUNK, self.n_candidates, a))
+        noise = np.empty((n, a))
+        for lo in range(0, n, DRAWN_CHUNK):
+            hi = min(lo + DRAWN_CHUNK, n)
+            for rng, block, z in zip(rngs[lo:hi], units, noise[lo:hi], strict=False):
+                rng.random(out=block)
+                rng.standard_normal(out=z)
+            p = slice(lo, hi)
+            drawn(
+                x[p], u_r[p], theta_hat[p], pref[p], units[: hi - lo], noise[p], self.sigma,
+                self.bias, out[p],
+            )  # fmt: skip
+        return out
+
+
+DRAWN_CHUNK = 32
+"""People per call of ``Task.m6_drawn`` in ``NominalModel.drawn_corrections``."""
+_NOMINAL = ("draw", "draw_each", "draw_extra", "corrections", "choose")
+
+
+def _drawn_as_nominal(model: NominalModel) -> Callable[..., None] | None:
+    """Its Task's ``m6_drawn`` where ``model`` draws, chooses and perturbs as ``NominalModel``
+    does, with one σ and ε; else None."""
+    own = type(model)
+    same = _AS_NOMINAL.get(own)
+    if same is None:
+        same = _AS_NOMINAL[own] = all(getattr(own, n) is getattr(NominalModel, n) for n in _NOMINAL)
+    if not same or type(model.sigma) is not float or type(model.bias) is not float:
+        return None
+    return model.task.m6_drawn()
+
+
+_AS_NOMINAL: dict[type, bool] = {}
 
 
 class BoltzmannModel(HumanModel):

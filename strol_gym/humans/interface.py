@@ -191,6 +191,20 @@ class HumanModel:
         u = self.choose(x, u_r, pref, draws, theta_hat if self.needs_theta_hat else None, k)
         return perturb(self.task, u, self.sigma, self.bias, Replayed(draws.noise))
 
+    def drawn_corrections(
+        self,
+        rngs: Sequence[np.random.Generator],
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_star: np.ndarray,
+        theta_hat: np.ndarray | None = None,
+        k: np.ndarray | int = 0,
+    ) -> np.ndarray | None:
+        """``corrections`` over ``draw_each(rngs)`` (person b's draws from ``rngs[b]``) in one
+        pass where the model and its Task offer one, else None, having drawn nothing (then
+        draw and choose as usual). Default: None."""
+        return None
+
     def correct(
         self,
         x: np.ndarray,
@@ -292,8 +306,12 @@ class SimulatedHuman:
     def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: np.ndarray | None) -> np.ndarray:
         k = self.begin()
         th = None if theta_hat is None else np.asarray(theta_hat, dtype=np.float64)[None]
+        x, u_r, theta = x[None], u_r[None], self.theta_initial[None]
+        u = self.model.drawn_corrections((self.rng,), x, u_r, theta, th, k)
+        if u is not None:
+            return u[0]
         draws = self.model.draw(self.rng, 1)
-        return self.model.corrections(x[None], u_r[None], self.theta_initial[None], draws, th, k)[0]
+        return self.model.corrections(x, u_r, theta, draws, th, k)[0]
 
     @classmethod
     def of(cls, model_class: type[HumanModel], name: str | None = None) -> type[SimulatedHuman]:

@@ -45,7 +45,11 @@ def batched_corrections(
         model = humans[0].model
         k = np.array([h.begin() for h in humans])
         theta_star = np.stack([h.theta_initial for h in humans])
-        draws = model.draw_each([h.rng for h in humans])
+        rngs = [h.rng for h in humans]
+        u = model.drawn_corrections(rngs, x, u_r, theta_star, theta_hat, k)
+        if u is not None:
+            return u
+        draws = model.draw_each(rngs)
         return model.corrections(x, u_r, theta_star, draws, theta_hat, k)
     return np.stack(
         [

@@ -418,7 +418,8 @@ def find_pretrained(task: Task, kind: str, directory: str | Path = PRETRAINED_DI
     """The shipped checkpoint whose sidecar names ``task.task_id`` and ``kind``.
 
     Files are looked up by their sidecars, not by name; the convention for names is
-    ``<short task name>_<kind>.safetensors`` (``robot_strol.safetensors``). A sidecar with
+    ``<task.weights_stem or its registry name>_<kind>.safetensors`` (``robot_strol.safetensors``,
+    ``study1-v2_strol.safetensors``). A sidecar with
     weights in both formats beside it counts once, the safetensors file.
     """
     directory = Path(directory)
@@ -454,7 +455,7 @@ def train_hint(task: Task, kind: str) -> str:
         name = task_name(task)
     except ValueError:  # a Task defined where no other process can import it
         name = task.task_id
-    stem = name if ":" not in name else type(task).__name__
+    stem = task.weights_stem or (name if ":" not in name else type(task).__name__)
     out = f"{stem}_{kind}{SAFETENSORS}"
     plugin = plugin_argument(type(task))
     train = ["strol-bench", "train", *(["--plugin", plugin] if plugin else [])]

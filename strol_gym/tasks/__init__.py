@@ -11,19 +11,16 @@ from strol_gym.registry import Registry, call_piece
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.highway import HighwayTask
 from strol_gym.tasks.robot import RobotTask
+from strol_gym.tasks.study import STUDY_TASK_SETS, study_task_name
 
 _TASKS: dict[str, Any] = {
     "robot": "strol_gym.tasks.robot:RobotTask",
     "highway": "strol_gym.tasks.highway:HighwayTask",
-    "study-task1": "strol_gym.tasks.study:StudyTask1",
-    "study-task2": "strol_gym.tasks.study:StudyTask2",
-    "study-task3": "strol_gym.tasks.study:StudyTask3",
-    "study-task1-v1": "strol_gym.tasks.study:StudyTask1V1",
-    "study-task2-v1": "strol_gym.tasks.study:StudyTask2V1",
-    "study-task3-v1": "strol_gym.tasks.study:StudyTask3V1",
-    "study-task1-v2": "strol_gym.tasks.study:StudyTask1V2",
-    "study-task2-v2": "strol_gym.tasks.study:StudyTask2V2",
-    "study-task3-v2": "strol_gym.tasks.study:StudyTask3V2",
+    **{
+        study_task_name(version, number): f"{cls.__module__}:{cls.__qualname__}"
+        for version, tasks in STUDY_TASK_SETS.items()
+        for number, cls in tasks.items()
+    },
 }
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -79,6 +79,9 @@ class Task(ABC):
     action_dim: ClassVar[int]
     feature_high: ClassVar[float] = np.inf
     """An upper bound of every feature (the top of the envs' ``"phi"`` observation box)."""
+    weights_stem: ClassVar[str | None] = None
+    """The stem of its shipped ĝ files, ``<stem>_<kind>.safetensors`` (None: its registry
+    name). The files are found by their sidecars' ``task_id``; the stem only names them."""
 
     prior: Prior
     alpha: float
@@ -160,6 +163,14 @@ class Task(ABC):
         """Eq. M6's chosen candidate per person, (B,) indices, from a compiled kernel
         (``strol_gym.compiled``), or None: then ``optimal_correction``'s plain search runs. A
         Task offers a kernel only while the methods it repeats are its own (``_unchanged``)."""
+        return None
+
+    def m6_drawn(self) -> Callable[..., None] | None:
+        """The eq. M6 teacher's noisy corrections straight from each person's draws, as one
+        compiled call, or None (offered only where ``m6_choice`` is):
+        ``f(x, u_r, theta_hat, theta_star, units, noise, sigma, bias, out)`` writes (B, a)
+        into ``out``, from U (B, K, a) in [0, 1) as ``candidate_actions`` fills them and the
+        noise z (B, a): the numbers of ``candidate_actions``, ``m6_choice`` and ``perturb``."""
         return None
 
     def _unchanged(self, cls: type, names: Sequence[str]) -> bool:

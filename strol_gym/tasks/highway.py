@@ -118,8 +118,8 @@ def _slip_angles(steer: np.ndarray) -> np.ndarray:
 
 
 _M6_METHODS = ("g", "g_planes", "_phi", "_step_car", "dynamics")
-"""What ``highway_m6`` computes over again: a subclass overriding one of them takes the plain
-path."""
+"""What the Highway's compiled search (``highway_m6_screen``, ``highway_m6_kept``) computes
+over again: a subclass overriding one of them takes the plain path."""
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -195,7 +195,7 @@ class HighwayTask(Task):
         if x.shape == (8,):
             if use_fast() and self._unchanged(HighwayTask, ("_phi",)):
                 # compiled: the operations of ``_phi`` (its sine and cosine the C library's,
-                # as numpy's: what ``highway_m6`` relies on too)
+                # as numpy's: what ``highway_m6_kept`` relies on too)
                 from strol_gym.tasks.m6_kernels import highway_phi
 
                 return np.array(highway_phi(x, self._kernel_params))
@@ -262,34 +262,33 @@ class HighwayTask(Task):
         theta_star: np.ndarray,
         candidates: np.ndarray,
     ) -> np.ndarray | None:
-        """Eq. M6 by ``strol_gym.tasks.m6_kernels.highway_m6`` (the numbers of ``g``). numpy
-        computes the steering angles β = arctan(½ tan δ): its tangent and arctangent are its own
-        SIMD ones, not the C library's that a kernel would call."""
+        """Eq. M6 by ``strol_gym.tasks.m6_kernels``: a screen drops the candidates that provably
+        cannot be chosen (``highway_m6_screen``; one left is the choice), an exact search picks
+        among the rest (``highway_m6_kept``, the numbers of ``g``). numpy computes the
+        steering angles β = arctan(½ tan δ) it needs in one call: its tangent and arctangent
+        are its own SIMD ones, not the C library's that a kernel would call."""
         if not self._unchanged(HighwayTask, _M6_METHODS):
             return None
-        from strol_gym.tasks.m6_kernels import highway_m6
+        from strol_gym.tasks.m6_kernels import highway_m6_kept, highway_m6_screen
 
         c, f64 = np.ascontiguousarray, np.float64
-        u_r = np.asarray(u_r, dtype=f64)
+        x, u_r = c(x, dtype=f64), c(u_r, dtype=f64)
+        theta_hat, theta_star = c(theta_hat, dtype=f64), c(theta_star, dtype=f64)
         candidates = np.asarray(candidates, dtype=f64)
-        best = np.empty(len(candidates), dtype=np.int64)
-        beta = _slip_angles(candidates[..., 1])
-        highway_m6(
-            c(x, dtype=f64),
-            c(u_r[:, 0]),
-            _slip_angles(u_r[:, 1]),
-            c(theta_hat, dtype=f64),
-            c(theta_star, dtype=f64),
-            candidates,
-            beta,
-            self._kernel_params,
-            best,
-        )
+        b, k = candidates.shape[:2]
+        keep = np.empty((b, k), dtype=np.bool_)
+        steer = np.empty(b * (k + 1))
+        best = np.empty(b, dtype=np.int64)
+        prm = self._kernel_params
+        n = highway_m6_screen(x, u_r, theta_hat, theta_star, candidates, prm, keep, steer, best)
+        if n:  # people the screen left open
+            beta = _slip_angles(steer[:n])
+            highway_m6_kept(x, u_r, theta_hat, theta_star, candidates, keep, beta, prm, best)
         return best
 
     @functools.cached_property
     def _kernel_params(self) -> np.ndarray:
-        """The numbers ``highway_m6`` reads, in its order."""
+        """The numbers the compiled search reads, in its order."""
         return np.array(
             [
                 self.headway,
@@ -370,6 +369,19 @@ class HighwayTask(Task):
     ) -> np.ndarray:
         """States from uniform draws ``u`` (n, 8), each column mapped into its range."""
         n = len(u)
+        ranges = (self.start_x, behind, y_r, y_h, h_r, h_h, v_r, v_h)
+        if n == 1 and all(type(v) is float for r in ranges for v in r):
+            # One env's reset in plain floats (the bounds Python floats, so float64 as in
+            # numpy): the same operations, without numpy's per-call cost on single numbers.
+            c = u[0].tolist()
+            x_h = self.start_x[0] + (self.start_x[1] - self.start_x[0]) * c[0]
+            row = [x_h + (behind[0] + (behind[1] - behind[0]) * c[1])]
+            for col, (lo, hi) in zip((4, 2, 6), (y_r, v_r, h_r), strict=True):
+                row.append(lo + (hi - lo) * c[col])
+            row.append(x_h)
+            for col, (lo, hi) in zip((5, 3, 7), (y_h, v_h, h_h), strict=True):
+                row.append(lo + (hi - lo) * c[col])
+            return np.array([row])
 
         def lerp(col: int, lo: float, hi: float) -> np.ndarray:
             return lo + (hi - lo) * u[:, col]

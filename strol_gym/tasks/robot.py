@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -38,6 +38,18 @@ _LONG = 3000
 
 _M6_METHODS = ("g", "g_planes", "features", "dynamics", "_offsets", "_features_one", "dynamics_one")
 """What ``robot_m6`` computes over again: a subclass overriding one of them takes the plain path."""
+
+
+@functools.cache
+def _drawn_kernel() -> Callable[..., None]:
+    """``m6_kernels.robot_m6_drawn``, imported once (it loads numba; every correction asks)."""
+    from strol_gym.tasks.m6_kernels import robot_m6_drawn
+
+    return robot_m6_drawn
+
+
+_DRAWN = ("candidate_actions", "_unit_to_box", "_axis_scale", "a_max", "a_max_l")
+"""What ``robot_m6_drawn`` computes over again of ``Task``: the candidates and the noise's scale."""
 
 
 def _m6_layout(x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> bool:
@@ -269,6 +281,38 @@ class RobotTask(Task):
             best,
         )
         return best
+
+    def m6_drawn(self) -> Callable[..., None] | None:
+        """``_m6_drawn`` while ``m6_choice`` runs its kernel and the candidates and the noise's
+        scale are ``Task``'s."""
+        ok = self.__dict__.get("_m6_drawn_ok")  # asked on every correction: answered once
+        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
+            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(
+                RobotTask, _M6_METHODS
+            ) and self._unchanged(Task, _DRAWN)
+        return self._m6_drawn if ok else None
+
+    def _m6_drawn(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        units: np.ndarray,
+        noise: np.ndarray,
+        sigma: float,
+        bias: float,
+        out: np.ndarray,
+    ) -> None:
+        """``Task.m6_drawn`` by ``strol_gym.tasks.m6_kernels.robot_m6_drawn``."""
+        memo = self.__dict__.setdefault("_m6_drawn_memo", {})  # as ``_unchanged``'s
+        prm = memo.get((sigma, bias))
+        if prm is None:
+            alpha, plate, cup, low, high = self._m6_params
+            prm = memo[sigma, bias] = np.concatenate(
+                [[alpha, sigma, bias], plate, cup, low, high, self._axis_scale, self.a_max]
+            ).astype(np.float64)
+        _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, out)
 
     @functools.cached_property
     def _m6_params(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -21,8 +21,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable
-from typing import ClassVar
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -125,11 +125,44 @@ def wrap_angle(a: np.ndarray) -> np.ndarray:
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
+STUDY_ENV = "StROL-Study"
+"""The study env's name; version N registers as ``StROL-Study-vN``."""
+
+
+def study_env_id(version: int) -> str:
+    """The env id of study version ``version`` (``StROL-Study-v2``)."""
+    return f"{STUDY_ENV}-v{version}"
+
+
+def _later(version: int) -> str:
+    """The suffix a version after v0 adds to a study Task's names ("" for v0, "-v2" for v2)."""
+    return f"-v{version}" if version else ""
+
+
+def study_task_id(version: int, number: int) -> str:
+    """A study Task's ``task_id``, the key its shipped ĝ's sidecars record
+    (``StROL-Study-v1-task2``)."""
+    return f"{study_env_id(version)}-task{number}"
+
+
+def study_task_name(version: int, number: int) -> str:
+    """A study Task's name in the Task registry (``study-task2``, ``study-task2-v1``)."""
+    return f"study-task{number}{_later(version)}"
+
+
+def study_weights_stem(version: int, number: int) -> str:
+    """The stem of a study Task's shipped ĝ files, ``<stem>_<kind>.safetensors`` and its
+    sidecar ``<stem>_<kind>.json`` (``study2``, ``study2-v1``)."""
+    return f"study{number}{_later(version)}"
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class StudyTask(Task):
-    """Shared by the three study Tasks; subclasses fix the study Task number."""
+    """Shared by the three study Tasks; subclasses fix the study Task number and the version
+    (``task_id`` follows from both)."""
 
-    task_id: ClassVar[str] = "StROL-Study-v0-task1"
+    task_id: ClassVar[str] = study_task_id(0, 1)
+    weights_stem: ClassVar[str | None] = study_weights_stem(0, 1)
     version: ClassVar[int] = 0
     number: ClassVar[int] = 1
     feature_high: ClassVar[float] = 0.0
@@ -149,6 +182,18 @@ class StudyTask(Task):
     plan_ang_bound: float = 0.1
 
     # ------------------------------------------------------------------ identity
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        """Its ``task_id`` (its ĝ's key) and ``weights_stem`` follow from its ``version`` and
+        ``number``, unless it sets its own (a Task of another setting built on a study one)."""
+        super().__init_subclass__(**kwargs)
+        if "task_id" in vars(cls):
+            cls.weights_stem = vars(cls).get("weights_stem")  # its own, or its registry name
+            return
+        cls.task_id = study_task_id(cls.version, cls.number)
+        cls.weights_stem = vars(cls).get("weights_stem") or study_weights_stem(
+            cls.version, cls.number
+        )
+
     @property
     def theta_star(self) -> np.ndarray:
         """The study participant's θ* for this Task (the issue's table)."""
@@ -364,7 +409,6 @@ class StudyTask(Task):
 class StudyTask1(StudyTask):
     """Study Task 1: carry the cup to the plate, close to the table, away from the pitcher."""
 
-    task_id: ClassVar[str] = "StROL-Study-v0-task1"
     number: ClassVar[int] = 1
     strol_lambda: ClassVar[float] = 0.25
     feature_names: ClassVar[tuple[str, ...]] = ("pitcher", "plate", "table")
@@ -380,7 +424,6 @@ def _prior4() -> Prior:
 class StudyTask2(StudyTask):
     """Study Task 2: as Task 1, and keep the cup upright (6-D pose corrections)."""
 
-    task_id: ClassVar[str] = "StROL-Study-v0-task2"
     number: ClassVar[int] = 2
     feature_names: ClassVar[tuple[str, ...]] = ("pitcher", "plate", "table", "upright")
     state_dim: ClassVar[int] = 6
@@ -392,7 +435,6 @@ class StudyTask2(StudyTask):
 class StudyTask3(StudyTask2):
     """Study Task 3: away from every object, cup upright; θ* outside the prior."""
 
-    task_id: ClassVar[str] = "StROL-Study-v0-task3"
     number: ClassVar[int] = 3
 
 
@@ -405,7 +447,6 @@ class StudyTask1V1(StudyTask1):
     trained for v1's corrections (``pretrained/study1-v1_*``) are found for it and v0's
     published ĝ for v0."""
 
-    task_id: ClassVar[str] = "StROL-Study-v1-task1"
     version: ClassVar[int] = 1
 
 
@@ -413,7 +454,6 @@ class StudyTask1V1(StudyTask1):
 class StudyTask2V1(StudyTask2):
     """Task 2 for StROL-Study-v1's ĝ (see ``StudyTask1V1``)."""
 
-    task_id: ClassVar[str] = "StROL-Study-v1-task2"
     version: ClassVar[int] = 1
 
 
@@ -421,7 +461,6 @@ class StudyTask2V1(StudyTask2):
 class StudyTask3V1(StudyTask3):
     """Task 3 for StROL-Study-v1's ĝ (see ``StudyTask1V1``)."""
 
-    task_id: ClassVar[str] = "StROL-Study-v1-task3"
     version: ClassVar[int] = 1
 
 
@@ -825,7 +864,6 @@ class StudyTaskV2(StudyTask):
 class StudyTask1V2(StudyTaskV2, StudyTask1V1):
     """Task 1 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup upright: ``REACH_UPRIGHT``)."""
 
-    task_id: ClassVar[str] = "StROL-Study-v2-task1"
     version: ClassVar[int] = 2
 
 
@@ -847,7 +885,6 @@ class _TurningV2(StudyTaskV2):
 class StudyTask2V2(_TurningV2, StudyTask2V1):
     """Task 2 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
 
-    task_id: ClassVar[str] = "StROL-Study-v2-task2"
     version: ClassVar[int] = 2
 
 
@@ -855,8 +892,13 @@ class StudyTask2V2(_TurningV2, StudyTask2V1):
 class StudyTask3V2(_TurningV2, StudyTask3V1):
     """Task 3 as StROL-Study-v2 plans it (``StudyTaskV2``; the cup turns: ``REACH_TURNING``)."""
 
-    task_id: ClassVar[str] = "StROL-Study-v2-task3"
     version: ClassVar[int] = 2
 
 
 STUDY_TASKS_V2: dict[int, type[StudyTaskV2]] = {1: StudyTask1V2, 2: StudyTask2V2, 3: StudyTask3V2}
+
+STUDY_TASK_SETS: dict[int, Mapping[int, type[StudyTask]]] = {
+    tasks[1].version: tasks for tasks in (STUDY_TASKS, STUDY_TASKS_V1, STUDY_TASKS_V2)
+}
+"""Each study version's Tasks by number (``StudyVersion.tasks`` reads them; the Task registry
+names them ``study_task_name``)."""

@@ -104,18 +104,14 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
 
     ## Arguments
 
-    - ``sigma`` (float ≥ 0, default 0): noise, δ ~ N(ε a_max, (σ a_max)²) per action axis.
-    - ``bias`` (finite float, default 0): ε, as a fraction of a_max.
+    - ``person``: who corrects, as for StROL-Robot-v0 (``RobotEnv``; ``strol_gym.humans.spec``):
+      omitted, "nominal" with σ = ε = 0; a registered name ("driver" is the paper's MPC
+      human), a ``HumanSpec`` or a dict of its fields (σ, ε per action axis in units of
+      a_max); ``None``: nobody corrects. A value the person does not use raises ValueError.
     - ``prior`` ("bimodal" | "uniform" | a ``Prior`` | array of modes, default "bimodal"):
       P(θ*). "bimodal": modes "tailgate" (1.0, 1.0, 0.1) and "pass on the right"
       (0.1, 1.0, 1.0) with N(0, 0.1²) jitter (see ``strol_gym.tasks.highway`` for the signs);
       "uniform": [−1, 1]³.
-    - ``human`` (a name in ``strol_gym.humans.HUMANS``: "nominal", "boltzmann", "driver" or
-      one registered with ``register_human``; a ``"module:attr"``; or a callable
-      ``factory(task, theta_star, rng, sigma=, bias=, beta=, **human_kwargs) -> Human``, given
-      only the keyword arguments it declares; default "nominal", the eq. M6 teacher).
-    - ``human_kwargs`` (dict or None): the human model's own keyword arguments.
-    - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
     - ``n_corrections`` (int ≥ 0, default 10): steps during which the human corrects.
     - ``max_episode_steps`` (int ≥ 1 or None): through ``gymnasium.make`` this is gymnasium's
       own TimeLimit argument (registered default 10, the paper's 10 learning steps); given to

@@ -88,24 +88,98 @@ _MARGIN = 1.0 + 1e-9
 """How far (relatively, in squared distance) beyond highway-env's reach a pair must be for the
 plain-float check to answer: far more than the few ulps in which its norm and ours may differ."""
 
+_SPARE = 1e-3
+"""Metres added to the reach of the second pre-check (``Car._is_colliding``): far more than the
+rounding of highway-env's rectangle test on coordinates within ``_LARGE``."""
+
+_LARGE = 1e6
+"""Coordinates, speeds and sizes beyond which the plain-float checks leave the answer to
+highway-env (so that rounding stays far below ``_SPARE``)."""
+
+
+def _within(*values: float) -> bool:
+    """Every value finite and within ``_LARGE`` in magnitude (False for NaN)."""
+    return all(abs(v) < _LARGE for v in values)
+
 
 class Car(Vehicle):
-    """highway-env's kinematic vehicle whose collision check first answers, in plain floats,
-    for cars clearly farther apart than highway-env's spherical pre-check allows.
+    """highway-env's kinematic vehicle, its per-step work in plain floats where it gives the
+    same numbers: ``step`` (the kinematic bicycle model) and two collision pre-checks.
 
     highway-env's ``_is_colliding`` returns "no collision" when ``np.linalg.norm`` of the
     offset exceeds the reach ``(diagonal + other.diagonal) / 2 + speed · dt``. Here the squared
     offset is compared with the squared reach times ``_MARGIN``: past it the norm exceeds the
-    reach whatever order and rounding numpy's norm uses, so the answer is the same; everything
-    else (near pairs, non-finite numbers) goes to highway-env's own check."""
+    reach whatever order and rounding numpy's norm uses, so the answer is the same. A second
+    pre-check rules out pairs that highway-env's rectangle test (``are_polygons_intersecting``)
+    would find apart: along one of this car's own axes (the first normals it tries) the
+    centres are at least |d|/√2 apart, each car's projection is at most half its diagonal, and
+    the relative displacement over dt closes the gap by at most its length; beyond
+    √2 (half the two diagonals + that length) + ``_SPARE`` the axis separates the cars now and
+    after, and the test answers (False, False, None) (for pairs clearly within the spherical
+    reach: the rest is highway-env's to answer, its translation a zero vector). Everything
+    else (near pairs, non-finite or huge numbers) goes to highway-env's own check."""
+
+    heading: float
+    speed: float
 
     def _is_colliding(self, other: Any, dt: float) -> Any:
         mine, theirs = self.position, getattr(other, "position", None)
         if type(mine) is np.ndarray and type(theirs) is np.ndarray and mine.shape == (2,):
             (a0, a1), (b0, b1) = mine.tolist(), theirs.tolist()
             d0, d1 = b0 - a0, b1 - a1
-            reach = (float(self.diagonal) + float(other.diagonal)) / 2 + float(self.speed) * dt
+            half = (float(self.diagonal) + float(other.diagonal)) / 2
+            speed = float(self.speed)
+            reach = half + speed * dt
             square = d0 * d0 + d1 * d1
             if 0.0 < reach < 1e150 and math.isfinite(square) and square > reach * reach * _MARGIN:
                 return False, False, np.zeros(2)
+            rel = self._relative_displacement(other, dt)
+            if rel is not None and _within(a0, a1, b0, b1, half):
+                far = math.sqrt(2.0) * (half + rel) + _SPARE
+                # ... and clearly within the spherical reach (else highway-env may answer
+                # there, with another "no translation")
+                if square > far * far and 0.0 < reach and square * _MARGIN < reach * reach:
+                    return False, False, None
         return super()._is_colliding(other, dt)
+
+    def _relative_displacement(self, other: Any, dt: float) -> float | None:
+        """|v_self − v_other| dt in plain floats, or None when a number is not a plain finite
+        one within ``_LARGE`` (an obstacle, a car of another kind)."""
+        if not isinstance(other, Vehicle):
+            return None
+        try:
+            v, h = float(self.speed), float(self.heading)
+            w, g = float(other.speed), float(other.heading)
+        except (TypeError, ValueError):
+            return None
+        if not _within(v, h, w, g, dt):
+            return None
+        return math.hypot(
+            v * math.cos(h) - w * math.cos(g), v * math.sin(h) - w * math.sin(g)
+        ) * abs(dt)
+
+    def step(self, dt: float) -> None:
+        """highway-env's ``Vehicle.step``, op for op in plain floats (its sine and cosine are the
+        C library's, as numpy's float64 ones; the steering angle β = arctan(½ tan δ) by numpy,
+        whose tangent and arctangent are its own). An impact or a position that is not a
+        float64 pair takes highway-env's own step."""
+        position = self.position
+        if (
+            self.impact is not None
+            or type(position) is not np.ndarray
+            or position.dtype != np.float64
+            or position.shape != (2,)
+        ):
+            super().step(dt)
+            return
+        self.clip_actions()
+        action = self.action
+        beta = np.arctan(1 / 2 * np.tan(action["steering"]))
+        speed, heading = self.speed, self.heading
+        p0, p1 = position.tolist()
+        angle = float(heading + beta)
+        position[0] = p0 + speed * math.cos(angle) * dt
+        position[1] = p1 + speed * math.sin(angle) * dt
+        self.heading = heading + speed * math.sin(beta) / (self.LENGTH / 2) * dt
+        self.speed = speed + action["acceleration"] * dt
+        self.on_state_update()

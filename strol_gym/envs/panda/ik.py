@@ -288,5 +288,16 @@ def _solve_arm() -> Callable[..., float] | None:
     return solve_arm if compiled_solver() is not None else None
 
 
+@functools.cache
+def move_arm() -> Callable[..., float] | None:
+    """``ik_kernel.move_arm`` (a clipped move and its solve in one compiled call) where
+    ``solver()`` finds the compiled kernel, else None: looked up once (every env step asks).
+    Only for ``use_fast()`` callers."""
+    from strol_gym.envs.panda.ik_kernel import move_arm as compiled_move
+    from strol_gym.envs.panda.ik_kernel import solver as compiled_solver
+
+    return compiled_move if compiled_solver() is not None else None
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])

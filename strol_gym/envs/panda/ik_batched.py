@@ -50,7 +50,7 @@ HANDOFF = 1024
 (``ik_kernel.batched_solve``, one arm at a time); a larger one in numpy until it is this small:
 the same numbers either way. Measured on the vector Robot env without a human at N = 1024, all
 arms compiled cost 1.2 chains a sub-env step against 1.7 with sets above 192 in numpy
-(``lab/speed/chains.py``); larger sets were not measured."""
+(``benchmarks/speed/chains.py``); larger sets were not measured."""
 AGREE_ARMS = 384
 """How many arms ``compiled_kernels`` checks, handing over from numpy at half of them."""
 

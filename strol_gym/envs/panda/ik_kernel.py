@@ -303,6 +303,31 @@ def _solve_recover(
     return err
 
 
+@_jit
+def _moved_recover(
+    fp, ptr, xpos, xmat, q, jp_full, jr_full, w9, orient, moves, iters, tol, consts, seeds,
+    seed_grid, seed_top, limits, no_ref, ctrl, out,
+):  # fmt: skip
+    """A clipped move and its solve in one call: the target (``out[0]``) is the state plus the
+    two displacements, clipped to the box, as ``RobotTask.dynamics`` computes it:
+    min(max((x + u_R) + u_H, low), high), ``moves`` = (x; u_H; u_R; low; high); then
+    ``_solve_recover`` towards it, the actuators' ``ctrl`` set to the joints reached and the
+    end effector in the task frame into ``out[1]``. Returns the remaining error."""
+    for i in range(3):
+        v = moves[0, i] + moves[2, i] + moves[1, i]
+        v = moves[3, i] if v < moves[3, i] else v
+        out[0, i] = moves[4, i] if v > moves[4, i] else v
+    err = _solve_recover(
+        fp, ptr, xpos, xmat, q, jp_full, jr_full, w9, orient, out[0], iters, tol, consts, seeds,
+        seed_grid, seed_top, limits, no_ref,
+    )  # fmt: skip
+    for j in range(N_ARM):
+        ctrl[j] = q[j]
+    for i in range(3):
+        out[1, i] = xpos[i] - consts[i]
+    return err
+
+
 def _addresses() -> np.ndarray | None:
     """The C functions' addresses in MuJoCo's shared library (the one the binding loaded), in
     ``_SYMBOLS``' order; None where there is no such library or a symbol is missing."""
@@ -354,6 +379,24 @@ def solver() -> Callable[..., float] | None:
 
 def solve_arm(ik: Any, target: Any, iters: int, tol: float) -> float:
     """``PandaIK.solve`` (``ik``) by ``_solve_recover``; only where ``solver()`` is not None."""
+    arm, (consts, table, grid, top), (limits, no_ref) = _arm_args(ik)
+    target = np.asarray(target, dtype=np.float64)
+    return _solve_recover(_FP, *arm, target, iters, tol, consts, table, grid, top, limits, no_ref)
+
+
+def move_arm(
+    ik: Any, moves: np.ndarray, iters: int, tol: float, ctrl: np.ndarray, out: np.ndarray
+) -> float:
+    """``_moved_recover`` on ``ik`` (a ``PandaIK``); only where ``solver()`` is not None."""
+    arm, (consts, table, grid, top), (limits, no_ref) = _arm_args(ik)
+    return _moved_recover(
+        _FP, *arm, moves, iters, tol, consts, table, grid, top, limits, no_ref, ctrl, out
+    )
+
+
+def _arm_args(ik: Any) -> tuple:
+    """The arm's views of its MuJoCo data and its constants, as the kernels read them (packed
+    once per arm: numba's dispatch costs per argument)."""
     args = ik.__dict__.get("_kernel_args")
     if args is None:  # once per arm: views of its MuJoCo data and its constants
         d, site = ik.data, ik.site
@@ -364,9 +407,7 @@ def solve_arm(ik: Any, target: Any, iters: int, tol: float) -> float:
             (np.array([*ik.lift, *ik.kernel_gains]), table, np.vstack([low, step]), top),
             (np.vstack([ik.lo, ik.hi]), ik._no_ref),
         )
-    arm, (consts, table, grid, top), (limits, no_ref) = args
-    target = np.asarray(target, dtype=np.float64)
-    return _solve_recover(_FP, *arm, target, iters, tol, consts, table, grid, top, limits, no_ref)
+    return args
 
 
 # ---------------------------------------------------------------------------- N arms

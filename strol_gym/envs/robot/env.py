@@ -9,12 +9,16 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from strol_gym.compiled import use_fast
 from strol_gym.envs.contract import CorrectionEnv, render_metadata
-from strol_gym.envs.panda.ik import IK_ITERS, PandaIK
+from strol_gym.envs.panda.ik import IK_ITERS, IK_TOL, PandaIK, move_arm
 from strol_gym.envs.panda.model import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.robot.scene import TABLE_TOP, build_model
 from strol_gym.envs.robot.seeds import seed_table
 from strol_gym.tasks.robot import RobotTask
+
+_DYNAMICS = ("dynamics", "dynamics_one")
+"""What the fused step (``_advance``) computes over again of ``RobotTask``."""
 
 
 class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
@@ -89,17 +93,18 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Arguments
 
-    - ``sigma`` (float ≥ 0, default 0): noise, δ ~ N(ε a_max, (σ a_max)²) per axis, a_max = 0.1 m.
-    - ``bias`` (finite float, default 0): ε, as a fraction of a_max.
+    - ``person``: who corrects. Omitted: "nominal", the eq. M6 teacher with σ = ε = 0. A
+      name in ``strol_gym.humans.HUMANS`` ("nominal", "boltzmann", "driver", one registered
+      with ``register_human``), a ``"module:attr"`` or a callable ``factory(task, theta_star,
+      rng, sigma=, bias=, beta=, **kwargs) -> Human`` (given only the keyword arguments it
+      declares); or ``HumanSpec(name, sigma=, bias=, beta=, kwargs=)`` (or a dict of those
+      fields) with noise δ ~ N(ε a_max, (σ a_max)²) per axis (σ ≥ 0, ε as fractions of
+      a_max = 0.1 m), rationality β ≥ 0 (default 50, the "boltzmann" human's) and the
+      model's own ``kwargs``. A value the person does not use raises ValueError naming it.
+      ``None``: no simulated person (nobody corrects).
     - ``prior`` ("bimodal" | "uniform" | a ``Prior`` | array of modes, default "bimodal"): P(θ*).
       "bimodal": modes (0.8, −0.8) (reach the plate, avoid the cup) and (−0.8, 0.8), with
       N(0, 0.1²) jitter; "uniform": [−1, 1]².
-    - ``human`` (a name in ``strol_gym.humans.HUMANS``: "nominal", "boltzmann", "driver" or
-      one registered with ``register_human``; a ``"module:attr"``; or a callable
-      ``factory(task, theta_star, rng, sigma=, bias=, beta=, **human_kwargs) -> Human``, given
-      only the keyword arguments it declares; default "nominal", the eq. M6 teacher).
-    - ``human_kwargs`` (dict or None): the human model's own keyword arguments.
-    - ``beta`` (float ≥ 0, default 50): rationality of the "boltzmann" human.
     - ``n_corrections`` (int ≥ 0, default 5): steps during which the human corrects.
     - ``max_episode_steps`` (int ≥ 1 or None): through ``gymnasium.make`` this is gymnasium's
       own TimeLimit argument (registered default 10); given to ``RobotEnv`` directly, the env
@@ -158,6 +163,10 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
             self.data.qpos[:] = qpos
             mujoco.mj_kinematics(self.model, self.data)
         self.data.ctrl[:N_ARM] = self.ik.q
+        self._ctrl = self.data.ctrl[:N_ARM]
+        # The fused step's inputs (``_advance``): x, u_H, u_R, then the box's corners.
+        self._moves = np.zeros((5, 3))
+        self._moves[3:] = self.task.workspace_low, self.task.workspace_high
 
     def move_to(self, x: np.ndarray) -> np.ndarray:
         """Put the end effector at ``x`` (task frame) from the nearest IK seed; returns the real
@@ -180,6 +189,13 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         return {"target": self._x, "ik_error": 0.0}
 
     def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+        move = move_arm() if use_fast() and self.task._unchanged(RobotTask, _DYNAMICS) else None
+        if move is not None:  # the same numbers in one compiled call (``ik_kernel.move_arm``)
+            moves = self._moves
+            moves[0], moves[1], moves[2] = self._x, u_h, u_r
+            out = np.empty((2, 3))
+            ik_error = move(self.ik, moves, IK_ITERS, IK_TOL, self._ctrl, out)
+            return out[1].copy(), {"target": out[0], "ik_error": ik_error}
         target = self.task.dynamics(self._x, u_h, u_r)
         ik_error = self.ik.solve(target)
         self.data.ctrl[:N_ARM] = self.ik.q
@@ -188,7 +204,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
     # ------------------------------------------------------------------ render, close, pickle
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
-        for key in ("model", "data", "ik", "_renderer", "_viewer"):
+        for key in ("model", "data", "ik", "_renderer", "_viewer", "_ctrl"):
             state.pop(key, None)
         state["_qpos"] = self.data.qpos.copy()
         return state

@@ -3,14 +3,17 @@ that carries a cup, in MuJoCo.
 
 - ``env``: ``StudyEnv``, one class for every version; ``StudyEnv`` is v0 (as published),
   ``StudyEnvV1`` names v1, ``StudyEnvV2`` v2.
-- ``versions``: what each version changes, a frozen ``StudyVersion`` of options (``V0``,
-  ``V1``); a new version is a new option set.
+- ``versions``: each version said once, a frozen ``StudyVersion`` of options (``V0``, ``V1``,
+  ``V2``, ``VERSIONS``) from which its env id, env class, Tasks and ĝ names derive; a new
+  version is a new option set.
 - ``controller``: the impedance controllers (v0's, v1's); ``geometry``: pose helpers and the
   reachable box; ``scene``: the MuJoCo scene.
 - ``people``: the interface of whoever pushes (``Pusher``); ``user`` (the regret-judging
   simulated user), ``participant`` (the simulated participant who judges what it sees, and
   ``FittedParticipant``, v2's default); ``population`` (the population fitted to the authors'
-  twelve participants, read from the shipped ``participant_fit.json``).
+  twelve participants, read from the shipped ``participant_fit.json``); ``persons``: those
+  people by the names ``person=`` gives them (``"fitted"``, ``"observer"``, ``"oracle"``), what
+  each takes and builds (``StudyPerson``, the env's ``person`` slot).
 - ``metrics``: the study's metrics the authors' way.
 
 Names load their module on first use.

@@ -2,13 +2,13 @@
 
 One env class for every version: :class:`StudyEnv` reads what its version changes from its
 ``version`` (a :class:`~strol_gym.envs.study.versions.StudyVersion`); ``StudyEnv`` itself is
-v0 (as published) and :class:`StudyEnvV1` names v1. The controllers are in ``controller``, the
+v0 (as published), :class:`StudyEnvV1` and :class:`StudyEnvV2` name v1 and v2 (each version's
+``env_class``, registered from ``versions.VERSIONS``). The controllers are in ``controller``, the
 pose helpers in ``geometry``, the people who push in ``user`` and ``participant``.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 from typing import Any, ClassVar, cast
@@ -21,24 +21,21 @@ from gymnasium import spaces
 from strol_gym import checks
 from strol_gym.envs.contract import CorrectionEnv, int_arg, render_metadata, vector_arg
 from strol_gym.envs.panda.model import FINGER_OPEN, N_ARM, MujocoRendering
-from strol_gym.envs.study import population
+from strol_gym.envs.study import persons
 from strol_gym.envs.study.admittance import REST
 from strol_gym.envs.study.controller import _INSTABILITY, ImpedanceController, Velocity
 from strol_gym.envs.study.geometry import angle_delta, rotation_error, straight, within_reach
-from strol_gym.envs.study.participant import FittedParticipant, Participant
 from strol_gym.envs.study.people import TORQUE_LEVER, HeldWrench, ScriptedWrench
+from strol_gym.envs.study.persons import StudyPerson
 from strol_gym.envs.study.scene import build_model, model_q
 from strol_gym.envs.study.segment import HOLD_OFF_RANGE, PushSegmenter
-from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.envs.study.versions import PARTICIPANTS, REST_TRUST, V0, V1, V2, StudyVersion
-from strol_gym.humans import Human
-from strol_gym.humans.spec import DEFAULT_BETA, DEFAULT_HUMAN, HumanSpec
+from strol_gym.humans.spec import DEFAULT_PERSON, HumanSpec, person_spec
 from strol_gym.priors import Prior
 from strol_gym.tasks import make_task
 from strol_gym.tasks.study import (
     CONTROL_DT,
     SEGMENT_TIME,
-    STUDY_TASKS,
     StudyTask,
     StudyTaskV2,
     mat_to_rpy,
@@ -67,9 +64,10 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
     robot holds its setpoint while it is pushed and replans (from where it is) whenever θ̂
     changes. At the end of a plan it waits 2 s, returns home and plays its current plan again.
 
-    External wrenches come from three sources, summed each step: the simulated user
-    (``human``), ``apply_wrench`` (scripted, for a duration) and ``hold_wrench`` (held until
-    changed: what an interactive front end writes after reading the viewer's perturbation).
+    External wrenches come from three sources, summed each step: the simulated person
+    (``person``; ``env.person`` this episode), ``apply_wrench`` (scripted, for a duration)
+    and ``hold_wrench`` (held until changed: what an interactive front end writes after
+    reading the viewer's perturbation).
     The env does not know which one pushed.
 
     ## Action Space
@@ -114,13 +112,16 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
     ## Arguments
 
     - ``task`` (1 | 2 | 3, a ``StudyTask`` or its registered name; default 1).
-    - ``human`` (a human model name, "module:attr" or factory for the simulated user's choice
-      of correction, default "nominal" = eq. M6; ``None``: no simulated user).
-    - ``sigma``, ``bias`` (fractions of a_max = 0.1 m, 0.3 rad), ``beta`` (≥ 0, default 50),
-      ``human_kwargs``: the human model's parameters; ``user_kwargs``: the simulated user's
-      (``push_force``, ``push_torque``, ``ramp``, ``max_push``, ``decide_every``, ``rest``,
+    - ``person``: who pushes (``strol_gym.envs.study.persons``). Omitted: the version's default
+      (v0: ``"oracle"``, the regret-judging user correcting as eq. M6 wants). A name: the
+      version's people (v1: ``"observer"``, ``"oracle"``; v2 also ``"fitted"``) or a human
+      model's name (the oracle with that model); or ``HumanSpec(name, sigma=, bias=, beta=,
+      kwargs=)`` (or a dict of those fields): σ, ε (fractions of a_max = 0.1 m, 0.3 rad) and β
+      where the person uses them, ``kwargs`` its own parameters (the oracle's: the model's and
+      ``push_force``, ``push_torque``, ``ramp``, ``max_push``, ``decide_every``, ``rest``,
       ``min_correction``, ``tol``, ``ang_tol``, ``satisfied_regret``;
-      ``strol_gym.envs.study.user``).
+      ``strol_gym.envs.study.user``). A value the person does not use raises ValueError
+      naming it. ``None``: no simulated person (scripted or a real person's pushes only).
     - ``prior`` (None = the Task's multimodal prior, "uniform", a ``Prior`` or modes).
     - ``force_threshold`` (N, > 0, default 15), ``hold_off`` (v2 only: s in [0, 0.5], default
       0.4; how long the force must stay at or below the threshold for a correction to end),
@@ -132,15 +133,18 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
 
     ## Version History
 
-    - v1 (``strol_gym.envs.study.env``): u_H is measured from the held setpoint, tracking that
-      makes the arm's catch-up negligible, the Panda's joint limits, a force reflex, and a
-      participant who judges what it sees. Use it.
+    - v2 (``StudyEnvV2``): u_H by counterfactual, an admittance layer, plans within reach
+      and outside the objects, one push one correction, the fitted population. Use it.
+    - v1 (``StudyEnvV1``): u_H is measured from the held setpoint, tracking that makes the
+      arm's catch-up negligible, the Panda's joint limits, a force reflex, and a participant
+      who judges what it sees (deprecated).
     - v0: initial version; kept unchanged for the published results (deprecated).
     """
 
     metadata: dict[str, Any] = render_metadata(fps=20)
     version: ClassVar[StudyVersion] = V0
-    """What this version changes (``strol_gym.envs.study.versions``)."""
+    """What this version changes (``strol_gym.envs.study.versions``); a subclass names its
+    version and nothing else (``env_id`` and ``reach`` follow from it)."""
     env_id: ClassVar[str] = V0.env_id
     reach: tuple[np.ndarray, np.ndarray, float] | None = V0.reach
     """The box the executed plans stay in (``within_reach``; None: the Task's plans as they
@@ -154,40 +158,30 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self,
         task: int | StudyTask | str = 1,
         *,
+        person: Any = DEFAULT_PERSON,
         prior: str | Prior | Any | None = None,
         force_threshold: float = 15.0,
         duration: float = 60.0,
         stiffness: float | None = None,
         rot_stiffness: float | None = None,
-        user_kwargs: dict[str, Any] | None = None,
         reflex_force: float | None = None,
         reflex_torque: float | None = None,
         reflex_recover: float | None = None,
-        participant: str | None = None,
         hold_off: float | None = None,
         **kwargs: Any,
     ) -> None:
-        """The arguments of the env's docstring; ``reflex_*``, ``participant`` and
-        ``hold_off`` only where the version has them (None: its default)."""
+        """The arguments of the env's docstring; ``reflex_*`` and ``hold_off`` only where the
+        version has them (None: its default)."""
         v = self.version
         extra = {"reflex_force": reflex_force, "reflex_torque": reflex_torque}
         extra |= {"reflex_recover": reflex_recover}
         given = sorted(k for k, x in extra.items() if x is not None) if not v.reflex else []
-        if participant is not None and not v.participants:
-            given.append("participant")
         if hold_off is not None and v.hold_off is None:
             given.append("hold_off")
         if given:
             raise ValueError(f"unknown argument(s) {given}; {self.env_id} has none of them")
-        if v.participants:
-            participant = v.participants[0] if participant is None else participant
-            if participant not in v.participants:
-                raise ValueError(
-                    f"participant must be one of {sorted(v.participants)}, got {participant!r}"
-                )
-        if participant in ("observer", "fitted"):
-            _observer_takes_no_model(kwargs, participant)
-        self.participant = participant
+        self.person: StudyPerson | None = None
+        """This episode's simulated person (None: nobody simulated pushes)."""
         low, high = HOLD_OFF_RANGE
         self.hold_off = (
             0.0
@@ -218,32 +212,56 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 f"unknown argument(s) ['n_corrections']; {self.env_id}'s simulated user corrects "
                 "when it chooses"
             )
-        self.user_kwargs = checks.mapping("user_kwargs", user_kwargs)
         self.force_threshold = _positive("force_threshold", force_threshold)
         self.duration = _positive("duration", duration)
         self.stiffness = _positive("stiffness", v.stiffness if stiffness is None else stiffness)
         self.rot_stiffness = _positive(
             "rot_stiffness", v.rot_stiffness if rot_stiffness is None else rot_stiffness
         )
-        super().__init__(task=task, prior=prior, **kwargs)
+        super().__init__(task=task, prior=prior, person=person, **kwargs)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.env_id, cls.reach = cls.version.env_id, cls.version.reach
 
     def _make_task(self, task: Any) -> StudyTask:
         """1, 2 or 3 (the paper's Tasks), a ``StudyTask`` or its registered name."""
         if isinstance(task, int | np.integer) and not isinstance(task, bool):
-            return (self.version.tasks or STUDY_TASKS)[int_arg("task", task, 1, 3)]()
+            return self.version.numbered[int_arg("task", task, 1, 3)]()
         if not isinstance(task, StudyTask | str):
             raise ValueError(f"task must be 1, 2 or 3 (or a StudyTask), got {task!r}")
         return make_task(task, of=StudyTask)
 
+    @classmethod
+    def resolve_person(cls, person: Any) -> HumanSpec | None:
+        """The ``person=`` argument as this version uses it (``persons.as_used``)."""
+        participants = cls.version.participants
+        spec = person_spec(person, persons.default_person(participants))
+        return None if spec is None else persons.as_used(spec, participants)
+
     @property
     def user_enabled(self) -> bool:
-        """Whether a simulated user pushes (``human`` not None)."""
-        return self.human_model is not None
+        """Whether a simulated person pushes (``person`` not None)."""
+        return self.person_spec is not None
+
+    @property
+    def theta_star(self) -> np.ndarray:
+        """The person's current preference θ* (the Task's when nobody simulated pushes)."""
+        person = self.person
+        if person is not None:
+            return np.asarray(person.theta_star, dtype=np.float64)
+        return self._theta_star
+
+    @theta_star.setter
+    def theta_star(self, value: np.ndarray) -> None:
+        self._theta_star = np.asarray(value, dtype=np.float64)
 
     def _setup(self) -> None:
         self.task: StudyTask
-        if self.user_enabled:  # fail at construction, not at the first reset
-            self._new_user(self.task.theta_star, np.random.default_rng(0))
+        if self.person_spec is not None:  # fail at construction, not at the first reset
+            persons.build(
+                self.person_spec, self.task, self.task.theta_star, np.random.default_rng(0)
+            )
         t = self.task
         f32 = np.float32
         lim = np.array([2.0] * 3 + [4.0] * (t.state_dim - 3), dtype=f32)
@@ -256,16 +274,6 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._viewer: Any = None
         self._build()
         self._reset_sim()
-
-    def _user_params(self) -> dict[str, Any]:
-        return {
-            "model": self.human_model,
-            "sigma": self.sigma,
-            "bias": self.bias,
-            "beta": self.beta,
-            "human_kwargs": self.human_kwargs,
-            **self.user_kwargs,
-        }
 
     # ------------------------------------------------------------------ model
     def _build(self) -> None:
@@ -383,12 +391,11 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
             w[3:] += tq
             if self._scripted.done:
                 self._scripted = None
-        if self.user_enabled and self.human is not None:
+        person = self.person
+        if person is not None:
             # A participant who only sees the cup is handed no θ̂.
-            seen = self.theta_hat if getattr(self.human, "needs_theta_hat", True) else None
-            # the study's person pushes (a Pusher: SimulatedUser, Participant), held in the
-            # env's human slot; the study never asks it to act
-            f, tq = self.human.wrench(self._time, self._x, seen)  # type: ignore[attr-defined]
+            seen = self.theta_hat if person.needs_theta_hat else None
+            f, tq = person.wrench(self._time, self._x, seen)
             w[:3] += f
             w[3:] += tq
         if self.version.reflex:
@@ -493,26 +500,16 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         return step, (dx / dt, dy / dt, dz / dt, rx / dt, ry / dt, rz / dt)
 
     # ------------------------------------------------------------------ reset / step
-    def _make_human(self, theta_star: np.ndarray, rng: np.random.Generator) -> Human | None:
-        if not self.user_enabled:
-            return None
-        # a Pusher in the human slot (see _external_wrench's note)
-        return self._new_user(theta_star, rng)  # type: ignore[return-value]
+    def human_maker(self) -> None:
+        """None: the study's person pushes (``env.person``), it is no correcting ``Human``."""
+        return None
 
-    def _new_user(self, theta_star: np.ndarray, rng: np.random.Generator) -> SimulatedUser:
-        """The simulated person who pushes: the ``participant`` "fitted" (a person drawn from
-        the fitted population with ``rng``, ``FittedParticipant``), "observer"
-        (``Participant``), else the regret-judging ``SimulatedUser`` (v0's; "oracle")."""
-        if self.participant == "fitted":
-            params = population.shipped().draw(rng, self.task.number)
-            if self.user_kwargs:
-                params = dataclasses.replace(params, **self.user_kwargs)
-            return FittedParticipant(self.task, theta_star, rng, params=params)
-        if self.participant == "observer":
-            return Participant(
-                self.task, theta_star, rng, sigma=self.sigma, bias=self.bias, **self.user_kwargs
-            )
-        return SimulatedUser(self.task, theta_star, rng, **self._user_params())
+    def _start_episode(self, theta_star: np.ndarray, human_rng: np.random.Generator) -> None:
+        """The template's, then this episode's person (``persons.build``) from ``human_rng``."""
+        self.person = None
+        super()._start_episode(theta_star, human_rng)
+        if self.person_spec is not None:
+            self.person = persons.build(self.person_spec, self.task, theta_star, human_rng)
 
     def draw_theta_stars(self, rngs: list[np.random.Generator]) -> np.ndarray:
         """The Task's θ* (the study's participant wants one thing); no draw."""
@@ -603,7 +600,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
                 braked=self._braked,
                 reflexes=self._n_reflex,
                 lag=math.dist(self._sp[:3].tolist(), self._x[:3].tolist()),
-                gave_up=float(getattr(self.human, "gave_up", False)),
+                gave_up=float(getattr(self.person, "gave_up", False)),
             )
         if self.version.contact_info:
             self._n_contact += self._touched
@@ -780,44 +777,14 @@ def _positive(name: str, value: Any) -> float:
     return float(checks.number(name, value, low=0, low_open=True, text=True))
 
 
-def _observer_takes_no_model(kwargs: dict[str, Any], who: str = "observer") -> None:
-    """``participant="observer"`` chooses its pushes itself (θ*-greedy over the poses it sees,
-    with the env's σ and ε: ``participant``), ``"fitted"`` from its fitted aim and sizes: a
-    human model, its β or its ``human_kwargs`` would be taken and never used, so they are
-    refused (``participant="oracle"`` uses them)."""
-    spec = HumanSpec.from_args(
-        kwargs.get("human", DEFAULT_HUMAN),
-        beta=kwargs.get("beta", DEFAULT_BETA),
-        human_kwargs=kwargs.get("human_kwargs"),
-    )
-    if spec.name is None:  # no simulated participant: nothing to ignore
-        return
-    rest = f"participant={who!r} chooses its own pushes, with no human model; 'oracle' takes one"
-    if spec.name != DEFAULT_HUMAN:
-        raise ValueError(
-            f"human must be {DEFAULT_HUMAN!r} (the default: the participant pushes) or None "
-            f"(nobody does) with participant={who!r}, got {spec.name!r} ({rest})"
-        )
-    if spec.kwargs:
-        raise ValueError(
-            f"human_kwargs must be empty with participant={who!r}, got {spec.kwargs!r} ({rest})"
-        )
-    if spec.beta != DEFAULT_BETA:
-        raise ValueError(
-            f"beta must be left at {DEFAULT_BETA:g} with participant={who!r}, got "
-            f"{spec.beta!r} ({rest})"
-        )
-
-
 class StudyEnvV1(StudyEnv):
     """StROL-Study-v1: the study env with version ``V1``: u_H = the person's
     push, the Panda's joint limits and a Cartesian force reflex (``versions.V1``,
     ``docs/study.md``). It only names its version: the env is ``StudyEnv``.
 
-    Extra arguments: ``participant`` ("observer", default, or "oracle"; ``PARTICIPANTS``; the
-    simulated person when ``human`` is not None; "observer" takes no human model: ``human``
-    other than "nominal" or None, ``beta`` or ``human_kwargs`` raise ValueError),
-    ``reflex_force`` (N, > 0, default 100), ``reflex_torque`` (N m, > 0, default 10),
+    Its people (``person``): "observer" (default; σ, ε and ``ParticipantParams``, no human
+    model, no β) or "oracle" (v0's user; a human model's name picks its model). Extra
+    arguments: ``reflex_force`` (N, > 0, default 100), ``reflex_torque`` (N m, > 0, default 10),
     ``reflex_recover`` (s, > 0, default 0.5).
     Extra ``info``: ``reflex`` (the reflex tripped this step), ``braked``, ``reflexes`` (count
     this episode), ``lag`` (the cup's distance to its setpoint, m), ``gave_up`` (1.0 once the
@@ -832,8 +799,6 @@ class StudyEnvV1(StudyEnv):
     """
 
     version: ClassVar[StudyVersion] = V1
-    env_id: ClassVar[str] = V1.env_id
-    reach: tuple[np.ndarray, np.ndarray, float] | None = V1.reach
 
 
 class StudyEnvV2(StudyEnv):
@@ -891,10 +856,11 @@ class StudyEnvV2(StudyEnv):
       included; ``correction_time`` counts the seconds above the threshold.
       ``info["correction_phase"]``: "idle", "pushing", "holding" (the hold-off) or "ended".
 
-    The participant is a person of the population fitted to the authors' twelve participants
-    (``participant="fitted"``, default; ``population``, ``participant.FittedParticipant``;
-    ``user_kwargs`` override its drawn fields), or v1's ``"observer"`` and ``"oracle"``; the
-    ĝ are v2's own (trained on the fitted population's corrections).
+    The person is one of the population fitted to the authors' twelve participants
+    (``person="fitted"``, default; ``population``, ``participant.FittedParticipant``; its
+    ``kwargs`` override the drawn fields; it takes no σ, ε or β: its noise is fitted), or v1's
+    ``"observer"`` and ``"oracle"``; the ĝ are v2's own (trained on the fitted population's
+    corrections).
 
     ## Version History
 
@@ -906,8 +872,6 @@ class StudyEnvV2(StudyEnv):
     """
 
     version: ClassVar[StudyVersion] = V2
-    env_id: ClassVar[str] = V2.env_id
-    reach: tuple[np.ndarray, np.ndarray, float] | None = V2.reach
 
 
 __all__ = ["PARTICIPANTS", "StudyEnv", "StudyEnvV1", "StudyEnvV2", "rotation_error"]

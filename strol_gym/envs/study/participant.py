@@ -80,7 +80,7 @@ class Participant(SimulatedUser):
         params: ParticipantParams | None = None,
         **kwargs: Any,
     ) -> None:
-        """``params``, or its fields as keywords (``user_kwargs``), say how it pushes and
+        """``params``, or its fields as keywords (the person's ``kwargs``), say how it pushes and
         judges; v0's user's ``model``, ``beta``, ``human_kwargs`` and ``satisfied_regret`` are
         taken and unused (it judges what it sees)."""
         for unused in ("model", "beta", "human_kwargs", "satisfied_regret"):

@@ -4,7 +4,7 @@ participant (``participant.Participant``), a script (:class:`ScriptedWrench`) or
 the viewer (:class:`HeldWrench`, what an interactive front end writes) pushed.
 
 The simulated people's parameters are frozen dataclasses, checked once where they are made
-(each error names the ``user_kwargs`` key and its range).
+(each error names the person's ``kwargs`` key and its range).
 """
 
 from __future__ import annotations
@@ -79,12 +79,12 @@ class HeldWrench:
 
 
 def _check(name: str, value: float, low: float, strict: bool) -> float:
-    return float(checks.number(f"user_kwargs[{name!r}]", value, low=low, low_open=strict))
+    return float(checks.number(f"person kwargs[{name!r}]", value, low=low, low_open=strict))
 
 
 def _check_fields(params: object, lows: dict[str, tuple[float, bool]]) -> None:
     """Check the named fields of a frozen params object in place: each ``name: (low,
-    strict)`` a number ≥ low (> low if strict), the error naming its ``user_kwargs`` key."""
+    strict)`` a number ≥ low (> low if strict), the error naming its ``person kwargs`` key."""
     for name, (low, strict) in lows.items():
         object.__setattr__(params, name, _check(name, getattr(params, name), low, strict))
 
@@ -132,9 +132,9 @@ class ParticipantParams(PushParams):
         lows = {"threshold_noise": 0.0, "window": 1e-9, "min_motion": 1e-9, "reaction": 0.0}
         lows |= {"improvement": 0.0, "step": 1e-9, "stall": 1e-9}
         _check_fields(self, {name: (low, False) for name, low in lows.items()})
-        threshold = float(checks.number("user_kwargs['threshold']", self.threshold))
+        threshold = float(checks.number("person kwargs['threshold']", self.threshold))
         object.__setattr__(self, "threshold", threshold)
-        object.__setattr__(self, "patience", int_arg("user_kwargs['patience']", self.patience, 1))
+        object.__setattr__(self, "patience", int_arg("person kwargs['patience']", self.patience, 1))
 
 
 @dataclass(frozen=True)
@@ -186,18 +186,18 @@ class FittedParams(ParticipantParams):
         lows["min_felt"] = (0.0, False)
         lows |= dict.fromkeys(("size_within", "turn_within"), (0.0, False))
         _check_fields(self, lows)
-        object.__setattr__(self, "budget", int_arg("user_kwargs['budget']", self.budget, 0))
+        object.__setattr__(self, "budget", int_arg("person kwargs['budget']", self.budget, 0))
         if self.correction not in CORRECTIONS:
             raise ValueError(
-                f"user_kwargs['correction'] must be one of {', '.join(CORRECTIONS)}, "
+                f"person kwargs['correction'] must be one of {', '.join(CORRECTIONS)}, "
                 f"got {self.correction!r}"
             )
         watch = self.path_time
         if isinstance(watch, bool) or not isinstance(watch, int | float) or not watch > 0:
-            raise ValueError(f"user_kwargs['path_time'] must be a number > 0 (s), got {watch!r}")
+            raise ValueError(f"person kwargs['path_time'] must be a number > 0 (s), got {watch!r}")
         object.__setattr__(self, "path_time", float(watch))
         if self.hazard is not None:
-            h = checks.vector("user_kwargs['hazard']", self.hazard, 3)
+            h = checks.vector("person kwargs['hazard']", self.hazard, 3)
             for name, v in zip(("a", "b", "c"), h.tolist(), strict=True):
-                checks.number(f"user_kwargs['hazard'] ({name})", v, low=-50.0, high=50.0)
+                checks.number(f"person kwargs['hazard'] ({name})", v, low=-50.0, high=50.0)
             object.__setattr__(self, "hazard", tuple(float(v) for v in h))

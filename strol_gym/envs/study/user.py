@@ -57,7 +57,7 @@ class SimulatedUser:
         params: PushParams | None = None,
         **push: Any,
     ) -> None:
-        """``params``, or its fields as keywords (``user_kwargs``), say how it pushes."""
+        """``params``, or its fields as keywords (the person's ``kwargs``), say how it pushes."""
         self.params = params if params is not None else PushParams(**push)
         self._regrets: dict[bytes, float] = {}
         self.task = task

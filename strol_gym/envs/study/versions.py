@@ -1,9 +1,15 @@
 """The versions of StROL-Study as option sets of one env class (``strol_gym.envs.study.env``).
 
-Each version is a frozen :class:`StudyVersion`: what it changes is a field, read by the one
-``StudyEnv``; no version subclasses another to override its internals. A new version (say
-``StROL-Study-v2``) is a new ``StudyVersion`` (its new behaviour a new field whose default
-keeps v0 and v1 as they are), a class that names it (``version = V2``) and a registration.
+Each version is a frozen :class:`StudyVersion`, said once here: its number, and what it changes
+as fields read by the one ``StudyEnv`` (no version subclasses another to override its
+internals). Everything else that names a version derives from it: its env id
+(``StROL-Study-vN``), its registration and env class (``env_class``), its Tasks
+(``tasks``: ``strol_gym.tasks.study.STUDY_TASK_SETS``, their ``task_id`` the key of their
+shipped ĝ and ``weights_stem`` the files' names) and the benchmark's presets and
+``--env-version`` choices. A new version is a new ``StudyVersion`` in ``VERSIONS`` (its new
+behaviour a new field whose default keeps the others as they are), its Tasks and an env class
+that names it (``version = V3``); ``tests/test_study_versions.py`` checks that every name
+agrees.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from strol_gym.envs.study.geometry import REACH_ANGLE, REACH_HIGH, REACH_LOW
-from strol_gym.tasks.study import STUDY_TASKS_V2, StudyTask
+from strol_gym.tasks.study import STUDY_TASK_SETS, StudyTask, study_env_id
 
 PARTICIPANTS = ("observer", "oracle")
 """``observer``: ``Participant``, who judges the cup's motion under its θ* (held out: no shipped
@@ -39,8 +45,8 @@ REST_TRUST = 0.01
 class StudyVersion:
     """The options of one StROL-Study version (docs/study.md measures each change)."""
 
-    name: str
-    env_id: str
+    number: int
+    """N in ``StROL-Study-vN``: the version's every name derives from it."""
     controller: str = "v0"
     """The impedance law (``strol_gym.envs.study.controller``): "v0" or "v1" (integral,
     Λ-based damping, feedforward, null-space home pull, joint speed limits)."""
@@ -78,8 +84,9 @@ class StudyVersion:
     hull_return: bool = False
     """The way home goes around the objects' hulls (``StudyTaskV2.around_hulls``), not through
     them in a straight line."""
-    tasks: Mapping[int, type[StudyTask]] | None = None
-    """The Task classes ``task=1, 2, 3`` build (None: ``STUDY_TASKS``, the published ones)."""
+    numbered_tasks: int | None = None
+    """The version whose Tasks ``task=1, 2, 3`` build (None: this version's own, ``tasks``).
+    v1: 0, v0's Tasks and so v0's ĝ, as v1 shipped; v1's own by name (``study-task1-v1``)."""
     admittance: bool = False
     """The person's wrench moves the controller's target through an isotropic virtual
     mass-spring-damper (``strol_gym.envs.study.admittance``; its stiffness the ``stiffness`` and
@@ -108,22 +115,47 @@ class StudyVersion:
     lasts the arm yields: below the threshold the setpoint follows the cup, so the arm stays
     where the person left it instead of springing back through the hold-off."""
 
+    @property
+    def name(self) -> str:
+        """``vN``: the version's name on the benchmark's command line (``--env-version``)."""
+        return f"v{self.number}"
 
-V0 = StudyVersion("v0", "StROL-Study-v0")
+    @property
+    def env_id(self) -> str:
+        """``StROL-Study-vN``, its registered id."""
+        return study_env_id(self.number)
+
+    @property
+    def env_class(self) -> str:
+        """The name of the class in ``strol_gym.envs.study.env`` that registers it:
+        ``StudyEnv`` (v0), ``StudyEnvVN``."""
+        return f"StudyEnvV{self.number}" if self.number else "StudyEnv"
+
+    @property
+    def tasks(self) -> Mapping[int, type[StudyTask]]:
+        """Its Task classes by number (``STUDY_TASK_SETS``): their ``task_id`` keys their ĝ."""
+        return STUDY_TASK_SETS[self.number]
+
+    @property
+    def numbered(self) -> Mapping[int, type[StudyTask]]:
+        """The Task classes ``task=1, 2, 3`` build (``numbered_tasks``)."""
+        return STUDY_TASK_SETS[self.number if self.numbered_tasks is None else self.numbered_tasks]
+
+
+V0 = StudyVersion(0)
 """As published: kept unchanged for the published results."""
 V1 = StudyVersion(
-    "v1",
-    "StROL-Study-v1",
+    1,
     controller="v1",
     rest_pose=True,
     reach=(REACH_LOW, REACH_HIGH, REACH_ANGLE),
     reflex=True,
     participants=PARTICIPANTS,
+    numbered_tasks=0,
 )
 """u_H = the person's push, tracking, the reachable box, the Panda's limits, the reflex."""
 V2 = StudyVersion(
-    "v2",
-    "StROL-Study-v2",
+    2,
     controller="v1",
     counterfactual=True,
     joint_brake=True,
@@ -133,7 +165,6 @@ V2 = StudyVersion(
     rot_stiffness=10.0,
     reflex=True,
     participants=PARTICIPANTS_V2,
-    tasks=STUDY_TASKS_V2,
     hull_return=True,
     admittance=True,
     track_bandwidth=14.0,
@@ -146,3 +177,16 @@ V2 = StudyVersion(
 hulls in its planner (no executed box: ``reach`` None), a softer arm, ``info["contact"]``, one
 push one correction (the hold-off)."""
 VERSIONS = {v.name: v for v in (V0, V1, V2)}
+"""Every StROL-Study version by name, oldest first: the registrations, the Task registry's
+study Tasks and the benchmark's ``--env-version`` follow it."""
+LATEST = max(VERSIONS.values(), key=lambda v: v.number)
+"""The version to use (gymnasium warns on making an older one)."""
+
+
+def version_of(env_id: str) -> StudyVersion:
+    """The version registered as ``env_id``; ValueError naming the study's ids otherwise."""
+    for v in VERSIONS.values():
+        if v.env_id == env_id:
+            return v
+    ids = [v.env_id for v in VERSIONS.values()]
+    raise ValueError(f"env_id must be one of {ids}, got {env_id!r}")

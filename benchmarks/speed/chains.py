@@ -1,6 +1,6 @@
 """Env step cost in chains, a yardstick that travels between machines, from one process.
 
-    taskset -c 1 .venv/bin/python -m lab.speed.chains [--envs 1024]
+    taskset -c 1 .venv/bin/python -m strol_gym.benchmarks.speed.chains [--envs 1024]
 
 One **chain** is one IK iteration's MuJoCo calls (``mj_kinematics`` + ``mj_comPos`` +
 ``mj_jacSite``) on the Robot env's own model. It is timed in this process, before and after the
@@ -11,7 +11,9 @@ per sub-env step of a vector env of ``--envs`` sub-envs. Rows: StROL-Robot-v0 an
 StROL-Highway-v0 with the default human and without one (``n_corrections=0``). Which kernels
 ran (``STROL_GYM_KERNELS``, docs/vector.md "Speed") is printed, with the load averages, the
 first env's extra cost (compiling the IK kernel) and the memory per sub-env (traced allocations,
-as ``speed.vector``). Pin it to one core: ``taskset -c 1``.
+as ``lab/speed/vector.py``). Then each target (``TARGETS``, chains per step, single / per
+sub-env at N = 1024) with its figure and whether it is met. Pin it to one core:
+``taskset -c 1``.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import time  # noqa: E402
 import gymnasium as gym  # noqa: E402
 import mujoco  # noqa: E402
 
-from lab.speed.vector import (  # noqa: E402
+from strol_gym.benchmarks.speed.rates import (  # noqa: E402
     ENVS,
     HUMANS,
     load,
@@ -37,6 +39,33 @@ from lab.speed.vector import (  # noqa: E402
 )
 from strol_gym.compiled import kernels_in_use  # noqa: E402
 from strol_gym.envs.robot.env import RobotEnv  # noqa: E402
+
+TARGETS: dict[tuple[str, str], tuple[float, float]] = {
+    ("StROL-Robot-v0", "default human"): (10.0, 3.0),
+    ("StROL-Robot-v0", "no human"): (8.0, 0.8),
+    ("StROL-Highway-v0", "default human"): (35.0, 9.0),
+}
+"""At most this many chains per env step: (single env, per sub-env at N = 1024)."""
+TARGET_ENVS = 1024
+
+
+def target_lines(figures: dict[tuple[str, str], tuple[float, float]], envs: int) -> list[str]:
+    """One line per target: the figure measured beside it and whether it is met."""
+    lines = []
+    for (env_id, label), limits in TARGETS.items():
+        got = figures.get((env_id, label))
+        if got is None:
+            continue
+        for kind, limit, value in zip(("single", f"N={envs}"), limits, got, strict=True):
+            if kind != "single" and envs != TARGET_ENVS:
+                verdict = f"not compared (the target is at N={TARGET_ENVS})"
+            else:
+                verdict = "met" if value <= limit else "NOT met"
+            lines.append(
+                f"target {env_id} {label}, {kind}: <= {limit:g} chains; measured {value:.2f}: "
+                f"{verdict}"
+            )
+    return lines
 
 
 def chain_seconds(seconds: float, repeats: int) -> float:
@@ -82,6 +111,9 @@ def main() -> None:
     parser.add_argument("--envs", type=int, default=1024)
     parser.add_argument("--seconds", type=float, default=2.0)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--env", choices=("both", *ENVS), default="both", help="only this env's rows (default both)"
+    )
     args = parser.parse_args()
     if args.envs < 65:
         parser.error("--envs must be at least 65 (memory is measured against 64 sub-envs)")
@@ -96,21 +128,26 @@ def main() -> None:
         f"{'env':18s} {'human':14s} {'single':>8s} {many:>8s}   (chains per env step;"
         f" steps per CPU second: single, {many})"
     )
-    for env_id in ENVS:
+    envs = ENVS if args.env == "both" else (args.env,)
+    figures: dict[tuple[str, str], tuple[float, float]] = {}
+    for env_id in envs:
         for label, kwargs in HUMANS.items():
             one = single_rate(env_id, args.seconds, args.repeats, **kwargs)[1]
             vec = vector_rate(env_id, args.envs, args.seconds, args.repeats, **kwargs)[1]
+            figures[env_id, label] = (1 / one / chain, 1 / vec / chain)
             print(
                 f"{env_id:18s} {label:14s} {1 / one / chain:8.1f} {1 / vec / chain:8.2f}"
                 f"   ({one:,.0f}/s, {vec:,.0f}/s)"
             )
     chain_after = chain_seconds(args.seconds, args.repeats)
     print(f"one chain, after: {chain_after * 1e6:.2f} µs CPU (the figures use the first)")
-    for env_id in ENVS:
+    for env_id in envs:
         big, small = traced_bytes(env_id, args.envs), traced_bytes(env_id, 64)
         per = (big - small) / (args.envs - 64)
         print(f"{env_id:18s} memory per sub-env ≈ {per / 1024:.2f} KiB (traced numpy/Python)")
     print(f"load average after: {load()}")
+    for line in target_lines(figures, args.envs):
+        print(line)
 
 
 if __name__ == "__main__":
