@@ -414,3 +414,80 @@ def test_the_switch_reads_its_variable_and_names_a_bad_value():
     bad = _mode_in_a_fresh_process("turbo")
     assert bad.returncode != 0
     assert "STROL_GYM_KERNELS must be one of auto, plain, fast, got 'turbo'" in bad.stderr
+
+
+def test_study_v2_plans_are_the_same_bytes_on_both_paths(path):
+    from strol_gym.tasks.study import StudyTask1V2, StudyTask3V2
+
+    rng = np.random.default_rng(56)
+    for task in (StudyTask1V2(), StudyTask3V2()):  # upright; turning (Tasks 2-3 share it)
+        for b in (1, 3):
+            theta = rng.uniform(-1, 1, (b, task.dim))
+            x0 = task.sample_start(rng, b)  # some inside a hull or outside the reachable box
+            path(False)
+            plain = task.plan(theta, x0)
+            path(True)
+            assert task.plan(theta, x0).tobytes() == plain.tobytes()
+
+
+def test_the_study_walk_out_is_the_plain_bytes_in_any_batch(path):
+    """Random plans from starts around the hulls, steps up to 3x the bound: the half-space
+    pushes, the cuts and the waypoints held at a hull's surface all run."""
+    from strol_gym.tasks.study import KEEP_OUT, StudyTask1V2, _walk_out
+
+    task = StudyTask1V2()
+    rng = np.random.default_rng(57)
+    bound = task.plan_pos_bound
+    low, high = task.low[:3], task.high[:3]
+    x0 = rng.normal(KEEP_OUT[rng.integers(0, 2, 60), :3] * [1, 1, 0.5], 0.08)
+    plans = x0[:, None, :] + np.cumsum(rng.uniform(-3, 3, (60, 21, 3)) * bound, axis=1)
+    plans[:, 0] = x0
+    path(False)
+    plain = _walk_out(plans, KEEP_OUT, bound, low, high)
+    clipped = _walk_out(plans, KEEP_OUT[:0], bound, low, high)  # the step box and box alone
+    assert (np.abs(plain - clipped).max(-1) > 1e-9).mean() > 0.2  # the hulls moved many
+    path(True)
+    assert _walk_out(plans, KEEP_OUT, bound, low, high).tobytes() == plain.tobytes()
+    for rows in (slice(0, 1), slice(7, 8), slice(10, 30)):  # alone or in another batch
+        path(False)
+        alone = _walk_out(plans[rows], KEEP_OUT, bound, low, high)
+        path(True)
+        assert _walk_out(plans[rows], KEEP_OUT, bound, low, high).tobytes() == alone.tobytes()
+
+
+def _study_rollout(task: int, seed: int, steps: int) -> tuple[str, int]:
+    """StROL-Study-v2 with its default person and a hard twist (the brake, the reflexes, the
+    counterfactual): (a hash of every step's observation, u_H and joint state, braked chunks)."""
+    from strol_gym.envs.study.controller import ImpedanceController
+
+    env = gym.make("StROL-Study-v2", task=task).unwrapped
+    braked = [0]
+    chunk = ImpedanceController._braked_steps
+
+    def counting(self, *args):
+        braked[0] += 1
+        return chunk(self, *args)
+
+    env._braked_steps = counting.__get__(env)
+    h = hashlib.sha256()
+    env.reset(seed=seed)
+    zero = np.zeros(env.action_space.shape, np.float32)
+    for step in range(steps):
+        if step == 40:
+            env.apply_wrench([0.0, 40.0, 0.0], [0.0, 0.0, 6.0], duration=0.5)
+        obs, _, _, trunc, info = env.step(zero)
+        for key in sorted(obs):
+            h.update(np.asarray(obs[key]).tobytes())
+        h.update(info["u_h"].tobytes() + env.data.qpos.tobytes() + env.data.qvel.tobytes())
+        if trunc:
+            break
+    env.close()
+    return h.hexdigest(), braked[0]
+
+
+def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path):
+    path(False)
+    plain, braked = _study_rollout(2, 20003, 160)
+    assert braked > 5  # the brake's chunks ran, not only watched ones
+    path(True)
+    assert _study_rollout(2, 20003, 160) == (plain, braked)

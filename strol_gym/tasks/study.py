@@ -27,6 +27,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from strol_gym import checks
+from strol_gym.compiled import use_fast
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task
@@ -589,6 +590,9 @@ def _keep_out_walk(
         )
 
     def walk(pos: np.ndarray, bound: float) -> None:
+        if use_fast() and pos.dtype == np.float64 and pos.flags.c_contiguous:
+            walk_compiled(pos, bound)
+            return
         if yaw is not None:  # roll and pitch into the box at the robot's pace, first: the
             # hand's place below depends on them
             turn = pos[..., 3:5]
@@ -633,6 +637,21 @@ def _keep_out_walk(
             z[:] = np.where(inside, top[k], z)
         pos[...] = _walk_out(pos, hulls, bound, lo3, hi3)  # at the robot's pace
 
+    turn_low, turn_high = low[3:5] / angle_scale, high[3:5] / angle_scale
+
+    def walk_compiled(pos: np.ndarray, bound: float) -> None:
+        """``walk`` in compiled loops (``study_kernels``; the same bytes), φ's axis in numpy."""
+        from strol_gym.tasks import study_kernels as kernels
+
+        rows = pos.reshape(-1, *pos.shape[-2:])  # a view: pos is contiguous
+        if yaw is not None:
+            kernels.walk_turn(rows, turn_low, turn_high, bound)
+        off = np.broadcast_to(axis(pos[..., 1:, :]), (*pos.shape[:-1][:-1], pos.shape[-2] - 1, 3))
+        off = np.ascontiguousarray(off).reshape(rows.shape[0], -1, 3)
+        kernels.walk_shell(rows, off, shoulder, inner, radius, SHELL_ROUNDS, hulls, lo3, hi3)
+        kernels.walk_out(rows, rows, hulls, bound, lo3, hi3, WALK_ROUNDS)  # in place: step t
+        # reads its own planned waypoint before writing it
+
     return walk
 
 
@@ -671,7 +690,24 @@ def _walk_out(
     nearer face's normal, up to the bound per step, as far as the box lets it.
 
     The planner's per-waypoint projection can lengthen a step at a hull's edge; this pass keeps
-    the plan at the robot's pace, in the box and out of the hulls."""
+    the plan at the robot's pace, in the box and out of the hulls. With the compiled kernels
+    (``strol_gym.compiled``) one loop does it (``study_kernels.walk_out``, the same bytes)."""
+    if use_fast() and plans.dtype == np.float64 and plans.ndim >= 2 and plans.shape[-1] >= 3:
+        from strol_gym.tasks.study_kernels import walk_out
+
+        rows = np.ascontiguousarray(plans).reshape(-1, *plans.shape[-2:])
+        walked = rows.copy()
+        f64 = np.float64
+        walk_out(
+            rows,
+            walked,
+            np.ascontiguousarray(hulls, dtype=f64),
+            float(bound),
+            np.ascontiguousarray(low, dtype=f64),
+            np.ascontiguousarray(high, dtype=f64),
+            WALK_ROUNDS,
+        )
+        return walked.reshape(plans.shape)
     out = plans.copy()
     p = out[..., :3]
     lo, hi = np.minimum(low, p[..., 0, :]), np.maximum(high, p[..., 0, :])  # hold the start

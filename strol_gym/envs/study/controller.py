@@ -13,11 +13,13 @@ setpoint; the env calls ``_simulate`` once per control step.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import mujoco
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.envs.panda.model import N_ARM
 from strol_gym.envs.study.admittance import REST, Admittance, rotation
 from strol_gym.envs.study.scene import JOINT_DAMPING
@@ -181,6 +183,7 @@ class ImpedanceController:
         self._brake_vlim = (BRAKE_FROM * VELOCITY_LIMIT).tolist()
         self._exact_vlim = (EXACT_FROM * VELOCITY_LIMIT).tolist()
         self._watch_vlim = (WATCH_FROM * VELOCITY_LIMIT).tolist()
+        self._watch_cap, self._brake_cap = WATCH_FROM * VELOCITY_LIMIT, BRAKE_FROM * VELOCITY_LIMIT
         self._reflex_vlim = (SPEED_REFLEX * VELOCITY_LIMIT).tolist()
         self._qacc = self.data.qacc[:N_ARM]
         self._tlim = TORQUE_LIMIT.tolist()
@@ -427,20 +430,21 @@ class ImpedanceController:
             )
             integ = self._integral
             if band:
-                ke = self._kmat.dot(e)
+                ke = self._kmat.dot(e).tolist()
                 if integrate:
                     integ = [
                         min(lim, max(-lim, a + g * b))
                         for a, b, g, lim in zip(
                             integ,
-                            ke.tolist(),
+                            ke,
                             (gp,) * 3 + (gr,) * 3,
                             (ip,) * 3 + (ir,) * 3,
                             strict=True,
                         )
                     ]
                     self._integral = integ
-                w = ke + integ + self._acc_ff
+                # in plain floats: numpy would convert each list (the same sums, in order)
+                w = np.array([a + b + c for a, b, c in zip(ke, integ, self._acc_ff, strict=True)])
             elif integrate:
                 integ = [
                     min(ip, max(-ip, a + gp * b)) for a, b in zip(integ[:3], e[:3], strict=False)
@@ -459,9 +463,10 @@ class ImpedanceController:
                 w += feed
             rest = self._gain.dot(np.concatenate((q, qd))).tolist()
             joints = zip(w.dot(jac).tolist(), self._const, rest, strict=False)
-            ctrl[:] = [t + c - g for t, c, g in joints]
-            if damp is not None:
-                ctrl[:] = [t + b for t, b in zip(ctrl.tolist(), damp, strict=True)]
+            tau = [t + c - g for t, c, g in joints]
+            if damp is not None:  # added to the torques as ctrl holds them (float64 as these)
+                tau = [t + b for t, b in zip(tau, damp, strict=True)]
+            ctrl[:] = tau
             if brake:
                 self._step_braked(bool(pushed))
                 if self._braked:  # the speed reflex tripped: the brakes hold from here
@@ -544,17 +549,30 @@ class ImpedanceController:
         the chunk's torques held, the look-ahead read again after each step
         (:meth:`_watched_steps`)."""
         qd, ctrl = self._qvel, self._ctrl
-        if (
-            not pushed
-            and not any(abs(s) > h for s, h in zip(qd.tolist(), self._watch_vlim, strict=False))
-            and not any(
-                abs(s) > b
-                for s, b in zip(self._ahead(ctrl.tolist(), HOLD), self._brake_vlim, strict=False)
-            )
+        if pushed:
+            self._braked_steps(pushed, HOLD)
+        elif use_fast():  # the same tests in compiled loops (``kernels``)
+            from strol_gym.envs.study import kernels
+
+            if kernels.above(qd, self._watch_cap):
+                self._braked_steps(pushed, HOLD)
+                return
+            delta = [a - b for a, b in zip(ctrl.tolist(), self._tau_last, strict=True)]
+            extra = self._m_inv.dot(delta)
+            h = HOLD * self.model.opt.timestep
+            if kernels.ahead_above(qd, self._qacc, extra, h, self._brake_cap):
+                self._braked_steps(pushed, HOLD)
+            else:
+                self._watched_steps()
+        elif not any(
+            abs(s) > h for s, h in zip(qd.tolist(), self._watch_vlim, strict=False)
+        ) and not any(
+            abs(s) > b
+            for s, b in zip(self._ahead(ctrl.tolist(), HOLD), self._brake_vlim, strict=False)
         ):
             self._watched_steps()
-            return
-        self._braked_steps(pushed, HOLD)
+        else:
+            self._braked_steps(pushed, HOLD)
 
     def _watched_steps(self) -> None:
         """``HOLD`` physics steps under the chunk's torques, one ``mj_step`` at a time (the
@@ -565,12 +583,28 @@ class ImpedanceController:
         a wrist joint passed its limit (1.0022x) inside a chunk that look had let through."""
         m, d = self.model, self.data
         tau = self._ctrl.tolist()
+        qd, qacc, cap, h = self._qvel, self._qacc, self._brake_vlim, m.opt.timestep
+        drift_above: Callable[[np.ndarray, np.ndarray, float, np.ndarray], bool] | None = None
+        if use_fast():
+            from strol_gym.envs.study import kernels
+
+            drift_above = kernels.drift_above
         for done in range(1, HOLD + 1):
             mujoco.mj_step(m, d)
             self._tau_last = tau
             left = HOLD - done
-            if left and any(
-                abs(s) > b for s, b in zip(self._ahead(tau, left), self._brake_vlim, strict=False)
+            # ``_ahead(tau, left)`` inlined: the torques are the last step's, so its M⁻¹ Δτ
+            # term is zero (+0.0: M⁻¹'s diagonal is positive), and a speed's magnitude is all
+            # that is compared
+            if not left:
+                continue
+            if (
+                drift_above(qd, qacc, left * h, self._brake_cap)
+                if drift_above is not None
+                else any(
+                    abs(s + (left * h) * a) > b
+                    for s, a, b in zip(qd.tolist(), qacc.tolist(), cap, strict=False)
+                )
             ):
                 self._note_contact()
                 self._braked_steps(False, left)

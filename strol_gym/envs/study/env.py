@@ -347,6 +347,8 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._pause_until = -1.0
         self._rest_x = self._x.copy()
         self._cf_steps = 0
+        self._cf_done = 0
+        """Steps of the push the copy ``_cf_data`` has been run on (``_counterfactual``)."""
         self._cf_control: dict[str, Any] = {}
         self._rerun = False
         self._touched = False
@@ -559,7 +561,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
             self._held_sp = (self._sp, self._sp_R)
             if self.version.counterfactual:
                 mujoco.mj_copyData(self._cf_data, self.model, self.data)
-                self._cf_control, self._cf_steps = self._control_state(), 0
+                self._cf_control, self._cf_steps, self._cf_done = self._control_state(), 0, 0
         elif event == "end":
             if self.version.counterfactual:
                 self._corr_start_x = self._counterfactual()
@@ -612,7 +614,10 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         """The pose the held arm reaches without the push: the simulation as it was when the
         push began, run again over the same steps (the whole correction, hold-off included)
         with no external wrench (the setpoint held where it was when the push began, the
-        integral frozen, as during the push); then the pushed simulation is put back."""
+        integral frozen, as during the push); then the pushed simulation is put back. The
+        rerun's end is kept as the copy (``_cf_done`` steps on): a later release or the end
+        continues it instead of running the same steps again (the same bytes: the copy is
+        the whole simulation and controller state)."""
         m, d = self.model, self.data
         mujoco.mj_copyData(self._cf_pushed, m, d)
         control, wrench, time = self._control_state(), self._wrench, self._time
@@ -622,10 +627,12 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         self._set_control_state(self._cf_control)
         self._wrench = np.zeros(6)
         touched, self._rerun = self._touched, True
-        for _ in range(self._cf_steps):
+        for _ in range(self._cf_steps - self._cf_done):
             self._simulate(_STILL)
         self._rerun = False
         unpushed = self._read_state()
+        mujoco.mj_copyData(self._cf_data, m, d)
+        self._cf_control, self._cf_done = self._control_state(), self._cf_steps
         mujoco.mj_copyData(d, m, self._cf_pushed)
         self._set_control_state(control)
         self._wrench, self._time, self._touched = wrench, time, touched
