@@ -19,6 +19,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any
 
+from strol_gym import limits
 from strol_gym.benchmarks.args import RUNNER_CAPS, check_size_caps, plugin_option
 from strol_gym.benchmarks.engine.conditions import ENV_PRESETS, make_condition
 from strol_gym.benchmarks.engine.results import ResultsError
@@ -306,10 +307,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if problem:
         print(f"strol-bench: error: {problem}", file=sys.stderr)
         return 2
+    caps_lifted = limits.lifted_now()
     try:
         try:
             status = _main(argv)
         finally:  # also for argparse's --help, which exits
+            limits.lift(caps_lifted)  # --allow-large lifts the caps for its command only
             sys.stdout.flush()
     except BrokenPipeError:
         _quiet_stdout()

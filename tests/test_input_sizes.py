@@ -39,3 +39,10 @@ def test_robustness_sigmas_are_capped(tmp_path, capsys):
     many = ",".join(f"{0.001 * i:.3f}" for i in range(limits.CAPS["sigmas"] + 1))
     argv = ["robustness", "--env", "robot", "--sigmas", many, "--out", str(tmp_path / "o")]
     assert "--sigmas must be at most 100" in cli_error(argv, capsys)
+
+
+def test_allow_large_lifts_the_caps_for_its_command_only(log, tmp_path, capsys):
+    """A second command in the same process (a notebook, a test) is capped again."""
+    argv = ["fit-human", str(log), "--human", "nominal", "--compare", ",", "--allow-large"]
+    assert "--compare must name models" in cli_error([*argv, "--out", str(tmp_path)], capsys)
+    assert not limits.lifted_now()
