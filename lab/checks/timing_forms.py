@@ -277,6 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("logs")
     ap.add_argument("--reps", type=int, default=200)
+    ap.add_argument("--rows", default="", help="rows to run, e.g. 2,3,4 (default: every row)")
     args = ap.parse_args(argv)
     sessions, _ = fit_timing.read_timed(args.logs, cap=math.inf)
     _, test, one = _split(sessions)
@@ -302,7 +303,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             )
         )
     print("form | LOPO log L (One, MOF) | held-out log L (StROL) | StROL/One [95 %] | coef (v)")
-    for name, run, lopo in rows:
+    pick = {int(v) for v in args.rows.split(",") if v}
+    for k, (name, run, lopo) in enumerate(rows):
+        if pick and k not in pick:
+            continue
         r = run(sessions)
         lo, hi = _bootstrap(sessions, run, args.reps) if args.reps else (math.nan, math.nan)
         v = f" v={r.frailty_v:.3f}" if math.isfinite(r.frailty_v) else ""
