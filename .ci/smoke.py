@@ -1,5 +1,5 @@
-"""The release leg's smoke test of an installed strol-gym (run outside the source tree): every
-registered env makes, resets and steps, and a learner updates θ̂ from a human's correction."""
+"""The smoke test of an installed wheel (.ci/oldest's first step, run outside the source tree):
+every registered env makes, resets and steps, and a learner updates θ̂ from a human's correction."""
 
 import warnings
 
