@@ -14,6 +14,7 @@ from strol_gym.benchmarks.sessions.check_human import (
     STATISTICS,
     by_task,
     joint_band,
+    nearest_states,
     read_sessions,
     statistics,
     two_sided_p,
@@ -85,6 +86,17 @@ def test_check_human_writes_report_figure_and_replicates(logs, tmp_path, capsys)
     argv2 = ["check-human", str(logs), "--human", "fitted-aimed", "--out", str(out2)]
     assert cli.main([*argv2, "--draws", "40", "--keep", "0", "--no-plots"]) == 0
     assert json.loads((out2 / "report.json").read_text())["checks"] == report["checks"]
+
+
+def test_nearest_states_pairs_a_simulated_time_with_the_logged_state_there():
+    a, b, c = ({"x": k} for k in "abc")
+    states = [(0.0, a), (0.5, b), (1.0, c)]
+    got = nearest_states(states, np.array([0.1, 0.25, 0.3, 0.75, 0.9]))
+    assert [g["x"] for g in got] == ["a", "a", "b", "b", "c"]  # 0.25 and 0.75: ties, the earlier
+    unplaced = [(float("nan"), a), (float("nan"), b)]  # no path sample: taken in turn
+    assert [g["x"] for g in nearest_states(unplaced, np.array([0.9, 0.1, 0.5]))] == ["a", "b", "a"]
+    mixed = [(float("nan"), a), (0.8, c)]
+    assert [g["x"] for g in nearest_states(mixed, np.array([0.0]))] == ["c"]
 
 
 def test_population_simulates_the_counts(logs, tmp_path):

@@ -31,8 +31,8 @@ time (:func:`joint_band`).
 - ``--population``: :class:`StudyPopulation`, StROL-Study-v2's fitted participants
   (``strol_gym.envs.study.population``): the shipped people correct when their timing hazard
   says, given the plan the robot logged along each real session (count and timing simulated),
-  each correction the population's at the session's logged states (in turn); a population
-  without a timing fit has a budget per (user, Task) and its timing is not simulated;
+  each correction the population's at the session's logged state nearest along the path; a
+  population without a timing fit has a budget per (user, Task) and its timing is not simulated;
 - ``--person MODULE:ATTR``: any object (or a callable returning one) with ``decides_count``,
   ``decides_when`` and ``sessions(real, rng)``, see :class:`Person`.
 
@@ -346,25 +346,26 @@ def reacting_sessions(
     """The shipped population's people (``Population.hazard``) along the real sessions: when
     each corrects is drawn from its timing hazard given the plan the robot logged
     (:func:`logged_plan`, ``timing.simulate``), each correction is the population's model of a
-    correction at the session's logged correction states in turn (the Task's others' where it
-    logged none), unclipped. ``plans``: :func:`logged_plan` of each session by ``id``, if
-    already computed (it plans; a replicate need not plan again)."""
+    correction at the session's logged correction state nearest along the path
+    (:func:`nearest_states`; the Task's others' where it logged none), unclipped. ``plans``:
+    :func:`logged_plan` of each session by ``id``, if already computed (it plans; a replicate
+    need not plan again)."""
     from strol_gym.envs.study.population import aimed_draws
     from strol_gym.humans.timing import simulate
 
     task = _study_task(real[0].task)
-    pool = [c for s in real for c in s.corrections]
+    pool = [v for s in real for v in _located(s)]
     out: list[list[dict[str, Any]]] = []
     for s in real:
         person = pop.draw(rng, s.number)
         switches, falls = plans[id(s)] if plans and id(s) in plans else logged_plan(s)
         when = simulate(person.hazard, s.path_samples, switches, falls, AUTHORS_DT, rng)
         when = when[:MAX_CORRECTIONS]
-        states = s.corrections or pool
+        states = _located(s) or pool
         if not len(when) or not states:
             out.append([])
             continue
-        picked = [states[k % len(states)] for k in range(len(when))]
+        picked = nearest_states(states, when / max(s.path_samples, 1))
         x = np.stack([c["x"] for c in picked])
         n, a = len(picked), task.action_dim
         u = aimed_draws(task, s.theta_star, x, rng.standard_normal((n, a + 1)), rng.random(n))
@@ -376,6 +377,30 @@ def reacting_sessions(
             ]
         )
     return out
+
+
+def _located(s: Session) -> list[tuple[float, dict[str, Any]]]:
+    """(share of the path at which it started, correction) of each logged correction (NaN
+    where it has no path sample)."""
+    n = max(s.path_samples, 1)
+    return [
+        (math.nan if c.get("path_sample") is None else c["path_sample"] / n, c)
+        for c in s.corrections
+    ]
+
+
+def nearest_states(
+    states: Sequence[tuple[float, dict[str, Any]]], share: np.ndarray
+) -> list[dict[str, Any]]:
+    """For each simulated correction at ``share`` of its path, the logged correction (``states``:
+    (share of its own session's path, correction)) nearest along the path, the earlier on a
+    tie: the robot's state where the person steps in, as near as the log holds it. Logged
+    corrections without a path sample are taken in turn where none has one."""
+    at = np.array([w for w, _ in states], dtype=np.float64)
+    if not np.isfinite(at).any():
+        return [states[k % len(states)][1] for k in range(len(share))]
+    at = np.where(np.isfinite(at), at, np.inf)
+    return [states[int(np.argmin(np.abs(at - w)))][1] for w in np.asarray(share, np.float64)]
 
 
 def person_from(spec: str) -> Person:

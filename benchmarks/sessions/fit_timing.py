@@ -37,8 +37,11 @@ def _task(number: int) -> StudyTask:
     return STUDY_TASKS[number]()
 
 
-def read_timed(folder: str | Path) -> tuple[list[timing.TimedSession], list[dict[str, Any]]]:
-    """The sessions whose θ̂ is known along the path, and a row per session skipped (why)."""
+def read_timed(
+    folder: str | Path, cap: float = timing.SHORTFALL_CAP
+) -> tuple[list[timing.TimedSession], list[dict[str, Any]]]:
+    """The sessions whose θ̂ is known along the path (their shortfall at most ``cap``), and a
+    row per session skipped (why)."""
     out, skipped = [], []
     for path in find_logs(folder):
         session = read_session(path)
@@ -62,7 +65,9 @@ def read_timed(folder: str | Path) -> tuple[list[timing.TimedSession], list[dict
                 learner=learner,
                 samples=int(ep["path_samples"]),
                 events=np.array([int(c["path_sample"]) for c in corr], dtype=np.int64),
-                shortfall=timing.shortfall(_task(task), star, np.array(hats, dtype=np.float64)),
+                shortfall=timing.shortfall(
+                    _task(task), star, np.array(hats, dtype=np.float64), cap
+                ),
             )
         )
     return out, skipped

@@ -256,14 +256,17 @@ the leave-one-person-out log-likelihood on the One and MOF sessions among s, min
 log(s + 0.05), √s and max(s − 0.3, 0) (docs/study.md)."""
 
 
-def shortfall(task: StudyTask, theta_star: np.ndarray, theta_hats: np.ndarray) -> np.ndarray:
+def shortfall(
+    task: StudyTask, theta_star: np.ndarray, theta_hats: np.ndarray, cap: float = SHORTFALL_CAP
+) -> np.ndarray:
     """s (n,) for each θ̂ (n, d): the regret of θ̂'s plan from the Task's start (eq. S1) over
-    :func:`shortfall_unit`, at most :data:`SHORTFALL_CAP`."""
+    :func:`shortfall_unit`, at most ``cap`` (:data:`SHORTFALL_CAP`; ``math.inf``: uncapped,
+    to compare the shortfall's forms)."""
     hats = np.atleast_2d(np.asarray(theta_hats, dtype=np.float64))
     star = np.broadcast_to(np.asarray(theta_star, dtype=np.float64), hats.shape)
     start = np.repeat(np.asarray(task.start, dtype=np.float64)[None], len(hats), 0)
     s = task.regret(hats, star, start) / shortfall_unit(task, theta_star)
-    return np.minimum(s, SHORTFALL_CAP)
+    return np.minimum(s, cap)
 
 
 def step_in_probability(rate_per_s: float, dt: float) -> float:
