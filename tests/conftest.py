@@ -21,6 +21,17 @@ def _sb3_logs_in_a_temporary_folder(tmp_path_factory: pytest.TempPathFactory) ->
     os.environ.setdefault("SB3_LOGDIR", str(tmp_path_factory.mktemp("sb3-logs")))
 
 
+@pytest.fixture(autouse=True)
+def _size_caps_as_found():
+    """A test that lifts the size caps (``--allow-large``, ``check_size_caps``) leaves them as
+    it found them: the next test in the same worker is capped again."""
+    from strol_gym import limits
+
+    before = limits.lifted_now()
+    yield
+    limits.lift(before)
+
+
 @pytest.fixture(scope="session")
 def authors_tree(tmp_path_factory: pytest.TempPathFactory):
     """A factory of fake study trees in the authors' layout, ``data/user_K/task_J/ALG/data.pkl``
