@@ -11,6 +11,7 @@ import pytest
 
 import strol_gym  # noqa: F401  (registers the envs)
 from strol_gym.envs.study.participant import Participant
+from strol_gym.envs.study.people import ParticipantParams
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.tasks.study import StudyTask1
 
@@ -100,6 +101,17 @@ def test_its_push_is_greedy_under_its_theta_star():
     others = task.features(x + p._candidates) @ task.theta_star
     assert best >= others.max() - 1e-12
     assert np.all(np.abs(u) <= task.action_bound + 1e-12)
+
+
+@pytest.mark.parametrize("unused", ["model", "beta", "human_kwargs", "typo"])
+def test_built_directly_it_refuses_a_keyword_it_does_not_use_by_name(unused):
+    task = StudyTask1()
+    with pytest.raises(ValueError, match=rf"does not take \['{unused}'\].*patience"):
+        Participant(task, task.theta_star, np.random.default_rng(0), **{unused: 1})
+    with pytest.raises(ValueError, match="not both"):
+        Participant(
+            task, task.theta_star, np.random.default_rng(0), params=ParticipantParams(), patience=3
+        )
 
 
 @pytest.mark.parametrize(

@@ -38,6 +38,7 @@ Calibration of ``threshold`` on seeds outside the study's: ``docs/study.md``.
 from __future__ import annotations
 
 import collections
+import dataclasses
 import itertools
 import math
 from typing import Any
@@ -81,10 +82,17 @@ class Participant(SimulatedUser):
         **kwargs: Any,
     ) -> None:
         """``params``, or its fields as keywords (the person's ``kwargs``), say how it pushes and
-        judges; v0's user's ``model``, ``beta``, ``human_kwargs`` and ``satisfied_regret`` are
-        taken and unused (it judges what it sees)."""
-        for unused in ("model", "beta", "human_kwargs", "satisfied_regret"):
-            kwargs.pop(unused, None)
+        judges (not both). A keyword that is not a field is refused by name: v0's user's
+        ``model``, ``beta`` and ``human_kwargs`` mean nothing here (it judges what it sees)."""
+        fields = sorted(f.name for f in dataclasses.fields(ParticipantParams))
+        unknown = sorted(set(kwargs) - set(fields))
+        if unknown:
+            raise ValueError(
+                f"Participant does not take {unknown}: it takes sigma, bias, params or the fields "
+                f"of ParticipantParams ({', '.join(fields)})"
+            )
+        if params is not None and kwargs:
+            raise ValueError(f"Participant takes params or its fields {sorted(kwargs)}, not both")
         params = params if params is not None else ParticipantParams(**kwargs)
         super().__init__(task, theta_star, rng, params=params)
         self.params: ParticipantParams = params
