@@ -292,11 +292,13 @@ def test_a_mouse_drag_on_v2_is_cut_only_where_its_force_rested_under_xvfb(tmp_pa
     the drag may be cut there, as a person's pause would cut it. On v1 one such drag became 13
     corrections: every sag below 15 N ended one."""
     assert SLOW_DRAG != DRAG
-    log, lines = drag_session(tmp_path, SLOW_DRAG, max_steps=130)
+    # 240 steps (12 s): room for a drag whose X events a loaded machine delivers late (at 130
+    # steps one such drag arrived after the session had ended)
+    log, lines = drag_session(tmp_path, SLOW_DRAG, max_steps=240)
     assert lines[0]["env_id"] == "StROL-Study-v2"  # interact builds strol-bench study's v2
     corrections = [r for r in lines if r["type"] == "correction"]
     reflexes = [r for r in lines if r["type"] == "event" and r["kind"] == "reflex"]
-    assert corrections or reflexes, "the drag never reached the arm"
+    assert corrections or reflexes, ("the drag never reached the arm", lines[-3:])
     rest = PushSegmenter.for_hold_off(15.0, HOLD_OFF, CONTROL_DT).hold_steps
     for c in corrections:
         trace = c["trace"]
