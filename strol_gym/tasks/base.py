@@ -20,6 +20,10 @@ from strol_gym import checks
 from strol_gym.compiled import use_fast
 from strol_gym.priors import Prior
 
+DRAWN_METHODS = ("candidate_actions", "_unit_to_box", "_axis_scale", "a_max", "a_max_l")
+"""What a Task's compiled ``m6_drawn`` computes over again of ``Task``: the candidates and the
+noise's scale (a subclass overriding one of them takes the plain path)."""
+
 
 def _jsonable(value: object) -> object:
     """Arrays and tuples as lists, numpy scalars as Python numbers: for JSON records."""

@@ -43,14 +43,14 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
 
 from strol_gym.compiled import use_fast
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task, positive_field, vector_arg
+from strol_gym.tasks.base import DRAWN_METHODS, Task, positive_field, vector_arg
 from strol_gym.tasks.driver import driver_correction
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
@@ -115,6 +115,14 @@ def _slip_angles(steer: np.ndarray) -> np.ndarray:
     beta *= 0.5
     np.arctan(beta, out=beta)
     return beta
+
+
+@functools.cache
+def _drawn_kernel() -> Callable[..., int]:
+    """``m6_kernels.highway_m6_drawn``, imported once (it loads numba; every correction asks)."""
+    from strol_gym.tasks.m6_kernels import highway_m6_drawn
+
+    return highway_m6_drawn
 
 
 _M6_METHODS = ("g", "g_planes", "_phi", "_step_car", "dynamics")
@@ -285,6 +293,50 @@ class HighwayTask(Task):
             beta = _slip_angles(steer[:n])
             highway_m6_kept(x, u_r, theta_hat, theta_star, candidates, keep, beta, prm, best)
         return best
+
+    def m6_drawn(self) -> Callable[..., None] | None:
+        """``_m6_drawn`` while ``m6_choice`` runs its kernels and the candidates and the noise's
+        scale are ``Task``'s."""
+        ok = self.__dict__.get("_m6_drawn_ok")  # asked on every correction: answered once
+        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
+            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(
+                HighwayTask, _M6_METHODS
+            ) and self._unchanged(Task, DRAWN_METHODS)
+        return self._m6_drawn if ok else None
+
+    def _m6_drawn(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        units: np.ndarray,
+        noise: np.ndarray,
+        sigma: float,
+        bias: float,
+        out: np.ndarray,
+    ) -> None:
+        """``Task.m6_drawn`` by ``m6_kernels.highway_m6_drawn`` for the people its screen settles
+        (nearly all); the others' rows go through ``m6_choice`` and ``perturb``, as the plain
+        path would take them (each person's choice depends on their own row alone)."""
+        memo = self.__dict__.setdefault("_m6_drawn_memo", {})  # as ``_unchanged``'s
+        prm = memo.get((sigma, bias))
+        if prm is None:
+            prm = memo[sigma, bias] = np.concatenate(
+                [self._kernel_params, [sigma, bias], self._axis_scale, self.a_max]
+            ).astype(np.float64)
+        b, k, a = units.shape
+        cand = np.empty((b, k + 1, a))
+        best = np.empty(b, dtype=np.int64)
+        if _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, cand, best, out):
+            from strol_gym.humans.choices import perturb
+            from strol_gym.humans.interface import Replayed
+
+            left = np.flatnonzero(best < 0)
+            rows = (x[left], u_r[left], theta_hat[left], theta_star[left], cand[left])
+            picks = self.m6_choice(*rows)
+            assert picks is not None  # m6_drawn is offered only where m6_choice runs
+            out[left] = perturb(self, cand[left, picks], sigma, bias, Replayed(noise[left]))
 
     @functools.cached_property
     def _kernel_params(self) -> np.ndarray:

@@ -18,7 +18,7 @@ import numpy as np
 
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task, positive_field, vector_arg
+from strol_gym.tasks.base import DRAWN_METHODS, Task, positive_field, vector_arg
 
 PLATE = np.array([0.35, 0.10, 0.00])
 CUP = np.array([0.70, -0.45, 0.10])
@@ -46,10 +46,6 @@ def _drawn_kernel() -> Callable[..., None]:
     from strol_gym.tasks.m6_kernels import robot_m6_drawn
 
     return robot_m6_drawn
-
-
-_DRAWN = ("candidate_actions", "_unit_to_box", "_axis_scale", "a_max", "a_max_l")
-"""What ``robot_m6_drawn`` computes over again of ``Task``: the candidates and the noise's scale."""
 
 
 def _m6_layout(x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> bool:
@@ -289,7 +285,7 @@ class RobotTask(Task):
         if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
             ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(
                 RobotTask, _M6_METHODS
-            ) and self._unchanged(Task, _DRAWN)
+            ) and self._unchanged(Task, DRAWN_METHODS)
         return self._m6_drawn if ok else None
 
     def _m6_drawn(
