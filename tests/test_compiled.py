@@ -268,6 +268,7 @@ def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
         ("StROL-Robot-v0", {}),
         ("StROL-Robot-v0", {"n_corrections": 0}),
         ("StROL-Highway-v0", {}),
+        ("StROL-Highway-v0", {"person": {"name": "changing", "sigma": 0.2, "bias": 0.1}}),
     ],
 )
 def test_env_rollouts_are_the_same_bytes_on_both_paths(env_id, kwargs, path):

@@ -118,6 +118,14 @@ def _slip_angles(steer: np.ndarray) -> np.ndarray:
 
 
 @functools.cache
+def _phi_kernel() -> Callable[[np.ndarray, np.ndarray], tuple[float, float, float]]:
+    """``m6_kernels.highway_phi``, imported once (φ of one state: the env's every step)."""
+    from strol_gym.tasks.m6_kernels import highway_phi
+
+    return highway_phi
+
+
+@functools.cache
 def _drawn_kernel() -> Callable[..., int]:
     """``m6_kernels.highway_m6_drawn``, imported once (it loads numba; every correction asks)."""
     from strol_gym.tasks.m6_kernels import highway_m6_drawn
@@ -204,9 +212,7 @@ class HighwayTask(Task):
             if use_fast() and self._unchanged(HighwayTask, ("_phi",)):
                 # compiled: the operations of ``_phi`` (its sine and cosine the C library's,
                 # as numpy's: what ``highway_m6_kept`` relies on too)
-                from strol_gym.tasks.m6_kernels import highway_phi
-
-                return np.array(highway_phi(x, self._kernel_params))
+                return np.array(_phi_kernel()(x, self._kernel_params))
             # One state (the env's every step) as numpy scalars: scalar arithmetic is the same
             # IEEE operations as on 0-d arrays, and the ufuncs the same loops, at less cost.
             return self._phi(*x)
@@ -319,24 +325,47 @@ class HighwayTask(Task):
         """``Task.m6_drawn`` by ``m6_kernels.highway_m6_drawn`` for the people its screen settles
         (nearly all); the others' rows go through ``m6_choice`` and ``perturb``, as the plain
         path would take them (each person's choice depends on their own row alone)."""
+        prm = self.m6_drawn_params(sigma, bias)
+        b, k, a = units.shape
+        cand = np.empty((b, k + 1, a))
+        best = np.empty(b, dtype=np.int64)
+        if _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, cand, best, out):
+            self.m6_drawn_left(x, u_r, theta_hat, theta_star, noise, sigma, bias, cand, best, out)
+
+    def m6_drawn_params(self, sigma: float, bias: float) -> np.ndarray:
+        """What ``highway_m6_drawn`` reads of the Task and the noise, in its order: the search's
+        numbers (``_kernel_params``), σ, ε, the candidates' bound and a_max (once per σ, ε)."""
         memo = self.__dict__.setdefault("_m6_drawn_memo", {})  # as ``_unchanged``'s
         prm = memo.get((sigma, bias))
         if prm is None:
             prm = memo[sigma, bias] = np.concatenate(
                 [self._kernel_params, [sigma, bias], self._axis_scale, self.a_max]
             ).astype(np.float64)
-        b, k, a = units.shape
-        cand = np.empty((b, k + 1, a))
-        best = np.empty(b, dtype=np.int64)
-        if _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, cand, best, out):
-            from strol_gym.humans.choices import perturb
-            from strol_gym.humans.interface import Replayed
+        return prm
 
-            left = np.flatnonzero(best < 0)
-            rows = (x[left], u_r[left], theta_hat[left], theta_star[left], cand[left])
-            picks = self.m6_choice(*rows)
-            assert picks is not None  # m6_drawn is offered only where m6_choice runs
-            out[left] = perturb(self, cand[left, picks], sigma, bias, Replayed(noise[left]))
+    def m6_drawn_left(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        noise: np.ndarray,
+        sigma: float,
+        bias: float,
+        cand: np.ndarray,
+        best: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        """The rows ``highway_m6_drawn`` left to the exact search (``best`` −1): their choice
+        by ``m6_choice`` among their candidates ``cand``, their noise by ``perturb``."""
+        from strol_gym.humans.choices import perturb
+        from strol_gym.humans.interface import Replayed
+
+        left = np.flatnonzero(best < 0)
+        rows = (x[left], u_r[left], theta_hat[left], theta_star[left], cand[left])
+        picks = self.m6_choice(*rows)
+        assert picks is not None  # m6_drawn is offered only where m6_choice runs
+        out[left] = perturb(self, cand[left, picks], sigma, bias, Replayed(noise[left]))
 
     @functools.cached_property
     def _kernel_params(self) -> np.ndarray:
@@ -372,6 +401,8 @@ class HighwayTask(Task):
     def sample_episode_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """``sample_episode_start(rng, 1)`` for each generator, stacked (a vector env's resets):
         the draws per generator, the arithmetic once on the batch (the same numbers)."""
+        if len(rngs) == 1:  # a single env's reset
+            return self.sample_episode_start(rngs[0], 1)
         return self._episode_start(np.concatenate([rng.uniform(size=(1, 8)) for rng in rngs]))
 
     def _episode_start(self, u: np.ndarray) -> np.ndarray:

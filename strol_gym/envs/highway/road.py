@@ -158,6 +158,37 @@ class Car(Vehicle):
             v * math.cos(h) - w * math.cos(g), v * math.sin(h) - w * math.sin(g)
         ) * abs(dt)
 
+    def restart(self, position: list[float], heading: float, speed: float) -> None:
+        """This car as ``Car(self.road, position, heading, speed)`` builds it (a new episode on
+        the same road), in place: every attribute highway-env's constructors set, with the
+        values they set; the position array and the history keep their objects (zeroed and
+        emptied). What a constructor computes from constants (``diagonal``) stays; the position
+        must be the float64 pair a constructor makes (``reusable``)."""
+        self.position[0], self.position[1] = position
+        self.prediction_type = "constant_steering"  # the constructors' default
+        self.heading = heading
+        self.speed = speed
+        network = self.road.network
+        self.lane_index = network.get_closest_lane_index(self.position, heading)
+        self.lane = network.get_lane(self.lane_index)
+        self.collidable = self.solid = self.check_collisions = True
+        self.crashed = self.hit = False
+        self.impact = None
+        self.action = {"steering": 0, "acceleration": 0}
+        self.log = []
+        self.history.clear()
+
+    def reusable(self, road: Any) -> bool:
+        """Whether ``restart`` can stand for building this car anew on ``road``: its own class
+        on that road, its position still a float64 pair."""
+        position = self.position
+        return (
+            self.road is road
+            and type(position) is np.ndarray
+            and position.dtype == np.float64
+            and position.shape == (2,)
+        )
+
     def step(self, dt: float) -> None:
         """highway-env's ``Vehicle.step``, op for op in plain floats (its sine and cosine are the
         C library's, as numpy's float64 ones; the steering angle β = arctan(½ tan δ) by numpy,
