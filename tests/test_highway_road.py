@@ -158,7 +158,8 @@ def test_a_car_steps_as_highway_envs_vehicle():
                     np.float64(getattr(ours, name)).tobytes()
                     == np.float64(getattr(theirs, name)).tobytes()
                 )
-            assert ours.lane_index == theirs.lane_index and ours.crashed == theirs.crashed
+            assert ours.lane_index == theirs.lane_index and ours.lane is theirs.lane
+            assert ours.crashed == theirs.crashed
             assert ours.action == theirs.action
 
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from highway_env.road.lane import StraightLane
-from highway_env.road.road import LaneIndex, RoadNetwork
+from highway_env.road.road import LaneIndex, Road, RoadNetwork
 from highway_env.vehicle.kinematics import Vehicle
 
 _Lane = tuple[Any, float, float, float, float, float, float, float, float]
@@ -47,7 +47,11 @@ class LaneLookup(RoadNetwork):
         ):
             return super().get_closest_lane_index(position, heading)
         p0, p1 = position.tolist()
-        h = float(heading)
+        return self.closest_lane(lanes, p0, p1, float(heading))
+
+    @staticmethod
+    def closest_lane(lanes: list[_Lane], p0: float, p1: float, h: float) -> LaneIndex:
+        """The closest of ``lanes`` (``_plain_lanes``) to the position (p0, p1) at heading h."""
         best, low = None, math.inf
         for index, s0, s1, x0, x1, y0, y1, length, lane_heading in lanes:
             # StraightLane.local_coordinates and distance_with_heading (weight 1), op for op
@@ -209,8 +213,20 @@ class Car(Vehicle):
         speed, heading = self.speed, self.heading
         p0, p1 = position.tolist()
         angle = float(heading + beta)
-        position[0] = p0 + speed * math.cos(angle) * dt
-        position[1] = p1 + speed * math.sin(angle) * dt
-        self.heading = heading + speed * math.sin(beta) / (self.LENGTH / 2) * dt
+        p0, p1 = position[0], position[1] = (
+            p0 + speed * math.cos(angle) * dt,
+            p1 + speed * math.sin(angle) * dt,
+        )
+        self.heading = heading = heading + speed * math.sin(beta) / (self.LENGTH / 2) * dt
         self.speed = speed + action["acceleration"] * dt
-        self.on_state_update()
+        road = self.road
+        network = road.network if type(road) is Road else None
+        lanes = network.__dict__.get("_lanes") if type(network) is LaneLookup else None
+        if not lanes or type(self).on_state_update is not Vehicle.on_state_update:
+            self.on_state_update()
+            return
+        # ``Vehicle.on_state_update``: the lane looked up from the numbers just computed
+        self.lane_index = LaneLookup.closest_lane(lanes, p0, p1, float(heading))
+        self.lane = network.get_lane(self.lane_index)
+        if road.record_history:
+            self.history.appendleft(self.create_from(self))
