@@ -227,7 +227,7 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         into the compiled correction (``HighwayTask.m6_drawn``'s kernel) through buffers kept
         per person: the draws, numbers and checks of ``SimulatedHuman.act`` and the
         contract's, without their per-call arrays and look-ups."""
-        human = self.human
+        human: Any = self.human  # a SimulatedHuman wherever ``_teacher`` finds a teacher
         if human is None or not correcting(self.steps, self.n_corrections):
             return super()._human_correction(x, u_r)
         teach = self.__dict__.get("_teach")
@@ -274,7 +274,8 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         cars are reset in place (``Car.restart``: what building them sets, at a fraction of
         the cost), unless something replaced them."""
         xr0, yr0, vr, hr, xh0, yh0, vh, hh = x0.tolist()
-        road, robot, human = self.__dict__.get("road"), self.robot_vehicle, self.human_vehicle
+        road: Any = self.__dict__.get("road")
+        robot, human = self.robot_vehicle, self.human_vehicle
         if (
             type(road) is Road
             and type(robot) is Car

@@ -179,7 +179,8 @@ class Car(Vehicle):
         self.crashed = self.hit = False
         self.impact = None
         self.action = {"steering": 0, "acceleration": 0}
-        self.log = []
+        log: list[Any] = []  # a new list, as the constructor's
+        self.log = log
         self.history.clear()
 
     def reusable(self, road: Any) -> bool:
@@ -221,7 +222,10 @@ class Car(Vehicle):
         self.speed = speed + action["acceleration"] * dt
         road = self.road
         network = road.network if type(road) is Road else None
-        lanes = network.__dict__.get("_lanes") if type(network) is LaneLookup else None
+        if type(network) is not LaneLookup:
+            self.on_state_update()
+            return
+        lanes = network.__dict__.get("_lanes")
         if not lanes or type(self).on_state_update is not Vehicle.on_state_update:
             self.on_state_update()
             return
