@@ -177,6 +177,19 @@ class Task(ABC):
         noise z (B, a): the numbers of ``candidate_actions``, ``m6_choice`` and ``perturb``."""
         return None
 
+    def _drawn_while(
+        self, cls: type, names: Sequence[str], drawn: Callable[..., None]
+    ) -> Callable[..., None] | None:
+        """A Task's ``m6_drawn``: its ``drawn`` while ``names`` (what its kernel repeats)
+        are ``cls``'s and the candidates and the noise's scale ``Task``'s (``DRAWN_METHODS``);
+        asked on every correction, answered once per Task."""
+        ok = self.__dict__.get("_m6_drawn_ok")
+        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
+            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(cls, names) and self._unchanged(
+                Task, DRAWN_METHODS
+            )
+        return drawn if ok else None
+
     def _unchanged(self, cls: type, names: Sequence[str]) -> bool:
         """Whether this Task's ``names`` are ``cls``'s: a subclass that overrides one of them
         changes what a kernel written for ``cls`` would compute. Asked on every correction,

@@ -50,7 +50,7 @@ import numpy as np
 
 from strol_gym.compiled import use_fast
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import DRAWN_METHODS, Task, positive_field, vector_arg
+from strol_gym.tasks.base import Task, positive_field, vector_arg
 from strol_gym.tasks.driver import driver_correction
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
@@ -303,12 +303,7 @@ class HighwayTask(Task):
     def m6_drawn(self) -> Callable[..., None] | None:
         """``_m6_drawn`` while ``m6_choice`` runs its kernels and the candidates and the noise's
         scale are ``Task``'s."""
-        ok = self.__dict__.get("_m6_drawn_ok")  # asked on every correction: answered once
-        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
-            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(
-                HighwayTask, _M6_METHODS
-            ) and self._unchanged(Task, DRAWN_METHODS)
-        return self._m6_drawn if ok else None
+        return self._drawn_while(HighwayTask, _M6_METHODS, self._m6_drawn)
 
     def _m6_drawn(
         self,

@@ -18,7 +18,7 @@ import numpy as np
 
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import DRAWN_METHODS, Task, positive_field, vector_arg
+from strol_gym.tasks.base import Task, positive_field, vector_arg
 
 PLATE = np.array([0.35, 0.10, 0.00])
 CUP = np.array([0.70, -0.45, 0.10])
@@ -281,12 +281,7 @@ class RobotTask(Task):
     def m6_drawn(self) -> Callable[..., None] | None:
         """``_m6_drawn`` while ``m6_choice`` runs its kernel and the candidates and the noise's
         scale are ``Task``'s."""
-        ok = self.__dict__.get("_m6_drawn_ok")  # asked on every correction: answered once
-        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
-            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(
-                RobotTask, _M6_METHODS
-            ) and self._unchanged(Task, DRAWN_METHODS)
-        return self._m6_drawn if ok else None
+        return self._drawn_while(RobotTask, _M6_METHODS, self._m6_drawn)
 
     def _m6_drawn(
         self,
