@@ -318,14 +318,15 @@ class HighwayTask(Task):
         out: np.ndarray,
     ) -> None:
         """``Task.m6_drawn`` by ``m6_kernels.highway_m6_drawn`` for the people its screen settles
-        (nearly all); the others' rows go through ``m6_choice`` and ``perturb``, as the plain
-        path would take them (each person's choice depends on their own row alone)."""
+        (nearly all); the others' by ``m6_drawn_left``."""
         prm = self.m6_drawn_params(sigma, bias)
         b, k, a = units.shape
-        cand = np.empty((b, k + 1, a))
-        best = np.empty(b, dtype=np.int64)
-        if _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, cand, best, out):
-            self.m6_drawn_left(x, u_r, theta_hat, theta_star, noise, sigma, bias, cand, best, out)
+        cand, keep = np.empty((b, k + 1, a)), np.empty((b, k + 1), dtype=np.bool_)
+        steer, best = np.empty(b * (k + 2)), np.empty(b, dtype=np.int64)
+        rows = (x, u_r, theta_hat, theta_star)
+        n = _drawn_kernel()(*rows, units, noise, prm, cand, keep, steer, best, out)
+        if n:
+            self.m6_drawn_left(*rows, noise, prm, cand, keep, steer[:n], best, out)
 
     def m6_drawn_params(self, sigma: float, bias: float) -> np.ndarray:
         """What ``highway_m6_drawn`` reads of the Task and the noise, in its order: the search's
@@ -345,22 +346,27 @@ class HighwayTask(Task):
         theta_hat: np.ndarray,
         theta_star: np.ndarray,
         noise: np.ndarray,
-        sigma: float,
-        bias: float,
+        prm: np.ndarray,
         cand: np.ndarray,
+        keep: np.ndarray,
+        steer: np.ndarray,
         best: np.ndarray,
         out: np.ndarray,
     ) -> None:
-        """The rows ``highway_m6_drawn`` left to the exact search (``best`` −1): their choice
-        by ``m6_choice`` among their candidates ``cand``, their noise by ``perturb``."""
+        """The people ``highway_m6_drawn`` left to the exact search (``best`` −1): what
+        ``m6_choice`` does after its screen (numpy's steering angles of the packed ``steer``,
+        then ``highway_m6_kept`` among the kept candidates), then their noise by ``perturb``.
+        ``prm`` as ``m6_drawn_params`` gives it."""
         from strol_gym.humans.choices import perturb
         from strol_gym.humans.interface import Replayed
+        from strol_gym.tasks.m6_kernels import highway_m6_kept
 
         left = np.flatnonzero(best < 0)
-        rows = (x[left], u_r[left], theta_hat[left], theta_star[left], cand[left])
-        picks = self.m6_choice(*rows)
-        assert picks is not None  # m6_drawn is offered only where m6_choice runs
-        out[left] = perturb(self, cand[left, picks], sigma, bias, Replayed(noise[left]))
+        n_prm = len(prm) - 6
+        sigma, bias = float(prm[n_prm]), float(prm[n_prm + 1])
+        beta = _slip_angles(steer)
+        highway_m6_kept(x, u_r, theta_hat, theta_star, cand, keep, beta, prm[:n_prm], best)
+        out[left] = perturb(self, cand[left, best[left]], sigma, bias, Replayed(noise[left]))
 
     @functools.cached_property
     def _kernel_params(self) -> np.ndarray:

@@ -523,6 +523,8 @@ def highway_m6_drawn(
     noise: np.ndarray,
     prm: np.ndarray,
     cand: np.ndarray,
+    keep: np.ndarray,
+    steer: np.ndarray,
     best: np.ndarray,
     out: np.ndarray,
 ) -> int:
@@ -531,9 +533,10 @@ def highway_m6_drawn(
     ``Task._unit_to_box`` scales them (zero first) into ``cand`` (B, K + 1, 2), the screen of
     ``highway_m6_screen`` and, for each person it settles (``best[b]`` >= 0), the noise
     ``perturb`` adds, (u + ε a) + (σ a) z, into ``out`` (B, 2). The other people get
-    ``best[b]`` = −1 and are left to the exact search (``HighwayTask.m6_choice`` on their rows
-    of ``cand``). Returns how many were left. ``prm``: ``HighwayTask._kernel_params``, then σ,
-    ε, the candidates' bound per axis and a_max."""
+    ``best[b]`` = −1 and are left to the exact search (``highway_m6_kept``, with the screen's
+    ``keep`` (B, K + 1) and ``steer`` (B (K + 2)) as ``highway_m6_screen`` fills them). Returns
+    how many steering angles it packed (0: everyone settled). ``prm``:
+    ``HighwayTask._kernel_params``, then σ, ε, the candidates' bound per axis and a_max."""
     n_prm = prm.shape[0] - 6
     sigma, bias = prm[n_prm], prm[n_prm + 1]
     scale, a_max = prm[n_prm + 2 : n_prm + 4], prm[n_prm + 4 : n_prm + 6]
@@ -546,15 +549,11 @@ def highway_m6_drawn(
                 v = units[b, k, c] * 2.0
                 v = v + -1.0
                 cand[b, k + 1, c] = v * scale[c]
-    keep = np.empty((b_count, k_count + 1), dtype=np.bool_)
-    steer = np.empty(b_count * (k_count + 2))
-    highway_m6_screen(x, u_r, th_hat, th_star, cand, prm[:n_prm], keep, steer, best)
-    left = 0
+    n = highway_m6_screen(x, u_r, th_hat, th_star, cand, prm[:n_prm], keep, steer, best)
     for b in range(b_count):
         pick = best[b]
         if pick < 0:
-            left += 1
             continue
         for c in range(2):
             out[b, c] = (cand[b, pick, c] + bias * a_max[c]) + (sigma * a_max[c]) * noise[b, c]
-    return left
+    return n

@@ -236,17 +236,17 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
         found, th = teach[1], self.theta_hat
         if found is None or not use_fast() or not (_row(th, 3) and _row(x, 8) and _row(u_r, 2)):
             return super()._human_correction(x, u_r)
-        model, kernel, units, noise, cand, best = found
+        model, kernel, units, noise, cand, keep, steer, best = found
         human.begin()
         theta_star = np.ascontiguousarray(human.theta_star, dtype=np.float64)
         human.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
         human.rng.standard_normal(out=noise)
-        sigma, bias = model.sigma, model.bias
-        prm = self.task.m6_drawn_params(sigma, bias)
+        prm = self.task.m6_drawn_params(model.sigma, model.bias)
         out = np.empty((1, 2))
         rows = (x[None], u_r[None], th[None], theta_star[None])
-        if kernel(*rows, units, noise, prm, cand, best, out):
-            self.task.m6_drawn_left(*rows, noise, sigma, bias, cand, best, out)
+        n = kernel(*rows, units, noise, prm, cand, keep, steer, best, out)
+        if n:  # the screen left the choice open: the exact search
+            self.task.m6_drawn_left(*rows, noise, prm, cand, keep, steer[:n], best, out)
         u_h = out[0]
         if not all(map(math.isfinite, u_h.tolist())):
             raise ValueError(f"the human's correction must be 2 finite numbers, got {u_h}")
@@ -254,8 +254,8 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
 
     def _teacher(self, human: Any) -> tuple | None:
         """(the teacher's model, the compiled correction, buffers for its uniform and normal
-        draws, the candidates and the picks) where ``human`` is an eq. M6 teacher of this
-        env's Task; else None."""
+        draws, the candidates, the screen's marks and steering angles, and the picks) where
+        ``human`` is an eq. M6 teacher of this env's Task; else None."""
         model = drawn_teacher(human, self.task)
         if model is None or self.task.m6_drawn() is None:
             return None
@@ -266,6 +266,8 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
             np.empty((1, k, 2)),
             np.empty((1, 2)),
             np.empty((1, k + 1, 2)),
+            np.empty((1, k + 1), dtype=np.bool_),
+            np.empty(k + 2),
             np.empty(1, dtype=np.int64),
         )
 
