@@ -119,6 +119,7 @@ _CONTROL_STATE = (
 MODEL_EVERY = 4
 """Control steps between refreshes of Λ, D and the null-space projector (0.2 s)."""
 _ZERO6 = [0.0] * 6
+_ZERO7 = [0.0] * 7
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
 
@@ -194,6 +195,7 @@ class ImpedanceController:
         if self.version.admittance:
             dt = HOLD * self.model.opt.timestep
             self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
+        self._fp: np.ndarray | None = None  # the compiled chunk's C addresses, once looked up
 
     def _control_state(self) -> dict[str, Any]:
         """The controller's state (v1's), to run the simulation again from here."""
@@ -396,6 +398,8 @@ class ImpedanceController:
         adm = self.version.admittance
         wext = self._wrench.tolist()
         pushed = brake and self._hand_xfrc.any()
+        fp = self._chunk_functions() if band and brake else None
+        dt = m.opt.timestep
         for i in range(self._n_sub // HOLD):
             mujoco.mj_jacSite(m, d, jp, jr, site)
             if i == 0:
@@ -416,10 +420,16 @@ class ImpedanceController:
                 feed = self._lam.dot(acc) - wext
                 vel = [(b - a) * inv for a, b in zip(s0[:6], s1[:6], strict=True)]
                 damp = self._jt_damp.dot(vel).tolist()
-            (_, r01, r02), (r10, _, r12), (r20, r21, _) = target_r.dot(xmat_t).tolist()
             # The setpoint where it is at this chunk's start (it moves linearly over the
             # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
             back = CONTROL_DT - i * dt_i
+            if fp is not None and target_r.flags.c_contiguous:  # the same law, compiled
+                head = (spx, spy, spz, ox, oy, oz, *v_sp, back, gp, gr, ip, ir, dt, integrate)
+                self._compiled_chunk(fp, (*head, not pushed), target_r, feed, damp)
+                if self._braked:
+                    break
+                continue
+            (_, r01, r02), (r10, _, r12), (r20, r21, _) = target_r.dot(xmat_t).tolist()
             e = (
                 spx + ox - vx * back - x,
                 spy + oy - vy * back - y,
@@ -482,6 +492,63 @@ class ImpedanceController:
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         self._time += CONTROL_DT
+
+    def _chunk_functions(self) -> np.ndarray | None:
+        """The compiled chunk's C addresses for this model and data (``chunk.chunk``'s
+        ``fp``), or None: the plain path (``STROL_GYM_KERNELS=plain``, or no C functions
+        that give numpy's bits)."""
+        if not use_fast():
+            return None
+        if self._fp is None:
+            from strol_gym.envs.study import chunk
+
+            found = chunk.functions()
+            if found is None:
+                return None
+            self._fp = np.array([*found, self.model._address, self.data._address], np.intp)
+        return self._fp
+
+    def _compiled_chunk(
+        self,
+        fp: np.ndarray,
+        head: tuple[Any, ...],
+        target_r: np.ndarray,
+        feed: np.ndarray | None,
+        damp: list[float] | None,
+    ) -> None:
+        """A chunk of the ``track_bandwidth`` law and its physics steps by ``chunk.chunk``
+        (``head``: its ``par`` up to the feed and damping flags), then what the plain path
+        does after them: the brake's steps if the checks call for them, the contact."""
+        from strol_gym.envs.study import chunk
+
+        par = np.array(
+            [
+                *head,
+                feed is not None,
+                damp is not None,
+                *self._acc_ff,
+                *self._const,
+                *self._tau_last,
+                *(_ZERO6 if feed is None else feed.tolist()),
+                *(_ZERO7 if damp is None else damp),
+            ],
+            dtype=np.float64,
+        )
+        io = np.array([*self._integral, *_ZERO7])
+        left = chunk.chunk(
+            fp, par, io, target_r, self._kmat, self._gain, self._m_inv, self._jac,
+            self._watch_cap, self._brake_cap, self._qpos, self._qvel, self._qacc, self._ctrl,
+            self._site_xpos, self._site_xmat,
+        )  # fmt: skip
+        if head[-2]:  # it integrated
+            self._integral = io[:6].tolist()
+        if left == chunk.BRAKE_ALL:
+            self._braked_steps(not head[-1], HOLD)
+            return
+        self._tau_last = io[6:].tolist()
+        self._note_contact()
+        if left:
+            self._braked_steps(False, left)
 
     def _posture(self) -> tuple[np.ndarray, np.ndarray]:
         """v2's posture spring (``joint_room``) per joint: its stiffness (``K_NULL``, plus

@@ -1,0 +1,228 @@
+"""StROL-Study-v2's control chunk as one compiled call (numba) that calls MuJoCo and numpy's
+BLAS itself: the tracking law's torques and the joint brake's watched physics steps
+(``ImpedanceController._simulate_v1``, ``_step_braked``, ``_watched_steps``) between two
+Python calls, where Python paid its own overhead around every one of ``HOLD`` ``mj_step``\\ s.
+
+The small products (K e, G [q; q̇], Jᵀ w, M⁻¹ Δτ, R_target R_cupᵀ) are the very calls
+``ndarray.dot`` makes: numpy's bundled OpenBLAS ``cblas_dgemv``/``cblas_dgemm``, reached
+through their addresses with numpy's arguments, so they sum in OpenBLAS's order under any of
+its core types; the rest is the plain path's IEEE operations in its order (no fast-math).
+``functions()`` finds the addresses once per process and checks the products against numpy on
+random inputs (``_agrees``): elsewhere (another BLAS, another platform) the plain path runs.
+
+This module imports numba: import it only when ``strol_gym.compiled.use_fast()``.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import glob
+import os
+from typing import Any
+
+import numpy as np
+from numba import njit, types
+
+from strol_gym.envs.panda.ik_kernel import _addresses, _c_function, intrinsic
+from strol_gym.envs.study.controller import HOLD
+
+ROW_MAJOR, NO_TRANS, TRANS = 101, 111, 112
+"""CBLAS's ``CblasRowMajor``, ``CblasNoTrans`` and ``CblasTrans``."""
+STEP, GEMV, GEMM = range(3)
+"""Where ``functions()`` puts each C function's address (then the model's and data's)."""
+BRAKE_ALL = -1
+"""``chunk``'s answer when the chunk's physics is the brake's from its first step."""
+
+_jit: Any = njit(cache=True, nogil=True)  # checked by numba, not mypy
+_p, _i, _f = types.intp, types.int32, types.float64
+
+
+@intrinsic
+def _call_md(typingctx, address, m, d):
+    """mj_step(m, d) at ``address``."""
+    return _c_function(None, (_p, _p))
+
+
+@intrinsic
+def _call_gemv(typingctx, address, order, trans, m, n, alpha, a, lda, x, incx, beta, y, incy):
+    """cblas_dgemv (ILP64) at ``address``."""
+    return _c_function(None, (_i, _i, _p, _p, _f, _p, _p, _p, _p, _f, _p, _p))
+
+
+@intrinsic
+def _call_gemm(typingctx, address, order, ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc):
+    """cblas_dgemm (ILP64) at ``address``."""
+    return _c_function(None, (_i, _i, _i, _p, _p, _p, _f, _p, _p, _p, _p, _f, _p, _p))
+
+
+@_jit
+def _ptr(a):
+    return np.intp(a.ctypes.data)
+
+
+@_jit
+def gemv(fp, a, x, out):
+    """out = a x as ``a.dot(x)`` computes it (a C-contiguous, x contiguous)."""
+    m, n = a.shape
+    _call_gemv(
+        fp, np.int32(ROW_MAJOR), np.int32(NO_TRANS), m, n, 1.0, _ptr(a), n, _ptr(x), 1, 0.0,
+        _ptr(out), 1,
+    )  # fmt: skip
+
+
+@_jit
+def gemv_t(fp, a, x, out):
+    """out = x a as ``x.dot(a)`` computes it (a C-contiguous, x contiguous)."""
+    m, n = a.shape
+    _call_gemv(
+        fp, np.int32(ROW_MAJOR), np.int32(TRANS), m, n, 1.0, _ptr(a), n, _ptr(x), 1, 0.0,
+        _ptr(out), 1,
+    )  # fmt: skip
+
+
+@_jit
+def gemm_bt(fp, a, b, out):
+    """out = a bᵀ as ``a.dot(b.T)`` computes it (a, b C-contiguous and square)."""
+    n = a.shape[0]
+    _call_gemm(
+        fp, np.int32(ROW_MAJOR), np.int32(NO_TRANS), np.int32(TRANS), n, n, n, 1.0, _ptr(a), n,
+        _ptr(b), n, 0.0, _ptr(out), n,
+    )  # fmt: skip
+
+
+PAR = 55
+"""``chunk``'s ``par``: spx, spy, spz, ox, oy, oz, vx, vy, vz, wx, wy, wz (the setpoint, the
+admittance's offset, the setpoint's velocity), back, gp, gr, ip, ir, the timestep, then flags
+(1.0/0.0: integrate, step, feed, damp), then Λ a_sp (6), the constant torques (7), the last
+step's torques (7), the admittance's wrench feed (6) and its damping torques (7)."""
+
+
+@_jit
+def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q, qd, qacc, ctrl,
+          xpos, xmat):  # fmt: skip
+    """One control chunk of v2's tracking law (``ImpedanceController._simulate_v1``, the
+    ``track_bandwidth`` branch) and, unless ``par`` says not to step (a person pushes), the
+    brake's first checks and its watched physics steps (``_step_braked``, ``_watched_steps``).
+    Returns 0 (the chunk's steps all taken), ``BRAKE_ALL`` (none taken: the brake's chunk
+    follows) or the steps a watched step's look-ahead left to the brake.
+
+    ``fp``: ``STEP``, ``GEMV``, ``GEMM``'s addresses, then the model's and the data's; ``par``:
+    see ``PAR``; ``io``: the integral (6, updated when it integrates), then the torques the
+    chunk set (7, written)."""
+    step_fn, gemv_fn, gemm_fn, m, d = fp[0], fp[1], fp[2], fp[3], fp[4]
+    rot = np.empty((3, 3))
+    gemm_bt(gemm_fn, target_r, xmat, rot)
+    r01, r02, r10, r12, r20, r21 = rot[0, 1], rot[0, 2], rot[1, 0], rot[1, 2], rot[2, 0], rot[2, 1]
+    back = par[12]
+    x, y, z = xpos[0], xpos[1], xpos[2]
+    e = np.empty(6)
+    e[0] = par[0] + par[3] - par[6] * back - x
+    e[1] = par[1] + par[4] - par[7] * back - y
+    e[2] = par[2] + par[5] - par[8] * back - z
+    e[3] = 0.5 * (r21 - r12) - par[9] * back
+    e[4] = 0.5 * (r02 - r20) - par[10] * back
+    e[5] = 0.5 * (r10 - r01) - par[11] * back
+    ke = np.empty(6)
+    gemv(gemv_fn, kmat, e, ke)
+    if par[18] != 0.0:
+        for k in range(6):
+            g, lim = (par[13], par[15]) if k < 3 else (par[14], par[16])
+            v = io[k] + g * ke[k]
+            v = v if v > -lim else -lim  # Python's max(-lim, v), then min(lim, v)
+            io[k] = v if v < lim else lim
+    w = np.empty(6)
+    for k in range(6):
+        w[k] = ke[k] + io[k] + par[22 + k]
+        if par[20] != 0.0:
+            w[k] = w[k] + par[42 + k]
+    state = np.empty(14)
+    for j in range(7):
+        state[j] = q[j]
+        state[7 + j] = qd[j]
+    rest = np.empty(7)
+    gemv(gemv_fn, gain, state, rest)
+    jtw = np.empty(jac.shape[1])
+    gemv_t(gemv_fn, jac, w, jtw)
+    for j in range(7):
+        t = jtw[j] + par[28 + j] - rest[j]
+        if par[21] != 0.0:
+            t = t + par[48 + j]
+        ctrl[j] = io[6 + j] = t
+    if par[19] == 0.0:
+        return BRAKE_ALL
+    for j in range(7):
+        if abs(qd[j]) > watch_cap[j]:
+            return BRAKE_ALL
+    delta = np.empty(7)
+    for j in range(7):
+        delta[j] = io[6 + j] - par[35 + j]
+    extra = np.empty(7)
+    gemv(gemv_fn, m_inv, delta, extra)
+    h = par[17]
+    ahead = HOLD * h
+    for j in range(7):
+        if abs(qd[j] + ahead * (qacc[j] + extra[j])) > brake_cap[j]:
+            return BRAKE_ALL
+    for done in range(1, HOLD + 1):
+        _call_md(step_fn, m, d)
+        left = HOLD - done
+        if left == 0:
+            break
+        drift = left * h
+        for j in range(7):
+            if abs(qd[j] + drift * qacc[j]) > brake_cap[j]:
+                return left
+    return 0
+
+
+def _numpy_blas() -> ctypes.CDLL | None:
+    """numpy's bundled OpenBLAS (a wheel's ``numpy.libs``), where numpy was built with it."""
+    config: Any = np.show_config(mode="dicts")
+    blas = config.get("Build Dependencies", {}).get("blas", {})
+    if blas.get("name") != "scipy-openblas" or "USE64BITINT" not in str(blas):
+        return None
+    root = os.path.dirname(os.path.dirname(np.__file__))
+    found = glob.glob(os.path.join(root, "numpy.libs", "libscipy_openblas64_*.so"))
+    try:
+        return ctypes.CDLL(found[0]) if len(found) == 1 else None
+    except OSError:
+        return None
+
+
+@functools.cache
+def functions() -> np.ndarray | None:
+    """``mj_step``'s and numpy's ``cblas_dgemv``/``cblas_dgemm``'s addresses (``STEP``,
+    ``GEMV``, ``GEMM``), or None: no such libraries or symbols, or products that do not
+    give numpy's bits (``_agrees``)."""
+    blas, step = _numpy_blas(), _addresses(("mj_step",))
+    names = ("scipy_cblas_dgemv64_", "scipy_cblas_dgemm64_")
+    if blas is None or step is None or not all(hasattr(blas, n) for n in names):
+        return None
+    found = [int(step[0])] + [ctypes.cast(getattr(blas, n), ctypes.c_void_p).value for n in names]
+    fp = np.array(found, dtype=np.intp)
+    return fp if _agrees(fp) else None
+
+
+def _agrees(fp: np.ndarray, cases: int = 50) -> bool:
+    """Whether the compiled products equal ``ndarray.dot``'s bit for bit on random inputs of
+    the chunk's shapes (``OPENBLAS_CORETYPE`` and the library are this process's)."""
+    rng = np.random.default_rng(0)
+    for _ in range(cases):
+        for rows, cols in ((6, 6), (7, 7), (7, 14)):
+            a, x, out = rng.standard_normal((rows, cols)), rng.standard_normal(cols), np.empty(rows)
+            gemv(fp[GEMV], a, x, out)
+            if out.tobytes() != a.dot(x).tobytes():
+                return False
+        a, x, out = rng.standard_normal((6, 9)), rng.standard_normal(6), np.empty(9)
+        gemv_t(fp[GEMV], a, x, out)
+        if out.tobytes() != x.dot(a).tobytes():
+            return False
+        a, b, prod = rng.standard_normal((3, 3)), rng.standard_normal((3, 3)), np.empty((3, 3))
+        gemm_bt(fp[GEMM], a, b, prod)
+        if prod.tobytes() != a.dot(b.T).tobytes():
+            return False
+    return True
+
+
+__all__ = ["BRAKE_ALL", "PAR", "chunk", "functions"]
