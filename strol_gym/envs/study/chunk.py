@@ -29,8 +29,9 @@ from strol_gym.envs.study.controller import HOLD
 
 ROW_MAJOR, NO_TRANS, TRANS = 101, 111, 112
 """CBLAS's ``CblasRowMajor``, ``CblasNoTrans`` and ``CblasTrans``."""
-STEP, GEMV, GEMM = range(3)
-"""Where ``functions()`` puts each C function's address (then the model's and data's)."""
+STEP, GEMV, GEMM, FULL_M, GESV, MODEL, DATA = range(7)
+"""Where ``functions()`` puts each C function's address, then where the controller puts the
+model's and the data's."""
 BRAKE_ALL = -1
 """``chunk``'s answer when the chunk's physics is the brake's from its first step."""
 
@@ -42,6 +43,18 @@ _p, _i, _f = types.intp, types.int32, types.float64
 def _call_md(typingctx, address, m, d):
     """mj_step(m, d) at ``address``."""
     return _c_function(None, (_p, _p))
+
+
+@intrinsic
+def _call_full_m(typingctx, address, m, d, dst):
+    """mj_fullM(m, d, dst) at ``address``."""
+    return _c_function(None, (_p, _p, _p))
+
+
+@intrinsic
+def _call_gesv(typingctx, address, n, nrhs, a, lda, ipiv, b, ldb, info):
+    """LAPACK's dgesv (ILP64, Fortran: every argument a pointer) at ``address``."""
+    return _c_function(None, (_p, _p, _p, _p, _p, _p, _p, _p))
 
 
 @intrinsic
@@ -83,12 +96,49 @@ def gemv_t(fp, a, x, out):
 
 @_jit
 def gemm_bt(fp, a, b, out):
-    """out = a bᵀ as ``a.dot(b.T)`` computes it (a, b C-contiguous and square)."""
-    n = a.shape[0]
+    """out = a bᵀ as ``a.dot(b.T)`` computes it (a, b C-contiguous: bᵀ is Fortran-ordered)."""
+    rows, inner = a.shape
     _call_gemm(
-        fp, np.int32(ROW_MAJOR), np.int32(NO_TRANS), np.int32(TRANS), n, n, n, 1.0, _ptr(a), n,
-        _ptr(b), n, 0.0, _ptr(out), n,
+        fp, np.int32(ROW_MAJOR), np.int32(NO_TRANS), np.int32(TRANS), rows, b.shape[0], inner,
+        1.0, _ptr(a), inner, _ptr(b), inner, 0.0, _ptr(out), b.shape[0],
     )  # fmt: skip
+
+
+@_jit
+def gemm(fp, a, b, out):
+    """out = a b as ``a.dot(b)`` computes it (a, b C-contiguous)."""
+    rows, inner = a.shape
+    cols = b.shape[1]
+    _call_gemm(
+        fp, np.int32(ROW_MAJOR), np.int32(NO_TRANS), np.int32(NO_TRANS), rows, cols, inner,
+        1.0, _ptr(a), inner, _ptr(b), cols, 0.0, _ptr(out), cols,
+    )  # fmt: skip
+
+
+@_jit
+def solve(fp, a, b):
+    """``np.linalg.solve(a, b)`` (b None: ``np.linalg.inv(a)``) as numpy computes it: LAPACK's
+    dgesv on column-major copies; None where a is singular (numpy raises)."""
+    n = a.shape[0]
+    nrhs = n if b is None else b.shape[1]
+    a_f, b_f = np.zeros(n * n), np.zeros(n * nrhs)
+    for i in range(n):
+        for j in range(n):
+            a_f[i + j * n] = a[i, j]
+        for j in range(nrhs):
+            if b is None:
+                b_f[i + j * n] = 1.0 if i == j else 0.0
+            else:
+                b_f[i + j * n] = b[i, j]
+    ints = np.array([n, nrhs, n, n, 0], dtype=np.int64)
+    ipiv = np.zeros(n, dtype=np.int64)
+    at = _ptr(ints)
+    _call_gesv(fp, at, at + 8, _ptr(a_f), at + 16, _ptr(ipiv), _ptr(b_f), at + 24, at + 32)
+    out = np.zeros((n, nrhs))
+    for i in range(n):
+        for j in range(nrhs):
+            out[i, j] = b_f[i + j * n]
+    return ints[4], out
 
 
 PAR = 55
@@ -110,8 +160,8 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
     ``fp``: ``STEP``, ``GEMV``, ``GEMM``'s addresses, then the model's and the data's; ``par``:
     see ``PAR``; ``io``: the integral (6, updated when it integrates), then the torques the
     chunk set (7, written)."""
-    step_fn, gemv_fn, gemm_fn, m, d = fp[0], fp[1], fp[2], fp[3], fp[4]
-    rot = np.empty((3, 3))
+    step_fn, gemv_fn, gemm_fn, m, d = fp[STEP], fp[GEMV], fp[GEMM], fp[MODEL], fp[DATA]
+    rot = np.zeros((3, 3))  # BLAS's outputs zeroed first, as numpy's
     gemm_bt(gemm_fn, target_r, xmat, rot)
     r01, r02, r10, r12, r20, r21 = rot[0, 1], rot[0, 2], rot[1, 0], rot[1, 2], rot[2, 0], rot[2, 1]
     back = par[12]
@@ -123,7 +173,7 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
     e[3] = 0.5 * (r21 - r12) - par[9] * back
     e[4] = 0.5 * (r02 - r20) - par[10] * back
     e[5] = 0.5 * (r10 - r01) - par[11] * back
-    ke = np.empty(6)
+    ke = np.zeros(6)
     gemv(gemv_fn, kmat, e, ke)
     if par[18] != 0.0:
         for k in range(6):
@@ -140,9 +190,9 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
     for j in range(7):
         state[j] = q[j]
         state[7 + j] = qd[j]
-    rest = np.empty(7)
+    rest = np.zeros(7)
     gemv(gemv_fn, gain, state, rest)
-    jtw = np.empty(jac.shape[1])
+    jtw = np.zeros(jac.shape[1])
     gemv_t(gemv_fn, jac, w, jtw)
     for j in range(7):
         t = jtw[j] + par[28 + j] - rest[j]
@@ -157,7 +207,7 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
     delta = np.empty(7)
     for j in range(7):
         delta[j] = io[6 + j] - par[35 + j]
-    extra = np.empty(7)
+    extra = np.zeros(7)
     gemv(gemv_fn, m_inv, delta, extra)
     h = par[17]
     ahead = HOLD * h
@@ -176,6 +226,77 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
     return 0
 
 
+@_jit
+def refresh(fp, mass, jac, q, q_home, jnt_range, twists, reg, band, k_null, d_null, k_limit,
+            limit_band):  # fmt: skip
+    """v2's model refresh (``ImpedanceController._model_terms``: the ``track_bandwidth``,
+    ``joint_room`` and ``joint_brake`` branch, with ``_posture``): M (into ``mass``), then
+    (ok, K, Λ, Jᵀ D, J̄ Λ... see the plain path) as numpy computes them; ok False where a
+    matrix is singular (the plain path then raises as before)."""
+    _call_full_m(fp[FULL_M], fp[MODEL], fp[DATA], _ptr(mass))
+    n, rows = 7, jac.shape[0]
+    ja, ja_t, m_arm = np.zeros((rows, n)), np.zeros((n, rows)), np.zeros((n, n))
+    for i in range(rows):
+        for j in range(n):
+            ja[i, j] = ja_t[j, i] = jac[i, j]
+    for i in range(n):
+        for j in range(n):
+            m_arm[i, j] = mass[i, j]
+    info, m_inv_jt = solve(fp[GESV], m_arm, ja_t)
+    jm = np.zeros((rows, rows))
+    gemm(fp[GEMM], ja, m_inv_jt, jm)
+    jm = jm + reg
+    info_lam, lam = solve(fp[GESV], jm, None)
+    kmat = (band * band) * lam
+    jt_damp = np.zeros((n, rows))
+    gemm(fp[GEMM], ja_t, (2.0 * band) * lam, jt_damp)
+    lj = np.zeros((rows, n))
+    gemm_bt(fp[GEMM], lam, m_inv_jt, lj)
+    proj = np.zeros((n, n))
+    gemm(fp[GEMM], ja_t, lj, proj)
+    null = np.eye(n) - proj
+    stiff, pull = np.zeros(n), np.zeros(n)
+    for j in range(n):
+        lo, hi = jnt_range[0, j], jnt_range[1, j]
+        high, low = q[j] > hi - limit_band, q[j] < lo + limit_band
+        edge = hi - limit_band if high else lo + limit_band
+        inside = 1.0 if (high or low) and twists[j] else 0.0
+        stiff[j] = k_null + k_limit * inside
+        pull[j] = k_null * q_home[j] + k_limit * inside * edge
+    pull_home = np.zeros(n)
+    gemv(fp[GEMV], null, pull, pull_home)
+    damped = np.zeros((n, n))
+    gemm(fp[GEMM], jt_damp, ja, damped)
+    gain = np.zeros((n, 2 * n))
+    for i in range(n):
+        for j in range(n):
+            gain[i, j] = null[i, j] * stiff[j]
+            gain[i, n + j] = damped[i, j] + d_null * null[i, j]
+    dyn_inv = np.zeros((n, rows))
+    gemm(fp[GEMM], m_inv_jt, lam, dyn_inv)
+    info_m, m_inv = solve(fp[GESV], m_arm, None)
+    ok = info == 0 and info_lam == 0 and info_m == 0
+    return ok, kmat, lam, jt_damp, dyn_inv, gain, pull_home, m_inv
+
+
+@_jit
+def feeds(fp, lam, jt_damp, dyn_inv, pull_home, joint_damping, v_sp, v_prev, inv_dt, acc, feed):
+    """``_model_terms``' feedforward terms as numpy computes them: where ``acc``, Λ a_sp with
+    a_sp = (v_sp − v_prev) · inv_dt; where ``feed``, Jᵀ D v_sp + the joints' damping at J̄ v_sp
+    + the null-space pull. Returns (Λ a_sp, the constant torques); an unasked one is zeros."""
+    rows, n = lam.shape[0], jt_damp.shape[0]
+    acc_ff, const = np.zeros(rows), np.zeros(n)
+    if acc:
+        a = (v_sp - v_prev) * inv_dt
+        gemv(fp[GEMV], lam, a, acc_ff)
+    if feed:
+        damp, move = np.zeros(n), np.zeros(n)
+        gemv(fp[GEMV], jt_damp, v_sp, damp)
+        gemv(fp[GEMV], dyn_inv, v_sp, move)
+        const = (damp + joint_damping * move) + pull_home
+    return acc_ff, const
+
+
 def _numpy_blas() -> ctypes.CDLL | None:
     """numpy's bundled OpenBLAS (a wheel's ``numpy.libs``), where numpy was built with it."""
     config: Any = np.show_config(mode="dicts")
@@ -192,37 +313,51 @@ def _numpy_blas() -> ctypes.CDLL | None:
 
 @functools.cache
 def functions() -> np.ndarray | None:
-    """``mj_step``'s and numpy's ``cblas_dgemv``/``cblas_dgemm``'s addresses (``STEP``,
-    ``GEMV``, ``GEMM``), or None: no such libraries or symbols, or products that do not
-    give numpy's bits (``_agrees``)."""
-    blas, step = _numpy_blas(), _addresses(("mj_step",))
-    names = ("scipy_cblas_dgemv64_", "scipy_cblas_dgemm64_")
-    if blas is None or step is None or not all(hasattr(blas, n) for n in names):
+    """The C functions' addresses (``STEP``, ``GEMV``, ``GEMM``, ``FULL_M``, ``GESV``:
+    MuJoCo's, then numpy's OpenBLAS's), or None: no such libraries or symbols, or products
+    that do not give numpy's bits (``_agrees``)."""
+    blas, mj = _numpy_blas(), _addresses(("mj_step", "mj_fullM"))
+    names = ("scipy_cblas_dgemv64_", "scipy_cblas_dgemm64_", "scipy_dgesv_64_")
+    if blas is None or mj is None or not all(hasattr(blas, n) for n in names):
         return None
-    found = [int(step[0])] + [ctypes.cast(getattr(blas, n), ctypes.c_void_p).value for n in names]
-    fp = np.array(found, dtype=np.intp)
+    gemv_fn, gemm_fn, gesv_fn = (
+        ctypes.cast(getattr(blas, n), ctypes.c_void_p).value for n in names
+    )
+    fp = np.array([mj[0], gemv_fn, gemm_fn, mj[1], gesv_fn], dtype=np.intp)
     return fp if _agrees(fp) else None
 
 
 def _agrees(fp: np.ndarray, cases: int = 50) -> bool:
-    """Whether the compiled products equal ``ndarray.dot``'s bit for bit on random inputs of
-    the chunk's shapes (``OPENBLAS_CORETYPE`` and the library are this process's)."""
+    """Whether the compiled products and solves equal numpy's bit for bit on random inputs of
+    the controller's shapes (``OPENBLAS_CORETYPE`` and the library are this process's)."""
     rng = np.random.default_rng(0)
+    same = True
     for _ in range(cases):
-        for rows, cols in ((6, 6), (7, 7), (7, 14)):
-            a, x, out = rng.standard_normal((rows, cols)), rng.standard_normal(cols), np.empty(rows)
+        for rows, cols in ((6, 6), (7, 7), (7, 14), (7, 6)):
+            a, x, out = rng.standard_normal((rows, cols)), rng.standard_normal(cols), np.zeros(rows)
             gemv(fp[GEMV], a, x, out)
-            if out.tobytes() != a.dot(x).tobytes():
-                return False
-        a, x, out = rng.standard_normal((6, 9)), rng.standard_normal(6), np.empty(9)
+            same &= out.tobytes() == a.dot(x).tobytes()
+        a, x, out = rng.standard_normal((6, 9)), rng.standard_normal(6), np.zeros(9)
         gemv_t(fp[GEMV], a, x, out)
-        if out.tobytes() != x.dot(a).tobytes():
-            return False
-        a, b, prod = rng.standard_normal((3, 3)), rng.standard_normal((3, 3)), np.empty((3, 3))
-        gemm_bt(fp[GEMM], a, b, prod)
-        if prod.tobytes() != a.dot(b.T).tobytes():
-            return False
-    return True
+        same &= out.tobytes() == x.dot(a).tobytes()
+        for rows, inner, cols in ((6, 7, 6), (7, 6, 6), (7, 6, 7), (3, 3, 3)):
+            a, b = rng.standard_normal((rows, inner)), rng.standard_normal((inner, cols))
+            prod = np.zeros((rows, cols))
+            gemm(fp[GEMM], a, b, prod)
+            same &= prod.tobytes() == a.dot(b).tobytes()
+        for rows, inner, cols in ((6, 6, 7), (3, 3, 3)):
+            a, b = rng.standard_normal((rows, inner)), rng.standard_normal((cols, inner))
+            prod = np.zeros((rows, cols))
+            gemm_bt(fp[GEMM], a, b, prod)
+            same &= prod.tobytes() == a.dot(b.T).tobytes()
+        m = rng.standard_normal((9, 9))
+        m = m.dot(m.T) + np.eye(9)
+        jt = rng.standard_normal((6, 9))[:, :7].T
+        info, x = solve(fp[GESV], m[:7, :7].copy(), jt.copy())
+        same &= info == 0 and x.tobytes() == np.linalg.solve(m[:7, :7], jt).tobytes()
+        info, x = solve(fp[GESV], m[:6, :6].copy(), None)
+        same &= info == 0 and x.tobytes() == np.linalg.inv(m[:6, :6]).tobytes()
+    return bool(same)
 
 
-__all__ = ["BRAKE_ALL", "PAR", "chunk", "functions"]
+__all__ = ["BRAKE_ALL", "PAR", "chunk", "feeds", "functions", "refresh"]

@@ -120,6 +120,7 @@ MODEL_EVERY = 4
 """Control steps between refreshes of Λ, D and the null-space projector (0.2 s)."""
 _ZERO6 = [0.0] * 6
 _ZERO7 = [0.0] * 7
+_TWISTS = np.array(LIMIT_JOINTS)
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
 
@@ -321,35 +322,27 @@ class ImpedanceController:
         refresh = self._model_age <= 0
         if refresh:
             self._model_age = MODEL_EVERY
-            ja = self._jac[:, :N_ARM]
-            mujoco.mj_fullM(self.model, self.data, self._mass)
-            m_inv_jt = np.linalg.solve(self._mass[:N_ARM, :N_ARM], ja.T)
-            lam = np.linalg.inv(ja.dot(m_inv_jt) + LAMBDA_REG)
-            band = self.version.track_bandwidth
-            if band:  # v2: K = ω² Λ, D = 2ωΛ: each direction tracks with bandwidth ω
-                self._kmat = (band * band) * lam
-                jt_damp = ja.T.dot((2.0 * band) * lam)
-            else:
-                vals, vecs = np.linalg.eigh(lam)
-                root = (vecs * np.sqrt(np.maximum(vals, 0.0))).dot(vecs.T)
-                jt_damp = ja.T.dot(root * self._sqrt_k + self._sqrt_k[:, None] * root)
-            # The elbow's pull acts in the task's null space only (N = I − Jᵀ J̄ᵀ): v0's pull,
-            # unprojected, turned the wrist off its setpoint by up to 0.05 rad.
-            null = self._eye7 - ja.T.dot(lam.dot(m_inv_jt.T))
-            # τ = Jᵀ(K e + ∫ + Λ a_sp) + c − G [q; q̇]: G = [K_n N, Jᵀ D J + D_n N].
-            stiff: np.ndarray | float
-            if self.version.joint_room:  # the pull home plus the pull off the limits
-                stiff, pull = self._posture()
-                self._pull_home = null.dot(pull)
-            else:
-                stiff = K_NULL
-                self._pull_home = (K_NULL * null).dot(self._q_home)
-            self._gain = np.hstack([null * stiff, jt_damp.dot(ja) + D_NULL * null])
-            self._lam, self._dyn_inv, self._jt_damp = lam, m_inv_jt.dot(lam), jt_damp
-            if self.version.joint_brake:
-                self._m_inv = np.linalg.inv(self._mass[:N_ARM, :N_ARM])
+            if not self._refresh_compiled():
+                self._refresh_terms()
         self._model_age -= 1
         v_list = v_sp.tolist()
+        fp = self._fp if self._fp is not None and use_fast() else None
+        if fp is not None and self.version.track_bandwidth:  # the same sums, compiled
+            from strol_gym.envs.study import chunk
+
+            acc, feed = v_list != self._v_prev, refresh or v_list != self._v_feed
+            if acc or feed:
+                v_prev = np.array(self._v_prev)
+                acc_ff, const = chunk.feeds(
+                    fp, self._lam, self._jt_damp, self._dyn_inv, self._pull_home,
+                    JOINT_DAMPING, v_sp, v_prev, 1.0 / CONTROL_DT, acc, feed,
+                )  # fmt: skip
+            self._acc_ff = acc_ff.tolist() if acc else _ZERO6
+            if acc:
+                self._v_prev = v_list
+            if feed:
+                self._v_feed, self._const = v_list, const.tolist()
+            return
         if v_list == self._v_prev:
             self._acc_ff = _ZERO6
         else:
@@ -360,6 +353,57 @@ class ImpedanceController:
             self._v_feed = v_list
             feed = self._jt_damp.dot(v_sp) + JOINT_DAMPING * self._dyn_inv.dot(v_sp)
             self._const = (feed + self._pull_home).tolist()
+
+    def _refresh_terms(self) -> None:
+        """``_model_terms``' refresh: M, Λ, the gains and the null-space pull at this pose."""
+        ja = self._jac[:, :N_ARM]
+        mujoco.mj_fullM(self.model, self.data, self._mass)
+        m_inv_jt = np.linalg.solve(self._mass[:N_ARM, :N_ARM], ja.T)
+        lam = np.linalg.inv(ja.dot(m_inv_jt) + LAMBDA_REG)
+        band = self.version.track_bandwidth
+        if band:  # v2: K = ω² Λ, D = 2ωΛ: each direction tracks with bandwidth ω
+            self._kmat = (band * band) * lam
+            jt_damp = ja.T.dot((2.0 * band) * lam)
+        else:
+            vals, vecs = np.linalg.eigh(lam)
+            root = (vecs * np.sqrt(np.maximum(vals, 0.0))).dot(vecs.T)
+            jt_damp = ja.T.dot(root * self._sqrt_k + self._sqrt_k[:, None] * root)
+        # The elbow's pull acts in the task's null space only (N = I − Jᵀ J̄ᵀ): v0's pull,
+        # unprojected, turned the wrist off its setpoint by up to 0.05 rad.
+        null = self._eye7 - ja.T.dot(lam.dot(m_inv_jt.T))
+        # τ = Jᵀ(K e + ∫ + Λ a_sp) + c − G [q; q̇]: G = [K_n N, Jᵀ D J + D_n N].
+        stiff: np.ndarray | float
+        if self.version.joint_room:  # the pull home plus the pull off the limits
+            stiff, pull = self._posture()
+            self._pull_home = null.dot(pull)
+        else:
+            stiff = K_NULL
+            self._pull_home = (K_NULL * null).dot(self._q_home)
+        self._gain = np.hstack([null * stiff, jt_damp.dot(ja) + D_NULL * null])
+        self._lam, self._dyn_inv, self._jt_damp = lam, m_inv_jt.dot(lam), jt_damp
+        if self.version.joint_brake:
+            self._m_inv = np.linalg.inv(self._mass[:N_ARM, :N_ARM])
+
+    def _refresh_compiled(self) -> bool:
+        """``_refresh_terms`` in one compiled call (``chunk.refresh``: v2's branch, numpy's
+        own LAPACK and BLAS calls), where it applies; False: the plain path is to run."""
+        v = self.version
+        if not (v.track_bandwidth and v.joint_room and v.joint_brake):
+            return False
+        fp = self._chunk_functions()
+        if fp is None:
+            return False
+        from strol_gym.envs.study import chunk
+
+        ok, *terms = chunk.refresh(
+            fp, self._mass, self._jac, self._qpos, self._q_home, self._jnt_range, _TWISTS,
+            LAMBDA_REG, v.track_bandwidth, K_NULL, D_NULL, K_LIMIT, LIMIT_BAND,
+        )  # fmt: skip
+        if not ok:  # singular: the plain path raises numpy's error
+            return False
+        self._kmat, self._lam, self._jt_damp, self._dyn_inv, self._gain = terms[:5]
+        self._pull_home, self._m_inv = terms[5:]
+        return True
 
     def _simulate_v1(self, v_sp: Velocity) -> None:
         """One control step: τ = Jᵀ(K e + D (v_sp − J q̇) + Λ a_sp + ∫) + the joints' damping
