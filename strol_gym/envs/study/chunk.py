@@ -141,15 +141,18 @@ def solve(fp, a, b):
     return ints[4], out
 
 
-PAR = 55
+PAR = 68
 """``chunk``'s ``par``: spx, spy, spz, ox, oy, oz, vx, vy, vz, wx, wy, wz (the setpoint, the
 admittance's offset, the setpoint's velocity), back, gp, gr, ip, ir, the timestep, then flags
 (1.0/0.0: integrate, step, feed, damp), then Λ a_sp (6), the constant torques (7), the last
-step's torques (7), the admittance's wrench feed (6) and its damping torques (7)."""
+step's torques (7), the admittance's wrench feed (6) and its damping torques (7); then what
+the chunk updates: the integral (6, when it integrates) and the torques it set (7)."""
+INTEGRAL, TORQUES = 55, 61
+"""Where ``par`` holds the integral and the chunk's torques."""
 
 
 @_jit
-def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q, qd, qacc, ctrl,
+def chunk(fp, par, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q, qd, qacc, ctrl,
           xpos, xmat):  # fmt: skip
     """One control chunk of v2's tracking law (``ImpedanceController._simulate_v1``, the
     ``track_bandwidth`` branch) and, unless ``par`` says not to step (a person pushes), the
@@ -157,9 +160,7 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
     Returns 0 (the chunk's steps all taken), ``BRAKE_ALL`` (none taken: the brake's chunk
     follows) or the steps a watched step's look-ahead left to the brake.
 
-    ``fp``: ``STEP``, ``GEMV``, ``GEMM``'s addresses, then the model's and the data's; ``par``:
-    see ``PAR``; ``io``: the integral (6, updated when it integrates), then the torques the
-    chunk set (7, written)."""
+    ``fp``: ``functions()``' addresses, then the model's and the data's; ``par``: see ``PAR``."""
     step_fn, gemv_fn, gemm_fn, m, d = fp[STEP], fp[GEMV], fp[GEMM], fp[MODEL], fp[DATA]
     rot = np.zeros((3, 3))  # BLAS's outputs zeroed first, as numpy's
     gemm_bt(gemm_fn, target_r, xmat, rot)
@@ -178,12 +179,12 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
     if par[18] != 0.0:
         for k in range(6):
             g, lim = (par[13], par[15]) if k < 3 else (par[14], par[16])
-            v = io[k] + g * ke[k]
+            v = par[INTEGRAL + k] + g * ke[k]
             v = v if v > -lim else -lim  # Python's max(-lim, v), then min(lim, v)
-            io[k] = v if v < lim else lim
+            par[INTEGRAL + k] = v if v < lim else lim
     w = np.empty(6)
     for k in range(6):
-        w[k] = ke[k] + io[k] + par[22 + k]
+        w[k] = ke[k] + par[INTEGRAL + k] + par[22 + k]
         if par[20] != 0.0:
             w[k] = w[k] + par[42 + k]
     state = np.empty(14)
@@ -198,7 +199,7 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
         t = jtw[j] + par[28 + j] - rest[j]
         if par[21] != 0.0:
             t = t + par[48 + j]
-        ctrl[j] = io[6 + j] = t
+        ctrl[j] = par[TORQUES + j] = t
     if par[19] == 0.0:
         return BRAKE_ALL
     for j in range(7):
@@ -206,7 +207,7 @@ def chunk(fp, par, io, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q
             return BRAKE_ALL
     delta = np.empty(7)
     for j in range(7):
-        delta[j] = io[6 + j] - par[35 + j]
+        delta[j] = par[TORQUES + j] - par[35 + j]
     extra = np.zeros(7)
     gemv(gemv_fn, m_inv, delta, extra)
     h = par[17]

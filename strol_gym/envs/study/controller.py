@@ -443,7 +443,7 @@ class ImpedanceController:
         wext = self._wrench.tolist()
         pushed = brake and self._hand_xfrc.any()
         fp = self._chunk_functions() if band and brake else None
-        dt = m.opt.timestep
+        dt, par = m.opt.timestep, None
         for i in range(self._n_sub // HOLD):
             mujoco.mj_jacSite(m, d, jp, jr, site)
             if i == 0:
@@ -468,8 +468,10 @@ class ImpedanceController:
             # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
             back = CONTROL_DT - i * dt_i
             if fp is not None and target_r.flags.c_contiguous:  # the same law, compiled
-                head = (spx, spy, spz, ox, oy, oz, *v_sp, back, gp, gr, ip, ir, dt, integrate)
-                self._compiled_chunk(fp, (*head, not pushed), target_r, feed, damp)
+                if par is None:
+                    head = (spx, spy, spz, ox, oy, oz, *v_sp, back, gp, gr, ip, ir, dt)
+                    par = self._chunk_par((*head, integrate, not pushed))
+                self._compiled_chunk(fp, par, (ox, oy, oz, back), target_r, feed, damp)
                 if self._braked:
                     break
                 continue
@@ -552,44 +554,50 @@ class ImpedanceController:
             self._fp = np.array([*found, self.model._address, self.data._address], np.intp)
         return self._fp
 
+    def _chunk_par(self, head: tuple[Any, ...]) -> np.ndarray:
+        """``chunk.chunk``'s ``par`` for this control step (``head``: its entries up to the
+        step flag); the chunks write their own entries (``_compiled_chunk``)."""
+        from strol_gym.envs.study import chunk
+
+        par = np.zeros(chunk.PAR)
+        par[:20] = head
+        par[22:35] = [*self._acc_ff, *self._const]
+        par[chunk.INTEGRAL : chunk.INTEGRAL + 6] = self._integral
+        return par
+
     def _compiled_chunk(
         self,
         fp: np.ndarray,
-        head: tuple[Any, ...],
+        par: np.ndarray,
+        at: tuple[float, float, float, float],
         target_r: np.ndarray,
         feed: np.ndarray | None,
         damp: list[float] | None,
     ) -> None:
         """A chunk of the ``track_bandwidth`` law and its physics steps by ``chunk.chunk``
-        (``head``: its ``par`` up to the feed and damping flags), then what the plain path
-        does after them: the brake's steps if the checks call for them, the contact."""
+        (``at``: the admittance's offset and ``back``, this chunk's entries of ``par``), then
+        what the plain path does after them: the brake's steps if the checks call for them,
+        the contact."""
         from strol_gym.envs.study import chunk
 
-        par = np.array(
-            [
-                *head,
-                feed is not None,
-                damp is not None,
-                *self._acc_ff,
-                *self._const,
-                *self._tau_last,
-                *(_ZERO6 if feed is None else feed.tolist()),
-                *(_ZERO7 if damp is None else damp),
-            ],
-            dtype=np.float64,
-        )
-        io = np.array([*self._integral, *_ZERO7])
+        par[3:6], par[12] = at[:3], at[3]
+        par[35:42] = self._tau_last
+        par[20], par[21] = feed is not None, damp is not None
+        if feed is not None:
+            par[42:48] = feed
+        if damp is not None:
+            par[48:55] = damp
         left = chunk.chunk(
-            fp, par, io, target_r, self._kmat, self._gain, self._m_inv, self._jac,
-            self._watch_cap, self._brake_cap, self._qpos, self._qvel, self._qacc, self._ctrl,
-            self._site_xpos, self._site_xmat,
+            fp, par, target_r, self._kmat, self._gain, self._m_inv, self._jac, self._watch_cap,
+            self._brake_cap, self._qpos, self._qvel, self._qacc, self._ctrl, self._site_xpos,
+            self._site_xmat,
         )  # fmt: skip
-        if head[-2]:  # it integrated
-            self._integral = io[:6].tolist()
+        if par[18]:  # it integrated
+            self._integral = par[chunk.INTEGRAL : chunk.INTEGRAL + 6].tolist()
         if left == chunk.BRAKE_ALL:
-            self._braked_steps(not head[-1], HOLD)
+            self._braked_steps(not par[19], HOLD)
             return
-        self._tau_last = io[6:].tolist()
+        self._tau_last = par[chunk.TORQUES : chunk.TORQUES + 7].tolist()
         self._note_contact()
         if left:
             self._braked_steps(False, left)
