@@ -75,21 +75,12 @@ def _ptr(a):
 
 
 @_jit
-def gemv(fp, a, x, out):
-    """out = a x as ``a.dot(x)`` computes it (a C-contiguous, x contiguous)."""
+def gemv(fp, a, x, out, trans=NO_TRANS):
+    """out = a x as ``a.dot(x)`` computes it, or with ``trans`` = ``TRANS`` out = x a as
+    ``x.dot(a)`` does (a C-contiguous, x contiguous)."""
     m, n = a.shape
     _call_gemv(
-        fp, np.int32(ROW_MAJOR), np.int32(NO_TRANS), m, n, 1.0, _ptr(a), n, _ptr(x), 1, 0.0,
-        _ptr(out), 1,
-    )  # fmt: skip
-
-
-@_jit
-def gemv_t(fp, a, x, out):
-    """out = x a as ``x.dot(a)`` computes it (a C-contiguous, x contiguous)."""
-    m, n = a.shape
-    _call_gemv(
-        fp, np.int32(ROW_MAJOR), np.int32(TRANS), m, n, 1.0, _ptr(a), n, _ptr(x), 1, 0.0,
+        fp, np.int32(ROW_MAJOR), np.int32(trans), m, n, 1.0, _ptr(a), n, _ptr(x), 1, 0.0,
         _ptr(out), 1,
     )  # fmt: skip
 
@@ -194,7 +185,7 @@ def chunk(fp, par, target_r, kmat, gain, m_inv, jac, watch_cap, brake_cap, q, qd
     rest = np.zeros(7)
     gemv(gemv_fn, gain, state, rest)
     jtw = np.zeros(jac.shape[1])
-    gemv_t(gemv_fn, jac, w, jtw)
+    gemv(gemv_fn, jac, w, jtw, TRANS)
     for j in range(7):
         t = jtw[j] + par[28 + j] - rest[j]
         if par[21] != 0.0:
@@ -339,7 +330,7 @@ def _agrees(fp: np.ndarray, cases: int = 50) -> bool:
             gemv(fp[GEMV], a, x, out)
             same &= out.tobytes() == a.dot(x).tobytes()
         a, x, out = rng.standard_normal((6, 9)), rng.standard_normal(6), np.zeros(9)
-        gemv_t(fp[GEMV], a, x, out)
+        gemv(fp[GEMV], a, x, out, TRANS)
         same &= out.tobytes() == x.dot(a).tobytes()
         for rows, inner, cols in ((6, 7, 6), (7, 6, 6), (7, 6, 7), (3, 3, 3)):
             a, b = rng.standard_normal((rows, inner)), rng.standard_normal((inner, cols))
