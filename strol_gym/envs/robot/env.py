@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -10,15 +11,32 @@ import numpy as np
 from gymnasium import spaces
 
 from strol_gym.compiled import use_fast
-from strol_gym.envs.contract import CorrectionEnv, render_metadata
+from strol_gym.envs.contract import _REAL, CorrectionEnv, contract_info, correcting, render_metadata
 from strol_gym.envs.panda.ik import IK_ITERS, IK_TOL, PandaIK, move_arm
 from strol_gym.envs.panda.model import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.robot.scene import TABLE_TOP, build_model
 from strol_gym.envs.robot.seeds import seed_table
+from strol_gym.humans.builtin import NominalModel, _drawn_as_nominal
+from strol_gym.humans.interface import SimulatedHuman
 from strol_gym.tasks.robot import RobotTask
 
 _DYNAMICS = ("dynamics", "dynamics_one")
-"""What the fused step (``_advance``) computes over again of ``RobotTask``."""
+"""What the fused move (``_advance``) computes over again of ``RobotTask``."""
+_STEP_TASK = (*_DYNAMICS, "features", "_features_one")
+"""What the compiled step (``step``) computes over again of ``RobotTask``."""
+_STEP_HOOKS = (
+    "_robot_action",
+    "_transition",
+    "_human_correction",
+    "_advance",
+    "_terminated",
+    "_truncated",
+    "_obs",
+    "_info",
+)
+"""The contract's hooks the compiled step repeats: an env class that overrides one takes the
+contract's step."""
+_STEP_CLASSES: dict[type, bool] = {}
 
 
 class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
@@ -200,6 +218,135 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         ik_error = self.ik.solve(target)
         self.data.ctrl[:N_ARM] = self.ik.q
         return self.ik.ee, {"target": target, "ik_error": ik_error}
+
+    # ------------------------------------------------------------------ the compiled step
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        """The contract's step; in one compiled call (``step_kernel.robot_step``, the same
+        numbers) for an agent's float array, with nobody correcting or the eq. M6 teacher."""
+        fused = self._fused_step() if type(action) is np.ndarray else None
+        th = self.theta_hat
+        if (
+            fused is None
+            or action.dtype not in _REAL
+            or action.shape != (3,)
+            or not self._started
+            or type(th) is not np.ndarray
+            or th.dtype != np.float64
+            or th.shape != (2,)
+        ):
+            return super().step(action)
+        from strol_gym.envs.robot import step_kernel as sk
+
+        kernel, ap, prm, units, noise = fused
+        human = self.human
+        mode = 0
+        if human is not None and correcting(self.steps, self.n_corrections):
+            teach = self._teacher(human, fused)
+            if teach is None or not all(map(math.isfinite, action.tolist())):
+                return super().step(action)  # (a bad action raises there, before any draw)
+            prm, units = teach
+            human.begin()
+            human.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
+            human.rng.standard_normal(out=noise)
+            mode = 1
+        theta_star = self.theta_star
+        if mode == 0 and theta_star.shape != (2,):
+            return super().step(action)  # (a person's θ* is the prior's: two numbers)
+        obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.OUT)
+        done = kernel(ap, prm, self._x, action, th, theta_star, units, noise, obs_row, out, mode)
+        if done == sk.BAD_ACTION:
+            return super().step(action)  # raises, naming the action
+        u_h = out[sk.U_H : sk.U_H + 3]
+        if done == sk.BAD_CORRECTION:
+            raise ValueError(f"the human's correction must be 3 finite numbers, got {u_h}")
+        self.steps += 1
+        self._x = out[sk.X : sk.X + 3]
+        vals = out.tolist()
+        phi = out[sk.PHI : sk.PHI + 2]
+        names = self.task.feature_names
+        info = contract_info(
+            {names[0]: vals[sk.PHI], names[1]: vals[sk.PHI + 1]},
+            phi,
+            u_h,
+            out[sk.U_R : sk.U_R + 3],
+            out[sk.THETA_STAR : sk.THETA_STAR + 2],
+            out[sk.THETA_HAT : sk.THETA_HAT + 2],
+            mode == 1,
+        )
+        info["target"] = out[sk.TARGET : sk.TARGET + 3]
+        info["ik_error"] = vals[sk.IK_ERROR]
+        obs = {
+            "state": obs_row[0:3],
+            "correction": obs_row[3:6],
+            "theta_hat": obs_row[6:8],
+            "phi": obs_row[8:10],
+        }
+        terminated = self._terminated()
+        truncated = (not terminated) and self._truncated()
+        if self.render_mode == "human":
+            self.render()
+        return obs, vals[sk.REWARD], terminated, truncated, info
+
+    def _fused_step(self) -> tuple | None:
+        """(kernel, the arm's pointers, its parameters without a person, the draws' buffers)
+        for ``step``, built once per arm; None where the compiled step cannot run (the plain
+        kernels, a Task or env class that changes what it repeats, another BLAS)."""
+        ik = self.ik
+        fused = ik.__dict__.get("_fused_step", False)
+        if fused is not False:
+            return fused
+        fused = None
+        own = type(self)
+        same = _STEP_CLASSES.get(own)
+        if same is None:
+            same = _STEP_CLASSES[own] = all(
+                getattr(own, n) is getattr(RobotEnv, n) for n in _STEP_HOOKS
+            )
+        if (
+            use_fast()
+            and same
+            and type(self.task).m6_drawn_params is RobotTask.m6_drawn_params
+            and self.task._unchanged(RobotTask, _STEP_TASK)
+        ):
+            from strol_gym.envs.panda import ik_kernel
+            from strol_gym.envs.robot import step_kernel as sk
+
+            packed = sk.arm_pointers(ik, ik_kernel._FP, IK_ITERS) if sk.reward_agrees() else None
+            if packed is not None:
+                prm = sk.step_params(self.task.m6_drawn_params(0.0, 0.0), self.action_scale, IK_TOL)
+                ik._fused_keep = packed[1]  # the arrays the pointers point into
+                fused = (sk.robot_step, packed[0], prm, np.zeros((1, 1, 3)), np.zeros((1, 3)))
+        ik._fused_step = fused
+        return fused
+
+    def _teacher(self, human: Any, fused: tuple) -> tuple[np.ndarray, np.ndarray] | None:
+        """(``robot_step``'s parameters with this person's σ and ε, a buffer for their uniform
+        draws) where ``human`` is an eq. M6 teacher whose correction ``robot_step`` repeats
+        (``NominalModel.drawn_corrections`` would run its compiled path); else None."""
+        model = getattr(human, "model", None)
+        if (
+            not isinstance(human, SimulatedHuman)
+            or type(human).act is not SimulatedHuman.act
+            or type(human).begin is not SimulatedHuman.begin
+            or not isinstance(model, NominalModel)
+            or type(model).drawn_corrections is not NominalModel.drawn_corrections
+            or not model.needs_theta_hat
+            or model.task is not self.task
+            or _drawn_as_nominal(model) is None
+        ):
+            return None
+        from strol_gym.envs.robot import step_kernel as sk
+
+        memo = self.ik.__dict__.setdefault("_teachers", {})
+        key = (model.sigma, model.bias, model.n_candidates)
+        found = memo.get(key)
+        if found is None:
+            m6 = self.task.m6_drawn_params(model.sigma, model.bias)
+            found = memo[key] = (
+                sk.step_params(m6, self.action_scale, IK_TOL),
+                np.empty((1, model.n_candidates, 3)),
+            )
+        return found
 
     # ------------------------------------------------------------------ render, close, pickle
     def __getstate__(self) -> dict:
