@@ -22,9 +22,14 @@ from strol_gym.tasks.robot import RobotTask
 
 _DYNAMICS = ("dynamics", "dynamics_one")
 """What the fused move (``_advance``) computes over again of ``RobotTask``."""
-_STEP_TASK = (*_DYNAMICS, "features", "_features_one")
-"""What the compiled step (``step``) computes over again of ``RobotTask``."""
+_STEP_TASK = (*_DYNAMICS, "features", "_features_one", "sample_start", "sample_starts", "_in_box")
+"""What the compiled step and reset compute over again of ``RobotTask``."""
 _STEP_HOOKS = (
+    "draw_starts",
+    "start_override",
+    "_place_start",
+    "_start_info",
+    "move_to",
     "_robot_action",
     "_transition",
     "_human_correction",
@@ -34,8 +39,8 @@ _STEP_HOOKS = (
     "_obs",
     "_info",
 )
-"""The contract's hooks the compiled step repeats: an env class that overrides one takes the
-contract's step."""
+"""The contract's hooks the compiled step and reset repeat: an env class that overrides one
+takes the contract's."""
 _STEP_CLASSES: dict[type, bool] = {}
 
 
@@ -220,6 +225,40 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         return self.ik.ee, {"target": target, "ik_error": ik_error}
 
     # ------------------------------------------------------------------ the compiled step
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        """The contract's reset; the start's placing, φ and the observation's numbers in one
+        compiled call (``step_kernel.robot_place``, the same numbers) where ``step``'s runs and
+        no option is given."""
+        fused = self._fused_step() if options is None else None
+        if fused is None:
+            return super().reset(seed=seed, options=options)
+        sk, ap, prm = fused[:3]
+        gym.Env.reset(self, seed=seed)
+        rng = self.np_random
+        theta_star = self.draw_theta_stars([rng])[0]
+        unit = rng.random(3)  # ``RobotTask.sample_starts``' draws, as rng.random((1, 3))
+        self._start_episode(theta_star, rng)
+        th = self.theta_hat
+        obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.PLACED)
+        sk.robot_place(ap, prm, unit, th, obs_row, out)
+        self._x = out[sk.X : sk.X + 3]
+        phi = out[sk.PHI : sk.PHI + 2]
+        names = self.task.feature_names
+        info = contract_info(
+            {names[0]: float(phi[0]), names[1]: float(phi[1])},
+            phi,
+            np.zeros(3),
+            np.zeros(3),
+            self.theta_star.copy(),
+            th.copy(),
+            False,
+        )
+        info["target"] = self._x
+        info["ik_error"] = 0.0
+        if self.render_mode == "human":
+            self.render()
+        return _split(obs_row), info
+
     def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
         """The contract's step; in one compiled call (``step_kernel.robot_step``, the same
         numbers) for an agent's float array, with nobody correcting or the eq. M6 teacher."""
@@ -235,25 +274,28 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
             or th.shape != (2,)
         ):
             return super().step(action)
-        from strol_gym.envs.robot import step_kernel as sk
-
-        kernel, ap, prm, units, noise = fused
+        sk, ap, prm, units, noise = fused
         human = self.human
         mode = 0
         if human is not None and correcting(self.steps, self.n_corrections):
-            teach = self._teacher(human, fused)
-            if teach is None or not all(map(math.isfinite, action.tolist())):
+            teach = self.ik.__dict__.get("_teach")  # asked once per episode's person
+            if teach is None or teach[0] is not human:
+                teach = self.ik._teach = (human, self._teacher(human))
+            if teach[1] is None or not all(map(math.isfinite, action.tolist())):
                 return super().step(action)  # (a bad action raises there, before any draw)
-            prm, units = teach
+            prm, units = teach[1]
             human.begin()
             human.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
             human.rng.standard_normal(out=noise)
+            theta_star = human.theta_star  # a SimulatedHuman's: float64, as ``theta_star``
             mode = 1
-        theta_star = self.theta_star
-        if mode == 0 and theta_star.shape != (2,):
-            return super().step(action)  # (a person's θ* is the prior's: two numbers)
+        else:
+            theta_star = self.theta_star
+            if theta_star.shape != (2,):
+                return super().step(action)  # (a person's θ* is the prior's: two numbers)
         obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.OUT)
-        done = kernel(ap, prm, self._x, action, th, theta_star, units, noise, obs_row, out, mode)
+        x = self._x
+        done = sk.robot_step(ap, prm, x, action, th, theta_star, units, noise, obs_row, out, mode)
         if done == sk.BAD_ACTION:
             return super().step(action)  # raises, naming the action
         u_h = out[sk.U_H : sk.U_H + 3]
@@ -275,12 +317,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         )
         info["target"] = out[sk.TARGET : sk.TARGET + 3]
         info["ik_error"] = vals[sk.IK_ERROR]
-        obs = {
-            "state": obs_row[0:3],
-            "correction": obs_row[3:6],
-            "theta_hat": obs_row[6:8],
-            "phi": obs_row[8:10],
-        }
+        obs = _split(obs_row)
         terminated = self._terminated()
         truncated = (not terminated) and self._truncated()
         if self.render_mode == "human":
@@ -315,11 +352,11 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
             if packed is not None:
                 prm = sk.step_params(self.task.m6_drawn_params(0.0, 0.0), self.action_scale, IK_TOL)
                 ik._fused_keep = packed[1]  # the arrays the pointers point into
-                fused = (sk.robot_step, packed[0], prm, np.zeros((1, 1, 3)), np.zeros((1, 3)))
+                fused = (sk, packed[0], prm, np.zeros((1, 1, 3)), np.zeros((1, 3)))
         ik._fused_step = fused
         return fused
 
-    def _teacher(self, human: Any, fused: tuple) -> tuple[np.ndarray, np.ndarray] | None:
+    def _teacher(self, human: Any) -> tuple[np.ndarray, np.ndarray] | None:
         """(``robot_step``'s parameters with this person's σ and ε, a buffer for their uniform
         draws) where ``human`` is an eq. M6 teacher whose correction ``robot_step`` repeats
         (``NominalModel.drawn_corrections`` would run its compiled path); else None."""
@@ -337,7 +374,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
             return None
         from strol_gym.envs.robot import step_kernel as sk
 
-        memo = self.ik.__dict__.setdefault("_teachers", {})
+        memo = self.ik.__dict__.setdefault("_teacher_params", {})
         key = (model.sigma, model.bias, model.n_candidates)
         found = memo.get(key)
         if found is None:
@@ -362,3 +399,8 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._renderer = None
         self._viewer = None
         self._build(qpos)
+
+
+def _split(row: np.ndarray) -> dict[str, np.ndarray]:
+    """The contract's observation from the compiled step's float32 row (x, u_H, θ̂, φ)."""
+    return {"state": row[0:3], "correction": row[3:6], "theta_hat": row[6:8], "phi": row[8:10]}

@@ -24,8 +24,18 @@ from typing import Any
 import numpy as np
 from numba import carray, types
 
-from strol_gym.envs.panda.ik_kernel import _arm_args, _fma, _jit, _solve_recover, intrinsic, solver
-from strol_gym.envs.panda.model import N_ARM
+from strol_gym.envs.panda.ik_kernel import (
+    KIN,
+    _arm_args,
+    _call_md,
+    _fma,
+    _jit,
+    _solve_recover,
+    intrinsic,
+    reference,
+    solver,
+)
+from strol_gym.envs.panda.model import N_ARM, Q_HOME
 from strol_gym.tasks.m6_kernels import robot_m6_drawn
 
 OBS, OUT = 10, 20
@@ -33,6 +43,8 @@ OBS, OUT = 10, 20
 X, TARGET, PHI, U_H, U_R, THETA_STAR, THETA_HAT, REWARD, IK_ERROR = 0, 3, 6, 8, 11, 14, 16, 18, 19
 """Where ``robot_step`` writes each number of its float64 output (x', the IK target, φ, u_H,
 u_R, θ*, θ̂, the reward, the IK's error)."""
+PLACED = PHI + 2
+"""The size of ``robot_place``'s float64 output (x0 reached, φ)."""
 OK, BAD_ACTION, BAD_CORRECTION = 0, 1, 2
 """``robot_step``'s answers: done; a NaN or infinite action or correction (nothing moved)."""
 
@@ -90,8 +102,8 @@ def arm_pointers(ik: Any, fp: np.ndarray, iters: int) -> tuple[np.ndarray, tuple
 def step_params(m6: np.ndarray, scale: np.ndarray, tol: float) -> np.ndarray:
     """``robot_step``'s ``prm``: ``RobotTask._m6_drawn``'s 21 numbers (α, σ, ε, plate, cup,
     the box's corners, the candidates' bound, a_max), the action's scale per axis, the IK's
-    tolerance."""
-    return np.concatenate([m6, scale, [tol]]).astype(np.float64)
+    tolerance, then ``Q_HOME`` (``robot_place``'s posture where the seed table has none)."""
+    return np.concatenate([m6, scale, [tol], Q_HOME]).astype(np.float64)
 
 
 @_jit
@@ -103,28 +115,81 @@ def _features(x0, x1, x2, plate, cup):
 
 
 @_jit
+def _arm(ap):
+    """The arrays behind ``arm_pointers``, in ``_solve_recover``'s order from ``xpos``."""
+    nv = ap[17]
+    return (
+        carray(_f64_at(ap[3]), 3),
+        carray(_f64_at(ap[4]), 9),
+        carray(_f64_at(ap[5]), N_ARM),
+        carray(_f64_at(ap[6]), (3, nv)),
+        carray(_f64_at(ap[7]), (3, nv)),
+        carray(_f64_at(ap[8]), nv),
+        carray(_f64_at(ap[9]), (3, 9)),
+        carray(_f64_at(ap[10]), 7),
+        carray(_f64_at(ap[11]), (ap[18], ap[19], ap[20], ap[21])),
+        carray(_f64_at(ap[12]), (2, 3)),
+        carray(_intp_at(ap[14]), 3),
+        carray(_f64_at(ap[13]), (2, N_ARM)),
+        carray(_f64_at(ap[15]), N_ARM),
+        carray(_f64_at(ap[16]), N_ARM),
+    )
+
+
+@_jit
+def _reached(ap, prm, target, iters, obs, out):
+    """The IK solve towards ``target`` (``_solve_recover``), ``ctrl`` set to the joints, the
+    end effector (task frame) at ``out[X]``, its φ at ``out[PHI]`` and their float32 copies
+    into ``obs`` (state at 0, φ at 8); returns the IK's error."""
+    xpos, xmat, q, jp, jr, w9, orient, consts, seeds, grid, top, limits, no_ref, ctrl = _arm(ap)
+    err = _solve_recover(
+        ap[22:28], ap[:3], xpos, xmat, q, jp, jr, w9, orient, target, iters, prm[24], consts,
+        seeds, grid, top, limits, no_ref,
+    )  # fmt: skip
+    for j in range(N_ARM):
+        ctrl[j] = q[j]
+    for i in range(3):
+        out[X + i] = xpos[i] - consts[i]
+    phi = _features(out[X], out[X + 1], out[X + 2], prm[3:6], prm[6:9])
+    out[PHI], out[PHI + 1] = phi[0], phi[1]
+    for i in range(3):
+        obs[i] = np.float32(out[X + i])
+    for i in range(2):
+        obs[8 + i] = np.float32(out[PHI + i])
+    return err
+
+
+@_jit
+def robot_place(ap, prm, unit, theta_hat, obs, out):
+    """A reset's start: x0 = low + (high − low)·U in the box from the uniform draws ``unit`` (3,)
+    (``RobotTask._in_box``), the arm put there as ``RobotEnv.move_to`` does (the seed table's
+    posture nearest x0, else ``Q_HOME``, then 2 x the IK's iterations), then as ``_reached``;
+    ``obs``' u_H zeros, θ̂ as float32."""
+    arm = _arm(ap)
+    q, seeds, grid, top, no_ref = arm[2], arm[8], arm[9], arm[10], arm[12]
+    lo, hi = prm[9:12], prm[12:15]
+    x0 = np.empty(3)
+    for i in range(3):
+        x0[i] = lo[i] + (hi[i] - lo[i]) * unit[i]
+    ref, has_ref = reference(x0, seeds, grid[0], grid[1], top, no_ref)
+    for j in range(N_ARM):
+        q[j] = ref[j] if has_ref else prm[25 + j]
+    _call_md(ap[22 + KIN], ap[0], ap[1])
+    _reached(ap, prm, x0, 2 * ap[28], obs, out)
+    for i in range(3):
+        obs[3 + i] = np.float32(0.0)
+    for i in range(2):
+        obs[6 + i] = np.float32(theta_hat[i])
+
+
+@_jit
 def robot_step(ap, prm, x, action, theta_hat, theta_star, units, noise, obs, out, mode):
     """One env step: ``mode`` 0 no correction (u_H = 0), 1 the eq. M6 teacher's from its draws
     ``units`` (1, K, 3) and ``noise`` (1, 3). ``ap``: ``arm_pointers``; ``prm``:
     ``step_params``. Writes ``obs`` (float32: x', u_H, θ̂, φ) and ``out`` (float64, at ``X``,
     ``TARGET`` ...); returns ``OK`` or, having moved nothing, ``BAD_ACTION`` /
     ``BAD_CORRECTION``."""
-    nv = ap[17]
-    xpos = carray(_f64_at(ap[3]), 3)
-    xmat = carray(_f64_at(ap[4]), 9)
-    q = carray(_f64_at(ap[5]), N_ARM)
-    jp = carray(_f64_at(ap[6]), (3, nv))
-    jr = carray(_f64_at(ap[7]), (3, nv))
-    w9 = carray(_f64_at(ap[8]), nv)
-    orient = carray(_f64_at(ap[9]), (3, 9))
-    consts = carray(_f64_at(ap[10]), 7)
-    seeds = carray(_f64_at(ap[11]), (ap[18], ap[19], ap[20], ap[21]))
-    grid = carray(_f64_at(ap[12]), (2, 3))
-    limits = carray(_f64_at(ap[13]), (2, N_ARM))
-    top = carray(_intp_at(ap[14]), 3)
-    no_ref = carray(_f64_at(ap[15]), N_ARM)
-    ctrl = carray(_f64_at(ap[16]), N_ARM)
-    plate, cup, lo, hi, scale = prm[3:6], prm[6:9], prm[9:12], prm[12:15], prm[21:24]
+    lo, hi, scale = prm[9:12], prm[12:15], prm[21:24]
     for i in range(3):  # as ``CorrectionEnv._robot_action``
         if not math.isfinite(action[i]):
             return BAD_ACTION
@@ -152,26 +217,14 @@ def robot_step(ap, prm, x, action, theta_hat, theta_star, units, noise, obs, out
         v = x[i] + u_r[i] + u_h[i]
         v = lo[i] if v < lo[i] else v
         target[i] = hi[i] if v > hi[i] else v
-    out[IK_ERROR] = _solve_recover(
-        ap[22:28], ap[:3], xpos, xmat, q, jp, jr, w9, orient, target, ap[28], prm[24], consts,
-        seeds, grid, top, limits, no_ref,
-    )  # fmt: skip
-    for j in range(N_ARM):
-        ctrl[j] = q[j]
-    for i in range(3):
-        out[X + i] = xpos[i] - consts[i]
-    phi0, phi1 = _features(out[X], out[X + 1], out[X + 2], plate, cup)
-    out[PHI], out[PHI + 1] = phi0, phi1
-    out[REWARD] = _fma(phi1, theta_star[1], phi0 * theta_star[0])  # numpy's phi @ θ*
+    out[IK_ERROR] = _reached(ap, prm, target, ap[28], obs, out)
+    out[REWARD] = _fma(out[PHI + 1], theta_star[1], out[PHI] * theta_star[0])  # phi @ θ*
     for i in range(2):
         out[THETA_STAR + i] = theta_star[i]
         out[THETA_HAT + i] = theta_hat[i]
-    for i in range(3):
-        obs[i] = np.float32(out[X + i])
-        obs[3 + i] = np.float32(u_h[i])
-    for i in range(2):
         obs[6 + i] = np.float32(theta_hat[i])
-        obs[8 + i] = np.float32(out[PHI + i])
+    for i in range(3):
+        obs[3 + i] = np.float32(u_h[i])
     return OK
 
 
