@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import gymnasium as gym
 import mujoco
@@ -280,14 +280,15 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         if human is not None and correcting(self.steps, self.n_corrections):
             teach = self.ik.__dict__.get("_teach")  # asked once per episode's person
             if teach is None or teach[0] is not human:
-                teach = self.ik._teach = (human, self._teacher(human))
+                teach = self.ik.__dict__["_teach"] = (human, self._teacher(human))
             if teach[1] is None or not all(map(math.isfinite, action.tolist())):
                 return super().step(action)  # (a bad action raises there, before any draw)
             prm, units = teach[1]
-            human.begin()
-            human.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
-            human.rng.standard_normal(out=noise)
-            theta_star = human.theta_star  # a SimulatedHuman's: float64, as ``theta_star``
+            person = cast(SimulatedHuman, human)  # ``_teacher`` found one
+            person.begin()
+            person.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
+            person.rng.standard_normal(out=noise)
+            theta_star = person.theta_star  # a SimulatedHuman's: float64, as ``theta_star``
             mode = 1
         else:
             theta_star = self.theta_star
@@ -328,6 +329,8 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         """(kernel, the arm's pointers, its parameters without a person, the draws' buffers)
         for ``step``, built once per arm; None where the compiled step cannot run (the plain
         kernels, a Task or env class that changes what it repeats, another BLAS)."""
+        if not use_fast():  # (asked each time: tests switch the kernels in one process)
+            return None
         ik = self.ik
         fused = ik.__dict__.get("_fused_step", False)
         if fused is not False:
@@ -340,8 +343,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
                 getattr(own, n) is getattr(RobotEnv, n) for n in _STEP_HOOKS
             )
         if (
-            use_fast()
-            and same
+            same
             and type(self.task).m6_drawn_params is RobotTask.m6_drawn_params
             and self.task._unchanged(RobotTask, _STEP_TASK)
         ):
@@ -351,9 +353,9 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
             packed = sk.arm_pointers(ik, ik_kernel._FP, IK_ITERS) if sk.reward_agrees() else None
             if packed is not None:
                 prm = sk.step_params(self.task.m6_drawn_params(0.0, 0.0), self.action_scale, IK_TOL)
-                ik._fused_keep = packed[1]  # the arrays the pointers point into
+                ik.__dict__["_fused_keep"] = packed[1]  # the arrays the pointers point into
                 fused = (sk, packed[0], prm, np.zeros((1, 1, 3)), np.zeros((1, 3)))
-        ik._fused_step = fused
+        ik.__dict__["_fused_step"] = fused
         return fused
 
     def _teacher(self, human: Any) -> tuple[np.ndarray, np.ndarray] | None:

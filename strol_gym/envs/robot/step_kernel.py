@@ -195,7 +195,7 @@ def robot_step(ap, prm, x, action, theta_hat, theta_star, units, noise, obs, out
             return BAD_ACTION
     u_r, u_h = out[U_R : U_R + 3], out[U_H : U_H + 3]
     for i in range(3):
-        v = np.float64(action[i])
+        v = float(action[i])
         v = 1.0 if v > 1.0 else (-1.0 if v < -1.0 else v)
         u_r[i] = v * scale[i]
     if mode == 1:  # ``NominalModel.drawn_corrections`` of one person
