@@ -49,26 +49,23 @@ OK, BAD_ACTION, BAD_CORRECTION = 0, 1, 2
 """``robot_step``'s answers: done; a NaN or infinite action or correction (nothing moved)."""
 
 
-@intrinsic
-def _f64_at(typingctx, address):
-    """A float64 pointer at ``address`` (an integer), for ``numba.carray``."""
-    ptr = types.CPointer(types.float64)
+def _pointer_at(kind: Any) -> Any:
+    """An intrinsic turning an address (an integer) into a pointer to ``kind``, for
+    ``numba.carray``."""
+    ptr = types.CPointer(kind)
 
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(ptr))
+    @intrinsic
+    def at(typingctx, address):
+        def codegen(context, builder, signature, args):
+            return builder.inttoptr(args[0], context.get_value_type(ptr))
 
-    return ptr(types.intp), codegen
+        return ptr(types.intp), codegen
+
+    return at
 
 
-@intrinsic
-def _intp_at(typingctx, address):
-    """An intp pointer at ``address`` (an integer), for ``numba.carray``."""
-    ptr = types.CPointer(types.intp)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(ptr))
-
-    return ptr(types.intp), codegen
+_f64_at = _pointer_at(types.float64)
+_intp_at = _pointer_at(types.intp)
 
 
 _FIELDS = 29
