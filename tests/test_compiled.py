@@ -225,23 +225,39 @@ def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usu
     assert NominalModel(RobotTask()).drawn_corrections([rng], x, x, th, th) is not None
 
 
+def _feed(h, value) -> None:
+    """Every byte of an observation or info, with each value's type, dtype and shape."""
+    h.update(type(value).__name__.encode())
+    if isinstance(value, dict):
+        for key, v in value.items():
+            h.update(key.encode())
+            _feed(h, v)
+    elif isinstance(value, np.ndarray):
+        h.update(f"{value.dtype}{value.shape}".encode() + value.tobytes())
+    elif isinstance(value, bool | int | float | str | np.generic | tuple | list):
+        h.update(repr(value).encode())
+
+
 def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
     env = gym.make(env_id, **kwargs)
     h = hashlib.sha256()
     obs, info = env.reset(seed=seed)
+    _feed(h, obs)
+    _feed(h, info)
     rng = np.random.default_rng(seed)
-    for _ in range(steps):
-        obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape))
-        for key in sorted(obs):
-            h.update(np.asarray(obs[key]).tobytes())
-        h.update(np.float64(reward).tobytes())
-        for key in ("target", "ik_error", "correction", "robot_action"):
-            if key in info:
-                h.update(np.asarray(info[key], dtype=np.float64).tobytes())
+    for t in range(steps):
+        action = rng.uniform(-1.2, 1.2, env.action_space.shape)
+        if t % 3 == 0:
+            env.unwrapped.set_theta_hat(rng.uniform(-1, 1, env.unwrapped.task.dim))
+        obs, reward, term, trunc, info = env.step(action.astype(np.float32) if t % 2 else action)
+        for part in (obs, reward, term, trunc, info):
+            _feed(h, part)
         if env_id == "StROL-Robot-v0":
-            h.update(env.unwrapped.data.qpos.tobytes())
+            h.update(env.unwrapped.data.qpos.tobytes() + env.unwrapped.data.ctrl.tobytes())
         if term or trunc:
-            env.reset()
+            robot = env_id == "StROL-Robot-v0" and t % 7 == 0
+            for part in env.reset(options={"state": [0.3, 0.0, 0.2]} if robot else None):
+                _feed(h, part)
     env.close()
     return h.hexdigest()
 
@@ -251,6 +267,8 @@ def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
     [
         ("StROL-Robot-v0", {}),
         ("StROL-Robot-v0", {"n_corrections": 0}),
+        ("StROL-Robot-v0", {"person": {"name": "nominal", "sigma": 0.3, "bias": 0.1}}),
+        ("StROL-Robot-v0", {"person": "changing", "n_corrections": 7}),
         ("StROL-Highway-v0", {}),
     ],
 )
@@ -260,6 +278,30 @@ def test_env_rollouts_are_the_same_bytes_on_both_paths(env_id, kwargs, path):
         plain = _rollout(env_id, seed, 120, **kwargs)
         path(True)
         assert _rollout(env_id, seed, 120, **kwargs) == plain
+
+
+def test_the_robot_step_runs_compiled_and_refuses_as_the_contract(path):
+    """The Robot env's compiled step runs where its kernels do, not for an env class that
+    changes a hook it repeats; a bad action raises as in the contract's step, before the
+    person draws."""
+    from strol_gym.envs.robot.env import RobotEnv
+
+    path(True)
+    env = RobotEnv()
+    env.reset(seed=1)
+    assert env._fused_step() is not None
+    state = env.np_random.bit_generator.state
+    with pytest.raises(ValueError, match="action must be finite"):
+        env.step(np.array([0.0, np.nan, 0.0]))
+    assert env.np_random.bit_generator.state == state and env.steps == 0
+
+    class Own(RobotEnv):
+        def _terminated(self) -> bool:
+            return self.steps > 2
+
+    assert Own()._fused_step() is None
+    path(False)
+    assert RobotEnv()._fused_step() is None
 
 
 def _limit_and_restart_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -305,6 +305,12 @@ class RobotTask(Task):
         out: np.ndarray,
     ) -> None:
         """``Task.m6_drawn`` by ``strol_gym.tasks.m6_kernels.robot_m6_drawn``."""
+        prm = self.m6_drawn_params(sigma, bias)
+        _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, out)
+
+    def m6_drawn_params(self, sigma: float, bias: float) -> np.ndarray:
+        """What ``robot_m6_drawn`` reads of the Task and the noise, in its order: α, σ, ε, the
+        plate, the cup, the box's corners, the candidates' bound and a_max (once per σ, ε)."""
         memo = self.__dict__.setdefault("_m6_drawn_memo", {})  # as ``_unchanged``'s
         prm = memo.get((sigma, bias))
         if prm is None:
@@ -312,7 +318,7 @@ class RobotTask(Task):
             prm = memo[sigma, bias] = np.concatenate(
                 [[alpha, sigma, bias], plate, cup, low, high, self._axis_scale, self.a_max]
             ).astype(np.float64)
-        _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, out)
+        return prm
 
     @functools.cached_property
     def _m6_params(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -255,6 +255,22 @@ def _solve(
 
 
 @_jit
+def reference(target, seeds, seed_low, seed_step, seed_top, no_ref):
+    """``PandaIK.reference``: (the seed table's posture nearest the task-frame ``target``,
+    whether there is one); ``no_ref`` where the table is empty or holds none there."""
+    if seeds.shape[0] == 0:
+        return no_ref, False
+    idx = np.empty(3, dtype=np.intp)
+    for i in range(3):
+        k = int(np.rint((target[i] - seed_low[i]) / seed_step[i]))  # round(): half to even
+        idx[i] = min(max(k, 0), seed_top[i])
+    ref = seeds[idx[0], idx[1], idx[2]]
+    if np.isnan(ref[0]):
+        return no_ref, False
+    return ref, True
+
+
+@_jit
 def _solve_recover(
     fp, ptr, xpos, xmat, q, jp_full, jr_full, w9, orient, target, iters, tol, consts, seeds,
     seed_grid, seed_top, limits, no_ref,
@@ -271,17 +287,7 @@ def _solve_recover(
     world = np.empty(3)
     for i in range(3):
         world[i] = target[i] + lift[i]
-    has_ref = seeds.shape[0] > 0
-    ref = no_ref
-    if has_ref:
-        idx = np.empty(3, dtype=np.intp)
-        for i in range(3):
-            k = int(np.rint((target[i] - seed_low[i]) / seed_step[i]))  # round(): half to even
-            idx[i] = min(max(k, 0), seed_top[i])
-        ref = seeds[idx[0], idx[1], idx[2]]
-        has_ref = not np.isnan(ref[0])
-        if not has_ref:
-            ref = no_ref
+    ref, has_ref = reference(target, seeds, seed_low, seed_step, seed_top, no_ref)
     args = (orient_gain, posture, damp2, lo, hi)
     err = _solve(
         fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, world, iters, tol, ref,
