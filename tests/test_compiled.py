@@ -373,18 +373,18 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, h
 
 
 def test_batched_kernels_that_miss_the_plain_bits_are_not_used(path, monkeypatch):
-    from strol_gym.envs.panda import ik_batched, ik_kernel
+    from strol_gym.envs.panda import ik_batched, ik_lanes
 
     env = gym.make("StROL-Robot-v0").unwrapped
     path(True)
     monkeypatch.setattr(ik_batched, "_AGREES", None)
-    real = ik_kernel.batched_forward
+    real = ik_lanes.batched_forward
 
     def off_by_a_bit(q, site, *args):
         real(q, site, *args)
         site[0] = np.nextafter(site[0], np.inf)
 
-    monkeypatch.setattr(ik_kernel, "batched_forward", off_by_a_bit)
+    monkeypatch.setattr(ik_lanes, "batched_forward", off_by_a_bit)
     arms = ik_batched.BatchedPandaIK(env.ik, 4)
     assert arms._kernels() is None  # the check saw it: the plain path runs
     env.close()
