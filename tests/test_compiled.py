@@ -203,6 +203,22 @@ def test_the_drawn_robot_correction_is_the_plain_draws_and_choice(sigma, bias, p
             assert a.random() == c.random()
 
 
+def test_the_compiled_pcg64_uniforms_are_numpys():
+    """``pcg64_fill.fill``: the doubles of ``Generator.random`` and the states after them, for
+    lengths below, at and off its four-step chains; a generator of another kind is not taken."""
+    from strol_gym.humans.pcg64_fill import addresses, fill
+
+    ours = [np.random.default_rng(s) for s in (0, 7, 2**40)]
+    theirs = [np.random.default_rng(s) for s in (0, 7, 2**40)]
+    for k in (1, 7, 8, 13, 1536):
+        got = np.empty((3, k))
+        fill(addresses(ours), got)
+        want = np.stack([g.random(k) for g in theirs])
+        assert got.tobytes() == want.tobytes()
+    assert [g.bit_generator.state for g in ours] == [g.bit_generator.state for g in theirs]
+    assert addresses([ours[0], np.random.Generator(np.random.Philox(1))]) is None
+
+
 def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usual(path):
     from strol_gym.humans.builtin import NominalModel
 
