@@ -388,6 +388,32 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, h
     env.close()
 
 
+def test_an_arm_already_at_its_target_keeps_its_own_numbers_in_the_compiled_lanes(path):
+    """An arm whose kinematics are MuJoCo's (a one-by-one restart) and that is within tolerance
+    at the first check, while the other arms iterate, keeps its numbers in the compiled lanes
+    (held, not recomputed by the batched forward kinematics), as the one-arm-at-a-time kernel
+    before them did."""
+    from strol_gym.envs.panda import ik_batched
+
+    env = gym.make("StROL-Robot-v0").unwrapped
+    path(True)
+    arms = ik_batched.BatchedPandaIK(env.ik, 12)
+    assert arms._kernels() is not None
+    rows = np.arange(12)
+    target = np.tile(env.ik.ee, (12, 1))
+    target[0] = (2.0, 2.0, 2.0)  # out of reach: arm 0 restarts alone, on MuJoCo's model
+    arms.solve(target, rows)
+    a = arms._arms
+    own = [x[..., 0].copy() for x in (a.q, a.site, a.cols, a.axes, a.anchors)]
+    before = a.q.copy()
+    target = arms.ee + np.linspace(-0.05, 0.05, 36).reshape(12, 3)
+    target[0] = arms.ee[0]  # arm 0: there already
+    arms.solve(target, rows)
+    assert all((x[..., 0] == y).all() for x, y in zip(a._all(), own, strict=True))
+    assert (a.q[:, 1:] != before[:, 1:]).any(axis=0).all()  # the others moved
+    env.close()
+
+
 def test_batched_kernels_that_miss_the_plain_bits_are_not_used(path, monkeypatch):
     from strol_gym.envs.panda import ik_batched, ik_lanes
 

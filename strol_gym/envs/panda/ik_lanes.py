@@ -137,6 +137,9 @@ def _dls_step(q, jt, s, e, damp, out, n, alone, sums, one):
 
 
 ALL_FREE = np.ones(N_ARM, dtype=np.bool_)
+PACK = 4
+"""The lanes are packed when at least 1/PACK of them (or all but one) are within tolerance;
+until then those are held still (packing every arm's numbers costs more than a few steps)."""
 
 
 @_jit
@@ -212,7 +215,7 @@ def batched_solve(
     _gather(target, w_tgt, every, lane_of, n)
     _gather(ref, w_ref, every, lane_of, n)
     _gather(has_ref.reshape(1, nb).astype(np.float64), w_has, every, lane_of, n)
-    e, keep = np.empty((3, nb)), np.empty(nb, dtype=np.bool_)
+    e, keep, stepped = np.empty((3, nb)), np.empty(nb, dtype=np.bool_), np.empty((1, nb))
     jt, v = np.empty((3, N_ARM, nb)), np.empty((3, nb))
     s, q_new = np.empty((N_ARM, nb)), np.empty((N_ARM, nb))
     trig, f, rot = np.empty((2, N_ARM, nb)), np.empty((4, 3, nb)), np.empty((3, 3, nb))
@@ -220,6 +223,8 @@ def batched_solve(
     hit, hit_of = np.empty(nb, dtype=np.bool_), np.empty(nb, dtype=np.intp)
     h_jt, h_s, h_q = np.empty((3, N_ARM, nb)), np.empty((N_ARM, nb)), np.empty((N_ARM, nb))
     h_e, h_out = np.empty((3, nb)), np.empty((N_ARM, nb))
+    keep[:n] = True
+    stepped[0, :n] = 0.0  # lanes whose numbers are this call's (written back), not the arms'
     size = nb  # the lockstep's set: the lanes and the arms it holds still
     for _ in range(iters):
         live = 0
@@ -230,10 +235,13 @@ def batched_solve(
             e[0, lane], e[1, lane], e[2, lane] = e0, e1, e2
             p0, p1, p2 = e0 * e0, e1 * e1, e2 * e2
             n2 = _one(p0, p1, p2) if size == 1 else ((0.0 + p0) + p1) + p2
-            keep[lane] = n2 >= tol2
+            keep[lane] = keep[lane] and n2 >= tol2
             live += keep[lane]
-        if live < n:  # the arms within tolerance leave their lanes, written back
-            gone = np.flatnonzero(~keep[:n])
+        if live < n and (live <= 1 or PACK * (n - live) >= n):
+            # The arms within tolerance leave their lanes, written back. Fewer of them stay
+            # (held still: their steps are computed and dropped, their kinematics redone; an arm
+            # held before its first step keeps its own numbers, which may be MuJoCo's).
+            gone = np.flatnonzero(~keep[:n] & (stepped[0, :n] != 0.0))
             for c in range(len(state)):
                 _scatter(arms[c], state[c], rows, lane_of, gone)
             for lane in gone:
@@ -243,6 +251,8 @@ def batched_solve(
             for w in (w_tgt, w_ref, w_has, e):
                 _pack(w, keep, n)
             _pack(lane_of.reshape(1, nb), keep, n)
+            _pack(stepped, keep, n)
+            keep[:live] = True
             n = live
         if not live:
             break
@@ -286,6 +296,7 @@ def batched_solve(
             h = False
             for j in range(N_ARM):
                 h = h or q_new[j, lane] < lo[j] or q_new[j, lane] > hi[j]
+            h = h and keep[lane]  # a held lane does not step
             hit[lane] = h
             n_hit += h
         if n_hit:  # the arms that hit a limit redo their step together, in lanes of their own
@@ -316,10 +327,15 @@ def batched_solve(
             for lane in range(n):
                 qn = q_new[j, lane]
                 qn = qn if qn != qn or qn >= lj else lj  # np.maximum: NaN stays
-                wq[j, lane] = qn if qn != qn or qn <= hj else hj
+                qn = qn if qn != qn or qn <= hj else hj
+                wq[j, lane] = qn if keep[lane] else wq[j, lane]
+        for lane in range(n):
+            stepped[0, lane] = 1.0 if keep[lane] else stepped[0, lane]
         _lanes_fk(
             wq, w_site, w_cols, w_axes, w_anch, n, base_cols, base_pos, links, site_link, trig, f,
             rot,
         )  # fmt: skip
     for c in range(len(state)):
-        _scatter(arms[c], state[c], rows, lane_of, np.arange(n))
+        _scatter(arms[c], state[c], rows, lane_of, np.flatnonzero(stepped[0, :n] != 0.0))
+    for lane in range(n):
+        moving[lane_of[lane]] = keep[lane]
