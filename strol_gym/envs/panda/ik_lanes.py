@@ -241,9 +241,9 @@ def batched_solve(
             # The arms within tolerance leave their lanes, written back. Fewer of them stay
             # (held still: their steps are computed and dropped, their kinematics redone; an arm
             # held before its first step keeps its own numbers, which may be MuJoCo's).
-            gone = np.flatnonzero(~keep[:n] & (stepped[0, :n] != 0.0))
+            gone = np.flatnonzero(~keep[:n])
             for c in range(len(state)):
-                _scatter(arms[c], state[c], rows, lane_of, gone)
+                _scatter(arms[c], state[c], rows, lane_of, gone[stepped[0, gone] != 0.0])
             for lane in gone:
                 moving[lane_of[lane]] = False
             for w in state:
