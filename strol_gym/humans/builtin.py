@@ -6,12 +6,13 @@ randomness drawn by the caller's generator. Noise and bias are fractions of a_ma
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from strol_gym.compiled import use_fast
+from strol_gym.draws import uniform_rows
 from strol_gym.humans.checks import check_beta
 from strol_gym.humans.choices import boltzmann_correction, driver_correction, optimal_correction
 from strol_gym.humans.interface import (
@@ -57,17 +58,12 @@ class NominalModel(HumanModel):
             return out
         units = np.empty((DRAWN_CHUNK, self.n_candidates, a))
         noise = np.empty((n, a))
-        states = _pcg64_states(rngs)
         for lo in range(0, n, DRAWN_CHUNK):
             hi = min(lo + DRAWN_CHUNK, n)
-            if states is None:
-                for rng, block, z in zip(rngs[lo:hi], units, noise[lo:hi], strict=False):
-                    rng.random(out=block)
-                    rng.standard_normal(out=z)
-            else:  # each generator's uniforms in one compiled call, then its normals
-                _pcg64_fill(states[lo:hi], units[: hi - lo].reshape(hi - lo, -1))
-                for rng, z in zip(rngs[lo:hi], noise[lo:hi], strict=True):
-                    rng.standard_normal(out=z)
+            # each generator's uniforms (one compiled call for them all), then its normals
+            uniform_rows(rngs[lo:hi], units[: hi - lo].reshape(hi - lo, -1))
+            for rng, z in zip(rngs[lo:hi], noise[lo:hi], strict=True):
+                rng.standard_normal(out=z)
             p = slice(lo, hi)
             drawn(
                 x[p], u_r[p], theta_hat[p], pref[p], units[: hi - lo], noise[p], self.sigma,
@@ -78,20 +74,6 @@ class NominalModel(HumanModel):
 
 DRAWN_CHUNK = 32
 """People per call of ``Task.m6_drawn`` in ``NominalModel.drawn_corrections``."""
-
-
-def _pcg64_states(rngs: Sequence[np.random.Generator]) -> np.ndarray | None:
-    """``pcg64_fill.addresses`` of the generators (numpy's PCG64s, whose uniforms one compiled
-    call draws), or None (then numpy draws)."""
-    from strol_gym.humans.pcg64_fill import addresses
-
-    return addresses(rngs)
-
-
-def _pcg64_fill(states: np.ndarray, out: np.ndarray) -> None:
-    from strol_gym.humans.pcg64_fill import fill
-
-    fill(states, out)
 
 
 _NOMINAL = ("draw", "draw_each", "draw_extra", "corrections", "choose")
