@@ -244,8 +244,8 @@ def batched_solve(
             gone = np.flatnonzero(~keep[:n])
             for c in range(len(state)):
                 _scatter(arms[c], state[c], rows, lane_of, gone[stepped[0, gone] != 0.0])
-            for lane in gone:
-                moving[lane_of[lane]] = False
+            for g in gone:
+                moving[lane_of[g]] = False
             for w in state:
                 _pack(w, keep, n)
             for w in (w_tgt, w_ref, w_has, e):
