@@ -527,9 +527,34 @@ def _study_rollout(task: int, seed: int, steps: int) -> tuple[str, int]:
     return h.hexdigest(), braked[0]
 
 
-def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path):
+def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path, monkeypatch):
     path(False)
     plain, braked = _study_rollout(2, 20003, 160)
     assert braked > 5  # the brake's chunks ran, not only watched ones
     path(True)
+    from strol_gym.envs.study import chunk
+
+    calls = [0]
+    run = chunk.chunk
+
+    def counting(*args):
+        calls[0] += 1
+        return run(*args)
+
+    monkeypatch.setattr(chunk, "chunk", counting)
     assert _study_rollout(2, 20003, 160) == (plain, braked)
+    # the compiled chunk (MuJoCo and numpy's BLAS called from the loop) ran, where it applies
+    assert calls[0] > 100 or chunk.functions() is None
+
+
+def test_the_study_chunk_calls_numpys_own_blas(path):
+    """With numpy's bundled OpenBLAS (the wheels), the compiled chunk finds it and its products
+    are numpy's bits (``chunk._agrees``), under this process's ``OPENBLAS_CORETYPE``."""
+    config = np.show_config(mode="dicts")["Build Dependencies"]["blas"]
+    if config.get("name") != "scipy-openblas":
+        pytest.skip("numpy is not built with its bundled OpenBLAS")
+    path(True)
+    from strol_gym.envs.study import chunk
+
+    fp = chunk.functions()
+    assert fp is not None and chunk._agrees(fp, cases=5)

@@ -329,9 +329,9 @@ def _moved_recover(
     return err
 
 
-def _addresses() -> np.ndarray | None:
+def _addresses(symbols: tuple[str, ...] = _SYMBOLS) -> np.ndarray | None:
     """The C functions' addresses in MuJoCo's shared library (the one the binding loaded), in
-    ``_SYMBOLS``' order; None where there is no such library or a symbol is missing."""
+    ``symbols``' order; None where there is no such library or a symbol is missing."""
     here = os.path.dirname(mujoco.__file__)
     for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
         for path in sorted(glob.glob(os.path.join(here, pattern))):
@@ -339,8 +339,8 @@ def _addresses() -> np.ndarray | None:
                 lib = ctypes.CDLL(path)
             except OSError:
                 continue
-            if all(hasattr(lib, s) for s in _SYMBOLS):
-                addr = [ctypes.cast(getattr(lib, s), ctypes.c_void_p).value for s in _SYMBOLS]
+            if all(hasattr(lib, s) for s in symbols):
+                addr = [ctypes.cast(getattr(lib, s), ctypes.c_void_p).value for s in symbols]
                 return np.array(addr, dtype=np.intp)
     return None
 
