@@ -203,6 +203,22 @@ def test_the_drawn_robot_correction_is_the_plain_draws_and_choice(sigma, bias, p
             assert a.random() == c.random()
 
 
+def test_the_compiled_pcg64_uniforms_are_numpys():
+    """``pcg64_fill.fill``: the doubles of ``Generator.random`` and the states after them, for
+    lengths below, at and off its four-step chains; a generator of another kind is not taken."""
+    from strol_gym.humans.pcg64_fill import addresses, fill
+
+    ours = [np.random.default_rng(s) for s in (0, 7, 2**40)]
+    theirs = [np.random.default_rng(s) for s in (0, 7, 2**40)]
+    for k in (1, 7, 8, 13, 1536):
+        got = np.empty((3, k))
+        fill(addresses(ours), got)
+        want = np.stack([g.random(k) for g in theirs])
+        assert got.tobytes() == want.tobytes()
+    assert [g.bit_generator.state for g in ours] == [g.bit_generator.state for g in theirs]
+    assert addresses([ours[0], np.random.Generator(np.random.Philox(1))]) is None
+
+
 def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usual(path):
     from strol_gym.humans.builtin import NominalModel
 
@@ -414,19 +430,45 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, h
     env.close()
 
 
+def test_an_arm_already_at_its_target_keeps_its_own_numbers_in_the_compiled_lanes(path):
+    """An arm whose kinematics are MuJoCo's (a one-by-one restart) and that is within tolerance
+    at the first check, while the other arms iterate, keeps its numbers in the compiled lanes
+    (held, not recomputed by the batched forward kinematics), as the one-arm-at-a-time kernel
+    before them did."""
+    from strol_gym.envs.panda import ik_batched
+
+    env = gym.make("StROL-Robot-v0").unwrapped
+    path(True)
+    arms = ik_batched.BatchedPandaIK(env.ik, 12)
+    assert arms._kernels() is not None
+    rows = np.arange(12)
+    target = np.tile(env.ik.ee, (12, 1))
+    target[0] = (2.0, 2.0, 2.0)  # out of reach: arm 0 restarts alone, on MuJoCo's model
+    arms.solve(target, rows)
+    a = arms._arms
+    own = [x[..., 0].copy() for x in (a.q, a.site, a.cols, a.axes, a.anchors)]
+    before = a.q.copy()
+    target = arms.ee + np.linspace(-0.05, 0.05, 36).reshape(12, 3)
+    target[0] = arms.ee[0]  # arm 0: there already
+    arms.solve(target, rows)
+    assert all((x[..., 0] == y).all() for x, y in zip(a._all(), own, strict=True))
+    assert (a.q[:, 1:] != before[:, 1:]).any(axis=0).all()  # the others moved
+    env.close()
+
+
 def test_batched_kernels_that_miss_the_plain_bits_are_not_used(path, monkeypatch):
-    from strol_gym.envs.panda import ik_batched, ik_kernel
+    from strol_gym.envs.panda import ik_batched, ik_lanes
 
     env = gym.make("StROL-Robot-v0").unwrapped
     path(True)
     monkeypatch.setattr(ik_batched, "_AGREES", None)
-    real = ik_kernel.batched_forward
+    real = ik_lanes.batched_forward
 
     def off_by_a_bit(q, site, *args):
         real(q, site, *args)
         site[0] = np.nextafter(site[0], np.inf)
 
-    monkeypatch.setattr(ik_kernel, "batched_forward", off_by_a_bit)
+    monkeypatch.setattr(ik_lanes, "batched_forward", off_by_a_bit)
     arms = ik_batched.BatchedPandaIK(env.ik, 4)
     assert arms._kernels() is None  # the check saw it: the plain path runs
     env.close()

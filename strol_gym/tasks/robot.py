@@ -16,6 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym.draws import uniform_rows
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task, positive_field, vector_arg
@@ -376,7 +377,7 @@ class RobotTask(Task):
     def sample_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         if type(self).sample_start is not RobotTask.sample_start:
             return super().sample_starts(rngs)
-        return self._in_box(np.concatenate([rng.random((1, 3)) for rng in rngs]))
+        return self._in_box(uniform_rows(rngs, np.empty((len(rngs), 3))))
 
     def _in_box(self, unit: np.ndarray) -> np.ndarray:
         """Uniform draws in [0, 1) mapped into the workspace box: what ``rng.uniform(low, high)``
