@@ -117,10 +117,14 @@ def read_sessions(folder: str | Path) -> list[Session]:
     if len(paths) > MAX_LOGS:
         raise ValueError(f"LOGS: more than {MAX_LOGS} session logs")
     out = []
+    tasks: dict[str, Task] = {}  # one Task per logged Task: its cached values are shared
     for path in paths:
         if path.stat().st_size > MAX_LOG_BYTES:
             raise ValueError(f"LOGS {path}: larger than {MAX_LOG_BYTES // 1_000_000} MB")
         session = read_session(path)  # checks the file's structure
+        key = json.dumps([session.header["task"], session.header["task_describe"]], sort_keys=True)
+        if key not in tasks:
+            tasks[key] = session_task(session)
         recs = [loads_json(line, str(path)) for line in path.read_bytes().splitlines() if line]
         header = recs[0]
         extra = header.get("extra") if isinstance(header.get("extra"), dict) else {}
@@ -150,7 +154,7 @@ def read_sessions(folder: str | Path) -> list[Session]:
         ]
         out.append(
             Session(
-                task=session_task(session),
+                task=tasks[key],
                 number=number,
                 learner=str(header.get("learner")),
                 user=str(user),
@@ -302,15 +306,26 @@ class StudyPopulation:
 
     def __init__(self) -> None:
         self._plans: dict[int, tuple[Session, tuple[np.ndarray, np.ndarray]]] = {}
+        self._aims: dict[int, tuple[Session, np.ndarray]] = {}
 
     def sessions(self, real, rng):
-        from strol_gym.envs.study.population import shipped
+        from strol_gym.envs.study.population import aimed_aim, shipped
 
-        for r in real:  # each real session's logged plan once (it plans), not per replicate
+        pool = _pool(real)
+        for r in real:  # each real session's plan and aims once (they plan), not per replicate
             if id(r) not in self._plans:
                 self._plans[id(r)] = (r, logged_plan(r))
+                states = _located(r) or pool
+                x = [c["x"] for _, c in states]
+                aims = (
+                    aimed_aim(_study_task(r.task), r.theta_star, np.stack(x))
+                    if x
+                    else np.empty((0, r.task.action_dim))
+                )
+                self._aims[id(r)] = (r, aims)
         plans = {i: v[1] for i, v in self._plans.items()}
-        return reacting_sessions(shipped(), real, rng, plans)
+        aims = {i: v[1] for i, v in self._aims.items()}
+        return reacting_sessions(shipped(), real, rng, plans, aims)
 
 
 def logged_plan(s: Session) -> tuple[np.ndarray, np.ndarray]:
@@ -342,6 +357,7 @@ def reacting_sessions(
     real: Sequence[Session],
     rng: np.random.Generator,
     plans: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+    aims: dict[int, np.ndarray] | None = None,
 ):
     """The shipped population's people (``Population.hazard``) along the real sessions: when
     each corrects is drawn from its timing hazard given the plan the robot logged
@@ -349,12 +365,14 @@ def reacting_sessions(
     correction at the session's logged correction state nearest along the path
     (:func:`nearest_states`; the Task's others' where it logged none), unclipped. ``plans``:
     :func:`logged_plan` of each session by ``id``, if already computed (it plans; a replicate
-    need not plan again)."""
-    from strol_gym.envs.study.population import aimed_draws
+    need not plan again); ``aims``: likewise, ``population.aimed_aim`` at each of the session's
+    states (its own logged ones, else the Task's), in order (the same bits as aiming at the
+    picked states: the aim is computed row by row)."""
+    from strol_gym.envs.study.population import aimed_aim, aimed_at
     from strol_gym.humans.timing import simulate
 
     task = _study_task(real[0].task)
-    pool = [v for s in real for v in _located(s)]
+    pool = _pool(real)
     out: list[list[dict[str, Any]]] = []
     for s in real:
         person = pop.draw(rng, s.number)
@@ -365,10 +383,14 @@ def reacting_sessions(
         if not len(when) or not states:
             out.append([])
             continue
-        picked = nearest_states(states, when / max(s.path_samples, 1))
-        x = np.stack([c["x"] for c in picked])
+        index = nearest_index(states, when / max(s.path_samples, 1))
+        picked = [states[k][1] for k in index]
+        if aims is not None and id(s) in aims:
+            best = aims[id(s)][index]
+        else:
+            best = aimed_aim(task, s.theta_star, np.stack([c["x"] for c in picked]))
         n, a = len(picked), task.action_dim
-        u = aimed_draws(task, s.theta_star, x, rng.standard_normal((n, a + 1)), rng.random(n))
+        u = aimed_at(best, rng.standard_normal((n, a + 1)), rng.random(n), task)
         u = u * np.asarray(task.action_bound)
         out.append(
             [
@@ -389,6 +411,12 @@ def _located(s: Session) -> list[tuple[float, dict[str, Any]]]:
     ]
 
 
+def _pool(real: Sequence[Session]) -> list[tuple[float, dict[str, Any]]]:
+    """The Task's logged correction states (:func:`_located` of every session, in order): where
+    a session logged none, its person is placed at these."""
+    return [v for s in real for v in _located(s)]
+
+
 def nearest_states(
     states: Sequence[tuple[float, dict[str, Any]]], share: np.ndarray
 ) -> list[dict[str, Any]]:
@@ -396,11 +424,17 @@ def nearest_states(
     (share of its own session's path, correction)) nearest along the path, the earlier on a
     tie: the robot's state where the person steps in, as near as the log holds it. Logged
     corrections without a path sample are taken in turn where none has one."""
+    return [states[k][1] for k in nearest_index(states, share)]
+
+
+def nearest_index(states: Sequence[tuple[float, Any]], share: np.ndarray) -> np.ndarray:
+    """The indices into ``states`` that :func:`nearest_states` picks."""
     at = np.array([w for w, _ in states], dtype=np.float64)
+    share = np.asarray(share, np.float64)
     if not np.isfinite(at).any():
-        return [states[k % len(states)][1] for k in range(len(share))]
+        return np.arange(len(share), dtype=np.int64) % len(states)
     at = np.where(np.isfinite(at), at, np.inf)
-    return [states[int(np.argmin(np.abs(at - w)))][1] for w in np.asarray(share, np.float64)]
+    return np.array([int(np.argmin(np.abs(at - w))) for w in share], dtype=np.int64)
 
 
 def person_from(spec: str) -> Person:

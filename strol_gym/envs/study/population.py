@@ -358,11 +358,25 @@ def aimed_draws(
     (``humans.aim.FITTED_AIM``) at poses ``x`` (n, s), from standard normals ``z`` (n, a + 1)
     and uniforms ``pick`` (n,): about the aimed person's direction for θ* ⊙ its emphasis
     (``humans.aim.aim_direction``, with its fitted ``reach``)."""
+    return aimed_at(aimed_aim(task, theta_star, x), z, pick, task)
+
+
+def aimed_aim(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """b̂ (n, a): what the aimed person fitted for ``task`` aims at, at poses ``x`` (n, s), for
+    θ* ⊙ its emphasis (``humans.aim.aim_direction`` with its fitted ``reach``). Row by row:
+    what a pose gives does not depend on the others in the batch, so it may be computed once
+    per pose and reused (:func:`aimed_at`)."""
     kw = fitted_aim_params(task)
-    emphasis, reach = kw.pop("emphasis"), kw.pop("reach")
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
-    star = np.broadcast_to(np.asarray(theta_star, dtype=np.float64) * emphasis, (len(x), task.dim))
-    best = aim_direction(task, x, np.zeros((len(x), task.action_dim)), star, reach)
+    star = np.broadcast_to(
+        np.asarray(theta_star, dtype=np.float64) * kw["emphasis"], (len(x), task.dim)
+    )
+    return aim_direction(task, x, np.zeros((len(x), task.action_dim)), star, kw["reach"])
+
+
+def aimed_at(best: np.ndarray, z: np.ndarray, pick: np.ndarray, task: StudyTask) -> np.ndarray:
+    """:func:`aimed_draws` given its aims ``best`` (:func:`aimed_aim`)."""
+    kw = {k: v for k, v in fitted_aim_params(task).items() if k not in ("emphasis", "reach")}
     return aimed_corrections(best, z, pick, **kw)
 
 
@@ -467,6 +481,8 @@ __all__ = [
     "TIMING_FILE",
     "FittedPopulationModel",
     "Population",
+    "aimed_aim",
+    "aimed_at",
     "aimed_correction",
     "aimed_draws",
     "cosine",
