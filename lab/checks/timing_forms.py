@@ -64,7 +64,19 @@ FORMS: dict[str, list[Transform]] = {
     "log(min(s,1) + eps), fitted eps": [_caplog(e) for e in (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)],
     "against acceptance s0, fitted": [_accept(a) for a in (0.0, 0.05, 0.1, 0.2, 0.3)],
 }
-EXTRAS = ("last push's effect", "corrections so far", "clock (min)")
+EXTRAS = (
+    "last push's effect",
+    "corrections so far",
+    "clock (min)",
+    "before the first correction",
+    *(f"plan accepted (s < {s0:g})" for s0 in (0.05, 0.1, 0.2)),
+    "Task 1's own shortfall slope",
+)
+"""One covariate more: the shortfall the last correction removed, log(1 + corrections so far),
+the minutes of the robot's motion, 1 until the first correction (the first push's timing its
+own), 1 while the robot's plan is within s0 of θ*'s (a person satisfied with what the robot
+does: a drop in the rate at a good plan, beyond the shortfall's slope), min(s, 1) in Task 1
+only (Task 1's shorter sessions in the authors' code: its own reaction to the plan)."""
 
 
 @dataclasses.dataclass
@@ -181,8 +193,15 @@ def _extra_columns(
         o[:, 5] = np.r_[0.0, np.maximum(sf[:-1] - sf[1:], 0.0)][seg]
     elif extra == EXTRAS[1]:
         o[:, 5] = np.log1p(seg)
-    else:
+    elif extra == EXTRAS[2]:
         o[:, 5] = now * DT / 60.0
+    elif extra == EXTRAS[3]:
+        o[:, 5] = seg == 0
+    elif extra == EXTRAS[7]:
+        o[:, 5] = sf[seg] * (s.task == 1)
+    else:
+        s0 = float(extra.split("< ")[1].rstrip(")"))
+        o[:, 5] = s.shortfall[seg] < s0
     return o
 
 
