@@ -189,11 +189,7 @@ def statistics(
         counts = [len(r) for s, r in zip(sessions, rows, strict=True) if s.learner == name]
         out[f"count_{name}"] = float(np.mean(counts)) if counts else math.nan
     flat = [(s, c) for s, r in zip(sessions, rows, strict=True) for c in r]
-    when = [
-        c["path_sample"] / s.path_samples
-        for s, c in flat
-        if c.get("path_sample") is not None and s.path_samples > 0
-    ]
+    when = [c["path_sample"] / _length(s, c) for s, c in flat if c.get("path_sample") is not None]
     out["when_median"] = float(np.median(when)) if when else math.nan
     if not flat:
         return {**out, **{k: math.nan for k in STATISTICS if k not in out}}
@@ -216,6 +212,13 @@ def statistics(
     out["angle_over_90"] = float(np.mean(angle > 90.0)) if len(angle) else math.nan
     out["raised"] = float(np.mean(gain > 0.0))
     return out
+
+
+def _length(s: Session, c: dict[str, Any]) -> int:
+    """The path samples of the session correction ``c`` was made in: its own where a simulated
+    session's length is the person's (``path_samples``), else the session's; at least 1."""
+    n = c.get("path_samples")
+    return max(int(s.path_samples if n is None else n), 1)
 
 
 # ---------------------------------------------------------------------------- people
@@ -369,7 +372,7 @@ def reacting_sessions(
     states (its own logged ones, else the Task's), in order (the same bits as aiming at the
     picked states: the aim is computed row by row)."""
     from strol_gym.envs.study.population import aimed_aim, aimed_at
-    from strol_gym.humans.timing import simulate
+    from strol_gym.humans.timing import doubled_end, simulate
 
     task = _study_task(real[0].task)
     pool = _pool(real)
@@ -377,7 +380,14 @@ def reacting_sessions(
     for s in real:
         person = pop.draw(rng, s.number)
         switches, falls = plans[id(s)] if plans and id(s) in plans else logged_plan(s)
-        when = simulate(person.hazard, s.path_samples, switches, falls, AUTHORS_DT, rng)
+        budget = (getattr(pop, "doubled_budget", None) or {}).get(s.number)
+        if budget is None:
+            length = s.path_samples
+            when = simulate(person.hazard, length, switches, falls, AUTHORS_DT, rng)
+        else:  # the session ends on the authors' doubled count, by when this person corrects
+            horizon = max(round(budget / AUTHORS_DT), 1)
+            when = simulate(person.hazard, horizon, switches, falls, AUTHORS_DT, rng)
+            when, length = doubled_end(when, horizon)
         when = when[:MAX_CORRECTIONS]
         states = _located(s) or pool
         if not len(when) or not states:
@@ -394,7 +404,13 @@ def reacting_sessions(
         u = u * np.asarray(task.action_bound)
         out.append(
             [
-                {**c, "u_h": ui, "path_sample": int(k), "theta_hat_before": None}
+                {
+                    **c,
+                    "u_h": ui,
+                    "path_sample": int(k),
+                    "path_samples": int(length),
+                    "theta_hat_before": None,
+                }
                 for c, ui, k in zip(picked, u, when, strict=True)
             ]
         )
@@ -616,6 +632,7 @@ def write_replicate(
         writer = SessionWriter(folder / s.name, header)
         try:
             ep = {k: v for k, v in s.episode.items() if k != "type"}
+            ep["path_samples"] = _length(s, rows[0]) if rows else s.path_samples
             ep["corrections_logged"] = len(rows)
             ep["corrections_empty"] = ep["corrections_one_pose"] = 0
             writer.episode(**ep)
@@ -630,7 +647,7 @@ def write_replicate(
                     theta_hat_before=None,
                     theta_hat_after=None,
                     path_sample=where,
-                    path_samples=s.path_samples,
+                    path_samples=_length(s, c),
                     correction_time=None,
                 )
             writer.end(reason="simulated session", interrupted=False, corrections=len(rows))

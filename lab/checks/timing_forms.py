@@ -71,12 +71,14 @@ EXTRAS = (
     "before the first correction",
     *(f"plan accepted (s < {s0:g})" for s0 in (0.05, 0.1, 0.2)),
     "Task 1's own shortfall slope",
+    "wait x shortfall",
 )
 """One covariate more: the shortfall the last correction removed, log(1 + corrections so far),
 the minutes of the robot's motion, 1 until the first correction (the first push's timing its
 own), 1 while the robot's plan is within s0 of θ*'s (a person satisfied with what the robot
 does: a drop in the rate at a good plan, beyond the shortfall's slope), min(s, 1) in Task 1
-only (Task 1's shorter sessions in the authors' code: its own reaction to the plan)."""
+only (Task 1's shorter sessions in the authors' code: its own reaction to the plan),
+log(1 + τ)·min(s, 1) (impatience only while the plan is poor)."""
 
 
 @dataclasses.dataclass
@@ -199,6 +201,8 @@ def _extra_columns(
         o[:, 5] = seg == 0
     elif extra == EXTRAS[7]:
         o[:, 5] = sf[seg] * (s.task == 1)
+    elif extra == EXTRAS[8]:
+        o[:, 5] = sf[seg] * np.log1p(wait * DT)
     else:
         s0 = float(extra.split("< ")[1].rstrip(")"))
         o[:, 5] = s.shortfall[seg] < s0

@@ -231,6 +231,30 @@ def simulate(
     return np.array(events, dtype=np.int64)
 
 
+DOUBLED_TASKS = (1,)
+"""The study Tasks whose session ends on the authors' doubled count: their Task 1 loop added
+the robot's motion since the last correction to its elapsed time a second time at each
+correction, so a session ended when the motion plus the motion before its last correction
+reached the budget (:func:`doubled_end`); Tasks 2-3 counted the motion once."""
+
+
+def doubled_end(events: np.ndarray, budget: int) -> tuple[np.ndarray, int]:
+    """(the corrections made, the path samples the session lasted) of a session whose elapsed
+    time is the motion t plus the motion before its last correction (:data:`DOUBLED_TASKS`),
+    ended when that reaches ``budget`` samples, for a person who would correct at the sorted
+    path samples ``events`` (a stopping time: corrections past the end are not made). It ends
+    at a correction at t_k when 2·t_k ≥ budget, else at budget − t_last."""
+    budget = int(checks.number("budget", budget, low=1, high=MAX_SAMPLES, integer=True))
+    last = 0
+    for k, e in enumerate(np.asarray(events, dtype=np.int64).tolist()):
+        if e + last >= budget:  # the session ended before this one
+            return np.asarray(events[:k], dtype=np.int64), budget - last
+        last = e
+        if 2 * e >= budget:
+            return np.asarray(events[: k + 1], dtype=np.int64), e + 1
+    return np.asarray(events, dtype=np.int64), budget - last
+
+
 UNIT_DRAWS = 64
 UNIT_SEED = 0
 
@@ -276,6 +300,7 @@ def step_in_probability(rate_per_s: float, dt: float) -> float:
 
 
 __all__ = [
+    "DOUBLED_TASKS",
     "MODELS",
     "SHORTFALL_CAP",
     "TERMS",
@@ -283,6 +308,7 @@ __all__ = [
     "TimedSession",
     "TimingFit",
     "design",
+    "doubled_end",
     "fit",
     "loglik",
     "loglik_parts",

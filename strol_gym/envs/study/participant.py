@@ -293,6 +293,7 @@ class FittedParticipant(Participant):
         self._push_wrench = (np.zeros(3), np.zeros(3))
         self._started = 0.0
         self._pushed = 0.0
+        self._watched_last = 0.0
 
     def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: Any = None) -> np.ndarray:
         """A correction drawn at pose ``x`` from this person's fitted aim and sizes (or the
@@ -339,7 +340,8 @@ class FittedParticipant(Participant):
         """The fitted timing hazard (``FittedParams.hazard``): every ``decide_every`` s it
         steps in with probability 1 − exp(−rate·decide_every), rate from the shortfall of the
         plan of the robot's θ̂ and the time since its last correction; it pushes ``reaction``
-        s later from what it sees then. Done after ``path_time`` s of the robot's motion."""
+        s later from what it sees then. Done after ``path_time`` s of the robot's motion, or
+        when that motion plus the motion before its last push reach ``doubled_budget``."""
         p = self.params
         if self._push_at is not None:
             if t + 1e-9 < self._push_at:
@@ -349,7 +351,8 @@ class FittedParticipant(Participant):
         if self.done_at is not None or t + 1e-9 < self._t_next:
             return None
         self._t_next = t + p.decide_every
-        if t - self._pushed >= p.path_time:
+        motion = t - self._pushed
+        if motion >= p.path_time or motion + self._watched_last >= p.doubled_budget:
             self.done_at = t
             return None
         assert p.hazard is not None
@@ -416,5 +419,6 @@ class FittedParticipant(Participant):
         watched = self._started - self._pushed  # the robot's path time before this push
         self._pushed += t - self._started
         self._last_release = t
+        self._watched_last = watched
         if self.params.hazard is None and self.made >= self.params.budget:
             self.done_at = t + self.params.linger * watched

@@ -169,6 +169,10 @@ class FittedParams(ParticipantParams):
     path_time: float = float("inf")
     """With ``hazard``: the s of the robot's motion it watches (push time not counted), then it
     is done: the logged path time of the real sessions of its Task."""
+    doubled_budget: float = float("inf")
+    """With ``hazard``: it is done when the s of the robot's motion plus the motion before its
+    last correction reach this (the authors' Task 1 loop counted that motion twice,
+    ``strol_gym.humans.timing.doubled_end``); inf: only ``path_time`` ends its watch."""
     linger: float = 0.5
     """After its last correction it watches this share of the session so far, then it is done
     (where along the path its corrections fall)."""
@@ -196,6 +200,12 @@ class FittedParams(ParticipantParams):
         if isinstance(watch, bool) or not isinstance(watch, int | float) or not watch > 0:
             raise ValueError(f"person kwargs['path_time'] must be a number > 0 (s), got {watch!r}")
         object.__setattr__(self, "path_time", float(watch))
+        doubled = self.doubled_budget
+        if isinstance(doubled, bool) or not isinstance(doubled, int | float) or not doubled > 0:
+            raise ValueError(
+                f"person kwargs['doubled_budget'] must be a number > 0 (s), got {doubled!r}"
+            )
+        object.__setattr__(self, "doubled_budget", float(doubled))
         if self.hazard is not None:
             h = checks.vector("person kwargs['hazard']", self.hazard, 3)
             for name, v in zip(("a", "b", "c"), h.tolist(), strict=True):

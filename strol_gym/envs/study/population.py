@@ -163,6 +163,10 @@ class Population:
     """Per Task, the timing hazard's (a, b, c) (``FittedParams.hazard``); None: the budget."""
     path_time: dict[int, float] | None = None
     """Per Task, the s of the robot's motion a person watches (with ``hazard``)."""
+    doubled_budget: dict[int, float] | None = None
+    """Per Task whose session ended on the authors' doubled count (``timing.DOUBLED_TASKS``),
+    the budget (s): the person is done when the robot's motion plus its motion before the
+    last correction reaches it (in place of ``path_time``)."""
     correction: str = "population"
     """Its people's model of a correction (``FittedParams.correction``)."""
     rise: float | None = None
@@ -183,6 +187,9 @@ class Population:
         when: dict[str, Any] = {}
         if self.hazard is not None and self.path_time is not None:
             when = {"hazard": self.hazard[task], "path_time": self.path_time[task]}
+            if self.doubled_budget and task in self.doubled_budget:
+                when["path_time"] = math.inf
+                when["doubled_budget"] = self.doubled_budget[task]
             if self.rise is not None:
                 when["ramp"] = self.rise
         else:
@@ -256,6 +263,20 @@ def parse_timing(
     return hazard, path_time, rise
 
 
+def parse_doubled(obj: dict[str, Any], what: str = "timing fit") -> dict[int, float]:
+    """Per Task its ``doubled_budget`` (s) from a timing fit's JSON object (none: {})."""
+    raw = obj.get("doubled_budget", {})
+    got = checks.mapping(f"{what}['doubled_budget']", raw, "an object")
+    out = {}
+    for key, v in got.items():
+        if key not in ("1", "2", "3"):
+            raise ValueError(f"{what}['doubled_budget']: Tasks are '1'-'3', got {key!r}")
+        out[int(key)] = float(
+            checks.number(f"{what}['doubled_budget'][{key!r}]", v, low=1.0, high=3600.0)
+        )
+    return out
+
+
 def _read_json(path: Path, what: str) -> Any:
     return loads_json(read_regular(path, MAX_FIT_BYTES, f"{what} file"), str(path))
 
@@ -274,8 +295,12 @@ def read_fit(
     )
     if timing is None:
         return pop
-    hazard, path_time, rise = parse_timing(_read_json(Path(timing), "timing fit"), str(timing))
-    return dataclasses.replace(pop, hazard=hazard, path_time=path_time, rise=rise)
+    obj = _read_json(Path(timing), "timing fit")
+    hazard, path_time, rise = parse_timing(obj, str(timing))
+    doubled = parse_doubled(obj, str(timing))
+    return dataclasses.replace(
+        pop, hazard=hazard, path_time=path_time, rise=rise, doubled_budget=doubled
+    )
 
 
 @functools.cache
@@ -488,6 +513,7 @@ __all__ = [
     "cosine",
     "draw_corrections",
     "parse",
+    "parse_doubled",
     "read_fit",
     "shape_corrections",
     "shipped",
