@@ -88,7 +88,7 @@ def test_the_shipped_population_reacts_and_its_hazard_is_checked():
     for t in (1, 2, 3):
         person = pop.draw(np.random.default_rng(t), t)
         assert person.hazard == tuple(shipped["hazard"][str(t)])
-        if str(t) in shipped["doubled_budget"]:  # Task 1: the authors' doubled count ends it
+        if str(t) in shipped.get("doubled_budget", {}):  # the authors' doubled count ends it
             assert person.path_time == np.inf
             assert person.doubled_budget == shipped["doubled_budget"][str(t)]
         else:
@@ -104,6 +104,19 @@ def test_the_shipped_population_reacts_and_its_hazard_is_checked():
     with pytest.raises(ValueError, match=r"doubled_budget.*'4'"):
         population.parse_doubled({"doubled_budget": {"4": 60.0}})
     assert population.parse_doubled({}) == {}
+
+
+def test_impatience_weighs_the_wait_by_the_shortfall():
+    """rate = exp(a + b s + (c + d s) log(1 + τ)); without d the reactive form, bit for bit."""
+    a, b, c, d = -3.0, 0.5, 0.2, 0.7
+    want = math.exp(a + b * 0.4 + (c + d * 0.4) * math.log1p(9.0))
+    assert timing.hazard_rate((a, b, c, d), 0.4, 9.0) == pytest.approx(want)
+    assert timing.rate(np.array([a, 0.0, 0.0, b, c, d]), 1, 0.4, 9.0) == pytest.approx(want)
+    three = math.exp(min(a + b * 0.4 + c * math.log1p(9.0), 50.0))
+    assert timing.hazard_rate((a, b, c), 0.4, 9.0) == three
+    with pytest.raises(ValueError, match="3 or 4 numbers"):
+        timing.hazard_vector("h", [1.0, 2.0])
+    assert timing.MODELS["impatient"] == ("shortfall", "wait", "impatience")
 
 
 def test_doubled_end_stops_where_the_authors_task_1_loop_did():
@@ -159,6 +172,11 @@ def timing_logs(authors_tree, tmp_path_factory):
 def test_fit_timing_on_synthetic_sessions(timing_logs, tmp_path, capsys):
     fit_file = tmp_path / "timing_fit.json"
     argv = ["fit-timing", str(timing_logs), "--out", str(tmp_path), "--bootstrap", "3"]
+    older = tmp_path / "reactive.json"
+    before = ["--ship", "reactive", "--no-doubled-end"]
+    assert cli.main([*argv, "--write-fit", str(older), *before]) == 0
+    old = json.loads(older.read_text())
+    assert all(len(h) == 3 for h in old["hazard"].values()) and "doubled_budget" not in old
     assert cli.main([*argv, "--write-fit", str(fit_file)]) == 0
     assert "held out strol (0 sessions)" in capsys.readouterr().out  # StROL's θ̂ unknown here
     res = json.loads((tmp_path / "timing.json").read_text())
@@ -167,6 +185,7 @@ def test_fit_timing_on_synthetic_sessions(timing_logs, tmp_path, capsys):
     assert res["lopo_loglik"]["rate"] < 0
     hazard, path_time, rise = population.parse_timing(json.loads(fit_file.read_text()))
     assert path_time[1] == pytest.approx(40 * DT) and set(hazard) == {1, 2, 3}
+    assert all(len(h) == 4 for h in hazard.values())  # a, b, c and the impatience d
     assert rise == pytest.approx(2 * DT)  # poses per correction 5, 0, 1, 3: median 2
     doubled = population.parse_doubled(json.loads(fit_file.read_text()))
     assert set(doubled) == {1} and doubled[1] >= path_time[1]  # the path and its last push

@@ -109,9 +109,9 @@ def _best(train: Sequence[timing.TimedSession], fns: list[Transform]) -> tuple[A
 # ---------------------------------------------------------------- a rate per person (frailty)
 def _session_parts(ss: Sequence[timing.TimedSession], coef: np.ndarray) -> np.ndarray:
     """Per session (Σ_events η, compensator Λ, events)."""
-    d = timing.design(ss, DT)
-    ev = np.bincount(d.event_session, d.at_events @ coef, minlength=d.n_sessions)
-    lam = DT * np.bincount(d.grid_session, np.exp(d.grid @ coef), minlength=d.n_sessions)
+    d, k = timing.design(ss, DT), len(coef)  # the reactive form's first five columns
+    ev = np.bincount(d.event_session, d.at_events[:, :k] @ coef, minlength=d.n_sessions)
+    lam = DT * np.bincount(d.grid_session, np.exp(d.grid[:, :k] @ coef), minlength=d.n_sessions)
     return np.stack([ev, lam, [len(s.events) for s in ss]], axis=1)
 
 
@@ -128,8 +128,9 @@ def _marginal(e: float, lam: float, n: float, a: float, b: float) -> float:
 
 
 def _fit_frailty(train: Sequence[timing.TimedSession]) -> tuple[np.ndarray, float, float]:
-    start = timing.fit(train, "reactive", DT).coef
+    start = timing.fit(train, "reactive", DT).coef[:5]
     d = timing.design(train, DT)
+    d = dataclasses.replace(d, grid=d.grid[:, :5], at_events=d.at_events[:, :5])
     people = sorted({s.person for s in train})
     idx = np.array([people.index(s.person) for s in train])
     n = np.bincount(idx, [len(s.events) for s in train], len(people))

@@ -55,7 +55,7 @@ from strol_gym.envs.study.people import (  # noqa: F401  (THRESHOLD: here until 
 from strol_gym.envs.study.population import aimed_correction, best_correction, draw_corrections
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
-from strol_gym.humans.timing import shortfall, step_in_probability
+from strol_gym.humans.timing import hazard_rate, shortfall, step_in_probability
 from strol_gym.tasks.study import StudyTask
 
 
@@ -356,9 +356,7 @@ class FittedParticipant(Participant):
             self.done_at = t
             return None
         assert p.hazard is not None
-        a, b, c = p.hazard
-        s = self.shortfall(theta_hat)
-        rate = math.exp(min(a + b * s + c * math.log1p(max(t - self._last_release, 0.0)), 50.0))
+        rate = hazard_rate(p.hazard, self.shortfall(theta_hat), t - self._last_release)
         self.judgments += 1
         if self.rng.random() < step_in_probability(rate, p.decide_every):
             self.rejections += 1

@@ -42,6 +42,7 @@ from strol_gym.envs.study.people import CORRECTIONS, FittedParams
 from strol_gym.files import loads_json, read_regular
 from strol_gym.humans.aim import aim_direction, aimed_corrections, fitted_aim_params
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
+from strol_gym.humans.timing import hazard_vector
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
 
@@ -159,8 +160,9 @@ class Population:
     """The :data:`FITTED` estimates."""
     priors: dict[str, Any]
     """The :data:`PRIORS` values the file names (``patience`` an int)."""
-    hazard: dict[int, tuple[float, float, float]] | None = None
-    """Per Task, the timing hazard's (a, b, c) (``FittedParams.hazard``); None: the budget."""
+    hazard: dict[int, tuple[float, ...]] | None = None
+    """Per Task, the timing hazard's (a, b, c[, d]) (``FittedParams.hazard``); None: the
+    budget."""
     path_time: dict[int, float] | None = None
     """Per Task, the s of the robot's motion a person watches (with ``hazard``)."""
     doubled_budget: dict[int, float] | None = None
@@ -243,8 +245,8 @@ def parse(obj: Any, what: str = "participant fit") -> Population:
 
 def parse_timing(
     obj: Any, what: str = "timing fit"
-) -> tuple[dict[int, tuple[float, float, float]], dict[int, float], float]:
-    """Per Task (a, b, c) and path time, and the push's rise time, from a timing fit file's
+) -> tuple[dict[int, tuple[float, ...]], dict[int, float], float]:
+    """Per Task (a, b, c[, d]) and path time, and the push's rise time, from a timing fit file's
     JSON object (checked)."""
     if not isinstance(obj, dict) or obj.get("format") != TIMING_FORMAT:
         raise ValueError(f"{what} must be a JSON object with format {TIMING_FORMAT!r}")
@@ -252,10 +254,7 @@ def parse_timing(
     pt = checks.mapping(f"{what}['path_time']", obj.get("path_time"), "an object")
     hazard, path_time = {}, {}
     for t in (1, 2, 3):
-        v = checks.vector(f"{what}['hazard']['{t}']", hz.get(str(t)), 3)
-        for name, c in zip("abc", v.tolist(), strict=True):
-            checks.number(f"{what}['hazard']['{t}'] ({name})", c, low=-50.0, high=50.0)
-        hazard[t] = (float(v[0]), float(v[1]), float(v[2]))
+        hazard[t] = hazard_vector(f"{what}['hazard']['{t}']", hz.get(str(t)))
         path_time[t] = float(
             checks.number(f"{what}['path_time']['{t}']", pt.get(str(t)), low=0.0, low_open=True)
         )
