@@ -320,12 +320,12 @@ class StudyPopulation:
                 self._plans[id(r)] = (r, logged_plan(r))
                 states = _located(r) or pool
                 x = [c["x"] for _, c in states]
-                aims = (
+                at = (
                     aimed_aim(_study_task(r.task), r.theta_star, np.stack(x))
                     if x
                     else np.empty((0, r.task.action_dim))
                 )
-                self._aims[id(r)] = (r, aims)
+                self._aims[id(r)] = (r, at)
         plans = {i: v[1] for i, v in self._plans.items()}
         aims = {i: v[1] for i, v in self._aims.items()}
         return reacting_sessions(shipped(), real, rng, plans, aims)

@@ -5,7 +5,7 @@ A person is checked against replicates of itself: ``--reference`` replicates set
 same person is checked against it as if it were the real people. The share of fresh replicates
 failing at least one check is the band's family-wise error (its target: 1 − LEVEL = 5 %), with
 its Wilson 95 % interval; per check, the share failing it. Two ways of ranking the checked value
-among the reference: as ``check_human.two_sided_p`` does (the value's share among the
+among the reference: as ``two_sided_p`` does (the value's share among the
 replicates), and counting the value itself as a replicate's p-value counts it (2·min(#≤ + 1,
 #≥ + 1)/(S + 1)).
 
@@ -18,10 +18,18 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import Any
 
 import numpy as np
 
-from strol_gym.benchmarks.sessions import check_human as ch
+from strol_gym.benchmarks.sessions.check_human import (
+    AtLoggedMoments,
+    StudyPopulation,
+    joint_band,
+    read_sessions,
+    run_check,
+    two_sided_p,
+)
 
 
 def counted_p(draws: np.ndarray, value: np.ndarray) -> np.ndarray:
@@ -47,13 +55,13 @@ def wilson(k: int, n: int) -> tuple[float, float]:
     return mid - half, mid + half
 
 
-def calibrate(values: np.ndarray, reference: int) -> dict[str, object]:
+def calibrate(values: np.ndarray, reference: int) -> dict[str, Any]:
     """The band of the first ``reference`` rows of ``values`` (S + R, J) and how the other R
     rows fare against it, both ways of ranking them."""
     ref, fresh = values[:reference], values[reference:]
-    gamma, _ = ch.joint_band(ref)
-    out: dict[str, object] = {"gamma": gamma, "reference": reference, "fresh": len(fresh)}
-    for name, rank in (("share", ch.two_sided_p), ("counted", counted_p)):
+    gamma, _ = joint_band(ref)
+    out: dict[str, Any] = {"gamma": gamma, "reference": reference, "fresh": len(fresh)}
+    for name, rank in (("share", two_sided_p), ("counted", counted_p)):
         p = np.column_stack([rank(ref[:, j], fresh[:, j]) for j in range(values.shape[1])])
         fail = np.isfinite(p) & (p < gamma)
         k = int(fail.any(axis=1).sum())
@@ -75,10 +83,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fresh", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args(argv)
-    real = ch.read_sessions(args.logs)
-    person = ch.StudyPopulation() if args.population else ch.AtLoggedMoments(args.human)
+    real = read_sessions(args.logs)
+    person = StudyPopulation() if args.population else AtLoggedMoments(args.human)
     values: dict[tuple[int, str], np.ndarray] = {}
-    ch.run_check(real, person, args.reference + args.fresh, args.seed, values_out=values)
+    run_check(real, person, args.reference + args.fresh, args.seed, values_out=values)
     cols = list(values)
     matrix = np.column_stack([values[c] for c in cols])
     for s in sorted({200, 500, args.reference}):
