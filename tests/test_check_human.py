@@ -111,6 +111,13 @@ def test_population_simulates_the_counts(logs, tmp_path):
     assert all(isinstance(c["pass"], bool) for c in counts)
     when = [c for c in report["checks"] if c["statistic"] == "when_median"]
     assert when and all(isinstance(c["pass"], bool) for c in when)  # its timing hazard decides
+    # the kept replicate's logs give back its counts and timing (Task 1's sessions end where
+    # the person's corrections end them: their logged length is the simulated one)
+    again = by_task(read_sessions(out / "sessions" / "draw_000"))
+    for t, sessions in again.items():
+        redo, kept = statistics(sessions), report["kept_replicates"][0][str(t)]
+        for k in ("count_one", "count_strol", "when_median"):
+            assert redo[k] == pytest.approx(kept[k], rel=1e-12, nan_ok=True), (t, k)
 
 
 def test_population_reuses_its_aims_and_plans_bit_for_bit(logs):
