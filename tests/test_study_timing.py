@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.sessions import fit_timing
 from strol_gym.envs.study import population
 from strol_gym.envs.study.participant import FittedParticipant
 from strol_gym.envs.study.people import FittedParams
@@ -172,11 +173,6 @@ def timing_logs(authors_tree, tmp_path_factory):
 def test_fit_timing_on_synthetic_sessions(timing_logs, tmp_path, capsys):
     fit_file = tmp_path / "timing_fit.json"
     argv = ["fit-timing", str(timing_logs), "--out", str(tmp_path), "--bootstrap", "3"]
-    older = tmp_path / "reactive.json"
-    before = ["--ship", "reactive", "--no-doubled-end"]
-    assert cli.main([*argv, "--write-fit", str(older), *before]) == 0
-    old = json.loads(older.read_text())
-    assert all(len(h) == 3 for h in old["hazard"].values()) and "doubled_budget" not in old
     assert cli.main([*argv, "--write-fit", str(fit_file)]) == 0
     assert "held out strol (0 sessions)" in capsys.readouterr().out  # StROL's θ̂ unknown here
     res = json.loads((tmp_path / "timing.json").read_text())
@@ -189,6 +185,9 @@ def test_fit_timing_on_synthetic_sessions(timing_logs, tmp_path, capsys):
     assert rise == pytest.approx(2 * DT)  # poses per correction 5, 0, 1, 3: median 2
     doubled = population.parse_doubled(json.loads(fit_file.read_text()))
     assert set(doubled) == {1} and doubled[1] >= path_time[1]  # the path and its last push
+    # --ship reactive --no-doubled-end: the three-number hazard, no doubled end
+    old = fit_timing.population_fit(res, {1: [40], 2: [40], 3: [40]}, "reactive", False)
+    assert all(len(h) == 3 for h in old["hazard"].values()) and "doubled_budget" not in old
     with pytest.raises(SystemExit):
         cli.main(["fit-timing", str(timing_logs), "--out", str(tmp_path), "--bootstrap", "0"])
 
