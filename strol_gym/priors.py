@@ -77,7 +77,7 @@ class MixturePrior:
         generator (its index, then its jitter; a scalar draw is size=1's), the arithmetic
         runs once on the batch, so the same numbers."""
         k = len(self.modes)
-        if len(rngs) == 1:  # one env's reset: the same draws and operations on one row
+        if len(rngs) == 1:  # one env's reset: the same draws and elementwise operations
             rng = rngs[0]
             i = rng.integers(0, k)
             return (self.modes[i] + self.jitter * rng.standard_normal(self.dim))[None]

@@ -12,9 +12,12 @@ from cli_checks import cli_error
 from strol_gym.benchmarks import cli
 from strol_gym.benchmarks.sessions.check_human import (
     STATISTICS,
+    StudyPopulation,
     by_task,
     joint_band,
+    logged_plan,
     nearest_states,
+    reacting_sessions,
     read_sessions,
     statistics,
     two_sided_p,
@@ -108,6 +111,34 @@ def test_population_simulates_the_counts(logs, tmp_path):
     assert all(isinstance(c["pass"], bool) for c in counts)
     when = [c for c in report["checks"] if c["statistic"] == "when_median"]
     assert when and all(isinstance(c["pass"], bool) for c in when)  # its timing hazard decides
+    # the kept replicate's logs give back its counts and timing (Task 1's sessions end where
+    # the person's corrections end them: their logged length is the simulated one)
+    again = by_task(read_sessions(out / "sessions" / "draw_000"))
+    for t, sessions in again.items():
+        redo, kept = statistics(sessions), report["kept_replicates"][0][str(t)]
+        for k in ("count_one", "count_strol", "when_median"):
+            assert redo[k] == pytest.approx(kept[k], rel=1e-12, nan_ok=True), (t, k)
+
+
+def test_population_reuses_its_aims_and_plans_bit_for_bit(logs):
+    """A replicate from the aims and plans computed once per session is the one computed
+    afresh at the picked states (the aim is row by row); one Task object per logged Task."""
+    from strol_gym.envs.study.population import shipped
+
+    real = read_sessions(logs)
+    assert len({id(s.task) for s in real}) == len({s.number for s in real}) == 3
+    ss = by_task(real)[2]
+    person = StudyPopulation()
+    cached = [person.sessions(ss, np.random.default_rng(k)) for k in range(6)]
+    plans = {id(s): logged_plan(s) for s in ss}  # aims afresh at each picked state
+    fresh = [reacting_sessions(shipped(), ss, np.random.default_rng(k), plans) for k in range(6)]
+    assert sum(len(r) for a in cached for r in a) > 0
+    for a, b in zip(cached, fresh, strict=True):
+        assert [len(r) for r in a] == [len(r) for r in b]
+        for ra, rb in zip(a, b, strict=True):
+            for ca, cb in zip(ra, rb, strict=True):
+                assert ca["path_sample"] == cb["path_sample"]
+                assert np.array_equal(ca["u_h"], cb["u_h"]) and np.array_equal(ca["x"], cb["x"])
 
 
 @pytest.mark.parametrize(

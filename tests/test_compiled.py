@@ -209,6 +209,22 @@ def test_the_drawn_correction_is_the_plain_draws_and_choice(task_cls, sigma, bia
             assert a_rng.random() == c_rng.random()
 
 
+def test_the_compiled_pcg64_uniforms_are_numpys():
+    """``pcg64_fill.fill``: the doubles of ``Generator.random`` and the states after them, for
+    lengths below, at and off its four-step chains; a generator of another kind is not taken."""
+    from strol_gym.humans.pcg64_fill import addresses, fill
+
+    ours = [np.random.default_rng(s) for s in (0, 7, 2**40)]
+    theirs = [np.random.default_rng(s) for s in (0, 7, 2**40)]
+    for k in (1, 7, 8, 13, 1536):
+        got = np.empty((3, k))
+        fill(addresses(ours), got)
+        want = np.stack([g.random(k) for g in theirs])
+        assert got.tobytes() == want.tobytes()
+    assert [g.bit_generator.state for g in ours] == [g.bit_generator.state for g in theirs]
+    assert addresses([ours[0], np.random.Generator(np.random.Philox(1))]) is None
+
+
 def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usual(path):
     from strol_gym.humans.builtin import NominalModel
 
@@ -241,23 +257,39 @@ def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usu
     assert rng.bit_generator.state == state
 
 
+def _feed(h, value) -> None:
+    """Every byte of an observation or info, with each value's type, dtype and shape."""
+    h.update(type(value).__name__.encode())
+    if isinstance(value, dict):
+        for key, v in value.items():
+            h.update(key.encode())
+            _feed(h, v)
+    elif isinstance(value, np.ndarray):
+        h.update(f"{value.dtype}{value.shape}".encode() + value.tobytes())
+    elif isinstance(value, bool | int | float | str | np.generic | tuple | list):
+        h.update(repr(value).encode())
+
+
 def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
     env = gym.make(env_id, **kwargs)
     h = hashlib.sha256()
     obs, info = env.reset(seed=seed)
+    _feed(h, obs)
+    _feed(h, info)
     rng = np.random.default_rng(seed)
-    for _ in range(steps):
-        obs, reward, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape))
-        for key in sorted(obs):
-            h.update(np.asarray(obs[key]).tobytes())
-        h.update(np.float64(reward).tobytes())
-        for key in ("target", "ik_error", "correction", "robot_action"):
-            if key in info:
-                h.update(np.asarray(info[key], dtype=np.float64).tobytes())
+    for t in range(steps):
+        action = rng.uniform(-1.2, 1.2, env.action_space.shape)
+        if t % 3 == 0:
+            env.unwrapped.set_theta_hat(rng.uniform(-1, 1, env.unwrapped.task.dim))
+        obs, reward, term, trunc, info = env.step(action.astype(np.float32) if t % 2 else action)
+        for part in (obs, reward, term, trunc, info):
+            _feed(h, part)
         if env_id == "StROL-Robot-v0":
-            h.update(env.unwrapped.data.qpos.tobytes())
+            h.update(env.unwrapped.data.qpos.tobytes() + env.unwrapped.data.ctrl.tobytes())
         if term or trunc:
-            env.reset()
+            robot = env_id == "StROL-Robot-v0" and t % 7 == 0
+            for part in env.reset(options={"state": [0.3, 0.0, 0.2]} if robot else None):
+                _feed(h, part)
     env.close()
     return h.hexdigest()
 
@@ -267,6 +299,8 @@ def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
     [
         ("StROL-Robot-v0", {}),
         ("StROL-Robot-v0", {"n_corrections": 0}),
+        ("StROL-Robot-v0", {"person": {"name": "nominal", "sigma": 0.3, "bias": 0.1}}),
+        ("StROL-Robot-v0", {"person": "changing", "n_corrections": 7}),
         ("StROL-Highway-v0", {}),
         ("StROL-Highway-v0", {"person": {"name": "changing", "sigma": 0.2, "bias": 0.1}}),
     ],
@@ -277,6 +311,30 @@ def test_env_rollouts_are_the_same_bytes_on_both_paths(env_id, kwargs, path):
         plain = _rollout(env_id, seed, 120, **kwargs)
         path(True)
         assert _rollout(env_id, seed, 120, **kwargs) == plain
+
+
+def test_the_robot_step_runs_compiled_and_refuses_as_the_contract(path):
+    """The Robot env's compiled step runs where its kernels do, not for an env class that
+    changes a hook it repeats; a bad action raises as in the contract's step, before the
+    person draws."""
+    from strol_gym.envs.robot.env import RobotEnv
+
+    path(True)
+    env = RobotEnv()
+    env.reset(seed=1)
+    assert env._fused_step() is not None
+    state = env.np_random.bit_generator.state
+    with pytest.raises(ValueError, match="action must be finite"):
+        env.step(np.array([0.0, np.nan, 0.0]))
+    assert env.np_random.bit_generator.state == state and env.steps == 0
+
+    class Own(RobotEnv):
+        def _terminated(self) -> bool:
+            return self.steps > 2
+
+    assert Own()._fused_step() is None
+    path(False)
+    assert RobotEnv()._fused_step() is None
 
 
 def _limit_and_restart_cases(ik: PandaIK) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -389,19 +447,45 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, h
     env.close()
 
 
+def test_an_arm_already_at_its_target_keeps_its_own_numbers_in_the_compiled_lanes(path):
+    """An arm whose kinematics are MuJoCo's (a one-by-one restart) and that is within tolerance
+    at the first check, while the other arms iterate, keeps its numbers in the compiled lanes
+    (held, not recomputed by the batched forward kinematics), as the one-arm-at-a-time kernel
+    before them did."""
+    from strol_gym.envs.panda import ik_batched
+
+    env = gym.make("StROL-Robot-v0").unwrapped
+    path(True)
+    arms = ik_batched.BatchedPandaIK(env.ik, 12)
+    assert arms._kernels() is not None
+    rows = np.arange(12)
+    target = np.tile(env.ik.ee, (12, 1))
+    target[0] = (2.0, 2.0, 2.0)  # out of reach: arm 0 restarts alone, on MuJoCo's model
+    arms.solve(target, rows)
+    a = arms._arms
+    own = [x[..., 0].copy() for x in (a.q, a.site, a.cols, a.axes, a.anchors)]
+    before = a.q.copy()
+    target = arms.ee + np.linspace(-0.05, 0.05, 36).reshape(12, 3)
+    target[0] = arms.ee[0]  # arm 0: there already
+    arms.solve(target, rows)
+    assert all((x[..., 0] == y).all() for x, y in zip(a._all(), own, strict=True))
+    assert (a.q[:, 1:] != before[:, 1:]).any(axis=0).all()  # the others moved
+    env.close()
+
+
 def test_batched_kernels_that_miss_the_plain_bits_are_not_used(path, monkeypatch):
-    from strol_gym.envs.panda import ik_batched, ik_kernel
+    from strol_gym.envs.panda import ik_batched, ik_lanes
 
     env = gym.make("StROL-Robot-v0").unwrapped
     path(True)
     monkeypatch.setattr(ik_batched, "_AGREES", None)
-    real = ik_kernel.batched_forward
+    real = ik_lanes.batched_forward
 
     def off_by_a_bit(q, site, *args):
         real(q, site, *args)
         site[0] = np.nextafter(site[0], np.inf)
 
-    monkeypatch.setattr(ik_kernel, "batched_forward", off_by_a_bit)
+    monkeypatch.setattr(ik_lanes, "batched_forward", off_by_a_bit)
     arms = ik_batched.BatchedPandaIK(env.ik, 4)
     assert arms._kernels() is None  # the check saw it: the plain path runs
     env.close()
@@ -502,9 +586,34 @@ def _study_rollout(task: int, seed: int, steps: int) -> tuple[str, int]:
     return h.hexdigest(), braked[0]
 
 
-def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path):
+def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path, monkeypatch):
     path(False)
     plain, braked = _study_rollout(2, 20003, 160)
     assert braked > 5  # the brake's chunks ran, not only watched ones
     path(True)
+    from strol_gym.envs.study import chunk
+
+    calls = [0]
+    run = chunk.chunk
+
+    def counting(*args):
+        calls[0] += 1
+        return run(*args)
+
+    monkeypatch.setattr(chunk, "chunk", counting)
     assert _study_rollout(2, 20003, 160) == (plain, braked)
+    # the compiled chunk (MuJoCo and numpy's BLAS called from the loop) ran, where it applies
+    assert calls[0] > 100 or chunk.functions() is None
+
+
+def test_the_study_chunk_calls_numpys_own_blas(path):
+    """With numpy's bundled OpenBLAS (the wheels), the compiled chunk finds it and its products
+    are numpy's bits (``chunk._agrees``), under this process's ``OPENBLAS_CORETYPE``."""
+    config = np.show_config(mode="dicts")["Build Dependencies"]["blas"]
+    if config.get("name") != "scipy-openblas":
+        pytest.skip("numpy is not built with its bundled OpenBLAS")
+    path(True)
+    from strol_gym.envs.study import chunk
+
+    fp = chunk.functions()
+    assert fp is not None and chunk._agrees(fp, cases=5)

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.sessions import fit_timing
 from strol_gym.envs.study import population
 from strol_gym.envs.study.participant import FittedParticipant
 from strol_gym.envs.study.people import FittedParams
@@ -88,21 +89,59 @@ def test_the_shipped_population_reacts_and_its_hazard_is_checked():
     for t in (1, 2, 3):
         person = pop.draw(np.random.default_rng(t), t)
         assert person.hazard == tuple(shipped["hazard"][str(t)])
-        assert person.path_time == shipped["path_time"][str(t)]
+        if str(t) in shipped.get("doubled_budget", {}):  # the authors' doubled count ends it
+            assert person.path_time == np.inf
+            assert person.doubled_budget == shipped["doubled_budget"][str(t)]
+        else:
+            assert person.path_time == shipped["path_time"][str(t)]
+            assert person.doubled_budget == np.inf
         assert person.ramp == shipped["rise"]  # the push rises as the real pushes logged
     with pytest.raises(ValueError, match=r"person kwargs\['hazard'\]"):
         FittedParams(hazard=(0.0, 1.0))
     with pytest.raises(ValueError, match=r"person kwargs\['path_time'\]"):
         FittedParams(path_time=0.0)
+    with pytest.raises(ValueError, match=r"person kwargs\['doubled_budget'\]"):
+        FittedParams(doubled_budget=-1.0)
+    with pytest.raises(ValueError, match=r"doubled_budget.*'4'"):
+        population.parse_doubled({"doubled_budget": {"4": 60.0}})
+    assert population.parse_doubled({}) == {}
+
+
+def test_impatience_weighs_the_wait_by_the_shortfall():
+    """rate = exp(a + b s + (c + d s) log(1 + τ)); without d the reactive form, bit for bit."""
+    a, b, c, d = -3.0, 0.5, 0.2, 0.7
+    want = math.exp(a + b * 0.4 + (c + d * 0.4) * math.log1p(9.0))
+    assert timing.hazard_rate((a, b, c, d), 0.4, 9.0) == pytest.approx(want)
+    assert timing.rate(np.array([a, 0.0, 0.0, b, c, d]), 1, 0.4, 9.0) == pytest.approx(want)
+    three = math.exp(min(a + b * 0.4 + c * math.log1p(9.0), 50.0))
+    assert timing.hazard_rate((a, b, c), 0.4, 9.0) == three
+    with pytest.raises(ValueError, match="3 or 4 numbers"):
+        timing.hazard_vector("h", [1.0, 2.0])
+    assert timing.MODELS["impatient"] == ("shortfall", "wait", "impatience")
+
+
+def test_doubled_end_stops_where_the_authors_task_1_loop_did():
+    """Elapsed = motion + the motion before the last correction: the session ends at budget −
+    t_last, or at a correction once 2·t_k reaches the budget; later corrections are not made."""
+    ends = timing.doubled_end
+    got, n = ends(np.array([100, 300]), 1000)
+    assert got.tolist() == [100, 300] and n == 700
+    got, n = ends(np.array([100, 950]), 1000)  # 950 + 100 ≥ 1000: over before the second
+    assert got.tolist() == [100] and n == 900
+    got, n = ends(np.array([600, 700]), 1000)  # 2 × 600 ≥ 1000: over at the first
+    assert got.tolist() == [600] and n == 601
+    got, n = ends(np.array([], dtype=np.int64), 1000)
+    assert got.tolist() == [] and n == 1000
     with pytest.raises(ValueError, match="timing fit"):
         population.parse_timing({"format": "other"})
 
 
-def _judgments(hazard, path_time=1e9, steps=200):
+def _judgments(hazard, path_time=1e9, steps=200, doubled=np.inf, watched=0.0):
     task = STUDY_TASKS_V2[1]()
-    params = FittedParams(hazard=hazard, path_time=path_time, reaction=0.0)
+    params = FittedParams(hazard=hazard, path_time=path_time, reaction=0.0, doubled_budget=doubled)
     p = FittedParticipant(task, task.theta_star, np.random.default_rng(0), params=params)
     p._shortfalls[task.theta_star.tobytes()] = 0.0  # the robot's plan: the person's own
+    p._watched_last = watched  # the robot's motion before its last push
     pushes = [
         t for t in np.arange(steps) * 0.5 if p._decide(t, task.start, task.theta_star) is not None
     ]
@@ -116,6 +155,8 @@ def test_a_reactive_participant_steps_in_by_its_hazard():
     assert pushes == [] and p.judgments > 100
     p, pushes = _judgments((-40.0, 0.0, 0.0), path_time=10.0)  # done after 10 s watched
     assert p.done_at == pytest.approx(10.0)
+    p, pushes = _judgments((-40.0, 0.0, 0.0), doubled=10.0, watched=4.0)  # 6 s + 4 s twice
+    assert p.done_at == pytest.approx(6.0)
     with pytest.raises(ValueError, match="needs the robot's theta_hat"):
         p.shortfall(None)
 
@@ -140,7 +181,13 @@ def test_fit_timing_on_synthetic_sessions(timing_logs, tmp_path, capsys):
     assert res["lopo_loglik"]["rate"] < 0
     hazard, path_time, rise = population.parse_timing(json.loads(fit_file.read_text()))
     assert path_time[1] == pytest.approx(40 * DT) and set(hazard) == {1, 2, 3}
+    assert all(len(h) == 4 for h in hazard.values())  # a, b, c and the impatience d
     assert rise == pytest.approx(2 * DT)  # poses per correction 5, 0, 1, 3: median 2
+    doubled = population.parse_doubled(json.loads(fit_file.read_text()))
+    assert set(doubled) == {1} and doubled[1] >= path_time[1]  # the path and its last push
+    # --ship reactive --no-doubled-end: the three-number hazard, no doubled end
+    old = fit_timing.population_fit(res, {1: [40], 2: [40], 3: [40]}, "reactive", False)
+    assert all(len(h) == 3 for h in old["hazard"].values()) and "doubled_budget" not in old
     with pytest.raises(SystemExit):
         cli.main(["fit-timing", str(timing_logs), "--out", str(tmp_path), "--bootstrap", "0"])
 

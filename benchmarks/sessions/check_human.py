@@ -117,10 +117,14 @@ def read_sessions(folder: str | Path) -> list[Session]:
     if len(paths) > MAX_LOGS:
         raise ValueError(f"LOGS: more than {MAX_LOGS} session logs")
     out = []
+    tasks: dict[str, Task] = {}  # one Task per logged Task: its cached values are shared
     for path in paths:
         if path.stat().st_size > MAX_LOG_BYTES:
             raise ValueError(f"LOGS {path}: larger than {MAX_LOG_BYTES // 1_000_000} MB")
         session = read_session(path)  # checks the file's structure
+        key = json.dumps([session.header["task"], session.header["task_describe"]], sort_keys=True)
+        if key not in tasks:
+            tasks[key] = session_task(session)
         recs = [loads_json(line, str(path)) for line in path.read_bytes().splitlines() if line]
         header = recs[0]
         extra = header.get("extra") if isinstance(header.get("extra"), dict) else {}
@@ -150,7 +154,7 @@ def read_sessions(folder: str | Path) -> list[Session]:
         ]
         out.append(
             Session(
-                task=session_task(session),
+                task=tasks[key],
                 number=number,
                 learner=str(header.get("learner")),
                 user=str(user),
@@ -185,11 +189,7 @@ def statistics(
         counts = [len(r) for s, r in zip(sessions, rows, strict=True) if s.learner == name]
         out[f"count_{name}"] = float(np.mean(counts)) if counts else math.nan
     flat = [(s, c) for s, r in zip(sessions, rows, strict=True) for c in r]
-    when = [
-        c["path_sample"] / s.path_samples
-        for s, c in flat
-        if c.get("path_sample") is not None and s.path_samples > 0
-    ]
+    when = [c["path_sample"] / _length(s, c) for s, c in flat if c.get("path_sample") is not None]
     out["when_median"] = float(np.median(when)) if when else math.nan
     if not flat:
         return {**out, **{k: math.nan for k in STATISTICS if k not in out}}
@@ -212,6 +212,13 @@ def statistics(
     out["angle_over_90"] = float(np.mean(angle > 90.0)) if len(angle) else math.nan
     out["raised"] = float(np.mean(gain > 0.0))
     return out
+
+
+def _length(s: Session, c: dict[str, Any]) -> int:
+    """The path samples of the session correction ``c`` was made in: its own where a simulated
+    session's length is the person's (``path_samples``), else the session's; at least 1."""
+    n = c.get("path_samples")
+    return max(int(s.path_samples if n is None else n), 1)
 
 
 # ---------------------------------------------------------------------------- people
@@ -302,15 +309,26 @@ class StudyPopulation:
 
     def __init__(self) -> None:
         self._plans: dict[int, tuple[Session, tuple[np.ndarray, np.ndarray]]] = {}
+        self._aims: dict[int, tuple[Session, np.ndarray]] = {}
 
     def sessions(self, real, rng):
-        from strol_gym.envs.study.population import shipped
+        from strol_gym.envs.study.population import aimed_aim, shipped
 
-        for r in real:  # each real session's logged plan once (it plans), not per replicate
+        pool = _pool(real)
+        for r in real:  # each real session's plan and aims once (they plan), not per replicate
             if id(r) not in self._plans:
                 self._plans[id(r)] = (r, logged_plan(r))
+                states = _located(r) or pool
+                x = [c["x"] for _, c in states]
+                at = (
+                    aimed_aim(_study_task(r.task), r.theta_star, np.stack(x))
+                    if x
+                    else np.empty((0, r.task.action_dim))
+                )
+                self._aims[id(r)] = (r, at)
         plans = {i: v[1] for i, v in self._plans.items()}
-        return reacting_sessions(shipped(), real, rng, plans)
+        aims = {i: v[1] for i, v in self._aims.items()}
+        return reacting_sessions(shipped(), real, rng, plans, aims)
 
 
 def logged_plan(s: Session) -> tuple[np.ndarray, np.ndarray]:
@@ -342,6 +360,7 @@ def reacting_sessions(
     real: Sequence[Session],
     rng: np.random.Generator,
     plans: dict[int, tuple[np.ndarray, np.ndarray]] | None = None,
+    aims: dict[int, np.ndarray] | None = None,
 ):
     """The shipped population's people (``Population.hazard``) along the real sessions: when
     each corrects is drawn from its timing hazard given the plan the robot logged
@@ -349,30 +368,49 @@ def reacting_sessions(
     correction at the session's logged correction state nearest along the path
     (:func:`nearest_states`; the Task's others' where it logged none), unclipped. ``plans``:
     :func:`logged_plan` of each session by ``id``, if already computed (it plans; a replicate
-    need not plan again)."""
-    from strol_gym.envs.study.population import aimed_draws
-    from strol_gym.humans.timing import simulate
+    need not plan again); ``aims``: likewise, ``population.aimed_aim`` at each of the session's
+    states (its own logged ones, else the Task's), in order (the same bits as aiming at the
+    picked states: the aim is computed row by row)."""
+    from strol_gym.envs.study.population import aimed_aim, aimed_at
+    from strol_gym.humans.timing import doubled_end, simulate
 
     task = _study_task(real[0].task)
-    pool = [v for s in real for v in _located(s)]
+    pool = _pool(real)
     out: list[list[dict[str, Any]]] = []
     for s in real:
         person = pop.draw(rng, s.number)
         switches, falls = plans[id(s)] if plans and id(s) in plans else logged_plan(s)
-        when = simulate(person.hazard, s.path_samples, switches, falls, AUTHORS_DT, rng)
+        budget = (getattr(pop, "doubled_budget", None) or {}).get(s.number)
+        if budget is None:
+            length = s.path_samples
+            when = simulate(person.hazard, length, switches, falls, AUTHORS_DT, rng)
+        else:  # the session ends on the authors' doubled count, by when this person corrects
+            horizon = max(round(budget / AUTHORS_DT), 1)
+            when = simulate(person.hazard, horizon, switches, falls, AUTHORS_DT, rng)
+            when, length = doubled_end(when, horizon)
         when = when[:MAX_CORRECTIONS]
         states = _located(s) or pool
         if not len(when) or not states:
             out.append([])
             continue
-        picked = nearest_states(states, when / max(s.path_samples, 1))
-        x = np.stack([c["x"] for c in picked])
+        index = nearest_index(states, when / max(s.path_samples, 1))
+        picked = [states[k][1] for k in index]
+        if aims is not None and id(s) in aims:
+            best = aims[id(s)][index]
+        else:
+            best = aimed_aim(task, s.theta_star, np.stack([c["x"] for c in picked]))
         n, a = len(picked), task.action_dim
-        u = aimed_draws(task, s.theta_star, x, rng.standard_normal((n, a + 1)), rng.random(n))
+        u = aimed_at(best, rng.standard_normal((n, a + 1)), rng.random(n), task)
         u = u * np.asarray(task.action_bound)
         out.append(
             [
-                {**c, "u_h": ui, "path_sample": int(k), "theta_hat_before": None}
+                {
+                    **c,
+                    "u_h": ui,
+                    "path_sample": int(k),
+                    "path_samples": int(length),
+                    "theta_hat_before": None,
+                }
                 for c, ui, k in zip(picked, u, when, strict=True)
             ]
         )
@@ -389,6 +427,12 @@ def _located(s: Session) -> list[tuple[float, dict[str, Any]]]:
     ]
 
 
+def _pool(real: Sequence[Session]) -> list[tuple[float, dict[str, Any]]]:
+    """The Task's logged correction states (:func:`_located` of every session, in order): where
+    a session logged none, its person is placed at these."""
+    return [v for s in real for v in _located(s)]
+
+
 def nearest_states(
     states: Sequence[tuple[float, dict[str, Any]]], share: np.ndarray
 ) -> list[dict[str, Any]]:
@@ -396,11 +440,17 @@ def nearest_states(
     (share of its own session's path, correction)) nearest along the path, the earlier on a
     tie: the robot's state where the person steps in, as near as the log holds it. Logged
     corrections without a path sample are taken in turn where none has one."""
+    return [states[k][1] for k in nearest_index(states, share)]
+
+
+def nearest_index(states: Sequence[tuple[float, Any]], share: np.ndarray) -> np.ndarray:
+    """The indices into ``states`` that :func:`nearest_states` picks."""
     at = np.array([w for w, _ in states], dtype=np.float64)
+    share = np.asarray(share, np.float64)
     if not np.isfinite(at).any():
-        return [states[k % len(states)][1] for k in range(len(share))]
+        return np.arange(len(share), dtype=np.int64) % len(states)
     at = np.where(np.isfinite(at), at, np.inf)
-    return [states[int(np.argmin(np.abs(at - w)))][1] for w in np.asarray(share, np.float64)]
+    return np.array([int(np.argmin(np.abs(at - w))) for w in share], dtype=np.int64)
 
 
 def person_from(spec: str) -> Person:
@@ -582,6 +632,7 @@ def write_replicate(
         writer = SessionWriter(folder / s.name, header)
         try:
             ep = {k: v for k, v in s.episode.items() if k != "type"}
+            ep["path_samples"] = _length(s, rows[0]) if rows else s.path_samples
             ep["corrections_logged"] = len(rows)
             ep["corrections_empty"] = ep["corrections_one_pose"] = 0
             writer.episode(**ep)
@@ -596,7 +647,7 @@ def write_replicate(
                     theta_hat_before=None,
                     theta_hat_after=None,
                     path_sample=where,
-                    path_samples=s.path_samples,
+                    path_samples=_length(s, c),
                     correction_time=None,
                 )
             writer.end(reason="simulated session", interrupted=False, corrections=len(rows))

@@ -192,6 +192,7 @@ def run(folder: str | Path, fit_learners: tuple[str, ...], heldout: str, reps: i
     for s in sessions:
         samples.setdefault(s.task, []).append(s.samples)
     res["_samples"] = samples
+    res["doubled_budget"] = doubled_budget(sessions, fit_learners)
     res["fit_learners"] = list(fit_learners)
     res["heldout"] = heldout
     res["dt"] = DT
@@ -203,14 +204,44 @@ def run(folder: str | Path, fit_learners: tuple[str, ...], heldout: str, reps: i
     return res
 
 
-def population_fit(res: dict[str, Any], sessions_samples: dict[int, list[int]]) -> dict:
-    """The shipped excerpt (``population.TIMING_FILE``): per Task the reactive model's (a_Task,
-    b, c) and the mean logged path time of its sessions."""
-    p = res["models"]["reactive"]["params"]
+def doubled_budget(
+    sessions: list[timing.TimedSession], fit_learners: tuple[str, ...]
+) -> dict[str, float]:
+    """Per Task of ``timing.DOUBLED_TASKS``, the budget (s of the robot's motion) its sessions
+    of ``fit_learners`` ended on: the median of the logged path time plus the path time before
+    the last correction (the authors' Task 1 loop counted that twice, ``timing.doubled_end``)."""
+    out = {}
+    for t in timing.DOUBLED_TASKS:
+        ends = [
+            s.samples + (int(s.events[-1]) if len(s.events) else 0)
+            for s in sessions
+            if s.task == t and s.learner in fit_learners
+        ]
+        if ends:
+            out[str(t)] = float(np.median(ends)) * DT
+    return out
+
+
+SHIPPED = "impatient"
+"""The model the population ships (``--ship``): the best leave-one-person-out log-likelihood
+on the One and MOF sessions (docs/study-physics.md)."""
+
+
+def population_fit(
+    res: dict[str, Any],
+    sessions_samples: dict[int, list[int]],
+    model: str = SHIPPED,
+    doubled: bool = True,
+) -> dict:
+    """The shipped excerpt (``population.TIMING_FILE``): per Task ``model``'s (a_Task, b, c[,
+    d]) and the mean logged path time of its sessions; with ``doubled``, the budget of the
+    Tasks whose session ended on the authors' doubled count (``doubled_budget``)."""
+    p = res["models"][model]["params"]
+    terms = timing.TERMS[: 2 + ("impatience" in timing.MODELS[model])]
     return {
         "format": "strol-timing-fit",
         "version": 1,
-        "model": "reactive",
+        "model": model,
         "source": "the authors' user study (github.com/VT-Collab/StROL_RAL before d383bef), "
         "imported with strol-bench import-study DATA --out LOGS --theta0 implied "
         "--authors-ghat GDIR (StROL's θ̂ under the paper's ĝ, λ = 0.25)",
@@ -219,9 +250,22 @@ def population_fit(res: dict[str, Any], sessions_samples: dict[int, list[int]]) 
         "fit_learners": res["fit_learners"],
         "units": "rate per s of the robot's logged path (dt = 0.05 s per sample); shortfall: "
         "regret of the plan of θ̂ over the median regret of θ̂ uniform in [-1, 1]^d; wait: "
-        "log(1 + s since the last correction)",
-        "hazard": {str(t): [p[f"rate_task{t}"], p["shortfall"], p["wait"]] for t in timing.TASKS},
+        "log(1 + s since the last correction)"
+        + ("; hazard [a, b, c, d]: exp(a + b s + (c + d s) wait)" if len(terms) > 2 else ""),
+        "hazard": {str(t): [p[f"rate_task{t}"], *(p[k] for k in terms)] for t in timing.TASKS},
         "path_time": {str(t): float(np.mean(v)) * DT for t, v in sorted(sessions_samples.items())},
+        **(
+            {
+                "doubled_budget": res["doubled_budget"],
+                "doubled_budget_source": "the authors' Task 1 loop added the robot's motion "
+                "since the last correction to its elapsed time again at each correction: a "
+                "session ended when the motion plus the motion before its last correction "
+                "reached this budget (s; the median over the fitted learners' sessions of that "
+                "Task); without an entry a Task's person watches path_time s",
+            }
+            if doubled
+            else {}
+        ),
         "rise": float(np.median(res["correction_samples"])) * DT,
         "rise_source": "the median logged poses per correction (every learner) x 0.05 s: the "
         "authors' loop logged a pose at each new force maximum, so a push's force rose for "
@@ -229,7 +273,7 @@ def population_fit(res: dict[str, Any], sessions_samples: dict[int, list[int]]) 
         "heldout": {
             "learner": res["heldout"],
             "loglik": {m: r["heldout_loglik"] for m, r in res["models"].items()},
-            "predicted_ratio": res["models"]["reactive"]["predicted_ratio"],
+            "predicted_ratio": res["models"][SHIPPED]["predicted_ratio"],
             "real_ratio": res["real_ratio"],
         },
     }
@@ -274,6 +318,19 @@ def add_parser(sub: Any) -> None:
         default=None,
         help="also write the population's timing file here (population.TIMING_FILE's format)",
     )
+    p.add_argument(
+        "--ship",
+        choices=tuple(timing.MODELS),
+        default=SHIPPED,
+        help=f"the model --write-fit writes ({SHIPPED})",
+    )
+    p.add_argument(
+        "--no-doubled-end",
+        action="store_true",
+        help="--write-fit leaves out the budget of the Tasks whose session ended on the "
+        "authors' doubled count (Task 1; with it their person is done there, not after "
+        "path_time)",
+    )
 
 
 def command(args: Any, parser: Any) -> int:
@@ -288,9 +345,18 @@ def command(args: Any, parser: Any) -> int:
     samples = res.pop("_samples")
     write_json_atomic(out / "timing.json", res)
     if args.write_fit:
-        write_json_atomic(Path(args.write_fit), population_fit(res, samples))
+        fit = population_fit(res, samples, args.ship, not args.no_doubled_end)
+        write_json_atomic(Path(args.write_fit), fit)
     print("\n".join(table(res)))
     return 0
 
 
-__all__ = ["add_parser", "bootstrap", "command", "evaluate", "read_timed", "run"]
+__all__ = [
+    "add_parser",
+    "bootstrap",
+    "command",
+    "doubled_budget",
+    "evaluate",
+    "read_timed",
+    "run",
+]

@@ -7,7 +7,9 @@
 v1 and v2 alternately in one process (``episode_physics``); beside the ratio against bare
 ``mj_step`` from the episode's last state, ``ratio_own_states``: against bare ``mj_step`` from
 every state the episode visited (a control step's ten physics steps from each, its torques
-held), since one state's physics cost can differ from the episode's by 1.7x.
+held), since one state's physics cost can differ from the episode's by 1.7x; and
+``ratio_paired``: the same, each bare control step timed just before the env's own from the
+same state, so that both meet the same moment's load on a shared machine.
 
 1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
    feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics
@@ -105,13 +107,21 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
         gym.make(VERSIONS[version].env_id, task=task, **_person(version)), "strol"
     )
     inner: Any = env.unwrapped  # the study env itself: its physics step is timed in place
-    spent = [0.0]
+    spent = [0.0, 0.0]  # the env's physics; bare mj_step's, paired with it step by step
     simulate = inner._simulate
     visited: list[np.ndarray] = []  # the state at each control step (counterfactuals aside)
+    paired = mujoco.MjData(inner.model)
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
 
     def timed(v_sp: Any) -> None:
         if not inner._rerun:
             visited.append(_state(inner))
+            # the same control step of bare physics from this state, timed just before the
+            # env's: both meet the same moment's load
+            mujoco.mj_setState(inner.model, paired, visited[-1], spec)
+            t0 = _clock()
+            mujoco.mj_step(inner.model, paired, nstep=inner._n_sub)
+            spent[1] += _clock() - t0
         t0 = _clock()
         simulate(v_sp)
         spent[0] += _clock() - t0
@@ -137,9 +147,11 @@ def episode_physics(task: int, version: str, seed: int = SEED) -> tuple[float, f
         mujoco.mj_step(inner.model, bare, nstep=inner._n_sub)
         own += _clock() - t0
     own_rate = len(visited) * inner._n_sub / own
+    paired_rate = len(visited) * inner._n_sub / spent[1]
     summary = {
         "bare_own_states": round(own_rate),
         "ratio_own_states": round(env_rate / own_rate, 2),
+        "ratio_paired": round(env_rate / paired_rate, 2),
         "corrections": info["corrections"],
         "correction_time_s": round(info["correction_time"], 2),
         "reflexes": info.get("reflexes"),

@@ -64,7 +64,21 @@ FORMS: dict[str, list[Transform]] = {
     "log(min(s,1) + eps), fitted eps": [_caplog(e) for e in (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)],
     "against acceptance s0, fitted": [_accept(a) for a in (0.0, 0.05, 0.1, 0.2, 0.3)],
 }
-EXTRAS = ("last push's effect", "corrections so far", "clock (min)")
+EXTRAS = (
+    "last push's effect",
+    "corrections so far",
+    "clock (min)",
+    "before the first correction",
+    *(f"plan accepted (s < {s0:g})" for s0 in (0.05, 0.1, 0.2)),
+    "Task 1's own shortfall slope",
+    "wait x shortfall",
+)
+"""One covariate more: the shortfall the last correction removed, log(1 + corrections so far),
+the minutes of the robot's motion, 1 until the first correction (the first push's timing its
+own), 1 while the robot's plan is within s0 of θ*'s (a person satisfied with what the robot
+does: a drop in the rate at a good plan, beyond the shortfall's slope), min(s, 1) in Task 1
+only (Task 1's shorter sessions in the authors' code: its own reaction to the plan),
+log(1 + τ)·min(s, 1) (impatience only while the plan is poor)."""
 
 
 @dataclasses.dataclass
@@ -95,9 +109,9 @@ def _best(train: Sequence[timing.TimedSession], fns: list[Transform]) -> tuple[A
 # ---------------------------------------------------------------- a rate per person (frailty)
 def _session_parts(ss: Sequence[timing.TimedSession], coef: np.ndarray) -> np.ndarray:
     """Per session (Σ_events η, compensator Λ, events)."""
-    d = timing.design(ss, DT)
-    ev = np.bincount(d.event_session, d.at_events @ coef, minlength=d.n_sessions)
-    lam = DT * np.bincount(d.grid_session, np.exp(d.grid @ coef), minlength=d.n_sessions)
+    d, k = timing.design(ss, DT), len(coef)  # the reactive form's first five columns
+    ev = np.bincount(d.event_session, d.at_events[:, :k] @ coef, minlength=d.n_sessions)
+    lam = DT * np.bincount(d.grid_session, np.exp(d.grid[:, :k] @ coef), minlength=d.n_sessions)
     return np.stack([ev, lam, [len(s.events) for s in ss]], axis=1)
 
 
@@ -114,8 +128,9 @@ def _marginal(e: float, lam: float, n: float, a: float, b: float) -> float:
 
 
 def _fit_frailty(train: Sequence[timing.TimedSession]) -> tuple[np.ndarray, float, float]:
-    start = timing.fit(train, "reactive", DT).coef
+    start = timing.fit(train, "reactive", DT).coef[:5]
     d = timing.design(train, DT)
+    d = dataclasses.replace(d, grid=d.grid[:, :5], at_events=d.at_events[:, :5])
     people = sorted({s.person for s in train})
     idx = np.array([people.index(s.person) for s in train])
     n = np.bincount(idx, [len(s.events) for s in train], len(people))
@@ -181,8 +196,17 @@ def _extra_columns(
         o[:, 5] = np.r_[0.0, np.maximum(sf[:-1] - sf[1:], 0.0)][seg]
     elif extra == EXTRAS[1]:
         o[:, 5] = np.log1p(seg)
-    else:
+    elif extra == EXTRAS[2]:
         o[:, 5] = now * DT / 60.0
+    elif extra == EXTRAS[3]:
+        o[:, 5] = seg == 0
+    elif extra == EXTRAS[7]:
+        o[:, 5] = sf[seg] * (s.task == 1)
+    elif extra == EXTRAS[8]:
+        o[:, 5] = sf[seg] * np.log1p(wait * DT)
+    else:
+        s0 = float(extra.split("< ")[1].rstrip(")"))
+        o[:, 5] = s.shortfall[seg] < s0
     return o
 
 

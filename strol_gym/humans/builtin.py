@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from strol_gym.compiled import use_fast
+from strol_gym.draws import uniform_rows
 from strol_gym.humans.checks import check_beta
 from strol_gym.humans.choices import boltzmann_correction, driver_correction, optimal_correction
 from strol_gym.humans.interface import (
@@ -59,8 +60,9 @@ class NominalModel(HumanModel):
         noise = np.empty((n, a))
         for lo in range(0, n, DRAWN_CHUNK):
             hi = min(lo + DRAWN_CHUNK, n)
-            for rng, block, z in zip(rngs[lo:hi], units, noise[lo:hi], strict=False):
-                rng.random(out=block)
+            # each generator's uniforms (one compiled call for them all), then its normals
+            uniform_rows(rngs[lo:hi], units[: hi - lo].reshape(hi - lo, -1))
+            for rng, z in zip(rngs[lo:hi], noise[lo:hi], strict=True):
                 rng.standard_normal(out=z)
             p = slice(lo, hi)
             drawn(
@@ -72,6 +74,8 @@ class NominalModel(HumanModel):
 
 DRAWN_CHUNK = 32
 """People per call of ``Task.m6_drawn`` in ``NominalModel.drawn_corrections``."""
+
+
 _NOMINAL = ("draw", "draw_each", "draw_extra", "corrections", "choose")
 
 

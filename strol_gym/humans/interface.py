@@ -27,6 +27,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from strol_gym.draws import uniform_rows
 from strol_gym.humans.checks import check_fraction
 from strol_gym.humans.choices import perturb
 from strol_gym.limits import check_size
@@ -163,9 +164,10 @@ class HumanModel:
         z = np.empty((len(rngs), a))
         own_extra = type(self).draw_extra is not HumanModel.draw_extra
         extras = []
-        # each person's rows as views made in one call each (cheaper than indexing per person)
-        for rng, block, noise in zip(rngs, list(cand[:, 1:]), list(z), strict=True):
-            rng.random(out=block)
+        # each generator's uniforms first (one compiled call for them all where it can), then
+        # its extra draws and normals, through rows as views made in one call each
+        cand[:, 1:] = uniform_rows(rngs, np.empty((len(rngs), k * a))).reshape(len(rngs), k, a)
+        for rng, noise in zip(rngs, list(z), strict=True):
             if own_extra:
                 extras.append(self.draw_extra(rng, 1))
             rng.standard_normal(out=noise)

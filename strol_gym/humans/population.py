@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from strol_gym.humans.interface import Human, SimulatedHuman, needs_theta_hat
+from strol_gym.humans.interface import Human, HumanModel, SimulatedHuman, needs_theta_hat
 from strol_gym.humans.registry import _params, human_factory, make_human
 from strol_gym.tasks.base import Task
 
@@ -43,7 +43,7 @@ def batched_corrections(
         return np.zeros((0, u_r.shape[-1]))
     if _one_model(humans):
         model = humans[0].model
-        k = np.array([h.begin() for h in humans])
+        k = _begin_each(humans)
         theta_star = np.stack([h.theta_initial for h in humans])
         rngs = [h.rng for h in humans]
         u = model.drawn_corrections(rngs, x, u_r, theta_star, theta_hat, k)
@@ -60,6 +60,20 @@ def batched_corrections(
             for b, h in enumerate(humans)
         ]
     )
+
+
+def _begin_each(humans: Sequence[SimulatedHuman]) -> np.ndarray:
+    """Each person's ``begin()``, their correction indices (B,): for people of one model who
+    hold θ* itself, its bookkeeping in one pass (no call and 0-d array each)."""
+    if type(humans[0].model).preference is not HumanModel.preference or any(
+        kind.begin is not SimulatedHuman.begin for kind in {type(h) for h in humans}
+    ):
+        return np.array([h.begin() for h in humans])
+    k = np.fromiter((h.n_acts for h in humans), dtype=np.int64, count=len(humans))
+    for h in humans:
+        h.theta_star = h.theta_initial
+        h.n_acts += 1
+    return k
 
 
 class HumanMaker:

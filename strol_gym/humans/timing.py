@@ -6,7 +6,7 @@ person steps in, from the margin of that correction. Along a session the person 
 an opportunity but a robot playing its plan; the hazard here is the same proportional form,
 per second of the robot's path:
 
-    rate(t) = exp(a_Task + b · s(t) + c · log(1 + τ(t)))   (corrections per second)
+    rate(t) = exp(a_Task + b · s(t) + (c + d · s(t)) · log(1 + τ(t)))   (corrections per second)
 
 - s(t), the **shortfall** of the robot's current plan: its regret under θ* (planned from the
   Task's start with the robot's θ̂ at t, eq. S1) over the regret of a robot that knows
@@ -15,14 +15,17 @@ per second of the robot's path:
   sooner (a reactive person); b = 0 a person whose corrections do not depend on the robot
   (the count a budget);
 - τ(t), the seconds since the last correction (or the session's start): c < 0 a person who
-  waits longer after each push, c > 0 one who corrects in bursts.
+  waits longer after each push, c > 0 one who corrects in bursts;
+- d, **impatience**: how much more waiting weighs while the plan is poor (d > 0: a person
+  whose urge to step in grows the longer a poor plan plays, and who settles while a good one
+  does).
 
 :func:`fit` maximises the likelihood of the logged correction times (a Poisson process on the
 grid of path samples, ``dt`` s apart: log L = Σ_events η − dt Σ_t e^η) by Newton's method;
 :func:`predicted_counts` is the count the fit expects along a logged path (the compensator),
 the quantity a held-out learner's real count is compared with. Models are named by the terms
 they keep (:data:`MODELS`): ``rate`` (a_Task: the Task's mean count, what the budget gives),
-``wait`` (+ c), ``reactive`` (+ b).
+``wait`` (+ c), ``reactive`` (+ b), ``impatient`` (+ d).
 """
 
 from __future__ import annotations
@@ -37,11 +40,12 @@ import numpy as np
 from strol_gym import checks
 from strol_gym.tasks.study import StudyTask
 
-TERMS = ("shortfall", "wait")
+TERMS = ("shortfall", "wait", "impatience")
 MODELS: dict[str, tuple[str, ...]] = {
     "rate": (),
     "wait": ("wait",),
     "reactive": ("shortfall", "wait"),
+    "impatient": ("shortfall", "wait", "impatience"),
 }
 """The nested timing models by the terms they add to the Task's rate."""
 TASKS = (1, 2, 3)
@@ -116,6 +120,7 @@ def _columns(task: int, shortfall: np.ndarray, wait: np.ndarray) -> np.ndarray:
     out[:, task - 1] = 1.0
     out[:, 3] = shortfall
     out[:, 4] = np.log1p(wait)
+    out[:, 5] = shortfall * out[:, 4]
     return out
 
 
@@ -127,8 +132,8 @@ def _keep(model: str) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True)
 class TimingFit:
-    """A fitted timing model: coefficients (a_1, a_2, a_3, b, c; zero where the model has no
-    such term), the log-likelihood of the sessions fitted and ``dt``."""
+    """A fitted timing model: coefficients (a_1, a_2, a_3, b, c, d; zero where the model has
+    no such term), the log-likelihood of the sessions fitted and ``dt``."""
 
     model: str
     coef: np.ndarray
@@ -137,7 +142,7 @@ class TimingFit:
 
     @property
     def params(self) -> dict[str, float]:
-        names = ("rate_task1", "rate_task2", "rate_task3", "shortfall", "wait")
+        names = ("rate_task1", "rate_task2", "rate_task3", *TERMS)
         return {n: float(v) for n, v in zip(names, self.coef, strict=True)}
 
 
@@ -193,9 +198,28 @@ def predicted_counts(f: TimingFit, sessions: Sequence[TimedSession]) -> np.ndarr
 
 
 def rate(f: TimingFit | np.ndarray, task: int, shortfall: float, wait: float) -> float:
-    """Corrections per second at shortfall s and τ s since the last correction."""
+    """Corrections per second at shortfall s and τ s since the last correction (``f``: a fit,
+    or its coefficients (a_1, a_2, a_3, b, c[, d]))."""
     coef = f.coef if isinstance(f, TimingFit) else np.asarray(f, dtype=np.float64)
-    eta = coef[task - 1] + coef[3] * shortfall + coef[4] * math.log1p(max(wait, 0.0))
+    return hazard_rate((coef[task - 1], *coef[3:]), shortfall, wait)
+
+
+def hazard_vector(name: str, value: object) -> tuple[float, ...]:
+    """One Task's hazard (a, b, c[, d]) checked: 3 or 4 numbers in [−50, 50] (ValueError
+    naming ``name``)."""
+    v = checks.vector(name, value)
+    if len(v) not in (3, 4):
+        raise ValueError(f"{name} must hold 3 or 4 numbers (a, b, c[, d]), got {len(v)}")
+    for label, x in zip("abcd", v.tolist(), strict=False):
+        checks.number(f"{name} ({label})", x, low=-50.0, high=50.0)
+    return tuple(float(x) for x in v)
+
+
+def hazard_rate(hazard: Sequence[float], shortfall: float, wait: float) -> float:
+    """Corrections per second of one Task's hazard (a, b, c[, d]: d 0 where not given) at
+    shortfall s and τ s since the last correction (module docstring)."""
+    a, b, c, d = (*(float(v) for v in hazard), 0.0)[:4]
+    eta = a + b * shortfall + (c + d * shortfall) * math.log1p(max(wait, 0.0))
     return math.exp(min(eta, 50.0))
 
 
@@ -207,21 +231,21 @@ def simulate(
     dt: float,
     rng: np.random.Generator,
 ) -> np.ndarray:
-    """The path samples at which a person with ``hazard`` (a, b, c) corrects along a logged
+    """The path samples at which a person with ``hazard`` (a, b, c[, d]) corrects along a logged
     path of ``samples`` samples whose plan's shortfall is ``shortfall[k]`` from the k-th of the
     sorted path samples ``switches`` on (``shortfall[0]`` before the first): the robot's plan
     as logged, τ since the person's own last correction. One uniform per sample, drawn in a
     block: P(correct at t) = 1 − exp(−rate·dt), the likelihood's discrete process."""
     n = int(checks.number("samples", samples, low=0, high=MAX_SAMPLES, integer=True))
-    a, b, c = (float(v) for v in hazard)
+    a, b, c, d = (*(float(v) for v in hazard), 0.0)[:4]
     t = np.arange(n)
     s = np.asarray(shortfall, dtype=np.float64)[np.searchsorted(switches, t, side="right")]
     u = rng.random(n)
     events: list[int] = []
     start = last = 0
     while start < n:  # the next event: the first sample from ``start`` whose draw hits
-        k = t[start:]
-        eta = np.minimum(a + b * s[start:] + c * np.log1p((k - last) * dt), 50.0)
+        k, sk = t[start:], s[start:]
+        eta = np.minimum(a + b * sk + (c + d * sk) * np.log1p((k - last) * dt), 50.0)
         hit = np.flatnonzero(u[start:] < -np.expm1(-np.exp(eta) * dt))
         if not len(hit):
             break
@@ -229,6 +253,30 @@ def simulate(
         events.append(last)
         start = last + 1
     return np.array(events, dtype=np.int64)
+
+
+DOUBLED_TASKS = (1,)
+"""The study Tasks whose session ends on the authors' doubled count: their Task 1 loop added
+the robot's motion since the last correction to its elapsed time a second time at each
+correction, so a session ended when the motion plus the motion before its last correction
+reached the budget (:func:`doubled_end`); Tasks 2-3 counted the motion once."""
+
+
+def doubled_end(events: np.ndarray, budget: int) -> tuple[np.ndarray, int]:
+    """(the corrections made, the path samples the session lasted) of a session whose elapsed
+    time is the motion t plus the motion before its last correction (:data:`DOUBLED_TASKS`),
+    ended when that reaches ``budget`` samples, for a person who would correct at the sorted
+    path samples ``events`` (a stopping time: corrections past the end are not made). It ends
+    at a correction at t_k when 2·t_k ≥ budget, else at budget − t_last."""
+    budget = int(checks.number("budget", budget, low=1, high=MAX_SAMPLES, integer=True))
+    last = 0
+    for k, e in enumerate(np.asarray(events, dtype=np.int64).tolist()):
+        if e + last >= budget:  # the session ended before this one
+            return np.asarray(events[:k], dtype=np.int64), budget - last
+        last = e
+        if 2 * e >= budget:
+            return np.asarray(events[: k + 1], dtype=np.int64), e + 1
+    return np.asarray(events, dtype=np.int64), budget - last
 
 
 UNIT_DRAWS = 64
@@ -276,6 +324,7 @@ def step_in_probability(rate_per_s: float, dt: float) -> float:
 
 
 __all__ = [
+    "DOUBLED_TASKS",
     "MODELS",
     "SHORTFALL_CAP",
     "TERMS",
@@ -283,7 +332,10 @@ __all__ = [
     "TimedSession",
     "TimingFit",
     "design",
+    "doubled_end",
     "fit",
+    "hazard_rate",
+    "hazard_vector",
     "loglik",
     "loglik_parts",
     "predicted_counts",

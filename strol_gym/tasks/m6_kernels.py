@@ -66,9 +66,14 @@ def robot_m6(
     best: np.ndarray,
 ) -> None:
     """Eq. M6 on ``RobotTask``: the index of each person's chosen candidate, into ``best`` (B,)."""
+    k = cand.shape[1]
+    by_axis, norms = np.empty((3, k)), np.empty(k)
     for b in range(cand.shape[0]):
+        for j in range(k):
+            for c in range(3):
+                by_axis[c, j] = cand[b, j, c]
         best[b] = _robot_pick(
-            x[b], u_r[b], th_hat[b], th_star[b], cand[b], alpha, plate, cup, lo, hi
+            x[b], u_r[b], th_hat[b], th_star[b], by_axis, alpha, plate, cup, lo, hi, norms
         )
 
 
@@ -91,18 +96,21 @@ def robot_m6_drawn(
     alpha, sigma, bias = prm[0], prm[1], prm[2]
     plate, cup, lo, hi = prm[3:6], prm[6:9], prm[9:12], prm[12:15]
     scale, a_max = prm[15:18], prm[18:21]
-    cand = np.empty((units.shape[1] + 1, 3))
+    k = units.shape[1] + 1
+    cand, norms = np.empty((3, k)), np.empty(k)
     for b in range(units.shape[0]):
         for c in range(3):
-            cand[0, c] = 0.0
-        for k in range(units.shape[1]):
-            for c in range(3):
-                v = units[b, k, c] * 2.0
+            cand[c, 0] = 0.0
+            s = scale[c]
+            for j in range(1, k):
+                v = units[b, j - 1, c] * 2.0
                 v = v + -1.0
-                cand[k + 1, c] = v * scale[c]
-        pick = _robot_pick(x[b], u_r[b], th_hat[b], th_star[b], cand, alpha, plate, cup, lo, hi)
+                cand[c, j] = v * s
+        pick = _robot_pick(
+            x[b], u_r[b], th_hat[b], th_star[b], cand, alpha, plate, cup, lo, hi, norms
+        )
         for c in range(3):
-            out[b, c] = (cand[pick, c] + bias * a_max[c]) + (sigma * a_max[c]) * noise[b, c]
+            out[b, c] = (cand[c, pick] + bias * a_max[c]) + (sigma * a_max[c]) * noise[b, c]
 
 
 @compiled
@@ -117,8 +125,11 @@ def _robot_pick(
     cup: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
+    norms: np.ndarray,
 ) -> int:
-    """Eq. M6 for one person (x, u_R, θ̂, θ* rows; candidates (K, 3)): the chosen index."""
+    """Eq. M6 for one person (x, u_R, θ̂, θ* rows; candidates by axis (3, K)): the chosen index.
+    Every candidate's norm first, into ``norms`` (K,), in one loop the compiler runs several
+    candidates at a time (its square roots too); then numpy's argmin over them."""
     p0, p1 = plate[0], plate[1]
     c0, c1, c2 = cup[0], cup[1], cup[2]
     base = np.empty(3)
@@ -133,25 +144,29 @@ def _robot_pick(
     phi0 = -math.sqrt(d0 * d0 + d1 * d1)
     phi1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1)
     h0, h1, s0, s1 = th_hat[0], th_hat[1], th_star[0], th_star[1]
-    pick, low = 0, math.inf
-    for k in range(cand.shape[0]):
-        xh0 = base[0] + cand[k, 0]
-        xh1 = base[1] + cand[k, 1]
-        xh2 = base[2] + cand[k, 2]
-        xh0 = lo[0] if xh0 < lo[0] else xh0
-        xh1 = lo[1] if xh1 < lo[1] else xh1
-        xh2 = lo[2] if xh2 < lo[2] else xh2
-        xh0 = hi[0] if xh0 > hi[0] else xh0
-        xh1 = hi[1] if xh1 > hi[1] else xh1
-        xh2 = hi[2] if xh2 > hi[2] else xh2
+    b0, b1, b2 = base[0], base[1], base[2]
+    lo0, lo1, lo2, hi0, hi1, hi2 = lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    k = cand.shape[1]
+    for j in range(k):
+        xh0 = b0 + cand[0, j]
+        xh1 = b1 + cand[1, j]
+        xh2 = b2 + cand[2, j]
+        xh0 = lo0 if xh0 < lo0 else xh0
+        xh1 = lo1 if xh1 < lo1 else xh1
+        xh2 = lo2 if xh2 < lo2 else xh2
+        xh0 = hi0 if xh0 > hi0 else xh0
+        xh1 = hi1 if xh1 > hi1 else xh1
+        xh2 = hi2 if xh2 > hi2 else xh2
         d0, d1 = p0 - xh0, p1 - xh1
         e0, e1, e2 = c0 - xh0, c1 - xh1, c2 - xh2
         g0 = -math.sqrt(d0 * d0 + d1 * d1) - phi0
         g1 = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1) - phi1
         r0 = s0 - (g0 * alpha + h0)
         r1 = s1 - (g1 * alpha + h1)
-        norm = r0 * r0 + r1 * r1
-        pick, low, stop = _argmin_first(norm, k, pick, low)
+        norms[j] = r0 * r0 + r1 * r1
+    pick, low = 0, math.inf
+    for j in range(k):
+        pick, low, stop = _argmin_first(norms[j], j, pick, low)
         if stop:
             break
     return pick

@@ -16,6 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym.draws import uniform_rows
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
 from strol_gym.tasks.base import Task, positive_field, vector_arg
@@ -296,6 +297,12 @@ class RobotTask(Task):
         out: np.ndarray,
     ) -> None:
         """``Task.m6_drawn`` by ``strol_gym.tasks.m6_kernels.robot_m6_drawn``."""
+        prm = self.m6_drawn_params(sigma, bias)
+        _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, out)
+
+    def m6_drawn_params(self, sigma: float, bias: float) -> np.ndarray:
+        """What ``robot_m6_drawn`` reads of the Task and the noise, in its order: α, σ, ε, the
+        plate, the cup, the box's corners, the candidates' bound and a_max (once per σ, ε)."""
         memo = self.__dict__.setdefault("_m6_drawn_memo", {})  # as ``_unchanged``'s
         prm = memo.get((sigma, bias))
         if prm is None:
@@ -303,7 +310,7 @@ class RobotTask(Task):
             prm = memo[sigma, bias] = np.concatenate(
                 [[alpha, sigma, bias], plate, cup, low, high, self._axis_scale, self.a_max]
             ).astype(np.float64)
-        _drawn_kernel()(x, u_r, theta_hat, theta_star, units, noise, prm, out)
+        return prm
 
     @functools.cached_property
     def _m6_params(self) -> tuple[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -361,7 +368,7 @@ class RobotTask(Task):
     def sample_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         if type(self).sample_start is not RobotTask.sample_start:
             return super().sample_starts(rngs)
-        return self._in_box(np.concatenate([rng.random((1, 3)) for rng in rngs]))
+        return self._in_box(uniform_rows(rngs, np.empty((len(rngs), 3))))
 
     def _in_box(self, unit: np.ndarray) -> np.ndarray:
         """Uniform draws in [0, 1) mapped into the workspace box: what ``rng.uniform(low, high)``

@@ -168,12 +168,12 @@ class BatchedPandaIK:
         self.forward()
 
     def _kernels(self) -> Any:
-        """``strol_gym.envs.panda.ik_kernel`` when its N-arm kernels run here, else None."""
+        """``strol_gym.envs.panda.ik_lanes`` when its N-arm kernels run here, else None."""
         if self._compiled is False or (self._compiled is None and not compiled_kernels(self)):
             return None
-        from strol_gym.envs.panda import ik_kernel
+        from strol_gym.envs.panda import ik_lanes
 
-        return ik_kernel
+        return ik_lanes
 
     def _chain(self) -> tuple[np.ndarray, ...]:
         """The chain's constants as ``ik_kernel``'s forward kinematics reads them."""

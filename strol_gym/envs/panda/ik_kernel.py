@@ -29,8 +29,9 @@ from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic as numba_intrinsic
+from numba.extending import register_jitable
 
-from strol_gym.envs.panda.ik_step import dls_step
+from strol_gym.envs.panda.ik_step import dls_solve, dls_step
 from strol_gym.envs.panda.model import N_ARM
 
 # An @intrinsic is called without its first parameter (numba passes the typing context), which
@@ -255,6 +256,22 @@ def _solve(
 
 
 @_jit
+def reference(target, seeds, seed_low, seed_step, seed_top, no_ref):
+    """``PandaIK.reference``: (the seed table's posture nearest the task-frame ``target``,
+    whether there is one); ``no_ref`` where the table is empty or holds none there."""
+    if seeds.shape[0] == 0:
+        return no_ref, False
+    idx = np.empty(3, dtype=np.intp)
+    for i in range(3):
+        k = int(np.rint((target[i] - seed_low[i]) / seed_step[i]))  # round(): half to even
+        idx[i] = min(max(k, 0), seed_top[i])
+    ref = seeds[idx[0], idx[1], idx[2]]
+    if np.isnan(ref[0]):
+        return no_ref, False
+    return ref, True
+
+
+@_jit
 def _solve_recover(
     fp, ptr, xpos, xmat, q, jp_full, jr_full, w9, orient, target, iters, tol, consts, seeds,
     seed_grid, seed_top, limits, no_ref,
@@ -271,17 +288,7 @@ def _solve_recover(
     world = np.empty(3)
     for i in range(3):
         world[i] = target[i] + lift[i]
-    has_ref = seeds.shape[0] > 0
-    ref = no_ref
-    if has_ref:
-        idx = np.empty(3, dtype=np.intp)
-        for i in range(3):
-            k = int(np.rint((target[i] - seed_low[i]) / seed_step[i]))  # round(): half to even
-            idx[i] = min(max(k, 0), seed_top[i])
-        ref = seeds[idx[0], idx[1], idx[2]]
-        has_ref = not np.isnan(ref[0])
-        if not has_ref:
-            ref = no_ref
+    ref, has_ref = reference(target, seeds, seed_low, seed_step, seed_top, no_ref)
     args = (orient_gain, posture, damp2, lo, hi)
     err = _solve(
         fp, m, d, site, xpos, xmat, q, jp_full, jr_full, w9, orient, world, iters, tol, ref,
@@ -328,9 +335,9 @@ def _moved_recover(
     return err
 
 
-def _addresses() -> np.ndarray | None:
+def _addresses(symbols: tuple[str, ...] = _SYMBOLS) -> np.ndarray | None:
     """The C functions' addresses in MuJoCo's shared library (the one the binding loaded), in
-    ``_SYMBOLS``' order; None where there is no such library or a symbol is missing."""
+    ``symbols``' order; None where there is no such library or a symbol is missing."""
     here = os.path.dirname(mujoco.__file__)
     for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
         for path in sorted(glob.glob(os.path.join(here, pattern))):
@@ -338,8 +345,8 @@ def _addresses() -> np.ndarray | None:
                 lib = ctypes.CDLL(path)
             except OSError:
                 continue
-            if all(hasattr(lib, s) for s in _SYMBOLS):
-                addr = [ctypes.cast(getattr(lib, s), ctypes.c_void_p).value for s in _SYMBOLS]
+            if all(hasattr(lib, s) for s in symbols):
+                addr = [ctypes.cast(getattr(lib, s), ctypes.c_void_p).value for s in symbols]
                 return np.array(addr, dtype=np.intp)
     return None
 
@@ -411,170 +418,12 @@ def _arm_args(ik: Any) -> tuple:
 
 
 # ---------------------------------------------------------------------------- N arms
-# ``BatchedPandaIK``'s iterations, one arm at a time: its own forward kinematics and Jacobian
-# (numpy's products: a BLAS matrix product sums with one fused multiply-add per term, in order,
-# from 0; einsum and elementwise operations round each product and sum in order, from 0) and
-# the one-arm step ``dls_step`` compiled from the very source CPython runs.
+# ``BatchedPandaIK``'s one-arm step ``dls_step`` (and its ``dls_solve``) compiled from the very
+# source CPython runs, for the restarts below and the lanes of ``ik_lanes``.
 
+# dls_step's call of it compiles too; IEEE division (no zero check) lets the lanes vectorise
+register_jitable(error_model="numpy")(dls_solve)
 _dls = _jit(dls_step)
-
-
-@_jit
-def _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, f):
-    """``BatchedPandaIK._fk`` of arm ``r``: its kinematics from its joint angles, in place.
-    Its matrix products as OpenBLAS's: one fused multiply-add per term, in order, from 0."""
-    for k in range(3):
-        for i in range(3):
-            f[i, k] = base_cols[i, k]
-        axes[0, k, r] = base_cols[2, k]
-        anchors[0, k, r] = base_pos[k]
-    for j in range(N_ARM):
-        if j:  # the next body's frame (rows 0-2) and its offset (row 3): links[j] @ rot
-            for k in range(3):
-                r0, r1, r2 = rot[0, k], rot[1, k], rot[2, k]
-                for i in range(4):
-                    f[i, k] = _fma(
-                        links[j, i, 2], r2, _fma(links[j, i, 1], r1, _fma(links[j, i, 0], r0, 0.0))
-                    )
-                anchors[j, k, r] = anchors[j - 1, k, r] + f[3, k]
-                axes[j, k, r] = f[2, k]
-        c, sn = np.cos(q[j, r]), np.sin(q[j, r])
-        nsn = -sn
-        for k in range(3):
-            # x' = c x + s y, y' = c y − s x, z' = z (the hinge about the body's z axis)
-            x0, y0 = f[0, k], f[1, k]
-            rot[0, k] = x0 * c + y0 * sn
-            rot[1, k] = y0 * c + x0 * nsn
-            rot[2, k] = axes[j, k, r]
-    for k in range(3):
-        r0, r1, r2 = rot[0, k], rot[1, k], rot[2, k]
-        for i in range(4):
-            x = _fma(site_link[i, 2], r2, _fma(site_link[i, 1], r1, _fma(site_link[i, 0], r0, 0.0)))
-            if i < 3:
-                cols[i, k, r] = x
-            else:
-                site[k, r] = anchors[N_ARM - 1, k, r] + x
-
-
-@_jit
-def batched_forward(q, site, cols, axes, anchors, rows, base_cols, base_pos, links, site_link):
-    """``BatchedPandaIK._fk`` of arms ``rows``."""
-    rot, frame = np.empty((3, 3)), np.empty((4, 3))
-    for r in rows:
-        _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame)
-
-
-@_jit
-def batched_solve(
-    q, site, cols, axes, anchors, rows, target, iters, tol, ref, has_ref, moving, base_cols,
-    base_pos, links, site_link, orient_cols, orient_gain, posture, damp2, lo, hi, compact,
-):  # fmt: skip
-    """``BatchedPandaIK._solve``: arms ``rows`` iterate towards world-frame ``target`` (3, B)
-    until within ``tol`` or ``iters``; ``moving`` (B,): those not yet within it, updated.
-
-    The arms go in the plain path's lockstep (the set that iterates, its compaction below
-    ``compact``, the arms that hit a limit together), because numpy sums some products in
-    another order for a batch of one arm (``_one``), and the bits follow the batch's size."""
-    nb = rows.shape[0]
-    tol2 = tol * tol
-    rot, frame = np.empty((3, 3)), np.empty((4, 3))
-    jt = np.empty((nb, 3, N_ARM))  # J by rows, per arm
-    s, q_new = np.empty((nb, N_ARM)), np.empty((nb, N_ARM))
-    ja, jb, jc = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
-    sa, qa, qo = np.empty(N_ARM), np.empty(N_ARM), np.empty(N_ARM)
-    e = np.empty((nb, 3))
-    ones = np.ones(N_ARM, dtype=np.bool_)
-    flat, v = np.empty(9), np.empty(3)
-    members, act = np.arange(nb), np.empty(nb, dtype=np.intp)
-    hit = np.zeros(nb, dtype=np.bool_)
-    size = nb
-    for _ in range(iters):
-        live = 0
-        for t in range(size):
-            b = members[t]
-            r = rows[b]
-            for i in range(3):
-                e[b, i] = target[i, b] - site[i, r]
-            e0, e1, e2 = e[b, 0] * e[b, 0], e[b, 1] * e[b, 1], e[b, 2] * e[b, 2]
-            n2 = _one(e0, e1, e2) if size == 1 else ((0.0 + e0) + e1) + e2
-            moving[b] = moving[b] and n2 >= tol2
-            live += moving[b]
-        if not live:
-            break
-        if live < compact * size:
-            k = 0
-            for t in range(size):
-                if moving[members[t]]:
-                    members[k] = members[t]
-                    k += 1
-            size = k
-        alone, n_hit, n_act = size == 1, 0, 0
-        for t in range(size):  # the arms that move this iteration
-            if moving[members[t]]:
-                act[n_act] = members[t]
-                n_act += 1
-        for b in act[:n_act]:
-            r = rows[b]
-            # The position Jacobian's column j: axis_j × (site − anchor_j).
-            for j in range(N_ARM):
-                d0 = site[0, r] - anchors[j, 0, r]
-                d1 = site[1, r] - anchors[j, 1, r]
-                d2 = site[2, r] - anchors[j, 2, r]
-                jt[b, 0, j] = axes[j, 1, r] * d2 - axes[j, 2, r] * d1
-                jt[b, 1, j] = axes[j, 2, r] * d0 - axes[j, 0, r] * d2
-                jt[b, 2, j] = axes[j, 0, r] * d1 - axes[j, 1, r] * d0
-            for i in range(3):
-                for k in range(3):
-                    flat[3 * i + k] = cols[i, k, r]
-            for i in range(3):  # a matrix product; for one arm, a matrix-vector product
-                if alone:
-                    v[i] = _dot9(orient_cols, i, flat)
-                else:
-                    acc = 0.0
-                    for n in range(9):
-                        acc = _fma(orient_cols[i, n], flat[n], acc)
-                    v[i] = acc
-            for j in range(N_ARM):
-                p0, p1, p2 = axes[j, 0, r] * v[0], axes[j, 1, r] * v[1], axes[j, 2, r] * v[2]
-                sj = _one(p0, p1, p2) if alone else ((0.0 + p0) + p1) + p2
-                sj = sj * orient_gain
-                if has_ref[b]:
-                    sj = sj + posture * (ref[j, b] - q[j, r])
-                s[b, j] = sj
-            for j in range(N_ARM):  # one arm's numbers, contiguous, for the one-arm step
-                ja[j], jb[j], jc[j], sa[j], qa[j] = (
-                    jt[b, 0, j],
-                    jt[b, 1, j],
-                    jt[b, 2, j],
-                    s[b, j],
-                    q[j, r],
-                )
-            _dls(qa, ja, jb, jc, sa, e[b, 0], e[b, 1], e[b, 2], damp2, ones, qo, alone)
-            for j in range(N_ARM):
-                q_new[b, j] = qo[j]
-            hit[b] = False
-            for j in range(N_ARM):
-                hit[b] = hit[b] or q_new[b, j] < lo[j] or q_new[b, j] > hi[j]
-            n_hit += hit[b]
-        for b in act[:n_act]:
-            if not hit[b]:
-                continue
-            # Joints at a limit drop out (their columns of J and entries of s times 0).
-            r = rows[b]
-            for j in range(N_ARM):
-                f = 0.0 if q_new[b, j] < lo[j] or q_new[b, j] > hi[j] else 1.0
-                ja[j], jb[j], jc[j] = jt[b, 0, j] * f, jt[b, 1, j] * f, jt[b, 2, j] * f
-                sa[j], qa[j] = s[b, j] * f, q[j, r]
-            _dls(qa, ja, jb, jc, sa, e[b, 0], e[b, 1], e[b, 2], damp2, ones, qo, n_hit == 1)
-            for j in range(N_ARM):
-                q_new[b, j] = qo[j]
-        for b in act[:n_act]:
-            r = rows[b]
-            for j in range(N_ARM):
-                qn = q_new[b, j]
-                qn = qn if qn != qn or qn >= lo[j] else lo[j]  # np.maximum: NaN stays
-                q[j, r] = qn if qn != qn or qn <= hi[j] else hi[j]
-            _fk(q, site, cols, axes, anchors, r, base_cols, base_pos, links, site_link, rot, frame)
 
 
 @_jit

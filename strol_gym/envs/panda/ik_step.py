@@ -49,16 +49,7 @@ def dls_step(
             v0 += a * sj
             v1 += b * sj
             v2 += c * sj
-    l00 = math.sqrt(a00 + damp)
-    l10, l20 = a10 / l00, a20 / l00
-    l11 = math.sqrt(a11 + damp - l10 * l10)
-    l21 = (a21 - l20 * l10) / l11
-    l22 = math.sqrt(a22 + damp - l20 * l20 - l21 * l21)
-    z0 = (e0 - v0) / l00
-    z1 = (e1 - v1 - l10 * z0) / l11
-    y2 = (e2 - v2 - l20 * z0 - l21 * z1) / l22 / l22
-    y1 = (z1 - l21 * y2) / l11
-    y0 = (z0 - l10 * y1 - l20 * y2) / l00
+    y0, y1, y2 = dls_solve(a00, a11, a22, a10, a20, a21, e0 - v0, e1 - v1, e2 - v2, damp)
     for j in range(N_ARM):
         if not free[j]:
             out[j] = q[j]
@@ -66,6 +57,34 @@ def dls_step(
             out[j] = q[j] + (s[j] + ((0.0 + j0[j] * y0 + j2[j] * y2) + j1[j] * y1))
         else:
             out[j] = q[j] + (s[j] + (0.0 + j0[j] * y0 + j1[j] * y1 + j2[j] * y2))
+
+
+def dls_solve(
+    a00: float,
+    a11: float,
+    a22: float,
+    a10: float,
+    a20: float,
+    a21: float,
+    r0: float,
+    r1: float,
+    r2: float,
+    damp: float,
+) -> tuple[float, float, float]:
+    """y = (A + λ²I)⁻¹ r for the symmetric 3x3 A = J Jᵀ (its lower triangle) and λ² = ``damp``,
+    by Cholesky: the operations of ``BatchedPandaIK._step``, in its order (``dls_step`` and the
+    compiled batched IK's lanes call it with r = e − J s)."""
+    l00 = math.sqrt(a00 + damp)
+    l10, l20 = a10 / l00, a20 / l00
+    l11 = math.sqrt(a11 + damp - l10 * l10)
+    l21 = (a21 - l20 * l10) / l11
+    l22 = math.sqrt(a22 + damp - l20 * l20 - l21 * l21)
+    z0 = r0 / l00
+    z1 = (r1 - l10 * z0) / l11
+    y2 = (r2 - l20 * z0 - l21 * z1) / l22 / l22
+    y1 = (z1 - l21 * y2) / l11
+    y0 = (z0 - l10 * y1 - l20 * y2) / l00
+    return y0, y1, y2
 
 
 ALL_FREE = [True] * N_ARM

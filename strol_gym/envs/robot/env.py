@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+import math
+from typing import Any, ClassVar, cast
 
 import gymnasium as gym
 import mujoco
@@ -10,15 +11,37 @@ import numpy as np
 from gymnasium import spaces
 
 from strol_gym.compiled import use_fast
-from strol_gym.envs.contract import CorrectionEnv, render_metadata
+from strol_gym.envs.contract import _REAL, CorrectionEnv, contract_info, correcting, render_metadata
 from strol_gym.envs.panda.ik import IK_ITERS, IK_TOL, PandaIK, move_arm
 from strol_gym.envs.panda.model import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.robot.scene import TABLE_TOP, build_model
 from strol_gym.envs.robot.seeds import seed_table
+from strol_gym.humans.builtin import NominalModel, _drawn_as_nominal
+from strol_gym.humans.interface import SimulatedHuman
 from strol_gym.tasks.robot import RobotTask
 
 _DYNAMICS = ("dynamics", "dynamics_one")
-"""What the fused step (``_advance``) computes over again of ``RobotTask``."""
+"""What the fused move (``_advance``) computes over again of ``RobotTask``."""
+_STEP_TASK = (*_DYNAMICS, "features", "_features_one", "sample_start", "sample_starts", "_in_box")
+"""What the compiled step and reset compute over again of ``RobotTask``."""
+_STEP_HOOKS = (
+    "draw_starts",
+    "start_override",
+    "_place_start",
+    "_start_info",
+    "move_to",
+    "_robot_action",
+    "_transition",
+    "_human_correction",
+    "_advance",
+    "_terminated",
+    "_truncated",
+    "_obs",
+    "_info",
+)
+"""The contract's hooks the compiled step and reset repeat: an env class that overrides one
+takes the contract's."""
+_STEP_CLASSES: dict[type, bool] = {}
 
 
 class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
@@ -201,6 +224,169 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self.data.ctrl[:N_ARM] = self.ik.q
         return self.ik.ee, {"target": target, "ik_error": ik_error}
 
+    # ------------------------------------------------------------------ the compiled step
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        """The contract's reset; the start's placing, φ and the observation's numbers in one
+        compiled call (``step_kernel.robot_place``, the same numbers) where ``step``'s runs and
+        no option is given."""
+        fused = self._fused_step() if options is None else None
+        if fused is None:
+            return super().reset(seed=seed, options=options)
+        sk, ap, prm = fused[:3]
+        gym.Env.reset(self, seed=seed)
+        rng = self.np_random
+        theta_star = self.draw_theta_stars([rng])[0]
+        unit = rng.random(3)  # ``RobotTask.sample_starts``' draws, as rng.random((1, 3))
+        self._start_episode(theta_star, rng)
+        th = self.theta_hat
+        obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.PLACED)
+        sk.robot_place(ap, prm, unit, th, obs_row, out)
+        self._x = out[sk.X : sk.X + 3]
+        phi = out[sk.PHI : sk.PHI + 2]
+        names = self.task.feature_names
+        info = contract_info(
+            {names[0]: float(phi[0]), names[1]: float(phi[1])},
+            phi,
+            np.zeros(3),
+            np.zeros(3),
+            self.theta_star.copy(),
+            th.copy(),
+            False,
+        )
+        info["target"] = self._x
+        info["ik_error"] = 0.0
+        if self.render_mode == "human":
+            self.render()
+        return _split(obs_row), info
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        """The contract's step; in one compiled call (``step_kernel.robot_step``, the same
+        numbers) for an agent's float array, with nobody correcting or the eq. M6 teacher."""
+        fused = self._fused_step() if type(action) is np.ndarray else None
+        th = self.theta_hat
+        if (
+            fused is None
+            or action.dtype not in _REAL
+            or action.shape != (3,)
+            or not self._started
+            or type(th) is not np.ndarray
+            or th.dtype != np.float64
+            or th.shape != (2,)
+        ):
+            return super().step(action)
+        sk, ap, prm, units, noise = fused
+        human = self.human
+        mode = 0
+        if human is not None and correcting(self.steps, self.n_corrections):
+            teach = self.ik.__dict__.get("_teach")  # asked once per episode's person
+            if teach is None or teach[0] is not human:
+                teach = self.ik.__dict__["_teach"] = (human, self._teacher(human))
+            if teach[1] is None or not all(map(math.isfinite, action.tolist())):
+                return super().step(action)  # (a bad action raises there, before any draw)
+            prm, units = teach[1]
+            person = cast(SimulatedHuman, human)  # ``_teacher`` found one
+            person.begin()
+            person.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
+            person.rng.standard_normal(out=noise)
+            theta_star = person.theta_star  # a SimulatedHuman's: float64, as ``theta_star``
+            mode = 1
+        else:
+            theta_star = self.theta_star
+            if theta_star.shape != (2,):
+                return super().step(action)  # (a person's θ* is the prior's: two numbers)
+        obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.OUT)
+        x = self._x
+        done = sk.robot_step(ap, prm, x, action, th, theta_star, units, noise, obs_row, out, mode)
+        if done == sk.BAD_ACTION:
+            return super().step(action)  # raises, naming the action
+        u_h = out[sk.U_H : sk.U_H + 3]
+        if done == sk.BAD_CORRECTION:
+            raise ValueError(f"the human's correction must be 3 finite numbers, got {u_h}")
+        self.steps += 1
+        self._x = out[sk.X : sk.X + 3]
+        vals = out.tolist()
+        phi = out[sk.PHI : sk.PHI + 2]
+        names = self.task.feature_names
+        info = contract_info(
+            {names[0]: vals[sk.PHI], names[1]: vals[sk.PHI + 1]},
+            phi,
+            u_h,
+            out[sk.U_R : sk.U_R + 3],
+            out[sk.THETA_STAR : sk.THETA_STAR + 2],
+            out[sk.THETA_HAT : sk.THETA_HAT + 2],
+            mode == 1,
+        )
+        info["target"] = out[sk.TARGET : sk.TARGET + 3]
+        info["ik_error"] = vals[sk.IK_ERROR]
+        obs = _split(obs_row)
+        terminated = self._terminated()
+        truncated = (not terminated) and self._truncated()
+        if self.render_mode == "human":
+            self.render()
+        return obs, vals[sk.REWARD], terminated, truncated, info
+
+    def _fused_step(self) -> tuple | None:
+        """(kernel, the arm's pointers, its parameters without a person, the draws' buffers)
+        for ``step``, built once per arm; None where the compiled step cannot run (the plain
+        kernels, a Task or env class that changes what it repeats, another BLAS)."""
+        if not use_fast():  # (asked each time: tests switch the kernels in one process)
+            return None
+        ik = self.ik
+        fused = ik.__dict__.get("_fused_step", False)
+        if fused is not False:
+            return fused
+        fused = None
+        own = type(self)
+        same = _STEP_CLASSES.get(own)
+        if same is None:
+            same = _STEP_CLASSES[own] = all(
+                getattr(own, n) is getattr(RobotEnv, n) for n in _STEP_HOOKS
+            )
+        if (
+            same
+            and type(self.task).m6_drawn_params is RobotTask.m6_drawn_params
+            and self.task._unchanged(RobotTask, _STEP_TASK)
+        ):
+            from strol_gym.envs.panda import ik_kernel
+            from strol_gym.envs.robot import step_kernel as sk
+
+            packed = sk.arm_pointers(ik, ik_kernel._FP, IK_ITERS) if sk.reward_agrees() else None
+            if packed is not None:
+                prm = sk.step_params(self.task.m6_drawn_params(0.0, 0.0), self.action_scale, IK_TOL)
+                ik.__dict__["_fused_keep"] = packed[1]  # the arrays the pointers point into
+                fused = (sk, packed[0], prm, np.zeros((1, 1, 3)), np.zeros((1, 3)))
+        ik.__dict__["_fused_step"] = fused
+        return fused
+
+    def _teacher(self, human: Any) -> tuple[np.ndarray, np.ndarray] | None:
+        """(``robot_step``'s parameters with this person's σ and ε, a buffer for their uniform
+        draws) where ``human`` is an eq. M6 teacher whose correction ``robot_step`` repeats
+        (``NominalModel.drawn_corrections`` would run its compiled path); else None."""
+        model = getattr(human, "model", None)
+        if (
+            not isinstance(human, SimulatedHuman)
+            or type(human).act is not SimulatedHuman.act
+            or type(human).begin is not SimulatedHuman.begin
+            or not isinstance(model, NominalModel)
+            or type(model).drawn_corrections is not NominalModel.drawn_corrections
+            or not model.needs_theta_hat
+            or model.task is not self.task
+            or _drawn_as_nominal(model) is None
+        ):
+            return None
+        from strol_gym.envs.robot import step_kernel as sk
+
+        memo = self.ik.__dict__.setdefault("_teacher_params", {})
+        key = (model.sigma, model.bias, model.n_candidates)
+        found = memo.get(key)
+        if found is None:
+            m6 = self.task.m6_drawn_params(model.sigma, model.bias)
+            found = memo[key] = (
+                sk.step_params(m6, self.action_scale, IK_TOL),
+                np.empty((1, model.n_candidates, 3)),
+            )
+        return found
+
     # ------------------------------------------------------------------ render, close, pickle
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
@@ -215,3 +401,8 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._renderer = None
         self._viewer = None
         self._build(qpos)
+
+
+def _split(row: np.ndarray) -> dict[str, np.ndarray]:
+    """The contract's observation from the compiled step's float32 row (x, u_H, θ̂, φ)."""
+    return {"state": row[0:3], "correction": row[3:6], "theta_hat": row[6:8], "phi": row[8:10]}

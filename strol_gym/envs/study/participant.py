@@ -55,7 +55,7 @@ from strol_gym.envs.study.people import (  # noqa: F401  (THRESHOLD: here until 
 from strol_gym.envs.study.population import aimed_correction, best_correction, draw_corrections
 from strol_gym.envs.study.user import SimulatedUser
 from strol_gym.humans import check_fraction
-from strol_gym.humans.timing import shortfall, step_in_probability
+from strol_gym.humans.timing import hazard_rate, shortfall, step_in_probability
 from strol_gym.tasks.study import StudyTask
 
 
@@ -293,6 +293,7 @@ class FittedParticipant(Participant):
         self._push_wrench = (np.zeros(3), np.zeros(3))
         self._started = 0.0
         self._pushed = 0.0
+        self._watched_last = 0.0
 
     def act(self, x: np.ndarray, u_r: np.ndarray, theta_hat: Any = None) -> np.ndarray:
         """A correction drawn at pose ``x`` from this person's fitted aim and sizes (or the
@@ -339,7 +340,8 @@ class FittedParticipant(Participant):
         """The fitted timing hazard (``FittedParams.hazard``): every ``decide_every`` s it
         steps in with probability 1 − exp(−rate·decide_every), rate from the shortfall of the
         plan of the robot's θ̂ and the time since its last correction; it pushes ``reaction``
-        s later from what it sees then. Done after ``path_time`` s of the robot's motion."""
+        s later from what it sees then. Done after ``path_time`` s of the robot's motion, or
+        when that motion plus the motion before its last push reach ``doubled_budget``."""
         p = self.params
         if self._push_at is not None:
             if t + 1e-9 < self._push_at:
@@ -349,13 +351,12 @@ class FittedParticipant(Participant):
         if self.done_at is not None or t + 1e-9 < self._t_next:
             return None
         self._t_next = t + p.decide_every
-        if t - self._pushed >= p.path_time:
+        motion = t - self._pushed
+        if motion >= p.path_time or motion + self._watched_last >= p.doubled_budget:
             self.done_at = t
             return None
         assert p.hazard is not None
-        a, b, c = p.hazard
-        s = self.shortfall(theta_hat)
-        rate = math.exp(min(a + b * s + c * math.log1p(max(t - self._last_release, 0.0)), 50.0))
+        rate = hazard_rate(p.hazard, self.shortfall(theta_hat), t - self._last_release)
         self.judgments += 1
         if self.rng.random() < step_in_probability(rate, p.decide_every):
             self.rejections += 1
@@ -416,5 +417,6 @@ class FittedParticipant(Participant):
         watched = self._started - self._pushed  # the robot's path time before this push
         self._pushed += t - self._started
         self._last_release = t
+        self._watched_last = watched
         if self.params.hazard is None and self.made >= self.params.budget:
             self.done_at = t + self.params.linger * watched

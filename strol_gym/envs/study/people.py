@@ -157,18 +157,22 @@ class FittedParams(ParticipantParams):
     z standard normal), then sized."""
     budget: int = 5
     """The most corrections it makes this session (then it is done); unused with ``hazard``."""
-    hazard: tuple[float, float, float] | None = None
-    """(a, b, c): when it steps in, the fitted timing hazard (``strol_gym.humans.timing``):
+    hazard: tuple[float, ...] | None = None
+    """(a, b, c[, d]): when it steps in, the fitted timing hazard (``strol_gym.humans.timing``):
     at each judgment it corrects with probability 1 − exp(−rate·``decide_every``), rate =
-    exp(a + b·s + c·log(1 + τ)) per s, s the shortfall of the robot's plan, τ the s since its
-    last correction. None: it judges the motion's score against ``threshold`` and stops after
-    ``budget`` corrections (the learner-independent person)."""
+    exp(a + b·s + (c + d·s)·log(1 + τ)) per s, s the shortfall of the robot's plan, τ the s
+    since its last correction. None: it judges the motion's score against ``threshold`` and
+    stops after ``budget`` corrections (the learner-independent person)."""
     correction: str = "population"
     """Its model of a correction: ``population`` (its own aim and sizes above, the participant
     fit's) or ``aimed`` (the aimed person fitted per Task, ``strol_gym.humans.aim``)."""
     path_time: float = float("inf")
     """With ``hazard``: the s of the robot's motion it watches (push time not counted), then it
     is done: the logged path time of the real sessions of its Task."""
+    doubled_budget: float = float("inf")
+    """With ``hazard``: it is done when the s of the robot's motion plus the motion before its
+    last correction reach this (the authors' Task 1 loop counted that motion twice,
+    ``strol_gym.humans.timing.doubled_end``); inf: only ``path_time`` ends its watch."""
     linger: float = 0.5
     """After its last correction it watches this share of the session so far, then it is done
     (where along the path its corrections fall)."""
@@ -196,8 +200,15 @@ class FittedParams(ParticipantParams):
         if isinstance(watch, bool) or not isinstance(watch, int | float) or not watch > 0:
             raise ValueError(f"person kwargs['path_time'] must be a number > 0 (s), got {watch!r}")
         object.__setattr__(self, "path_time", float(watch))
+        doubled = self.doubled_budget
+        if isinstance(doubled, bool) or not isinstance(doubled, int | float) or not doubled > 0:
+            raise ValueError(
+                f"person kwargs['doubled_budget'] must be a number > 0 (s), got {doubled!r}"
+            )
+        object.__setattr__(self, "doubled_budget", float(doubled))
         if self.hazard is not None:
-            h = checks.vector("person kwargs['hazard']", self.hazard, 3)
-            for name, v in zip(("a", "b", "c"), h.tolist(), strict=True):
-                checks.number(f"person kwargs['hazard'] ({name})", v, low=-50.0, high=50.0)
-            object.__setattr__(self, "hazard", tuple(float(v) for v in h))
+            from strol_gym.humans.timing import hazard_vector
+
+            object.__setattr__(
+                self, "hazard", hazard_vector("person kwargs['hazard']", self.hazard)
+            )

@@ -42,6 +42,7 @@ from strol_gym.envs.study.people import CORRECTIONS, FittedParams
 from strol_gym.files import loads_json, read_regular
 from strol_gym.humans.aim import aim_direction, aimed_corrections, fitted_aim_params
 from strol_gym.humans.interface import DEFAULT_CANDIDATES, Draws, HumanModel
+from strol_gym.humans.timing import hazard_vector
 from strol_gym.tasks.base import Task
 from strol_gym.tasks.study import StudyTask
 
@@ -159,10 +160,15 @@ class Population:
     """The :data:`FITTED` estimates."""
     priors: dict[str, Any]
     """The :data:`PRIORS` values the file names (``patience`` an int)."""
-    hazard: dict[int, tuple[float, float, float]] | None = None
-    """Per Task, the timing hazard's (a, b, c) (``FittedParams.hazard``); None: the budget."""
+    hazard: dict[int, tuple[float, ...]] | None = None
+    """Per Task, the timing hazard's (a, b, c[, d]) (``FittedParams.hazard``); None: the
+    budget."""
     path_time: dict[int, float] | None = None
     """Per Task, the s of the robot's motion a person watches (with ``hazard``)."""
+    doubled_budget: dict[int, float] | None = None
+    """Per Task whose session ended on the authors' doubled count (``timing.DOUBLED_TASKS``),
+    the budget (s): the person is done when the robot's motion plus its motion before the
+    last correction reaches it (in place of ``path_time``)."""
     correction: str = "population"
     """Its people's model of a correction (``FittedParams.correction``)."""
     rise: float | None = None
@@ -183,6 +189,9 @@ class Population:
         when: dict[str, Any] = {}
         if self.hazard is not None and self.path_time is not None:
             when = {"hazard": self.hazard[task], "path_time": self.path_time[task]}
+            if self.doubled_budget and task in self.doubled_budget:
+                when["path_time"] = math.inf
+                when["doubled_budget"] = self.doubled_budget[task]
             if self.rise is not None:
                 when["ramp"] = self.rise
         else:
@@ -236,8 +245,8 @@ def parse(obj: Any, what: str = "participant fit") -> Population:
 
 def parse_timing(
     obj: Any, what: str = "timing fit"
-) -> tuple[dict[int, tuple[float, float, float]], dict[int, float], float]:
-    """Per Task (a, b, c) and path time, and the push's rise time, from a timing fit file's
+) -> tuple[dict[int, tuple[float, ...]], dict[int, float], float]:
+    """Per Task (a, b, c[, d]) and path time, and the push's rise time, from a timing fit file's
     JSON object (checked)."""
     if not isinstance(obj, dict) or obj.get("format") != TIMING_FORMAT:
         raise ValueError(f"{what} must be a JSON object with format {TIMING_FORMAT!r}")
@@ -245,15 +254,26 @@ def parse_timing(
     pt = checks.mapping(f"{what}['path_time']", obj.get("path_time"), "an object")
     hazard, path_time = {}, {}
     for t in (1, 2, 3):
-        v = checks.vector(f"{what}['hazard']['{t}']", hz.get(str(t)), 3)
-        for name, c in zip("abc", v.tolist(), strict=True):
-            checks.number(f"{what}['hazard']['{t}'] ({name})", c, low=-50.0, high=50.0)
-        hazard[t] = (float(v[0]), float(v[1]), float(v[2]))
+        hazard[t] = hazard_vector(f"{what}['hazard']['{t}']", hz.get(str(t)))
         path_time[t] = float(
             checks.number(f"{what}['path_time']['{t}']", pt.get(str(t)), low=0.0, low_open=True)
         )
     rise = float(checks.number(f"{what}['rise']", obj.get("rise"), low=0.01, high=10.0))
     return hazard, path_time, rise
+
+
+def parse_doubled(obj: dict[str, Any], what: str = "timing fit") -> dict[int, float]:
+    """Per Task its ``doubled_budget`` (s) from a timing fit's JSON object (none: {})."""
+    raw = obj.get("doubled_budget", {})
+    got = checks.mapping(f"{what}['doubled_budget']", raw, "an object")
+    out = {}
+    for key, v in got.items():
+        if key not in ("1", "2", "3"):
+            raise ValueError(f"{what}['doubled_budget']: Tasks are '1'-'3', got {key!r}")
+        out[int(key)] = float(
+            checks.number(f"{what}['doubled_budget'][{key!r}]", v, low=1.0, high=3600.0)
+        )
+    return out
 
 
 def _read_json(path: Path, what: str) -> Any:
@@ -274,8 +294,12 @@ def read_fit(
     )
     if timing is None:
         return pop
-    hazard, path_time, rise = parse_timing(_read_json(Path(timing), "timing fit"), str(timing))
-    return dataclasses.replace(pop, hazard=hazard, path_time=path_time, rise=rise)
+    obj = _read_json(Path(timing), "timing fit")
+    hazard, path_time, rise = parse_timing(obj, str(timing))
+    doubled = parse_doubled(obj, str(timing))
+    return dataclasses.replace(
+        pop, hazard=hazard, path_time=path_time, rise=rise, doubled_budget=doubled
+    )
 
 
 @functools.cache
@@ -358,11 +382,25 @@ def aimed_draws(
     (``humans.aim.FITTED_AIM``) at poses ``x`` (n, s), from standard normals ``z`` (n, a + 1)
     and uniforms ``pick`` (n,): about the aimed person's direction for θ* ⊙ its emphasis
     (``humans.aim.aim_direction``, with its fitted ``reach``)."""
+    return aimed_at(aimed_aim(task, theta_star, x), z, pick, task)
+
+
+def aimed_aim(task: StudyTask, theta_star: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """b̂ (n, a): what the aimed person fitted for ``task`` aims at, at poses ``x`` (n, s), for
+    θ* ⊙ its emphasis (``humans.aim.aim_direction`` with its fitted ``reach``). Row by row:
+    what a pose gives does not depend on the others in the batch, so it may be computed once
+    per pose and reused (:func:`aimed_at`)."""
     kw = fitted_aim_params(task)
-    emphasis, reach = kw.pop("emphasis"), kw.pop("reach")
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
-    star = np.broadcast_to(np.asarray(theta_star, dtype=np.float64) * emphasis, (len(x), task.dim))
-    best = aim_direction(task, x, np.zeros((len(x), task.action_dim)), star, reach)
+    star = np.broadcast_to(
+        np.asarray(theta_star, dtype=np.float64) * kw["emphasis"], (len(x), task.dim)
+    )
+    return aim_direction(task, x, np.zeros((len(x), task.action_dim)), star, kw["reach"])
+
+
+def aimed_at(best: np.ndarray, z: np.ndarray, pick: np.ndarray, task: StudyTask) -> np.ndarray:
+    """:func:`aimed_draws` given its aims ``best`` (:func:`aimed_aim`)."""
+    kw = {k: v for k, v in fitted_aim_params(task).items() if k not in ("emphasis", "reach")}
     return aimed_corrections(best, z, pick, **kw)
 
 
@@ -467,11 +505,14 @@ __all__ = [
     "TIMING_FILE",
     "FittedPopulationModel",
     "Population",
+    "aimed_aim",
+    "aimed_at",
     "aimed_correction",
     "aimed_draws",
     "cosine",
     "draw_corrections",
     "parse",
+    "parse_doubled",
     "read_fit",
     "shape_corrections",
     "shipped",
