@@ -212,7 +212,7 @@ def test_the_drawn_correction_is_the_plain_draws_and_choice(task_cls, sigma, bia
 def test_the_compiled_pcg64_uniforms_are_numpys():
     """``pcg64_fill.fill``: the doubles of ``Generator.random`` and the states after them, for
     lengths below, at and off its four-step chains; a generator of another kind is not taken."""
-    from strol_gym.humans.pcg64_fill import addresses, fill
+    from strol_gym.pcg64_fill import addresses, fill
 
     ours = [np.random.default_rng(s) for s in (0, 7, 2**40)]
     theirs = [np.random.default_rng(s) for s in (0, 7, 2**40)]

@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from strol_gym.compiled import use_fast
-from strol_gym.tasks.base import Task
+from strol_gym.tasks.base import Task, add_noise
 from strol_gym.tasks.driver import driver_correction as driver_correction
 
 
@@ -95,15 +95,4 @@ def perturb(
 ) -> np.ndarray:
     """u + δ with δ ~ N(ε·a_max, (σ·a_max)²) per component (σ may vary per row, (n, 1)).
     Draws even when σ = 0 (pairing)."""
-    z = rng.standard_normal(u.shape)
-    one = u.shape == (1, len(task.a_max_l)) and u.dtype == np.float64 == z.dtype
-    if one and type(sigma) is float and type(bias) is float:
-        # One person (the single env's every correction) in plain floats: the same IEEE
-        # operations in numpy's order, (u + ε a) + (σ a) z, so the same bits.
-        row = [
-            (ui + bias * ai) + (sigma * ai) * zi
-            for ui, ai, zi in zip(u[0].tolist(), task.a_max_l, z[0].tolist(), strict=True)
-        ]
-        return np.array([row])
-    a = task.a_max
-    return u + bias * a + sigma * a * z
+    return add_noise(task, u, sigma, bias, rng.standard_normal(u.shape))

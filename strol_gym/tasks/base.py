@@ -66,6 +66,24 @@ def unique_rows(*arrays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(first, dtype=np.intp), inverse
 
 
+def add_noise(
+    task: Task, u: np.ndarray, sigma: float | np.ndarray, bias: float, z: np.ndarray
+) -> np.ndarray:
+    """u + ε·a_max + σ·a_max·z: a person's noise on their actions ``u`` from standard normals
+    ``z`` already drawn (``humans.choices.perturb`` draws them; σ may vary per row, (n, 1))."""
+    one = u.shape == (1, len(task.a_max_l)) and u.dtype == np.float64 == z.dtype
+    if one and type(sigma) is float and type(bias) is float:
+        # One person (the single env's every correction) in plain floats: the same IEEE
+        # operations in numpy's order, (u + ε a) + (σ a) z, so the same bits.
+        row = [
+            (ui + bias * ai) + (sigma * ai) * zi
+            for ui, ai, zi in zip(u[0].tolist(), task.a_max_l, z[0].tolist(), strict=True)
+        ]
+        return np.array([row])
+    a = task.a_max
+    return u + bias * a + sigma * a * z
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class Task(ABC):
     """Base class for a StROL setting. Subclasses are frozen dataclasses, so they pickle.

@@ -50,7 +50,7 @@ import numpy as np
 
 from strol_gym.compiled import use_fast
 from strol_gym.priors import MixturePrior, Prior
-from strol_gym.tasks.base import Task, positive_field, vector_arg
+from strol_gym.tasks.base import Task, add_noise, positive_field, vector_arg
 from strol_gym.tasks.driver import driver_correction
 
 HIGHWAY_MODES = np.array([[1.0, 1.0, 0.1], [0.1, 1.0, 1.0]])
@@ -355,10 +355,9 @@ class HighwayTask(Task):
     ) -> None:
         """The people ``highway_m6_drawn`` left to the exact search (``best`` −1): what
         ``m6_choice`` does after its screen (numpy's steering angles of the packed ``steer``,
-        then ``highway_m6_kept`` among the kept candidates), then their noise by ``perturb``.
+        then ``highway_m6_kept`` among the kept candidates), then their noise (``add_noise``, as
+        ``perturb`` adds it).
         ``prm`` as ``m6_drawn_params`` gives it."""
-        from strol_gym.humans.choices import perturb
-        from strol_gym.humans.interface import Replayed
         from strol_gym.tasks.m6_kernels import highway_m6_kept
 
         left = np.flatnonzero(best < 0)
@@ -366,7 +365,7 @@ class HighwayTask(Task):
         sigma, bias = float(prm[n_prm]), float(prm[n_prm + 1])
         beta = _slip_angles(steer)
         highway_m6_kept(x, u_r, theta_hat, theta_star, cand, keep, beta, prm[:n_prm], best)
-        out[left] = perturb(self, cand[left, best[left]], sigma, bias, Replayed(noise[left]))
+        out[left] = add_noise(self, cand[left, best[left]], sigma, bias, noise[left])
 
     @functools.cached_property
     def _kernel_params(self) -> np.ndarray:

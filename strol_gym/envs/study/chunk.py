@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit, types
 
 from strol_gym.envs.panda.ik_kernel import _addresses, _c_function, intrinsic
-from strol_gym.envs.study.controller import HOLD
+from strol_gym.envs.study.scene import HOLD
 
 ROW_MAJOR, NO_TRANS, TRANS = 101, 111, 112
 """CBLAS's ``CblasRowMajor``, ``CblasNoTrans`` and ``CblasTrans``."""

@@ -22,12 +22,9 @@ import numpy as np
 from strol_gym.compiled import use_fast
 from strol_gym.envs.panda.model import N_ARM
 from strol_gym.envs.study.admittance import REST, Admittance, rotation
-from strol_gym.envs.study.scene import JOINT_DAMPING
+from strol_gym.envs.study.scene import HOLD, JOINT_DAMPING
 from strol_gym.tasks.study import CONTROL_DT, mat_to_rpy, rpy_to_mat
 
-HOLD = 5
-"""Physics steps per impedance update (the torque is held in between): 5 steps of 5 ms = 25 ms,
-i.e. 40 Hz impedance control."""
 _INSTABILITY = (
     mujoco.mjtWarning.mjWARN_BADQACC,
     mujoco.mjtWarning.mjWARN_BADQPOS,

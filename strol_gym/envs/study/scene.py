@@ -31,6 +31,9 @@ TIMESTEP = 0.005
 """Physics step (s): 10 per 0.05 s control step. The implicit-fast integrator keeps the compliant
 arm stable at this step (the model files' 2 ms would cost 2.5x the physics per simulated
 second; docs/study.md)."""
+HOLD = 5
+"""Physics steps per impedance update (the torque is held in between): 5 steps of 5 ms = 25 ms,
+i.e. 40 Hz impedance control."""
 JOINT_DAMPING = np.array([5.0, 5.0, 5.0, 5.0, 1.0, 1.0, 1.0])
 """Viscous joint damping (N m s/rad), integrated implicitly by MuJoCo (the model files' 100 on
 the big joints makes the arm lag its setpoint by ~10 cm at 0.1 m/s)."""
