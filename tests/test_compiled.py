@@ -174,20 +174,26 @@ def test_a_task_that_overrides_what_the_kernel_repeats_takes_the_plain_path(path
     )
 
 
+@pytest.mark.parametrize("task_cls", [RobotTask, HighwayTask])
 @pytest.mark.parametrize(("sigma", "bias"), [(0.0, 0.0), (0.3, -0.2)])
-def test_the_drawn_robot_correction_is_the_plain_draws_and_choice(sigma, bias, path):
+def test_the_drawn_correction_is_the_plain_draws_and_choice(task_cls, sigma, bias, path):
     """``NominalModel.drawn_corrections`` (one compiled call from each person's draws, by
     chunks of people) against ``draw_each`` and ``corrections`` on the plain path: the same
-    bytes, the generators left in the same state; one person as ``act`` asks."""
+    bytes, the generators left in the same state; one person as ``act`` asks. On the Highway
+    some people are left open by the screen (a robot steering beyond its polynomials, a NaN
+    θ̂) and take the exact search."""
     from strol_gym.humans.builtin import DRAWN_CHUNK, NominalModel
 
-    task = RobotTask()
+    task = task_cls()
     model = NominalModel(task, sigma=sigma, bias=bias)
     rng = np.random.default_rng(5)
+    a, d = task.action_dim, task.dim
     for b in (1, DRAWN_CHUNK + 5):
         x = task.sample_start(rng, b)
-        u_r = rng.uniform(-1.5, 1.5, (b, 3)) * task.action_bound  # some clipped
-        theta_hat, theta_star = rng.standard_normal((2, b, 2))
+        u_r = rng.uniform(-1.5, 1.5, (b, a)) * task.action_bound  # some clipped
+        if task_cls is HighwayTask:
+            u_r[1::4, 1] = 0.2  # beyond the screen's steering range: the exact search
+        theta_hat, theta_star = rng.standard_normal((2, b, d))
         theta_hat[0, 1] = np.nan if b > 1 else theta_hat[0, 1]  # argmin's NaN rule too
         seeds = rng.integers(0, 2**32, b)
         path(False)
@@ -199,8 +205,8 @@ def test_the_drawn_robot_correction_is_the_plain_draws_and_choice(sigma, bias, p
         fast_rngs = [np.random.default_rng(s) for s in seeds]
         fast = model.drawn_corrections(fast_rngs, x, u_r, theta_star, theta_hat)
         assert fast is not None and fast.tobytes() == plain.tobytes()
-        for a, c in zip(plain_rngs, fast_rngs, strict=True):
-            assert a.random() == c.random()
+        for a_rng, c_rng in zip(plain_rngs, fast_rngs, strict=True):
+            assert a_rng.random() == c_rng.random()
 
 
 def test_the_compiled_pcg64_uniforms_are_numpys():
@@ -239,6 +245,16 @@ def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usu
     assert NominalModel(RobotTask()).drawn_corrections([rng], x, x, th, None) is None
     assert rng.bit_generator.state == state  # nothing drawn
     assert NominalModel(RobotTask()).drawn_corrections([rng], x, x, th, th) is not None
+
+    class Braking(HighwayTask):
+        def candidate_actions(self, rng, n, k):
+            return super().candidate_actions(rng, n, k) * 0.5
+
+    x, u, th = np.zeros((1, 8)), np.zeros((1, 2)), np.zeros((1, 3))
+    assert Braking().m6_drawn() is None and HighwayTask().m6_drawn() is not None
+    state = rng.bit_generator.state
+    assert NominalModel(Braking()).drawn_corrections([rng], x, u, th, th) is None
+    assert rng.bit_generator.state == state
 
 
 def _feed(h, value) -> None:
@@ -286,6 +302,7 @@ def _rollout(env_id: str, seed: int, steps: int, **kwargs) -> str:
         ("StROL-Robot-v0", {"person": {"name": "nominal", "sigma": 0.3, "bias": 0.1}}),
         ("StROL-Robot-v0", {"person": "changing", "n_corrections": 7}),
         ("StROL-Highway-v0", {}),
+        ("StROL-Highway-v0", {"person": {"name": "changing", "sigma": 0.2, "bias": 0.1}}),
     ],
 )
 def test_env_rollouts_are_the_same_bytes_on_both_paths(env_id, kwargs, path):

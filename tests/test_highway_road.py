@@ -3,6 +3,8 @@ the far-pair collision check in plain floats give highway-env's own answers."""
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.kinematics import Vehicle
@@ -156,5 +158,52 @@ def test_a_car_steps_as_highway_envs_vehicle():
                     np.float64(getattr(ours, name)).tobytes()
                     == np.float64(getattr(theirs, name)).tobytes()
                 )
-            assert ours.lane_index == theirs.lane_index and ours.crashed == theirs.crashed
+            assert ours.lane_index == theirs.lane_index and ours.lane is theirs.lane
+            assert ours.crashed == theirs.crashed
             assert ours.action == theirs.action
+
+
+def _same_attributes(mine: object, fresh: object) -> None:
+    assert vars(mine).keys() == vars(fresh).keys()
+    for name, value in vars(fresh).items():
+        got = vars(mine)[name]
+        assert type(got) is type(value), name
+        if isinstance(value, np.ndarray):
+            assert got.dtype == value.dtype and got.tobytes() == value.tobytes(), name
+        elif isinstance(value, deque):
+            assert list(got) == list(value) and got.maxlen == value.maxlen, name
+        else:
+            assert got == value, name
+
+
+def test_a_new_episode_restarts_the_cars_as_building_them_would():
+    """After an episode that ended in a crash (impact, crashed flags, a changed action), a reset
+    keeps the road and the cars, each attribute as a newly built road and cars would have it."""
+    from strol_gym.envs.highway.env import HighwayEnv, HumanVehicle
+
+    env = HighwayEnv(n_corrections=0)
+    env.reset(seed=0, options={"state": [112.0, 0.0, 20.0, 0.0, 100.0, 0.0, 35.0, 0.0]})
+    road, robot, human = env.road, env.robot_vehicle, env.human_vehicle
+    for _ in range(10):
+        *_, term, _, _ = env.step(np.array([-1.0, 0.3], dtype=np.float32))
+        if term:
+            break
+    assert term and robot.crashed and robot.action["steering"] != 0
+    robot.log.append("seen")
+    env.reset(seed=3)
+    assert (env.road, env.robot_vehicle, env.human_vehicle) == (road, robot, human)
+    x = env._x
+    fresh_road = Road(network=road.network, np_random=env.np_random, record_history=False)
+    fresh = [
+        Car(fresh_road, x[0:2], heading=float(x[3]), speed=float(x[2])),
+        HumanVehicle(fresh_road, x[4:6], heading=float(x[7]), speed=float(x[6])),
+    ]
+    fresh[0].color, fresh[1].color = robot.color, human.color
+    fresh_road.vehicles = fresh
+    for mine, new in ((robot, fresh[0]), (human, fresh[1])):
+        mine_road, mine.road = mine.road, fresh_road  # the one attribute that must differ
+        _same_attributes(mine, new)
+        mine.road = mine_road
+    road_vars = dict(vars(road), vehicles=fresh)
+    assert road_vars.keys() == vars(fresh_road).keys()
+    assert all(road_vars[k] is v or road_vars[k] == v for k, v in vars(fresh_road).items())

@@ -98,4 +98,9 @@ def test_sample_each_is_one_sample_per_generator(prior):
             want = ref.uniform(prior.low, prior.high, size=(1, prior.dim))
         np.testing.assert_array_equal(row, want[0])
         assert rng.random() == ref.random()  # the streams continue alike
+    alone = np.random.default_rng(seeds[0])  # one generator (a single env's reset): the bytes
+    assert sample_each(prior, [alone]).tobytes() == got[:1].tobytes()
+    first = np.random.default_rng(seeds[0])
+    sample_each(prior, [first, np.random.default_rng(0)])
+    assert alone.random() == first.random()  # and the draws
     assert got.shape == (3, 2)

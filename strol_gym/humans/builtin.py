@@ -94,6 +94,27 @@ def _drawn_as_nominal(model: NominalModel) -> Callable[..., None] | None:
 _AS_NOMINAL: dict[type, bool] = {}
 
 
+def drawn_teacher(human: Any, task: Task) -> NominalModel | None:
+    """The model of ``human`` where an env may compute one correction straight from the
+    person's draws, as ``SimulatedHuman.act`` would through ``drawn_corrections``: a
+    ``SimulatedHuman`` (its ``act`` and ``begin`` the adapter's own) of an eq. M6 teacher on
+    ``task`` whose compiled path runs (``_drawn_as_nominal``); else None."""
+    model = getattr(human, "model", None)
+    if (
+        not isinstance(human, SimulatedHuman)
+        or type(human).act is not SimulatedHuman.act
+        or type(human).begin is not SimulatedHuman.begin
+        or not isinstance(model, NominalModel)
+        or type(model).drawn_corrections is not NominalModel.drawn_corrections
+        or not model.needs_theta_hat
+        or model.task is not task
+        or not use_fast()
+        or _drawn_as_nominal(model) is None
+    ):
+        return None
+    return model
+
+
 class BoltzmannModel(HumanModel):
     """A noisily-rational person: P(u) ∝ exp(β θ*·g(x, u, u_R)) over the candidates, then δ.
     Ignores θ̂. Parameters: σ, ε, β (rationality, 0 = uniform), n_candidates."""
@@ -200,4 +221,5 @@ __all__ = [
     "DriverModel",
     "NominalHuman",
     "NominalModel",
+    "drawn_teacher",
 ]

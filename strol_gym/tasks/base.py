@@ -20,6 +20,10 @@ from strol_gym import checks
 from strol_gym.compiled import use_fast
 from strol_gym.priors import Prior
 
+DRAWN_METHODS = ("candidate_actions", "_unit_to_box", "_axis_scale", "a_max", "a_max_l")
+"""What a Task's compiled ``m6_drawn`` computes over again of ``Task``: the candidates and the
+noise's scale (a subclass overriding one of them takes the plain path)."""
+
 
 def _jsonable(value: object) -> object:
     """Arrays and tuples as lists, numpy scalars as Python numbers: for JSON records."""
@@ -172,6 +176,19 @@ class Task(ABC):
         into ``out``, from U (B, K, a) in [0, 1) as ``candidate_actions`` fills them and the
         noise z (B, a): the numbers of ``candidate_actions``, ``m6_choice`` and ``perturb``."""
         return None
+
+    def _drawn_while(
+        self, cls: type, names: Sequence[str], drawn: Callable[..., None]
+    ) -> Callable[..., None] | None:
+        """A Task's ``m6_drawn``: its ``drawn`` while ``names`` (what its kernel repeats)
+        are ``cls``'s and the candidates and the noise's scale ``Task``'s (``DRAWN_METHODS``);
+        asked on every correction, answered once per Task."""
+        ok = self.__dict__.get("_m6_drawn_ok")
+        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
+            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(cls, names) and self._unchanged(
+                Task, DRAWN_METHODS
+            )
+        return drawn if ok else None
 
     def _unchanged(self, cls: type, names: Sequence[str]) -> bool:
         """Whether this Task's ``names`` are ``cls``'s: a subclass that overrides one of them

@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import ClassVar
 
 import numpy as np
@@ -115,6 +115,22 @@ def _slip_angles(steer: np.ndarray) -> np.ndarray:
     beta *= 0.5
     np.arctan(beta, out=beta)
     return beta
+
+
+@functools.cache
+def _phi_kernel() -> Callable[[np.ndarray, np.ndarray], tuple[float, float, float]]:
+    """``m6_kernels.highway_phi``, imported once (φ of one state: the env's every step)."""
+    from strol_gym.tasks.m6_kernels import highway_phi
+
+    return highway_phi
+
+
+@functools.cache
+def _drawn_kernel() -> Callable[..., int]:
+    """``m6_kernels.highway_m6_drawn``, imported once (it loads numba; every correction asks)."""
+    from strol_gym.tasks.m6_kernels import highway_m6_drawn
+
+    return highway_m6_drawn
 
 
 _M6_METHODS = ("g", "g_planes", "_phi", "_step_car", "dynamics")
@@ -196,9 +212,7 @@ class HighwayTask(Task):
             if use_fast() and self._unchanged(HighwayTask, ("_phi",)):
                 # compiled: the operations of ``_phi`` (its sine and cosine the C library's,
                 # as numpy's: what ``highway_m6_kept`` relies on too)
-                from strol_gym.tasks.m6_kernels import highway_phi
-
-                return np.array(highway_phi(x, self._kernel_params))
+                return np.array(_phi_kernel()(x, self._kernel_params))
             # One state (the env's every step) as numpy scalars: scalar arithmetic is the same
             # IEEE operations as on 0-d arrays, and the ufuncs the same loops, at less cost.
             return self._phi(*x)
@@ -286,6 +300,74 @@ class HighwayTask(Task):
             highway_m6_kept(x, u_r, theta_hat, theta_star, candidates, keep, beta, prm, best)
         return best
 
+    def m6_drawn(self) -> Callable[..., None] | None:
+        """``_m6_drawn`` while ``m6_choice`` runs its kernels and the candidates and the noise's
+        scale are ``Task``'s."""
+        return self._drawn_while(HighwayTask, _M6_METHODS, self._m6_drawn)
+
+    def _m6_drawn(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        units: np.ndarray,
+        noise: np.ndarray,
+        sigma: float,
+        bias: float,
+        out: np.ndarray,
+    ) -> None:
+        """``Task.m6_drawn`` by ``m6_kernels.highway_m6_drawn`` for the people its screen settles
+        (nearly all); the others' by ``m6_drawn_left``."""
+        prm = self.m6_drawn_params(sigma, bias)
+        b, k, a = units.shape
+        cand, keep = np.empty((b, k + 1, a)), np.empty((b, k + 1), dtype=np.bool_)
+        steer, best = np.empty(b * (k + 2)), np.empty(b, dtype=np.int64)
+        rows = (x, u_r, theta_hat, theta_star)
+        n = _drawn_kernel()(*rows, units, noise, prm, cand, keep, steer, best, out)
+        if n:
+            self.m6_drawn_left(*rows, noise, prm, cand, keep, steer[:n], best, out)
+
+    def m6_drawn_params(self, sigma: float, bias: float) -> np.ndarray:
+        """What ``highway_m6_drawn`` reads of the Task and the noise, in its order: the search's
+        numbers (``_kernel_params``), σ, ε, the candidates' bound and a_max (once per σ, ε)."""
+        memo = self.__dict__.setdefault("_m6_drawn_memo", {})  # as ``_unchanged``'s
+        prm = memo.get((sigma, bias))
+        if prm is None:
+            prm = memo[sigma, bias] = np.concatenate(
+                [self._kernel_params, [sigma, bias], self._axis_scale, self.a_max]
+            ).astype(np.float64)
+        return prm
+
+    def m6_drawn_left(
+        self,
+        x: np.ndarray,
+        u_r: np.ndarray,
+        theta_hat: np.ndarray,
+        theta_star: np.ndarray,
+        noise: np.ndarray,
+        prm: np.ndarray,
+        cand: np.ndarray,
+        keep: np.ndarray,
+        steer: np.ndarray,
+        best: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        """The people ``highway_m6_drawn`` left to the exact search (``best`` −1): what
+        ``m6_choice`` does after its screen (numpy's steering angles of the packed ``steer``,
+        then ``highway_m6_kept`` among the kept candidates), then their noise by ``perturb``.
+        ``prm`` as ``m6_drawn_params`` gives it."""
+        from strol_gym.humans.choices import perturb
+        from strol_gym.humans.interface import Replayed
+        from strol_gym.tasks.m6_kernels import highway_m6_kept
+
+        left = np.flatnonzero(best < 0)
+        n_prm = len(prm) - 6
+        sigma, bias = float(prm[n_prm]), float(prm[n_prm + 1])
+        beta = _slip_angles(steer)
+        highway_m6_kept(x, u_r, theta_hat, theta_star, cand, keep, beta, prm[:n_prm], best)
+        out[left] = perturb(self, cand[left, best[left]], sigma, bias, Replayed(noise[left]))
+
     @functools.cached_property
     def _kernel_params(self) -> np.ndarray:
         """The numbers the compiled search reads, in its order."""
@@ -320,6 +402,8 @@ class HighwayTask(Task):
     def sample_episode_starts(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """``sample_episode_start(rng, 1)`` for each generator, stacked (a vector env's resets):
         the draws per generator, the arithmetic once on the batch (the same numbers)."""
+        if len(rngs) == 1:  # a single env's reset
+            return self.sample_episode_start(rngs[0], 1)
         return self._episode_start(np.concatenate([rng.uniform(size=(1, 8)) for rng in rngs]))
 
     def _episode_start(self, u: np.ndarray) -> np.ndarray:

@@ -10,6 +10,10 @@ Highway's steering angles β = arctan(½ tan δ) come in computed by numpy. On t
 screen first drops, with polynomials in place of the trigonometry and a proven error bound,
 the candidates that cannot be picked (``highway_m6_screen``); the exact search runs on the rest.
 
+A nominal person's whole correction from their draws (the candidates' scaling, the search and
+the noise) runs as one call where the search allows it: ``robot_m6_drawn``, and
+``highway_m6_drawn`` for the people the Highway's screen settles alone.
+
 Beside the searches: the candidates' scaling (``unit_to_box``) and the Highway's φ of one
 state (``highway_phi``), the same operations as their plain paths in one compiled call each.
 """
@@ -390,6 +394,8 @@ def highway_m6_screen(
     acc_k = np.empty(n_cand)
     steer_k = np.empty(n_cand)
     norm_k = np.empty(n_cand)
+    hb_k = np.empty(n_cand)
+    sin_beta_k = np.empty(n_cand)
     n = 0
     for b in range(cand.shape[0]):
         acc_r, steer_r = u_r[b, 0], u_r[b, 1]
@@ -421,14 +427,19 @@ def highway_m6_screen(
             h0, h1, h2 = th_hat[b, 0], th_hat[b, 1], th_hat[b, 2]
             s0, s1, s2 = th_star[b, 0], th_star[b, 1], th_star[b, 2]
             g0, g1, g2 = f0[0], f0[1], f0[2]
+            # the polynomials first, in a loop of their own: its iterations are short and
+            # independent, so the processor overlaps their long chains of products
+            for k in range(n_cand):
+                beta = _slip_near(steer_k[k])
+                hb_k[k] = h + beta
+                sin_beta_k[k] = _sin_near(beta)
             for k in range(n_cand):
                 d = steer_k[k]
-                beta = _slip_near(d)
-                hb = h + beta
+                hb = hb_k[k]
                 xh = px + v_dt * _cos_near(hb)
                 yh = py + v_dt * _sin_near(hb)
                 vh = v + min(max(acc_k[k], acc_lo), acc_hi) * dt
-                hh = h + _sin_near(beta) * turn
+                hh = h + sin_beta_k[k] * turn
                 vh_sin = vh * _sin_near(hh)
                 behind = ahead[0] - (xh + t * vh * _cos_near(hh))
                 beside = ahead[1] - (yh + t * vh_sin)
@@ -515,3 +526,49 @@ def highway_m6_kept(
             norm = q0 * q0 + q1 * q1 + q2 * q2
             pick, low, stop = _argmin_first(norm, k, pick, low)
         best[b] = pick
+
+
+@compiled
+def highway_m6_drawn(
+    x: np.ndarray,
+    u_r: np.ndarray,
+    th_hat: np.ndarray,
+    th_star: np.ndarray,
+    units: np.ndarray,
+    noise: np.ndarray,
+    prm: np.ndarray,
+    cand: np.ndarray,
+    keep: np.ndarray,
+    steer: np.ndarray,
+    best: np.ndarray,
+    out: np.ndarray,
+) -> int:
+    """A nominal person's whole correction on ``HighwayTask`` from their draws, where the screen
+    settles eq. M6 alone: the candidates from the uniform draws ``units`` (B, K, 2) as
+    ``Task._unit_to_box`` scales them (zero first) into ``cand`` (B, K + 1, 2), the screen of
+    ``highway_m6_screen`` and, for each person it settles (``best[b]`` >= 0), the noise
+    ``perturb`` adds, (u + ε a) + (σ a) z, into ``out`` (B, 2). The other people get
+    ``best[b]`` = −1 and are left to the exact search (``highway_m6_kept``, with the screen's
+    ``keep`` (B, K + 1) and ``steer`` (B (K + 2)) as ``highway_m6_screen`` fills them). Returns
+    how many steering angles it packed (0: everyone settled). ``prm``:
+    ``HighwayTask._kernel_params``, then σ, ε, the candidates' bound per axis and a_max."""
+    n_prm = prm.shape[0] - 6
+    sigma, bias = prm[n_prm], prm[n_prm + 1]
+    scale, a_max = prm[n_prm + 2 : n_prm + 4], prm[n_prm + 4 : n_prm + 6]
+    b_count, k_count = units.shape[0], units.shape[1]
+    for b in range(b_count):
+        for c in range(2):
+            cand[b, 0, c] = 0.0
+        for k in range(k_count):
+            for c in range(2):
+                v = units[b, k, c] * 2.0
+                v = v + -1.0
+                cand[b, k + 1, c] = v * scale[c]
+    n = highway_m6_screen(x, u_r, th_hat, th_star, cand, prm[:n_prm], keep, steer, best)
+    for b in range(b_count):
+        pick = best[b]
+        if pick < 0:
+            continue
+        for c in range(2):
+            out[b, c] = (cand[b, pick, c] + bias * a_max[c]) + (sigma * a_max[c]) * noise[b, c]
+    return n

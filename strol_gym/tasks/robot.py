@@ -49,10 +49,6 @@ def _drawn_kernel() -> Callable[..., None]:
     return robot_m6_drawn
 
 
-_DRAWN = ("candidate_actions", "_unit_to_box", "_axis_scale", "a_max", "a_max_l")
-"""What ``robot_m6_drawn`` computes over again of ``Task``: the candidates and the noise's scale."""
-
-
 def _m6_layout(x: np.ndarray, u_h: np.ndarray, u_r: np.ndarray) -> bool:
     """x and u_R (B, 1, 3) with K candidate u_H (B, K, 3): eq. M6's layout."""
     if not x.ndim == u_h.ndim == u_r.ndim == 3:
@@ -286,12 +282,7 @@ class RobotTask(Task):
     def m6_drawn(self) -> Callable[..., None] | None:
         """``_m6_drawn`` while ``m6_choice`` runs its kernel and the candidates and the noise's
         scale are ``Task``'s."""
-        ok = self.__dict__.get("_m6_drawn_ok")  # asked on every correction: answered once
-        if ok is None:  # (a frozen dataclass: as ``_unchanged``, into the instance dict)
-            ok = self.__dict__["_m6_drawn_ok"] = self._unchanged(
-                RobotTask, _M6_METHODS
-            ) and self._unchanged(Task, _DRAWN)
-        return self._m6_drawn if ok else None
+        return self._drawn_while(RobotTask, _M6_METHODS, self._m6_drawn)
 
     def _m6_drawn(
         self,

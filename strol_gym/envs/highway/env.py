@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from typing import Any, ClassVar
 
@@ -13,11 +14,20 @@ from highway_env.road.road import Road, RoadNetwork
 from highway_env.vehicle.graphics import VehicleGraphics
 from highway_env.vehicle.kinematics import Vehicle
 
-from strol_gym.envs.contract import CorrectionEnv, render_metadata
+from strol_gym.compiled import use_fast
+from strol_gym.envs.contract import CorrectionEnv, correcting, render_metadata
 from strol_gym.envs.highway.road import Car, LaneLookup
-from strol_gym.tasks.highway import N_LANES, HighwayTask
+from strol_gym.humans.builtin import drawn_teacher
+from strol_gym.tasks.highway import N_LANES, HighwayTask, _drawn_kernel
 
 ROAD_LENGTH = 10_000.0  # m; an episode covers well under 1 km
+
+
+def _row(a: Any, n: int) -> bool:
+    """Whether ``a`` is n contiguous float64 numbers (what the compiled correction reads)."""
+    return (
+        type(a) is np.ndarray and a.dtype == np.float64 and a.shape == (n,) and a.flags.c_contiguous
+    )
 
 
 class HumanVehicle(Car):
@@ -202,8 +212,9 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
 
     def _advance(self, u_h: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         robot, human = self._cars()
-        human.act({"acceleration": float(u_h[0]), "steering": float(u_h[1])})
-        robot.act({"acceleration": float(u_r[0]), "steering": float(u_r[1])})
+        (h_acc, h_steer), (r_acc, r_steer) = u_h.tolist(), u_r.tolist()
+        human.act({"acceleration": h_acc, "steering": h_steer})
+        robot.act({"acceleration": r_acc, "steering": r_steer})
         self.road.step(self.task.dt)
         self.time += self.task.dt
         return self._read_state(), {"crashed": self._is_terminated()}
@@ -211,15 +222,89 @@ class HighwayEnv(CorrectionEnv, AbstractEnv):
     def _terminated(self) -> bool:
         return self._is_terminated()
 
+    def _human_correction(self, x: np.ndarray, u_r: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The contract's; for an eq. M6 teacher (``drawn_teacher``) the draws go straight
+        into the compiled correction (``HighwayTask.m6_drawn``'s kernel) through buffers kept
+        per person: the draws, numbers and checks of ``SimulatedHuman.act`` and the
+        contract's, without their per-call arrays and look-ups."""
+        human: Any = self.human  # a SimulatedHuman wherever ``_teacher`` finds a teacher
+        if human is None or not correcting(self.steps, self.n_corrections):
+            return super()._human_correction(x, u_r)
+        teach = self.__dict__.get("_teach")
+        if teach is None or teach[0] is not human:  # asked once per episode's person
+            teach = self._teach = (human, self._teacher(human))
+        found, th = teach[1], self.theta_hat
+        if found is None or not use_fast() or not (_row(th, 3) and _row(x, 8) and _row(u_r, 2)):
+            return super()._human_correction(x, u_r)
+        model, kernel, units, noise, cand, keep, steer, best = found
+        human.begin()
+        theta_star = np.ascontiguousarray(human.theta_star, dtype=np.float64)
+        human.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
+        human.rng.standard_normal(out=noise)
+        prm = self.task.m6_drawn_params(model.sigma, model.bias)
+        out = np.empty((1, 2))
+        rows = (x[None], u_r[None], th[None], theta_star[None])
+        n = kernel(*rows, units, noise, prm, cand, keep, steer, best, out)
+        if n:  # the screen left the choice open: the exact search
+            self.task.m6_drawn_left(*rows, noise, prm, cand, keep, steer[:n], best, out)
+        u_h = out[0]
+        if not all(map(math.isfinite, u_h.tolist())):
+            raise ValueError(f"the human's correction must be 2 finite numbers, got {u_h}")
+        return u_h, True
+
+    def _teacher(self, human: Any) -> tuple | None:
+        """(the teacher's model, the compiled correction, buffers for its uniform and normal
+        draws, the candidates, the screen's marks and steering angles, and the picks) where
+        ``human`` is an eq. M6 teacher of this env's Task; else None."""
+        model = drawn_teacher(human, self.task)
+        if model is None or self.task.m6_drawn() is None:
+            return None
+        k = model.n_candidates
+        return (
+            model,
+            _drawn_kernel(),
+            np.empty((1, k, 2)),
+            np.empty((1, 2)),
+            np.empty((1, k + 1, 2)),
+            np.empty((1, k + 1), dtype=np.bool_),
+            np.empty(k + 2),
+            np.empty(1, dtype=np.int64),
+        )
+
     def _build_scene(self, x0: np.ndarray) -> None:
+        """highway-env's road with the two cars at x0. After the first episode the road and the
+        cars are reset in place (``Car.restart``: what building them sets, at a fraction of
+        the cost), unless something replaced them."""
+        xr0, yr0, vr, hr, xh0, yh0, vh, hh = x0.tolist()
+        road: Any = self.__dict__.get("road")
+        robot, human = self.robot_vehicle, self.human_vehicle
+        if (
+            type(road) is Road
+            and type(robot) is Car
+            and type(human) is HumanVehicle
+            and robot.reusable(road)
+            and human.reusable(road)
+            and road.network is self._network
+            and road.vehicles == [robot, human]
+            and not road.objects
+        ):
+            road.np_random = self.np_random
+            road.record_history = self.config["show_trajectories"]
+            road.neighbour_vehicles_connected_lanes = False
+            robot.restart([xr0, yr0], hr, vr)
+            human.restart([xh0, yh0], hh, vh)
+            robot.color, human.color = VehicleGraphics.EGO_COLOR, VehicleGraphics.BLUE
+            road.vehicles = [robot, human]
+            self.controlled_vehicles = [robot]
+            return
         self.road = Road(
             network=self._network,
             np_random=self.np_random,
             record_history=self.config["show_trajectories"],
         )
-        robot = Car(self.road, x0[0:2], heading=float(x0[3]), speed=float(x0[2]))
+        robot = Car(self.road, x0[0:2], heading=hr, speed=vr)
         robot.color = VehicleGraphics.EGO_COLOR
-        human = HumanVehicle(self.road, x0[4:6], heading=float(x0[7]), speed=float(x0[6]))
+        human = HumanVehicle(self.road, x0[4:6], heading=hh, speed=vh)
         human.color = VehicleGraphics.BLUE
         self.road.vehicles = [robot, human]
         self.controlled_vehicles = [robot]

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from highway_env.road.lane import StraightLane
-from highway_env.road.road import LaneIndex, RoadNetwork
+from highway_env.road.road import LaneIndex, Road, RoadNetwork
 from highway_env.vehicle.kinematics import Vehicle
 
 _Lane = tuple[Any, float, float, float, float, float, float, float, float]
@@ -47,7 +47,11 @@ class LaneLookup(RoadNetwork):
         ):
             return super().get_closest_lane_index(position, heading)
         p0, p1 = position.tolist()
-        h = float(heading)
+        return self.closest_lane(lanes, p0, p1, float(heading))
+
+    @staticmethod
+    def closest_lane(lanes: list[_Lane], p0: float, p1: float, h: float) -> LaneIndex:
+        """The closest of ``lanes`` (``_plain_lanes``) to the position (p0, p1) at heading h."""
         best, low = None, math.inf
         for index, s0, s1, x0, x1, y0, y1, length, lane_heading in lanes:
             # StraightLane.local_coordinates and distance_with_heading (weight 1), op for op
@@ -158,6 +162,38 @@ class Car(Vehicle):
             v * math.cos(h) - w * math.cos(g), v * math.sin(h) - w * math.sin(g)
         ) * abs(dt)
 
+    def restart(self, position: list[float], heading: float, speed: float) -> None:
+        """This car as ``Car(self.road, position, heading, speed)`` builds it (a new episode on
+        the same road), in place: every attribute highway-env's constructors set, with the
+        values they set; the position array and the history keep their objects (zeroed and
+        emptied). What a constructor computes from constants (``diagonal``) stays; the position
+        must be the float64 pair a constructor makes (``reusable``)."""
+        self.position[0], self.position[1] = position
+        self.prediction_type = "constant_steering"  # the constructors' default
+        self.heading = heading
+        self.speed = speed
+        network = self.road.network
+        self.lane_index = network.get_closest_lane_index(self.position, heading)
+        self.lane = network.get_lane(self.lane_index)
+        self.collidable = self.solid = self.check_collisions = True
+        self.crashed = self.hit = False
+        self.impact = None
+        self.action = {"steering": 0, "acceleration": 0}
+        log: list[Any] = []  # a new list, as the constructor's
+        self.log = log
+        self.history.clear()
+
+    def reusable(self, road: Any) -> bool:
+        """Whether ``restart`` can stand for building this car anew on ``road``: its own class
+        on that road, its position still a float64 pair."""
+        position = self.position
+        return (
+            self.road is road
+            and type(position) is np.ndarray
+            and position.dtype == np.float64
+            and position.shape == (2,)
+        )
+
     def step(self, dt: float) -> None:
         """highway-env's ``Vehicle.step``, op for op in plain floats (its sine and cosine are the
         C library's, as numpy's float64 ones; the steering angle β = arctan(½ tan δ) by numpy,
@@ -178,8 +214,23 @@ class Car(Vehicle):
         speed, heading = self.speed, self.heading
         p0, p1 = position.tolist()
         angle = float(heading + beta)
-        position[0] = p0 + speed * math.cos(angle) * dt
-        position[1] = p1 + speed * math.sin(angle) * dt
-        self.heading = heading + speed * math.sin(beta) / (self.LENGTH / 2) * dt
+        p0, p1 = position[0], position[1] = (
+            p0 + speed * math.cos(angle) * dt,
+            p1 + speed * math.sin(angle) * dt,
+        )
+        self.heading = heading = heading + speed * math.sin(beta) / (self.LENGTH / 2) * dt
         self.speed = speed + action["acceleration"] * dt
-        self.on_state_update()
+        road = self.road
+        network = road.network if type(road) is Road else None
+        if type(network) is not LaneLookup:
+            self.on_state_update()
+            return
+        lanes = network.__dict__.get("_lanes")
+        if not lanes or type(self).on_state_update is not Vehicle.on_state_update:
+            self.on_state_update()
+            return
+        # ``Vehicle.on_state_update``: the lane looked up from the numbers just computed
+        self.lane_index = LaneLookup.closest_lane(lanes, p0, p1, float(heading))
+        self.lane = network.get_lane(self.lane_index)
+        if road.record_history:
+            self.history.appendleft(self.create_from(self))

@@ -16,7 +16,7 @@ from strol_gym.envs.panda.ik import IK_ITERS, IK_TOL, PandaIK, move_arm
 from strol_gym.envs.panda.model import N_ARM, Q_HOME, MujocoRendering
 from strol_gym.envs.robot.scene import TABLE_TOP, build_model
 from strol_gym.envs.robot.seeds import seed_table
-from strol_gym.humans.builtin import NominalModel, _drawn_as_nominal
+from strol_gym.humans.builtin import drawn_teacher
 from strol_gym.humans.interface import SimulatedHuman
 from strol_gym.tasks.robot import RobotTask
 
@@ -362,17 +362,8 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         """(``robot_step``'s parameters with this person's σ and ε, a buffer for their uniform
         draws) where ``human`` is an eq. M6 teacher whose correction ``robot_step`` repeats
         (``NominalModel.drawn_corrections`` would run its compiled path); else None."""
-        model = getattr(human, "model", None)
-        if (
-            not isinstance(human, SimulatedHuman)
-            or type(human).act is not SimulatedHuman.act
-            or type(human).begin is not SimulatedHuman.begin
-            or not isinstance(model, NominalModel)
-            or type(model).drawn_corrections is not NominalModel.drawn_corrections
-            or not model.needs_theta_hat
-            or model.task is not self.task
-            or _drawn_as_nominal(model) is None
-        ):
+        model = drawn_teacher(human, self.task)
+        if model is None:
             return None
         from strol_gym.envs.robot import step_kernel as sk
 
