@@ -115,6 +115,15 @@ def finite(name: str, *, low: float | None = None) -> Callable[[str], float]:
     return checks.cli_type(lambda text: float(checks.number(name, text, low=low, text=True)))
 
 
+def unit_open(name: str) -> Callable[[str], float]:
+    """An argparse type: a number strictly between 0 and 1 (a level or share)."""
+    return checks.cli_type(
+        lambda text: float(
+            checks.number(name, text, low=0.0, high=1.0, low_open=True, high_open=True, text=True)
+        )
+    )
+
+
 def json_object(name: str):
     """An argparse type: a JSON object (keyword arguments), else an error naming ``name``."""
 

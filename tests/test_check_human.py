@@ -15,8 +15,11 @@ from strol_gym.benchmarks.sessions.check_human import (
     StudyPopulation,
     by_task,
     joint_band,
+    judge,
     logged_plan,
+    min_draws,
     nearest_states,
+    person_from,
     reacting_sessions,
     read_sessions,
     statistics,
@@ -48,6 +51,35 @@ def test_joint_band_holds_its_level():
     assert ((fresh < marginal[:, 0]) | (fresh > marginal[:, 1])).any(axis=1).mean() > 0.15
 
 
+def test_a_real_value_like_the_replicates_fails_at_most_5_percent_of_the_time():
+    """Exact, whatever the values: of a pool of 220 exchangeable rows, each taken in turn as
+    the real value against the other 219, at most ⌊0.05·220⌋ = 11 fail some check. (Ranking
+    the real value among the replicates alone while each replicate counts itself failed 20:
+    near γ's floor the real value needed one more replicate beyond it.)"""
+    pool = np.random.default_rng(0).standard_normal((220, 5))
+    failed = 0
+    for i in range(len(pool)):
+        gamma, bands, p = judge(np.delete(pool, i, axis=0), pool[i])
+        failed += bool((p < gamma).any())
+        inside = (pool[i] >= bands[:, 0]) & (pool[i] <= bands[:, 1])
+        assert np.array_equal(inside, p >= gamma)  # the band says what p says
+    assert 0 < failed <= 11
+
+
+def test_min_draws_lets_a_value_beyond_every_replicate_fail():
+    assert (min_draws(27), min_draws(15), min_draws(15, 0.8)) == (1079, 599, 149)
+    for s in (min_draws(5), 260):
+        reps = np.random.default_rng(1).standard_normal((s, 5))
+        real = np.median(reps, axis=0)
+        real[2] = reps[:, 2].max() + 1.0
+        gamma, _, p = judge(reps, real)
+        assert p[2] < gamma and (np.delete(p, 2) >= gamma).all()
+
+
+def test_person_from_a_class_builds_one():
+    assert isinstance(person_from(f"{StudyPopulation.__module__}:StudyPopulation"), StudyPopulation)
+
+
 def test_two_sided_p():
     d = np.arange(100.0)
     assert two_sided_p(d, 49.5)[0] == pytest.approx(1.0)
@@ -67,7 +99,7 @@ def test_real_statistics_count_by_learner(logs):
 def test_check_human_writes_report_figure_and_replicates(logs, tmp_path, capsys):
     out = tmp_path / "out"
     argv = ["check-human", str(logs), "--human", "fitted-aimed", "--out", str(out)]
-    assert cli.main([*argv, "--draws", "40", "--keep", "2"]) == 0
+    assert cli.main([*argv, "--draws", "40", "--level", "0.2", "--keep", "2"]) == 0
     assert "check-human: fitted-aimed" in capsys.readouterr().out
     report = json.loads((out / "report.json").read_text())
     assert len(report["checks"]) == 3 * len(STATISTICS)
@@ -76,6 +108,7 @@ def test_check_human_writes_report_figure_and_replicates(logs, tmp_path, capsys)
     sized = [c for c in report["checks"] if c["statistic"] == "size_median"]
     assert all(isinstance(c["pass"], bool) and len(c["band"]) == 2 for c in sized)
     assert report["band"]["checks"] == 3 * 5
+    assert report["band"]["level"] == 0.2 and report["band"]["min_draws"] == 37
     assert (out / "check.png").stat().st_size > 0 and (out / "report.md").exists()
     # the kept replicate's logs give back its statistics
     again = by_task(read_sessions(out / "sessions" / "draw_001"))
@@ -87,7 +120,7 @@ def test_check_human_writes_report_figure_and_replicates(logs, tmp_path, capsys)
     # same seed, same report
     out2 = tmp_path / "out2"
     argv2 = ["check-human", str(logs), "--human", "fitted-aimed", "--out", str(out2)]
-    assert cli.main([*argv2, "--draws", "40", "--keep", "0", "--no-plots"]) == 0
+    assert cli.main([*argv2, "--draws", "40", "--level", "0.2", "--keep", "0", "--no-plots"]) == 0
     assert json.loads((out2 / "report.json").read_text())["checks"] == report["checks"]
 
 
@@ -104,8 +137,8 @@ def test_nearest_states_pairs_a_simulated_time_with_the_logged_state_there():
 
 def test_population_simulates_the_counts(logs, tmp_path):
     out = tmp_path / "pop"
-    argv = ["check-human", str(logs), "--population", "--out", str(out), "--draws", "30"]
-    assert cli.main([*argv, "--keep", "1", "--no-plots"]) == 0
+    argv = ["check-human", str(logs), "--population", "--out", str(out), "--draws", "70"]
+    assert cli.main([*argv, "--level", "0.2", "--keep", "1", "--no-plots"]) == 0
     report = json.loads((out / "report.json").read_text())
     counts = [c for c in report["checks"] if c["statistic"].startswith("count_")]
     assert all(isinstance(c["pass"], bool) for c in counts)
@@ -147,13 +180,14 @@ def test_population_reuses_its_aims_and_plans_bit_for_bit(logs):
         (["--human", "no-such-person"], "no-such-person"),
         (["--human", "nominal"], "θ̂"),
         (["--human", "fitted-aimed", "--draws", "5"], "--draws"),
+        (["--human", "fitted-aimed", "--draws", "100"], "at least 599"),
+        (["--human", "fitted-aimed", "--level", "1"], "--level"),
         (["--human", "fitted-aimed", "--human-kwargs", "[1]"], "--human-kwargs"),
         (["--human", "fitted-aimed", "--human-kwargs", '{"nope": 1}'], "nope"),
         (["--person", "math:pi"], "--person"),
     ],
 )
 def test_bad_input_exits_2_naming_it(logs, tmp_path, capsys, extra, needle):
-    argv = ["check-human", str(logs), "--out", str(tmp_path / "x"), "--draws", "20", *extra]
-    if "--draws" in extra[2:]:
-        argv = ["check-human", str(logs), "--out", str(tmp_path / "x"), *extra]
+    argv = ["check-human", str(logs), "--out", str(tmp_path / "x"), *extra]
+    argv += [] if "--draws" in extra or "--level" in extra else ["--draws", "40", "--level", "0.2"]
     assert needle in cli_error(argv, capsys)

@@ -14,12 +14,15 @@ per study Task each :data:`STATISTICS` entry is computed on the replicate as on 
   median and the share above 90°;
 - ``raised``: the share of corrections with θ*·g(x, u_H, u_R) > 0.
 
-**The band is joint.** A check passes when the real value lies in the replicates' band; the
-bands' level is set so that a replicate of the person itself falls outside *any* of them in 5 %
-of the replicates (the min-p rule: each replicate's smallest two-sided rank p-value over all
-the checks; their 5 % quantile γ is the per-check level, which is Bonferroni's 0.05 / J made
-exact for the checks' dependence). So a person that is right fails none by chance 95 % of the
-time (:func:`joint_band`).
+**The band is joint.** A check passes when the real value lies in its band; the bands' level
+is set so that a person that is right fails *any* check in at most 5 % of runs (:func:`judge`,
+the min-p rule made exact): the real value is ranked as one more replicate, each of the S + 1
+values gets its two-sided rank p-value per check among all S + 1 (itself counted) and its
+smallest over the checks, and γ, the per-check level, is the (⌊0.05·(S + 1)⌋ + 1)-th smallest of
+those (Bonferroni's 0.05 / J made exact for the checks' dependence). The real value fails a
+check when its p there is below γ, which at most ⌊0.05·(S + 1)⌋ of the S + 1 exchangeable values
+do, whichever of them is the real one. ``--draws`` must be at least :func:`min_draws` (2·J/0.05
+− 1 for J checks), so that a real value beyond every replicate can fail.
 
 **Who simulates.** A :class:`Person` turns the real sessions of one Task into simulated ones:
 
@@ -78,7 +81,9 @@ STATISTICS = (
 COUNTS = tuple(s for s in STATISTICS if s.startswith("count_"))
 WHEN = ("when_median",)
 LEVEL = 0.95
-"""The joint band's level: a right person fails no check in this share of replicates."""
+"""The joint band's level: a right person fails no check in at least this share of runs."""
+DRAWS = 2000
+"""The replicates by default: twice :func:`min_draws` for the population's 27 checks."""
 MAX_DRAWS = 100_000
 MAX_KEEP = 1_000
 MAX_LOGS = 10_000
@@ -459,7 +464,7 @@ def person_from(spec: str) -> Person:
     from strol_gym.registry import import_spec
 
     obj = import_spec(spec, "--person")
-    if callable(obj) and not isinstance(obj, Person):
+    if isinstance(obj, type) or (callable(obj) and not isinstance(obj, Person)):
         try:
             obj = obj()
         except TypeError as e:
@@ -486,21 +491,64 @@ def two_sided_p(draws: np.ndarray, value: float | np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(v), p, np.nan)
 
 
-def joint_band(draws: np.ndarray, level: float = LEVEL) -> tuple[float, np.ndarray]:
-    """γ and the bands (J, 2) of replicates ``draws`` (S, J): γ the (1 − level) quantile over
-    replicates of their smallest p-value over the J checks (:func:`two_sided_p`, each against
-    the replicates), and check j's band the range of its replicates whose p is at least γ. A
-    replicate lies inside every band with probability ≈ ``level``."""
-    j = draws.shape[1]
-    p = np.column_stack([two_sided_p(draws[:, k], draws[:, k]) for k in range(j)])
-    worst = np.nanmin(np.where(np.isnan(p), np.inf, p), axis=1)
-    gamma = float(np.quantile(worst, 1.0 - level, method="lower"))
+def joint_band(pool: np.ndarray, level: float = LEVEL) -> tuple[float, np.ndarray]:
+    """γ and the bands (J, 2) of a ``pool`` (n, J) of exchangeable rows (the replicates and the
+    real value, :func:`judge`): each row's smallest two-sided rank p-value over the J checks
+    (:func:`two_sided_p` of the row among the pool, itself counted), and γ the
+    (⌊(1 − level)·n⌋ + 1)-th smallest of those; check j's band is the range of its values whose
+    p is at least γ. A row fails some check (p < γ) only if its smallest p is among the
+    ⌊(1 − level)·n⌋ smallest: whichever row is the real one, at most that many of the n fail,
+    so a real value exchangeable with the replicates fails any check with probability at most
+    1 − level."""
+    n, j = pool.shape
+    p = np.column_stack([two_sided_p(pool[:, k], pool[:, k]) for k in range(j)])
+    worst = np.sort(np.nanmin(np.where(np.isnan(p), np.inf, p), axis=1))
+    gamma = float(worst[min(_tail(n, level), n - 1)])
     bands = np.full((j, 2), np.nan)
     for k in range(j):
-        keep = draws[:, k][(p[:, k] >= gamma) & np.isfinite(draws[:, k])]
+        keep = pool[:, k][(p[:, k] >= gamma) & np.isfinite(pool[:, k])]
         if len(keep):
             bands[k] = keep.min(), keep.max()
     return gamma, bands
+
+
+def _tail(n: int, level: float) -> int:
+    """⌊(1 − level)·n⌋, the rows of a pool of n the band may fail (rounding's error aside)."""
+    return math.floor((1.0 - level) * n + 1e-9)
+
+
+def judge(
+    replicates: np.ndarray, real: np.ndarray, level: float = LEVEL
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """(γ, bands (J, 2), the real value's p per check) of ``real`` (J,) against ``replicates``
+    (S, J): the real value is ranked as one more replicate and the band is set on all S + 1
+    (:func:`joint_band`), so the real value and each replicate are judged alike. Check j passes
+    when p[j] ≥ γ (the real value lies in its band); a NaN real value fails."""
+    pool = np.vstack([replicates, np.asarray(real, dtype=np.float64)[None, :]])
+    gamma, bands = joint_band(pool, level)
+    p = np.array([two_sided_p(pool[:, k], pool[-1, k])[0] for k in range(pool.shape[1])])
+    return gamma, bands, p
+
+
+def min_draws(checks: int, level: float = LEVEL) -> int:
+    """The fewest replicates S with which a real value beyond every replicate of a check can
+    fail it: its p is then the smallest, 2/(S + 1), which at most 2 of the pool's values per
+    check share, so the pool's tail ⌊(1 − level)·(S + 1)⌋ must hold 2·checks of them."""
+    s = max(math.ceil(2 * checks / (1.0 - level)) - 3, 1)
+    while _tail(s + 1, level) < 2 * checks:
+        s += 1
+    return s
+
+
+def check_draws(draws: int, checks: int, level: float = LEVEL) -> None:
+    """ValueError naming ``--draws`` and its minimum when ``draws`` replicates are too few for
+    a joint band at ``level`` over ``checks`` checks (:func:`min_draws`)."""
+    need = min_draws(checks, level)
+    if draws < need:
+        raise ValueError(
+            f"--draws {draws} is too few for a joint {level:.0%} band over {checks} checks: at "
+            f"least {need} (with fewer, a real value beyond every replicate could not fail)"
+        )
 
 
 # ---------------------------------------------------------------------------- the check
@@ -551,13 +599,16 @@ def run_check(
     keep: int = 0,
     out: Path | None = None,
     values_out: dict[tuple[int, str], np.ndarray] | None = None,
+    level: float = LEVEL,
 ) -> dict[str, Any]:
     """The report (module docstring) of ``person`` against the ``real`` sessions: ``draws``
     replicates from ``seed``; the first ``keep`` written under ``out/sessions``; each
-    simulated check's replicate values into ``values_out`` (for the figure)."""
+    simulated check's replicate values into ``values_out`` (for the figure); the bands joint
+    at ``level``."""
     tasks = by_task(real)
     real_stats = {t: statistics(ss) for t, ss in tasks.items()}
     cols = [(t, k) for t in tasks for k in STATISTICS if not simulated(person, k)]
+    check_draws(draws, len(cols), level)
     values = np.full((draws, len(cols)), np.nan)
     kept: list[dict[str, dict[str, float]]] = []
     rng = np.random.default_rng(seed)
@@ -575,7 +626,7 @@ def run_check(
             kept.append(row)
     if values_out is not None:
         values_out.update({col: values[:, j] for j, col in enumerate(cols)})
-    gamma, bands = joint_band(values) if draws else (math.nan, np.full((len(cols), 2), np.nan))
+    gamma, bands, ps = judge(values, np.array([real_stats[t][k] for t, k in cols]), level)
     checks: list[Check] = []
     for t in tasks:
         for k in STATISTICS:
@@ -587,7 +638,7 @@ def run_check(
             j = cols.index((t, k))
             col = values[:, j]
             med = float(np.nanmedian(col)) if np.isfinite(col).any() else math.nan
-            p = float(two_sided_p(col, r)[0])
+            p = float(ps[j])
             band = (float(bands[j, 0]), float(bands[j, 1]))
             ok = bool(math.isfinite(p) and p >= gamma)
             checks.append(Check(t, k, r, med, band, p, ok))
@@ -597,13 +648,16 @@ def run_check(
         "draws": draws,
         "seed": seed,
         "band": {
-            "level": LEVEL,
+            "level": level,
             "checks": j_checks,
             "gamma": _num(gamma),
-            "bonferroni_gamma": (1.0 - LEVEL) / j_checks if j_checks else None,
-            "rule": "joint (min-p): a check passes when its two-sided rank p-value among the "
-            "replicates is at least gamma, the 5 % quantile over replicates of their smallest "
-            "p-value over all checks",
+            "bonferroni_gamma": (1.0 - level) / j_checks if j_checks else None,
+            "min_draws": min_draws(j_checks, level),
+            "rule": "joint (min-p), the real value ranked as one more replicate: each of the "
+            "S + 1 values' two-sided rank p-value per check among all S + 1, itself counted; "
+            "gamma the (floor((1 - level)(S + 1)) + 1)-th smallest of their smallest p over "
+            "all checks; a check passes when the real value's p is at least gamma (at most "
+            "1 - level of exchangeable values fail any)",
         },
         "checks": [c.to_json() for c in checks],
         "failed": sum(1 for c in checks if c.passed is False),
@@ -731,7 +785,9 @@ def plot(path: Path, report: dict[str, Any], values: dict[tuple[int, str], np.nd
         if c["statistic"] == STATISTICS[0]:
             ax.set_ylabel(f"Task {c['task']}", fontsize=8)
     fig.suptitle(
-        f"check-human: {report['person']} (grey: replicates; band: joint 95 %)", fontsize=9
+        f"check-human: {report['person']} (grey: replicates; band: joint "
+        f"{report['band']['level']:.0%})",
+        fontsize=9,
     )
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -742,17 +798,18 @@ def check_human(
     logs: str | Path,
     person: Person,
     out: str | Path,
-    draws: int = 1000,
+    draws: int = DRAWS,
     seed: int = 0,
     keep: int = 10,
     plots: bool = True,
+    level: float = LEVEL,
 ) -> dict[str, Any]:
     """Run the check and write OUT/report.json, report.md, check.png and the kept replicates."""
     real = read_sessions(logs)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     values: dict[tuple[int, str], np.ndarray] = {}
-    report = run_check(real, person, draws, seed, keep, out, values)
+    report = run_check(real, person, draws, seed, keep, out, values, level)
     (out / "report.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     (out / "report.md").write_text(markdown(report), encoding="utf-8")
     if plots:
@@ -772,6 +829,8 @@ __all__ = [
     "check_human",
     "command",
     "joint_band",
+    "judge",
+    "min_draws",
     "person_from",
     "read_sessions",
     "run_check",
@@ -781,7 +840,7 @@ __all__ = [
 
 
 def add_parser(sub: Any) -> None:
-    from strol_gym.benchmarks.args import plugin_option, positive_int
+    from strol_gym.benchmarks.args import plugin_option, positive_int, unit_open
 
     p = sub.add_parser(
         "check-human",
@@ -792,7 +851,7 @@ def add_parser(sub: Any) -> None:
         "per study Task: corrections per session by learner, when they start along the path, "
         "the median size and share below 0.7 a_max, the median angle to θ*'s steepest ascent "
         "and share above 90°, the share raising θ*·φ. Each check passes when the real value "
-        "lies in the replicates' band, the bands joint at 95 %% over all checks. Writes "
+        "lies in the replicates' band, the bands joint at --level (95 %%) over all checks. Writes "
         "OUT/report.json, report.md, check.png and the first --keep replicates as session logs.",
     )
     p.add_argument("logs", metavar="LOGS", help="a folder of real session logs (import-study's)")
@@ -807,7 +866,20 @@ def add_parser(sub: Any) -> None:
     p.add_argument("--bias", type=float, default=None, help="the human's ε (units of a_max)")
     p.add_argument("--beta", type=float, default=None, help="the human's β")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--draws", type=positive_int("--draws", MAX_DRAWS, low=20), default=1000)
+    p.add_argument(
+        "--draws",
+        type=positive_int("--draws", MAX_DRAWS, low=20),
+        default=DRAWS,
+        help=f"replicates ({DRAWS}; at least 2·J/(1 − level) − 1 for J checks: at 0.95, 1079 "
+        "for 27, 599 for 15)",
+    )
+    p.add_argument(
+        "--level",
+        type=unit_open("--level"),
+        default=LEVEL,
+        help="the joint band's level: a right person fails no check in at least this share "
+        f"of runs ({LEVEL})",
+    )
     p.add_argument("--keep", type=positive_int("--keep", MAX_KEEP, low=0), default=10)
     p.add_argument("--seed", type=positive_int("--seed", low=0), default=0)
     p.add_argument("--no-plots", action="store_true")
@@ -837,7 +909,14 @@ def command(args: Any, parser: Any) -> int:
     try:
         person = person_of(args)
         report = check_human(
-            args.logs, person, args.out, args.draws, args.seed, args.keep, not args.no_plots
+            args.logs,
+            person,
+            args.out,
+            args.draws,
+            args.seed,
+            args.keep,
+            not args.no_plots,
+            args.level,
         )
     except ValueError as e:
         parser.error(str(e))

@@ -1,15 +1,17 @@
 """How often does ``strol-bench check-human`` fail a person that is right?
 
-A person is checked against replicates of itself: ``--reference`` replicates set the joint band
-(``check_human.joint_band``) as the check does, and each of ``--fresh`` further replicates of the
-same person is checked against it as if it were the real people. The share of fresh replicates
-failing at least one check is the band's family-wise error (its target: 1 − LEVEL = 5 %), with
-its Wilson 95 % interval; per check, the share failing it. Two ways of ranking the checked value
-among the reference: as ``two_sided_p`` does (the value's share among the
-replicates), and counting the value itself as a replicate's p-value counts it (2·min(#≤ + 1,
-#≥ + 1)/(S + 1)).
+A person is checked against replicates of itself: of N replicates, each in turn is judged as if
+it were the real people against a band from the S replicates that follow it (cyclically, so
+the reference differs from one judged replicate to the next and never holds it). The share
+failing at least one check is the band's family-wise error (its target: 1 − level = 5 %), with
+its Wilson 95 % interval (the N judgements share references, so the interval is a guide); per
+check, the share failing it. Two rules: ``judge`` (the check's: the judged value ranked as one
+more replicate, γ set on all S + 1) and ``old`` (γ set on the S replicates, each counting
+itself, the judged value's p among them without itself: the rule before, which fails about
+twice as often when γ is a few multiples of 2/S).
 
-    python -m lab.checks.check_human_calibration LOGS --population --reference 1000 --fresh 1000
+    python -m lab.checks.check_human_calibration LOGS --population --draws 4000 --save V.npz
+    python -m lab.checks.check_human_calibration --values V.npz --reference 1079,2000
 
 LOGS: ``strol-bench import-study DATA --out LOGS --theta0 implied --authors-ghat GDIR``.
 """
@@ -23,24 +25,31 @@ from typing import Any
 import numpy as np
 
 from strol_gym.benchmarks.sessions.check_human import (
+    LEVEL,
     AtLoggedMoments,
     StudyPopulation,
-    joint_band,
+    judge,
     read_sessions,
     run_check,
     two_sided_p,
 )
 
 
-def counted_p(draws: np.ndarray, value: np.ndarray) -> np.ndarray:
-    """The two-sided rank p-value of each ``value`` among ``draws`` (S,), the value counted as
-    one of S + 1: 2·min(#≤ + 1, #≥ + 1)/(S + 1), at most 1."""
-    d = np.sort(draws[np.isfinite(draws)])
-    v = np.asarray(value, dtype=np.float64)
-    le = np.searchsorted(d, v, side="right") + 1
-    ge = len(d) - np.searchsorted(d, v, side="left") + 1
-    p = np.minimum(1.0, 2.0 * np.minimum(le, ge) / (len(d) + 1))
-    return np.where(np.isfinite(v), p, np.nan)
+def old_rule(ref: np.ndarray, value: np.ndarray, level: float = LEVEL) -> np.ndarray:
+    """The rule before: γ the lower (1 − level) quantile over ``ref``'s rows of their smallest
+    p (each row counted among the rows), ``value``'s p among ``ref`` without itself; whether
+    each check fails."""
+    p = np.column_stack([two_sided_p(ref[:, k], ref[:, k]) for k in range(ref.shape[1])])
+    worst = np.nanmin(np.where(np.isnan(p), np.inf, p), axis=1)
+    gamma = float(np.quantile(worst, 1.0 - level, method="lower"))
+    pv = np.array([two_sided_p(ref[:, k], value[k])[0] for k in range(ref.shape[1])])
+    return ~(np.isfinite(pv) & (pv >= gamma))
+
+
+def new_rule(ref: np.ndarray, value: np.ndarray, level: float = LEVEL) -> np.ndarray:
+    """check-human's rule (:func:`judge`): whether each check fails."""
+    gamma, _, p = judge(ref, value, level)
+    return ~(np.isfinite(p) & (p >= gamma))
 
 
 def wilson(k: int, n: int) -> tuple[float, float]:
@@ -56,50 +65,58 @@ def wilson(k: int, n: int) -> tuple[float, float]:
 
 
 def calibrate(values: np.ndarray, reference: int) -> dict[str, Any]:
-    """The band of the first ``reference`` rows of ``values`` (S + R, J) and how the other R
-    rows fare against it, both ways of ranking them."""
-    ref, fresh = values[:reference], values[reference:]
-    gamma, _ = joint_band(ref)
-    out: dict[str, Any] = {"gamma": gamma, "reference": reference, "fresh": len(fresh)}
-    for name, rank in (("share", two_sided_p), ("counted", counted_p)):
-        p = np.column_stack([rank(ref[:, j], fresh[:, j]) for j in range(values.shape[1])])
-        fail = np.isfinite(p) & (p < gamma)
-        k = int(fail.any(axis=1).sum())
-        out[name] = {
-            "any": k / len(fresh),
-            "wilson": wilson(k, len(fresh)),
-            "per_check": fail.mean(axis=0).tolist(),
-        }
+    """Each row of ``values`` (N, J) judged against the ``reference`` rows after it (cyclic),
+    by both rules."""
+    n = len(values)
+    if not 0 < reference < n:
+        raise ValueError(f"--reference must be in [1, {n - 1}] for {n} replicates")
+    out: dict[str, Any] = {"reference": reference, "judged": n}
+    for name, rule in (("judge", new_rule), ("old", old_rule)):
+        fails = np.zeros(values.shape, dtype=bool)
+        for i in range(n):
+            ref = values[(i + 1 + np.arange(reference)) % n]
+            fails[i] = rule(ref, values[i])
+        k = int(fails.any(axis=1).sum())
+        out[name] = {"any": k / n, "wilson": wilson(k, n), "per_check": fails.mean(axis=0)}
     return out
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("logs")
-    who = ap.add_mutually_exclusive_group(required=True)
+    ap.add_argument("logs", nargs="?")
+    who = ap.add_mutually_exclusive_group()
     who.add_argument("--population", action="store_true")
     who.add_argument("--human")
-    ap.add_argument("--reference", type=int, default=1000)
-    ap.add_argument("--fresh", type=int, default=1000)
+    ap.add_argument("--draws", type=int, default=4000, help="replicates simulated (N)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--save", help="write the replicates' values here (.npz)")
+    ap.add_argument("--values", help="read them from here instead of simulating")
+    ap.add_argument("--reference", default="1079,2000", help="comma-separated S")
     args = ap.parse_args(argv)
-    real = read_sessions(args.logs)
-    person = StudyPopulation() if args.population else AtLoggedMoments(args.human)
-    values: dict[tuple[int, str], np.ndarray] = {}
-    run_check(real, person, args.reference + args.fresh, args.seed, values_out=values)
-    cols = list(values)
-    matrix = np.column_stack([values[c] for c in cols])
-    for s in sorted({200, 500, args.reference}):
-        if s > args.reference:
-            continue
-        res = calibrate(np.concatenate([matrix[:s], matrix[args.reference :]]), s)
-        print(f"reference {s}, fresh {res['fresh']}: gamma {res['gamma']:.4g}")
-        for name in ("share", "counted"):
+    if args.values:
+        saved = np.load(args.values)
+        matrix, cols = saved["values"], [str(c) for c in saved["cols"]]
+    else:
+        if not args.logs or not (args.population or args.human):
+            ap.error("LOGS and --population or --human, or --values")
+        real = read_sessions(args.logs)
+        person = StudyPopulation() if args.population else AtLoggedMoments(args.human)
+        values: dict[tuple[int, str], np.ndarray] = {}
+        run_check(real, person, args.draws, args.seed, values_out=values)
+        cols = [f"T{t} {k}" for t, k in values]
+        matrix = np.column_stack(list(values.values()))
+        if args.save:
+            np.savez(args.save, values=matrix, cols=np.array(cols))
+    print(f"{len(matrix)} replicates, {matrix.shape[1]} checks")
+    for s in (int(v) for v in args.reference.split(",")):
+        res = calibrate(matrix, s)
+        print(f"reference S = {s}, each of {res['judged']} replicates judged against S others")
+        for name in ("judge", "old"):
             r = res[name]
             lo, hi = r["wilson"]
             worst = sorted(zip(r["per_check"], cols, strict=True), reverse=True)[:4]
-            tops = ", ".join(f"T{t} {k} {v:.3f}" for v, (t, k) in worst)
-            print(f"  {name:8s} any check failed {r['any']:.3f} [{lo:.3f}, {hi:.3f}]; {tops}")
+            tops = ", ".join(f"{c} {v:.3f}" for v, c in worst)
+            print(f"  {name:6s} any check failed {r['any']:.4f} [{lo:.4f}, {hi:.4f}]; {tops}")
     return 0
 
 
