@@ -191,3 +191,4 @@ def test_bad_input_exits_2_naming_it(logs, tmp_path, capsys, extra, needle):
     argv = ["check-human", str(logs), "--out", str(tmp_path / "x"), *extra]
     argv += [] if "--draws" in extra or "--level" in extra else ["--draws", "40", "--level", "0.2"]
     assert needle in cli_error(argv, capsys)
+    assert not (tmp_path / "x").exists()  # refused before anything was written

@@ -807,9 +807,9 @@ def check_human(
     """Run the check and write OUT/report.json, report.md, check.png and the kept replicates."""
     real = read_sessions(logs)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     values: dict[tuple[int, str], np.ndarray] = {}
     report = run_check(real, person, draws, seed, keep, out, values, level)
+    out.mkdir(parents=True, exist_ok=True)  # after the checks: a refusal leaves no folder
     (out / "report.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     (out / "report.md").write_text(markdown(report), encoding="utf-8")
     if plots:
