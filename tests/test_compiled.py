@@ -225,6 +225,33 @@ def test_the_compiled_pcg64_uniforms_are_numpys():
     assert addresses([ours[0], np.random.Generator(np.random.Philox(1))]) is None
 
 
+def test_the_compiled_mixture_draws_are_numpys(path):
+    """``pcg64_fill.mixture``: ``integers(0, k)`` then ``standard_normal(d)`` per generator, the
+    numbers and the states after them (the 32-bit draw's kept half carried into the next
+    round; 5,000 normals of one generator reach the ziggurat's rare paths); the bimodal
+    prior's θ* of many generators the same on both paths."""
+    from strol_gym.pcg64_fill import addresses, mixture
+    from strol_gym.priors import MixturePrior
+
+    seeds = (0, 7, 2**40, 12)
+    ours = [np.random.default_rng(s) for s in seeds]
+    theirs = [np.random.default_rng(s) for s in seeds]
+    for k, d in ((2, 2), (5, 3), (1, 2), (2, 1)):
+        idx, z = np.empty(4, dtype=np.int64), np.empty((4, d))
+        mixture(addresses(ours, "mixture"), k, idx, z)
+        assert idx.tolist() == [g.integers(0, k) for g in theirs]
+        assert z.tobytes() == np.stack([g.standard_normal(d) for g in theirs]).tobytes()
+    z = np.empty((1, 5000))
+    mixture(addresses(ours[:1], "mixture"), 1, idx[:1], z)
+    assert z.tobytes() == theirs[0].standard_normal(5000).tobytes()
+    assert [g.bit_generator.state for g in ours] == [g.bit_generator.state for g in theirs]
+    prior, thetas = MixturePrior(np.array([[0.8, -0.8], [-0.8, 0.8], [0.0, 0.5]])), []
+    for fast in (True, False):
+        path(fast)
+        thetas.append(prior.sample_each([np.random.default_rng(s) for s in seeds]).tobytes())
+    assert thetas[0] == thetas[1]
+
+
 def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usual(path):
     from strol_gym.humans.builtin import NominalModel
 
