@@ -125,40 +125,47 @@ def _double(lo, hi):
 @_jit
 def fill(states, out):
     """Row b of ``out`` (B, K) from the generator whose ``ctypes.state_address`` is
-    ``states[b]``, as ``Generator.random(out=out[b])`` fills it; the states move on.
+    ``states[b]``, as ``Generator.random(out=out[b])`` fills it; the states move on."""
+    for b in range(states.shape[0]):
+        fill_row(states[b], out[b])
+
+
+@_jit
+def fill_row(state, out):
+    """``Generator.random(out=out)`` (``out`` 1-D) of the generator whose
+    ``ctypes.state_address`` is ``state``.
 
     The LCG's states are the same integers numpy steps through; four chains four steps apart
     (multiplier M⁴, increment inc·(M³ + M² + M + 1)) run side by side, since one step waits
     for the last one's multiplication."""
-    k = out.shape[1]
+    k = out.shape[0]
     blocks = k // 4 if k >= 8 else 0
-    for b in range(states.shape[0]):
-        p = np.intp(_load(states[b]))  # pcg64_state.pcg_state: state (low, high), inc (low, high)
-        lo, hi, inc_lo, inc_hi = _load(p), _load(p + 8), _load(p + 16), _load(p + 24)
-        done = 0
-        if blocks:
-            c4_lo, c4_hi = _mul_add(inc_lo, inc_hi, _S4_LO, _S4_HI, np.uint64(0), np.uint64(0))
-            l0, h0 = _mul_add(lo, hi, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
-            l1, h1 = _mul_add(l0, h0, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
-            l2, h2 = _mul_add(l1, h1, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
-            l3, h3 = _mul_add(l2, h2, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
-            for blk in range(blocks):
-                if blk:
-                    l0, h0 = _mul_add(l0, h0, _M4_LO, _M4_HI, c4_lo, c4_hi)
-                    l1, h1 = _mul_add(l1, h1, _M4_LO, _M4_HI, c4_lo, c4_hi)
-                    l2, h2 = _mul_add(l2, h2, _M4_LO, _M4_HI, c4_lo, c4_hi)
-                    l3, h3 = _mul_add(l3, h3, _M4_LO, _M4_HI, c4_lo, c4_hi)
-                o = 4 * blk
-                out[b, o] = _double(l0, h0)
-                out[b, o + 1] = _double(l1, h1)
-                out[b, o + 2] = _double(l2, h2)
-                out[b, o + 3] = _double(l3, h3)
-            lo, hi, done = l3, h3, 4 * blocks
-        for i in range(done, k):
-            lo, hi = _mul_add(lo, hi, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
-            out[b, i] = _double(lo, hi)
-        _store(p, lo)
-        _store(p + 8, hi)
+    p = np.intp(_load(state))  # pcg64_state.pcg_state: state (low, high), inc (low, high)
+    lo, hi, inc_lo, inc_hi = _load(p), _load(p + 8), _load(p + 16), _load(p + 24)
+    done = 0
+    if blocks:
+        c4_lo, c4_hi = _mul_add(inc_lo, inc_hi, _S4_LO, _S4_HI, np.uint64(0), np.uint64(0))
+        l0, h0 = _mul_add(lo, hi, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
+        l1, h1 = _mul_add(l0, h0, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
+        l2, h2 = _mul_add(l1, h1, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
+        l3, h3 = _mul_add(l2, h2, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
+        for blk in range(blocks):
+            if blk:
+                l0, h0 = _mul_add(l0, h0, _M4_LO, _M4_HI, c4_lo, c4_hi)
+                l1, h1 = _mul_add(l1, h1, _M4_LO, _M4_HI, c4_lo, c4_hi)
+                l2, h2 = _mul_add(l2, h2, _M4_LO, _M4_HI, c4_lo, c4_hi)
+                l3, h3 = _mul_add(l3, h3, _M4_LO, _M4_HI, c4_lo, c4_hi)
+            o = 4 * blk
+            out[o] = _double(l0, h0)
+            out[o + 1] = _double(l1, h1)
+            out[o + 2] = _double(l2, h2)
+            out[o + 3] = _double(l3, h3)
+        lo, hi, done = l3, h3, 4 * blocks
+    for i in range(done, k):
+        lo, hi = _mul_add(lo, hi, _MUL_LO, _MUL_HI, inc_lo, inc_hi)
+        out[i] = _double(lo, hi)
+    _store(p, lo)
+    _store(p + 8, hi)
 
 
 _KI, _WI, _FI = ziggurat.ki_double, ziggurat.wi_double, ziggurat.fi_double
@@ -246,15 +253,25 @@ def mixture(states, k, idx, z):
     the states move on as numpy's would."""
     for b in range(states.shape[0]):
         idx[b] = 0 if k == 1 else _bounded(states[b], np.uint64(k - 1))
-        p = np.intp(_load(states[b]))
-        for j in range(z.shape[1]):
-            z[b, j] = _normal(p)
+        normals(states[b], z[b])
 
 
-def addresses(rngs: Sequence[np.random.Generator], kernel: str = "fill") -> np.ndarray | None:
-    """The generators' state addresses for ``kernel`` ("fill" or "mixture"), or None: one is
-    not a numpy ``PCG64``, or the kernel does not give numpy's draws in this process."""
-    if not (_agrees() if kernel == "fill" else _mixture_agrees()):
+@_jit
+def normals(state, out):
+    """``Generator.standard_normal(out=out)`` (``out`` 1-D) of the generator whose
+    ``ctypes.state_address`` is ``state``."""
+    p = np.intp(_load(state))
+    for j in range(out.shape[0]):
+        out[j] = _normal(p)
+
+
+def addresses(
+    rngs: Sequence[np.random.Generator], kernels: tuple[str, ...] = ("fill",)
+) -> np.ndarray | None:
+    """The generators' state addresses for ``kernels`` ("fill": ``fill`` and ``fill_row``;
+    "mixture": ``mixture`` and ``normals``), or None: one is not a numpy ``PCG64``, or a
+    kernel does not give numpy's draws in this process."""
+    if not all(_agrees() if kernel == "fill" else _mixture_agrees() for kernel in kernels):
         return None
     out = np.empty(len(rngs), dtype=np.intp)
     for b, rng in enumerate(rngs):

@@ -100,7 +100,7 @@ def _compiled_draws(
         return None
     from strol_gym.pcg64_fill import addresses, mixture
 
-    states = addresses(rngs, "mixture")
+    states = addresses(rngs, ("mixture",))
     if states is None:
         return None
     idx, z = np.empty(len(rngs), dtype=np.int64), np.empty((len(rngs), dim))

@@ -238,11 +238,11 @@ def test_the_compiled_mixture_draws_are_numpys(path):
     theirs = [np.random.default_rng(s) for s in seeds]
     for k, d in ((2, 2), (5, 3), (1, 2), (2, 1)):
         idx, z = np.empty(4, dtype=np.int64), np.empty((4, d))
-        mixture(addresses(ours, "mixture"), k, idx, z)
+        mixture(addresses(ours, ("mixture",)), k, idx, z)
         assert idx.tolist() == [g.integers(0, k) for g in theirs]
         assert z.tobytes() == np.stack([g.standard_normal(d) for g in theirs]).tobytes()
     z = np.empty((1, 5000))
-    mixture(addresses(ours[:1], "mixture"), 1, idx[:1], z)
+    mixture(addresses(ours[:1], ("mixture",)), 1, idx[:1], z)
     assert z.tobytes() == theirs[0].standard_normal(5000).tobytes()
     assert [g.bit_generator.state for g in ours] == [g.bit_generator.state for g in theirs]
     prior, thetas = MixturePrior(np.array([[0.8, -0.8], [-0.8, 0.8], [0.0, 0.5]])), []

@@ -280,23 +280,31 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         if human is not None and correcting(self.steps, self.n_corrections):
             teach = self.ik.__dict__.get("_teach")  # asked once per episode's person
             if teach is None or teach[0] is not human:
-                teach = self.ik.__dict__["_teach"] = (human, self._teacher(human))
+                teach = self.ik.__dict__["_teach"] = (human, self._teacher(human), None, 0)
             if teach[1] is None or not all(map(math.isfinite, action.tolist())):
                 return super().step(action)  # (a bad action raises there, before any draw)
             prm, units = teach[1]
             person = cast(SimulatedHuman, human)  # ``_teacher`` found one
+            rng = person.rng
+            if teach[2] is not rng:  # where the kernel draws (0: numpy draws here)
+                teach = self.ik.__dict__["_teach"] = (human, teach[1], rng, _state(rng))
+            state = teach[3]
             person.begin()
-            person.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
-            person.rng.standard_normal(out=noise)
+            if not state:  # the draws of ``NominalModel.drawn_corrections``
+                rng.random(out=units)
+                rng.standard_normal(out=noise)
             theta_star = person.theta_star  # a SimulatedHuman's: float64, as ``theta_star``
             mode = 1
         else:
+            state = 0
             theta_star = self.theta_star
             if theta_star.shape != (2,):
                 return super().step(action)  # (a person's θ* is the prior's: two numbers)
         obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.OUT)
         x = self._x
-        done = sk.robot_step(ap, prm, x, action, th, theta_star, units, noise, obs_row, out, mode)
+        done = sk.robot_step(
+            ap, prm, x, action, th, theta_star, units, noise, obs_row, out, mode, state
+        )
         if done == sk.BAD_ACTION:
             return super().step(action)  # raises, naming the action
         u_h = out[sk.U_H : sk.U_H + 3]
@@ -392,6 +400,14 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._renderer = None
         self._viewer = None
         self._build(qpos)
+
+
+def _state(rng: np.random.Generator) -> int:
+    """The address ``robot_step`` draws a person's numbers through, or 0 (numpy draws them)."""
+    from strol_gym.pcg64_fill import addresses
+
+    states = addresses([rng], ("fill", "mixture"))
+    return 0 if states is None else int(states[0])
 
 
 def _split(row: np.ndarray) -> dict[str, np.ndarray]:
