@@ -273,13 +273,11 @@ def addresses(
     kernel does not give numpy's draws in this process."""
     if not all(_agrees() if kernel == "fill" else _mixture_agrees() for kernel in kernels):
         return None
-    out = np.empty(len(rngs), dtype=np.intp)
-    for b, rng in enumerate(rngs):
-        bits = rng.bit_generator
-        if type(bits) is not np.random.PCG64:
+    bits = [rng.bit_generator for rng in rngs]
+    for one in bits:
+        if type(one) is not np.random.PCG64:
             return None
-        out[b] = bits.ctypes.state_address
-    return out
+    return np.array([one.ctypes.state_address for one in bits], dtype=np.intp)
 
 
 @functools.cache

@@ -474,6 +474,26 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, h
     env.close()
 
 
+def test_the_batched_seed_lookup_is_the_same_on_both_paths(path):
+    """``BatchedPandaIK.reference``: the seed table's posture nearest each target (outside the
+    box: the nearest edge; a cell without a posture: NaN) on both paths."""
+    from strol_gym.envs.panda import ik_batched
+
+    env = gym.make("StROL-Robot-v0").unwrapped
+    targets = np.random.default_rng(8).uniform(-0.5, 1.2, (2000, 3))
+    got = []
+    for fast in (False, True):
+        path(fast)
+        arms = ik_batched.BatchedPandaIK(env.ik, 4)
+        arms.seeds = arms.seeds.copy()
+        arms.seeds[::2, 1::3] = np.nan
+        got.append(arms.reference(targets).tobytes())
+        assert (arms._kernels() is not None) == fast
+    assert got[0] == got[1]
+    assert np.isnan(np.frombuffer(got[0])).any()
+    env.close()
+
+
 def test_an_arm_already_at_its_target_keeps_its_own_numbers_in_the_compiled_lanes(path):
     """An arm whose kinematics are MuJoCo's (a one-by-one restart) and that is within tolerance
     at the first check, while the other arms iterate, keeps its numbers in the compiled lanes

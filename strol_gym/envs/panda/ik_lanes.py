@@ -25,11 +25,19 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from strol_gym.envs.panda.ik_kernel import _dls, _dot9, _fma, _one, addresses, restart
+from strol_gym.envs.panda.ik_kernel import (
+    _dls,
+    _dot9,
+    _fma,
+    _one,
+    addresses,
+    reference,
+    restart,
+)
 from strol_gym.envs.panda.ik_step import dls_solve
 from strol_gym.envs.panda.model import N_ARM
 
-__all__ = ["addresses", "batched_forward", "batched_solve", "restart"]
+__all__ = ["addresses", "batched_forward", "batched_solve", "references", "restart"]
 
 _jit: Any = njit(cache=True, nogil=True, error_model="numpy")
 """IEEE division (inf or NaN, no ZeroDivisionError branch), so that the lanes' loops vectorise;
@@ -167,6 +175,17 @@ def _pack(a, keep, n):
             if keep[lane]:
                 a[c, k] = a[c, lane]
                 k += 1
+
+
+@_jit
+def references(target, seeds, seed_low, seed_step, seed_top, none, out):
+    """``BatchedPandaIK.reference`` of task-frame targets (B, 3) into ``out`` (B, 7): per
+    target ``ik_kernel.reference`` (numpy's rounding and clip), ``none`` (7,) where the table
+    holds no posture (NaN, as the table's own rows)."""
+    for b in range(target.shape[0]):
+        ref, _ = reference(target[b], seeds, seed_low, seed_step, seed_top, none)
+        for j in range(N_ARM):
+            out[b, j] = ref[j]
 
 
 @_jit
