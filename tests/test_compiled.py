@@ -474,6 +474,26 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, h
     env.close()
 
 
+def test_the_robots_features_of_many_states_are_the_same_on_both_paths(path):
+    """``RobotTask.features`` of (B, 3) states: the compiled loop gives numpy's bits below and
+    above the size where numpy works per object and axis; a Task that changes its offsets
+    keeps numpy's path."""
+
+    class Shifted(RobotTask):
+        def _offsets(self, x):
+            return super()._offsets(x + 0.01)
+
+    x = np.random.default_rng(9).uniform(-1.0, 1.5, (1100, 3))
+    got = {}
+    for fast in (False, True):
+        path(fast)
+        for n in (2, 999, 1100):
+            got[fast, n] = RobotTask().features(x[:n]).tobytes()
+        got[fast, "shifted"] = Shifted().features(x).tobytes()
+    assert all(got[True, k] == got[False, k] for k in (2, 999, 1100, "shifted"))
+    assert got[True, "shifted"] != got[True, 1100]
+
+
 def test_the_batched_seed_lookup_is_the_same_on_both_paths(path):
     """``BatchedPandaIK.reference``: the seed table's posture nearest each target (outside the
     box: the nearest edge; a cell without a posture: NaN) on both paths."""

@@ -50,6 +50,7 @@ def env_windows(
     each call and after a window's last, its results kept in ``Window.beside``; its time is
     not the env's (``chains.py`` times its yardstick there, interleaved with the steps it
     judges)."""
+    env: gym.Env | gym.vector.VectorEnv
     if n is None:
         env = gym.make(env_id, **kwargs)
         batch, seed_step, min_calls = 500, 1, 1
