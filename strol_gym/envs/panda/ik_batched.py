@@ -38,8 +38,6 @@ from strol_gym.envs.panda.ik import (
 from strol_gym.envs.panda.ik_step import ALL_FREE, dls_step
 from strol_gym.envs.panda.model import N_ARM
 
-_NO_REF = np.full(N_ARM, np.nan)
-"""``reference``'s row where the seed table holds no posture."""
 SINGLE_RETRY = 64
 """Up to this many arms restart (``IK_RECOVER``) one by one (``BatchedPandaIK._restart``, ~30 µs
 an iteration); more, batched (~0.5 ms an iteration however few arms are left, and a restart
@@ -257,7 +255,7 @@ class BatchedPandaIK:
             out = np.empty((len(target), N_ARM))
             kernels.references(
                 np.ascontiguousarray(target, dtype=np.float64), self.seeds, self._seed_low,
-                self._seed_step, self._seed_max, _NO_REF, out,
+                self._seed_step, self._seed_max, out,
             )  # fmt: skip
             return out
         idx = np.rint((target - self._seed_low) / self._seed_step).astype(int)

@@ -26,12 +26,12 @@ import numpy as np
 from numba import njit
 
 from strol_gym.envs.panda.ik_kernel import (
+    _cell,
     _dls,
     _dot9,
     _fma,
     _one,
     addresses,
-    reference,
     restart,
 )
 from strol_gym.envs.panda.ik_step import dls_solve
@@ -178,14 +178,16 @@ def _pack(a, keep, n):
 
 
 @_jit
-def references(target, seeds, seed_low, seed_step, seed_top, none, out):
-    """``BatchedPandaIK.reference`` of task-frame targets (B, 3) into ``out`` (B, 7): per
-    target ``ik_kernel.reference`` (numpy's rounding and clip), ``none`` (7,) where the table
-    holds no posture (NaN, as the table's own rows)."""
+def references(target, seeds, seed_low, seed_step, seed_top, out):
+    """``BatchedPandaIK.reference`` of task-frame targets (B, 3) into ``out`` (B, 7): the
+    table's row at each target's cell (``ik_kernel._cell``: numpy's rounding and clip), NaN
+    where it holds no posture, as the table's own rows."""
     for b in range(target.shape[0]):
-        ref, _ = reference(target[b], seeds, seed_low, seed_step, seed_top, none)
-        for j in range(N_ARM):
-            out[b, j] = ref[j]
+        i = _cell(target[b, 0], seed_low[0], seed_step[0], seed_top[0])
+        j = _cell(target[b, 1], seed_low[1], seed_step[1], seed_top[1])
+        k = _cell(target[b, 2], seed_low[2], seed_step[2], seed_top[2])
+        for m in range(N_ARM):
+            out[b, m] = seeds[i, j, k, m]
 
 
 @_jit
