@@ -73,7 +73,7 @@ def strata(sessions: Sequence[timing.TimedSession], f: timing.TimingFit) -> dict
 def motion(data: str, sessions: Sequence[timing.TimedSession]) -> dict[Key, np.ndarray]:
     """(user, Task, learner) -> (samples, 2): the executed position's distance to θ*'s plan
     from the Task's start (m) and the robot's speed (m/s), per logged path sample."""
-    from benchmarks.sessions import import_study as imp
+    from strol_gym.benchmarks.sessions import import_study as imp
     from strol_gym.benchmarks.sessions.authors_frame import fit_transform
 
     frame = fit_transform()

@@ -109,6 +109,8 @@ class Result:
     heldout: float
     ratio: float
     frailty_v: float = math.nan
+    task1_strol: float = math.nan
+    """Corrections expected along Task 1's StROL paths (one covariate more only)."""
 
 
 def _map(sessions: Sequence[timing.TimedSession], fn: Transform) -> list[timing.TimedSession]:
@@ -327,7 +329,9 @@ def _extra(sessions: Sequence[timing.TimedSession], extra: str) -> Result:
         return float(DT * np.exp(_extra_design(ss, extra)[0] @ c).sum())
 
     held = _extra_ll(test, extra, c)
-    return Result(c.tolist(), _extra_ll(train, extra, c), held, expected(test) / expected(one))
+    ratio = expected(test) / expected(one)
+    t1 = expected([s for s in test if s.task == 1])
+    return Result(c.tolist(), _extra_ll(train, extra, c), held, ratio, task1_strol=t1)
 
 
 def _extra_lopo(sessions: Sequence[timing.TimedSession], extra: str) -> float:
@@ -402,7 +406,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 lambda ss, e=extra: _extra_lopo(ss, e),
             )
         )
-    print("form | LOPO log L (One, MOF) | held-out log L (StROL) | StROL/One [95 %] | coef (v)")
+    print("form | LOPO log L (One, MOF) | held-out log L (StROL) | StROL/One [95 %] | coef (v; …)")
     pick = {int(v) for v in args.rows.split(",") if v}
     for k, (name, run, lopo) in enumerate(rows):
         if pick and k not in pick:
@@ -410,6 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         r = run(sessions)
         lo, hi = _bootstrap(sessions, run, args.reps) if args.reps else (math.nan, math.nan)
         v = f" v={r.frailty_v:.3f}" if math.isfinite(r.frailty_v) else ""
+        v += f"; Task 1 StROL expected {r.task1_strol:.1f}" if math.isfinite(r.task1_strol) else ""
         coef = ", ".join(f"{c:+.3f}" for c in r.coef)
         cells = f"{lopo(sessions):.1f} | {r.heldout:.1f} | {r.ratio:.3f} [{lo:.3f}, {hi:.3f}]"
         print(f"{name} | {cells} | {coef}{v}", flush=True)
