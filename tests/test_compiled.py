@@ -350,6 +350,9 @@ def test_the_robot_step_runs_compiled_and_refuses_as_the_contract(path):
     env = RobotEnv()
     env.reset(seed=1)
     assert env._fused_step() is not None
+    assert env._reset_draws(env.np_random) is not None  # θ* and the start drawn compiled
+    uniform = RobotEnv(prior="uniform")
+    assert uniform._reset_draws(uniform.np_random) is None
     state = env.np_random.bit_generator.state
     with pytest.raises(ValueError, match="action must be finite"):
         env.step(np.array([0.0, np.nan, 0.0]))

@@ -36,7 +36,7 @@ from strol_gym.envs.panda.ik_kernel import (
     solver,
 )
 from strol_gym.envs.panda.model import N_ARM, Q_HOME
-from strol_gym.pcg64_fill import fill_row, normals
+from strol_gym.pcg64_fill import fill_row, mixture, normals
 from strol_gym.tasks.m6_kernels import robot_m6_drawn
 
 OBS, OUT = 10, 20
@@ -155,6 +155,18 @@ def _reached(ap, prm, target, iters, obs, out):
     for i in range(2):
         obs[8 + i] = np.float32(out[PHI + i])
     return err
+
+
+@_jit
+def robot_draws(states, modes, jitter, idx, z, theta, unit):
+    """A reset's draws from the generator at ``states[0]``: θ* from the mixture prior (its
+    index and jitter as ``MixturePrior.sample_each``, then modes[i] + jitter·z into ``theta``),
+    then the start's uniforms ``unit`` (3,) (``rng.random(3)``); ``idx`` (1,), ``z`` (1, d)
+    scratch."""
+    mixture(states, modes.shape[0], idx, z)
+    for j in range(theta.shape[0]):
+        theta[j] = modes[idx[0], j] + jitter * z[0, j]
+    fill_row(states[0], unit)
 
 
 @_jit
