@@ -43,6 +43,7 @@ _STEP_HOOKS = (
 """The contract's hooks the compiled step and reset repeat: an env class that overrides one
 takes the contract's."""
 _STEP_CLASSES: dict[type, bool] = {}
+_F64 = np.dtype(np.float64)  # a dtype compared by identity: == against the type converts it
 
 
 class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
@@ -279,7 +280,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
             or action.shape != (3,)
             or not self._started
             or type(th) is not np.ndarray
-            or th.dtype != np.float64
+            or th.dtype is not _F64
             or th.shape != (2,)
         ):
             return super().step(action)
