@@ -47,50 +47,30 @@ def _mul_high(typingctx, a, b):
     return sig, codegen
 
 
-@intrinsic
-def _load(typingctx, address):
-    """The uint64 at ``address``."""
-    sig = types.uint64(types.intp)
+def _memory(bits: int) -> tuple[Any, Any]:
+    """Intrinsics reading and writing the unsigned ``bits``-bit integer at an address."""
+    kind: Any = {64: types.uint64, 32: types.uint32}[bits]
 
-    def codegen(context, builder, signature, args):
-        return builder.load(builder.inttoptr(args[0], ir.IntType(64).as_pointer()))
+    @intrinsic
+    def load(typingctx, address):
+        def codegen(context, builder, signature, args):
+            return builder.load(builder.inttoptr(args[0], ir.IntType(bits).as_pointer()))
 
-    return sig, codegen
+        return kind(types.intp), codegen
 
+    @intrinsic
+    def store(typingctx, address, value):
+        def codegen(context, builder, signature, args):
+            builder.store(args[1], builder.inttoptr(args[0], ir.IntType(bits).as_pointer()))
+            return context.get_dummy_value()
 
-@intrinsic
-def _store(typingctx, address, value):
-    """Writes uint64 ``value`` at ``address``."""
-    sig = types.void(types.intp, types.uint64)
+        return types.void(types.intp, kind), codegen
 
-    def codegen(context, builder, signature, args):
-        builder.store(args[1], builder.inttoptr(args[0], ir.IntType(64).as_pointer()))
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
-@intrinsic
-def _load32(typingctx, address):
-    """The uint32 at ``address``."""
-    sig = types.uint32(types.intp)
-
-    def codegen(context, builder, signature, args):
-        return builder.load(builder.inttoptr(args[0], ir.IntType(32).as_pointer()))
-
-    return sig, codegen
+    return load, store
 
 
-@intrinsic
-def _store32(typingctx, address, value):
-    """Writes uint32 ``value`` at ``address``."""
-    sig = types.void(types.intp, types.uint32)
-
-    def codegen(context, builder, signature, args):
-        builder.store(args[1], builder.inttoptr(args[0], ir.IntType(32).as_pointer()))
-        return context.get_dummy_value()
-
-    return sig, codegen
+_load, _store = _memory(64)
+_load32, _store32 = _memory(32)
 
 
 _M4_HI, _M4_LO = np.uint64(17644330877953211035), np.uint64(15101941458738108273)
