@@ -118,6 +118,7 @@ MODEL_EVERY = 4
 _ZERO6 = [0.0] * 6
 _ZERO7 = [0.0] * 7
 _TWISTS = np.array(LIMIT_JOINTS)
+_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
 
@@ -194,6 +195,18 @@ class ImpedanceController:
             dt = HOLD * self.model.opt.timestep
             self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
         self._fp: np.ndarray | None = None  # the compiled chunk's C addresses, once looked up
+        self._caps = np.array(
+            [
+                BRAKE_FROM * VELOCITY_LIMIT,
+                EXACT_FROM * VELOCITY_LIMIT,
+                SPEED_REFLEX * VELOCITY_LIMIT,
+                TORQUE_LIMIT,
+                [JOINT_COMP * c for c in JOINT_DAMPING.tolist()],
+                *self._jnt_range,
+                _TWISTS,
+                WATCH_FROM * VELOCITY_LIMIT,
+            ]
+        )  # ``step_kernel``'s rows
 
     def _control_state(self) -> dict[str, Any]:
         """The controller's state (v1's), to run the simulation again from here."""
@@ -436,31 +449,22 @@ class ImpedanceController:
         ip, ir = self._integral_max
         vlim, half = self._vlim, self._half_vlim
         brake = self.version.joint_brake
-        adm = self.version.admittance
         wext = self._wrench.tolist()
         pushed = brake and self._hand_xfrc.any()
         fp = self._chunk_functions() if band and brake else None
         dt, par = m.opt.timestep, None
-        for i in range(self._n_sub // HOLD):
-            mujoco.mj_jacSite(m, d, jp, jr, site)
-            if i == 0:
-                self._model_terms(np.array(v_sp))
+        mujoco.mj_jacSite(m, d, jp, jr, site)
+        self._model_terms(np.array(v_sp))
+        chunks = self._admitted(sp_r, wext, dt_i)
+        if fp is not None and all(c[3].flags.c_contiguous for c in chunks):
+            head = (spx, spy, spz, 0.0, 0.0, 0.0, *v_sp, CONTROL_DT, gp, gr, ip, ir, dt)
+            self._step_compiled(fp, self._chunk_par((*head, integrate, not pushed)), chunks)
+            self._time += CONTROL_DT
+            return
+        for i, (ox, oy, oz, target_r, feed, damp, self._adm) in enumerate(chunks):
+            if i:
+                mujoco.mj_jacSite(m, d, jp, jr, site)
             x, y, z = xpos.tolist()
-            ox = oy = oz = 0.0
-            target_r, feed, damp = sp_r, None, None
-            if adm and (self._adm is not REST or any(wext)):
-                # The admittance target over this chunk (its midpoint), its velocity and
-                # acceleration fed forward, the person's wrench cancelled (the target moves
-                # for it): the tracking law carries the cup along δ.
-                s0 = self._adm
-                s1 = self._adm = self._cap_speed(self._admit.step(s0, wext))
-                ox, oy, oz, rx, ry, rz = (0.5 * (a + b) for a, b in zip(s0, s1[:6], strict=False))
-                target_r = rotation(rx, ry, rz).dot(sp_r)
-                inv = 1.0 / dt_i
-                acc = [(b - a) * inv for a, b in zip(s0[6:], s1[6:], strict=True)]
-                feed = self._lam.dot(acc) - wext
-                vel = [(b - a) * inv for a, b in zip(s0[:6], s1[:6], strict=True)]
-                damp = self._jt_damp.dot(vel).tolist()
             # The setpoint where it is at this chunk's start (it moves linearly over the
             # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
             back = CONTROL_DT - i * dt_i
@@ -549,7 +553,66 @@ class ImpedanceController:
             if found is None:
                 return None
             self._fp = np.array([*found, self.model._address, self.data._address], np.intp)
+            self._objects = np.array(sorted(self._object_geoms), dtype=np.int64)
         return self._fp
+
+    def _admitted(self, sp_r: np.ndarray, wext: list[float], dt_i: float) -> list[tuple[Any, ...]]:
+        """Each chunk's admittance terms (the target's offset and rotation, its wrench feed and
+        damping torques, None where they do not apply) and the admittance's state after it:
+        they do not depend on the physics, so a control step computes them up front."""
+        chunks = []
+        for _ in range(self._n_sub // HOLD):
+            ox = oy = oz = 0.0
+            target_r, feed, damp = sp_r, None, None
+            if self.version.admittance and (self._adm is not REST or any(wext)):
+                # The admittance target over this chunk (its midpoint), its velocity and
+                # acceleration fed forward, the person's wrench cancelled (the target moves
+                # for it): the tracking law carries the cup along δ.
+                s0 = self._adm
+                s1 = self._adm = self._cap_speed(self._admit.step(s0, wext))
+                ox, oy, oz, rx, ry, rz = (0.5 * (a + b) for a, b in zip(s0, s1[:6], strict=False))
+                target_r = rotation(rx, ry, rz).dot(sp_r)
+                inv = 1.0 / dt_i
+                acc = [(b - a) * inv for a, b in zip(s0[6:], s1[6:], strict=True)]
+                feed = self._lam.dot(acc) - wext
+                vel = [(b - a) * inv for a, b in zip(s0[:6], s1[:6], strict=True)]
+                damp = self._jt_damp.dot(vel).tolist()
+            chunks.append((ox, oy, oz, target_r, feed, damp, self._adm))
+        return chunks
+
+    def _step_compiled(self, fp: np.ndarray, par: np.ndarray, chunks: list[tuple]) -> None:
+        """The control step's chunks (``_admitted``'s) by ``step_kernel.control_step``, the
+        first chunk's Jacobian and model terms already in place; then what it hands back."""
+        from strol_gym.envs.study import chunk, step_kernel
+
+        n, dt_i = len(chunks), HOLD * self.model.opt.timestep
+        var, targets = np.zeros((n, step_kernel.VAR)), np.empty((n, 3, 3))
+        for i, (ox, oy, oz, target_r, feed, damp, _) in enumerate(chunks):
+            var[i, :6] = ox, oy, oz, CONTROL_DT - i * dt_i, feed is not None, damp is not None
+            if feed is not None:
+                var[i, 6:12] = feed
+            if damp is not None:
+                var[i, 12:19] = damp
+            targets[i] = target_r
+        par[35:42] = self._tau_last
+        room, cup = bool(self.version.joint_room), self._cup_geom
+        ints = np.array([self._rerun, room, cup, _STAGE_VEL, self._touched, 0], dtype=np.int64)
+        code = step_kernel.control_step(
+            fp, par, var, targets, self._kmat, self._gain, self._m_inv, self._jac, self._caps,
+            POSITION_REFLEX, ints, self._qpos, self._qvel, self._qacc, self._ctrl,
+            self._site_xpos, self._site_xmat, self._objects, self._site,
+        )  # fmt: skip
+        if par[18]:  # it integrated
+            self._integral = par[chunk.INTEGRAL : chunk.INTEGRAL + 6].tolist()
+        self._tau_last = par[35:42].tolist()
+        self._touched = bool(ints[step_kernel.TOUCHED])
+        self._adm = chunks[ints[step_kernel.AT_CHUNK] if code else n - 1][6]
+        if code == step_kernel.SINGULAR:
+            raise np.linalg.LinAlgError("Singular matrix")
+        if code == step_kernel.TRIP:
+            self._trip()
+            mujoco.mj_kinematics(self.model, self.data)
+            mujoco.mj_comPos(self.model, self.data)
 
     def _chunk_par(self, head: tuple[Any, ...]) -> np.ndarray:
         """``chunk.chunk``'s ``par`` for this control step (``head``: its entries up to the
