@@ -117,8 +117,12 @@ MODEL_EVERY = 4
 """Control steps between refreshes of Λ, D and the null-space projector (0.2 s)."""
 _ZERO6 = [0.0] * 6
 _ZERO7 = [0.0] * 7
+_ZERO13 = [0.0] * 13
 _TWISTS = np.array(LIMIT_JOINTS)
 _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
+_kernels: Any = None
+"""(``chunk``, ``step_kernel``) once a controller found the compiled chunk's C functions
+(those modules import numba: imported only then)."""
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
 
@@ -195,6 +199,7 @@ class ImpedanceController:
             dt = HOLD * self.model.opt.timestep
             self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
         self._fp: np.ndarray | None = None  # the compiled chunk's C addresses, once looked up
+        self._dt = float(self.model.opt.timestep)  # MjModel.opt builds a wrapper per access
         self._caps = np.array(
             [
                 BRAKE_FROM * VELOCITY_LIMIT,
@@ -338,8 +343,7 @@ class ImpedanceController:
         v_list = v_sp.tolist()
         fp = self._fp if self._fp is not None and use_fast() else None
         if fp is not None and self.version.track_bandwidth:  # the same sums, compiled
-            from strol_gym.envs.study import chunk
-
+            chunk = _kernels[0]
             acc, feed = v_list != self._v_prev, refresh or v_list != self._v_feed
             if acc or feed:
                 v_prev = np.array(self._v_prev)
@@ -403,9 +407,7 @@ class ImpedanceController:
         fp = self._chunk_functions()
         if fp is None:
             return False
-        from strol_gym.envs.study import chunk
-
-        ok, *terms = chunk.refresh(
+        ok, *terms = _kernels[0].refresh(
             fp, self._mass, self._jac, self._qpos, self._q_home, self._jnt_range, _TWISTS,
             LAMBDA_REG, v.track_bandwidth, K_NULL, D_NULL, K_LIMIT, LIMIT_BAND,
         )  # fmt: skip
@@ -440,7 +442,7 @@ class ImpedanceController:
         (spx, spy, spz), kp, kr = self._sp[:3].tolist(), self._k[0], 2.0 * self._k[1]
         vx, vy, vz, wx, wy, wz = v_sp
         integrate = not self._active
-        dt_i = HOLD * self.model.opt.timestep
+        dt_i = HOLD * self._dt
         band = self.version.track_bandwidth
         if band:  # v2: the integral of the stiffness wrench K e (K = ω² Λ)
             gp, gr = (g * dt_i for g in self.version.integral_gain or K_INTEGRAL)
@@ -450,15 +452,16 @@ class ImpedanceController:
         vlim, half = self._vlim, self._half_vlim
         brake = self.version.joint_brake
         wext = self._wrench.tolist()
-        pushed = brake and self._hand_xfrc.any()
+        pushed = brake and any(wext)  # the hand's applied wrench is nonzero (_push_at_cup)
         fp = self._chunk_functions() if band and brake else None
-        dt, par = m.opt.timestep, None
+        dt, par = self._dt, None
         mujoco.mj_jacSite(m, d, jp, jr, site)
         self._model_terms(np.array(v_sp))
-        chunks = self._admitted(sp_r, wext, dt_i)
+        admitted = self._admitted(sp_r, wext, dt_i)
+        chunks = admitted or [(0.0, 0.0, 0.0, sp_r, None, None, self._adm)] * (self._n_sub // HOLD)
         if fp is not None and all(c[3].flags.c_contiguous for c in chunks):
             head = (spx, spy, spz, 0.0, 0.0, 0.0, *v_sp, CONTROL_DT, gp, gr, ip, ir, dt)
-            self._step_compiled(fp, self._chunk_par((*head, integrate, not pushed)), chunks)
+            self._step_compiled(fp, (*head, integrate, not pushed), admitted, sp_r)
             self._time += CONTROL_DT
             return
         for i, (ox, oy, oz, target_r, feed, damp, self._adm) in enumerate(chunks):
@@ -547,19 +550,32 @@ class ImpedanceController:
         if not use_fast():
             return None
         if self._fp is None:
-            from strol_gym.envs.study import chunk
+            global _kernels
+            from strol_gym.envs.study import chunk, step_kernel
 
             found = chunk.functions()
             if found is None:
                 return None
+            _kernels = chunk, step_kernel
             self._fp = np.array([*found, self.model._address, self.data._address], np.intp)
             self._objects = np.array(sorted(self._object_geoms), dtype=np.int64)
+            # the compiled control step's buffers (scratch: nothing is kept in them between
+            # steps); the chunks without the admittance differ in ``back`` alone
+            n, dt_i = self._n_sub // HOLD, HOLD * self._dt
+            self._par, self._ints = np.zeros(chunk.PAR), np.zeros(6, dtype=np.int64)
+            self._targets, self._var_still = np.empty((n, 3, 3)), np.zeros((n, step_kernel.VAR))
+            self._var_still[:, 3] = [CONTROL_DT - i * dt_i for i in range(n)]
         return self._fp
 
-    def _admitted(self, sp_r: np.ndarray, wext: list[float], dt_i: float) -> list[tuple[Any, ...]]:
+    def _admitted(
+        self, sp_r: np.ndarray, wext: list[float], dt_i: float
+    ) -> list[tuple[Any, ...]] | None:
         """Each chunk's admittance terms (the target's offset and rotation, its wrench feed and
         damping torques, None where they do not apply) and the admittance's state after it:
-        they do not depend on the physics, so a control step computes them up front."""
+        they do not depend on the physics, so a control step computes them up front. None:
+        the admittance does not act this step (at rest, nobody pushes)."""
+        if not (self.version.admittance and (self._adm is not REST or any(wext))):
+            return None
         chunks = []
         for _ in range(self._n_sub // HOLD):
             ox = oy = oz = 0.0
@@ -580,23 +596,36 @@ class ImpedanceController:
             chunks.append((ox, oy, oz, target_r, feed, damp, self._adm))
         return chunks
 
-    def _step_compiled(self, fp: np.ndarray, par: np.ndarray, chunks: list[tuple]) -> None:
-        """The control step's chunks (``_admitted``'s) by ``step_kernel.control_step``, the
-        first chunk's Jacobian and model terms already in place; then what it hands back."""
-        from strol_gym.envs.study import chunk, step_kernel
-
-        n, dt_i = len(chunks), HOLD * self.model.opt.timestep
-        var, targets = np.zeros((n, step_kernel.VAR)), np.empty((n, 3, 3))
-        for i, (ox, oy, oz, target_r, feed, damp, _) in enumerate(chunks):
-            var[i, :6] = ox, oy, oz, CONTROL_DT - i * dt_i, feed is not None, damp is not None
-            if feed is not None:
-                var[i, 6:12] = feed
-            if damp is not None:
-                var[i, 12:19] = damp
-            targets[i] = target_r
-        par[35:42] = self._tau_last
-        room, cup = bool(self.version.joint_room), self._cup_geom
-        ints = np.array([self._rerun, room, cup, _STAGE_VEL, self._touched, 0], dtype=np.int64)
+    def _step_compiled(
+        self,
+        fp: np.ndarray,
+        head: tuple[Any, ...],
+        chunks: list[tuple[Any, ...]] | None,
+        sp_r: np.ndarray,
+    ) -> None:
+        """The control step's chunks (``_admitted``'s, None: without the admittance, towards
+        ``sp_r``) by ``step_kernel.control_step``, the first chunk's Jacobian and model terms
+        already in place (``head``: ``chunk.chunk``'s ``par`` up to its step flag); then what
+        it hands back."""
+        chunk, step_kernel = _kernels
+        par, targets, var = self._par, self._targets, self._var_still
+        par[: chunk.INTEGRAL + 6] = [
+            *head, 0.0, 0.0, *self._acc_ff, *self._const, *self._tau_last, *_ZERO13, *self._integral
+        ]  # fmt: skip
+        if chunks is None:
+            targets[:] = sp_r
+        else:
+            n, dt_i = len(chunks), HOLD * self._dt
+            var = np.zeros((n, step_kernel.VAR))
+            for i, (ox, oy, oz, target_r, feed, damp, _) in enumerate(chunks):
+                var[i, :6] = ox, oy, oz, CONTROL_DT - i * dt_i, feed is not None, damp is not None
+                if feed is not None:
+                    var[i, 6:12] = feed
+                if damp is not None:
+                    var[i, 12:19] = damp
+                targets[i] = target_r
+        ints = self._ints
+        ints[:] = self._rerun, self.version.joint_room, self._cup_geom, _STAGE_VEL, self._touched, 0
         code = step_kernel.control_step(
             fp, par, var, targets, self._kmat, self._gain, self._m_inv, self._jac, self._caps,
             POSITION_REFLEX, ints, self._qpos, self._qvel, self._qacc, self._ctrl,
@@ -606,7 +635,8 @@ class ImpedanceController:
             self._integral = par[chunk.INTEGRAL : chunk.INTEGRAL + 6].tolist()
         self._tau_last = par[35:42].tolist()
         self._touched = bool(ints[step_kernel.TOUCHED])
-        self._adm = chunks[ints[step_kernel.AT_CHUNK] if code else n - 1][6]
+        if chunks is not None:
+            self._adm = chunks[ints[step_kernel.AT_CHUNK] if code else -1][6]
         if code == step_kernel.SINGULAR:
             raise np.linalg.LinAlgError("Singular matrix")
         if code == step_kernel.TRIP:
