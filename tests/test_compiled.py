@@ -631,3 +631,31 @@ def test_the_study_chunk_calls_numpys_own_blas(path):
 
     fp = chunk.functions()
     assert fp is not None and chunk._agrees(fp, cases=5)
+
+
+def test_the_compiled_step_reads_mujocos_contacts_as_the_binding_shows_them(path):
+    """``step_kernel.touches`` reads ``mjData``'s contacts by address (``data_layout``): a
+    sphere sunk in a plane touches it, and nothing else; no contacts, no touch."""
+    import mujoco
+
+    from strol_gym.envs.study import data_layout
+
+    path(True)
+    from strol_gym.envs.study import chunk, step_kernel
+
+    found = chunk.functions()
+    if found is None:
+        pytest.skip("no compiled chunk on this platform (the plain path runs)")
+    assert data_layout.contact_layout() is not None
+    model = mujoco.MjModel.from_xml_string(data_layout._PROBE)
+    data = mujoco.MjData(model)
+    fp = np.array([*found, model._address, data._address], np.intp)
+    floor, ball = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in ("floor", "ball"))
+    mujoco.mj_forward(model, data)
+    assert data.ncon == 1 and {data.contact.geom1[0], data.contact.geom2[0]} == {floor, ball}
+    assert step_kernel.touches(fp, ball, np.array([floor], np.int64))
+    assert step_kernel.touches(fp, floor, np.array([7, ball], np.int64))
+    assert not step_kernel.touches(fp, ball, np.array([ball + 5], np.int64))
+    data.qpos[2] = 1.0  # lifted clear of the plane
+    mujoco.mj_forward(model, data)
+    assert data.ncon == 0 and not step_kernel.touches(fp, ball, np.array([floor], np.int64))
