@@ -23,6 +23,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import strol_gym  # noqa: E402, F401  (registers the envs)
+from strol_gym import checks  # noqa: E402
 from strol_gym.compiled import use_fast  # noqa: E402
 
 PARTS = (
@@ -98,7 +99,7 @@ def main() -> None:
         calls[key] += 1
 
     inner._simulate = step
-    zero = np.zeros(env.action_space.shape, np.float32)
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
     env.reset(seed=args.seed)
     load = os.getloadavg()[0]
     truncated = False

@@ -326,14 +326,16 @@ class ImpedanceController:
         self._warnings = warnings
         return not bad
 
-    def _model_terms(self, v_sp: np.ndarray) -> None:
+    def _model_terms(self, v_sp: np.ndarray, defer: bool = False) -> tuple[bool, bool, list]:
         """The model-based terms of the control law, at the current pose: the cup's
         task-space inertia Λ, the damping D = √K Λ^½ + Λ^½ √K (critical for the arm's real
         inertia, which v0's scalar gains underestimate 2-5x) and the null-space projector N,
         folded into joint-space matrices (refreshed every ``MODEL_EVERY`` control steps: the
         pose changes little in between); and, when the setpoint's velocity changes, its
         acceleration feedforward Λ a_sp and the torques that move along it (Jᵀ D v_sp and the
-        joints' viscous damping at J̄ v_sp, J̄ = M⁻¹ Jᵀ Λ)."""
+        joints' viscous damping at J̄ v_sp, J̄ = M⁻¹ Jᵀ Λ). ``defer``: the compiled path's
+        feedforward is the caller's (``_step_compiled``): returns whether Λ a_sp and the
+        constant torques are due, and v_sp as a list."""
         refresh = self._model_age <= 0
         if refresh:
             self._model_age = MODEL_EVERY
@@ -345,6 +347,8 @@ class ImpedanceController:
         if fp is not None and self.version.track_bandwidth:  # the same sums, compiled
             chunk = _kernels[0]
             acc, feed = v_list != self._v_prev, refresh or v_list != self._v_feed
+            if defer:
+                return acc, feed, v_list
             if acc or feed:
                 v_prev = np.array(self._v_prev)
                 acc_ff, const = chunk.feeds(
@@ -356,7 +360,7 @@ class ImpedanceController:
                 self._v_prev = v_list
             if feed:
                 self._v_feed, self._const = v_list, const.tolist()
-            return
+            return False, False, v_list
         if v_list == self._v_prev:
             self._acc_ff = _ZERO6
         else:
@@ -367,6 +371,7 @@ class ImpedanceController:
             self._v_feed = v_list
             feed = self._jt_damp.dot(v_sp) + JOINT_DAMPING * self._dyn_inv.dot(v_sp)
             self._const = (feed + self._pull_home).tolist()
+        return False, False, v_list
 
     def _refresh_terms(self) -> None:
         """``_model_terms``' refresh: M, Λ, the gains and the null-space pull at this pose."""
@@ -436,6 +441,13 @@ class ImpedanceController:
             self._time += CONTROL_DT
             return
         self._push_at_cup()
+        v = self.version
+        fp = self._chunk_functions() if v.track_bandwidth and v.joint_brake else None
+        # the whole step compiled; a target rotation from a C-ordered setpoint's is C-ordered
+        if fp is not None and self._sp_R.flags.c_contiguous:
+            self._step_compiled(fp, v_sp)
+            self._time += CONTROL_DT
+            return
         jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
         q, qd = self._qpos, self._qvel
         xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R
@@ -453,17 +465,11 @@ class ImpedanceController:
         brake = self.version.joint_brake
         wext = self._wrench.tolist()
         pushed = brake and any(wext)  # the hand's applied wrench is nonzero (_push_at_cup)
-        fp = self._chunk_functions() if band and brake else None
         dt, par = self._dt, None
         mujoco.mj_jacSite(m, d, jp, jr, site)
         self._model_terms(np.array(v_sp))
         admitted = self._admitted(sp_r, wext, dt_i)
         chunks = admitted or [(0.0, 0.0, 0.0, sp_r, None, None, self._adm)] * (self._n_sub // HOLD)
-        if fp is not None and all(c[3].flags.c_contiguous for c in chunks):
-            head = (spx, spy, spz, 0.0, 0.0, 0.0, *v_sp, CONTROL_DT, gp, gr, ip, ir, dt)
-            self._step_compiled(fp, (*head, integrate, not pushed), admitted, sp_r)
-            self._time += CONTROL_DT
-            return
         for i, (ox, oy, oz, target_r, feed, damp, self._adm) in enumerate(chunks):
             if i:
                 mujoco.mj_jacSite(m, d, jp, jr, site)
@@ -562,9 +568,11 @@ class ImpedanceController:
             # the compiled control step's buffers (scratch: nothing is kept in them between
             # steps); the chunks without the admittance differ in ``back`` alone
             n, dt_i = self._n_sub // HOLD, HOLD * self._dt
-            self._par, self._ints = np.zeros(chunk.PAR), np.zeros(6, dtype=np.int64)
+            self._par, self._ints = np.zeros(chunk.PAR), np.zeros(8, dtype=np.int64)
             self._targets, self._var_still = np.empty((n, 3, 3)), np.zeros((n, step_kernel.VAR))
             self._var_still[:, 3] = [CONTROL_DT - i * dt_i for i in range(n)]
+            gains = self.version.integral_gain or K_INTEGRAL
+            self._step_head = [g * dt_i for g in gains] + list(self._integral_max) + [self._dt]
         return self._fp
 
     def _admitted(
@@ -596,41 +604,55 @@ class ImpedanceController:
             chunks.append((ox, oy, oz, target_r, feed, damp, self._adm))
         return chunks
 
-    def _step_compiled(
-        self,
-        fp: np.ndarray,
-        head: tuple[Any, ...],
-        chunks: list[tuple[Any, ...]] | None,
-        sp_r: np.ndarray,
-    ) -> None:
-        """The control step's chunks (``_admitted``'s, None: without the admittance, towards
-        ``sp_r``) by ``step_kernel.control_step``, the first chunk's Jacobian and model terms
-        already in place (``head``: ``chunk.chunk``'s ``par`` up to its step flag); then what
-        it hands back."""
+    def _step_compiled(self, fp: np.ndarray, v_sp: Velocity) -> None:
+        """A control step of v2's law (``track_bandwidth``, ``joint_brake``) by one call of
+        ``step_kernel.control_step``: the Jacobian, the model refresh when due and the
+        admittance's chunk terms first (``_model_terms``, ``_admitted``), the feedforward
+        terms, the chunks and their physics in the kernel; then what it hands back."""
         chunk, step_kernel = _kernels
-        par, targets, var = self._par, self._targets, self._var_still
+        m, d, sp_r = self.model, self.data, self._sp_R
+        wext = self._wrench.tolist()
+        pushed = any(wext)  # the hand's applied wrench is nonzero (_push_at_cup)
+        mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._site)
+        v = np.array(v_sp)
+        acc, feed, v_list = self._model_terms(v, defer=True)
+        chunks = self._admitted(sp_r, wext, HOLD * self._dt)
+        par, targets, var, ints = self._par, self._targets, self._var_still, self._ints
+        spx, spy, spz = self._sp[:3].tolist()
         par[: chunk.INTEGRAL + 6] = [
-            *head, 0.0, 0.0, *self._acc_ff, *self._const, *self._tau_last, *_ZERO13, *self._integral
+            spx, spy, spz, 0.0, 0.0, 0.0, *v_sp, CONTROL_DT, *self._step_head, not self._active,
+            not pushed, 0.0, 0.0, *_ZERO6, *(_ZERO7 if feed else self._const), *self._tau_last,
+            *_ZERO13, *self._integral,
         ]  # fmt: skip
         if chunks is None:
             targets[:] = sp_r
         else:
             n, dt_i = len(chunks), HOLD * self._dt
             var = np.zeros((n, step_kernel.VAR))
-            for i, (ox, oy, oz, target_r, feed, damp, _) in enumerate(chunks):
-                var[i, :6] = ox, oy, oz, CONTROL_DT - i * dt_i, feed is not None, damp is not None
-                if feed is not None:
-                    var[i, 6:12] = feed
+            for i, (ox, oy, oz, target_r, feed_w, damp, _) in enumerate(chunks):
+                var[i, :6] = ox, oy, oz, CONTROL_DT - i * dt_i, feed_w is not None, damp is not None
+                if feed_w is not None:
+                    var[i, 6:12] = feed_w
                 if damp is not None:
                     var[i, 12:19] = damp
                 targets[i] = target_r
-        ints = self._ints
-        ints[:] = self._rerun, self.version.joint_room, self._cup_geom, _STAGE_VEL, self._touched, 0
+        ints[:] = (
+            self._rerun, self.version.joint_room, self._cup_geom, _STAGE_VEL, self._touched, 0,
+            acc, feed,
+        )  # fmt: skip
+        v_prev = np.array(self._v_prev) if acc else v
         code = step_kernel.control_step(
             fp, par, var, targets, self._kmat, self._gain, self._m_inv, self._jac, self._caps,
             POSITION_REFLEX, ints, self._qpos, self._qvel, self._qacc, self._ctrl,
-            self._site_xpos, self._site_xmat, self._objects, self._site,
+            self._site_xpos, self._site_xmat, self._objects, self._site, self._lam,
+            self._jt_damp, self._dyn_inv, self._pull_home, JOINT_DAMPING, v, v_prev,
+            1.0 / CONTROL_DT,
         )  # fmt: skip
+        self._acc_ff = par[22:28].tolist() if acc else _ZERO6
+        if acc:
+            self._v_prev = v_list
+        if feed:
+            self._v_feed, self._const = v_list, par[28:35].tolist()
         if par[18]:  # it integrated
             self._integral = par[chunk.INTEGRAL : chunk.INTEGRAL + 6].tolist()
         self._tau_last = par[35:42].tolist()

@@ -45,6 +45,7 @@ from strol_gym.envs.study.chunk import (
     _load_ptr,
     _ptr,
     chunk,
+    feeds,
     gemv,
     solve,
 )
@@ -53,10 +54,10 @@ from strol_gym.envs.study.scene import HOLD
 TRIP, SINGULAR = 1, 2
 """``control_step``'s answers besides 0 (the step done): the reflex trips (the brakes lock the
 arm), a brake's held joints' block of M⁻¹ is singular (the plain path's solve raises)."""
-RERUN, JOINT_ROOM, CUP, STAGE_VEL, TOUCHED, AT_CHUNK = range(6)
+RERUN, JOINT_ROOM, CUP, STAGE_VEL, TOUCHED, AT_CHUNK, ACC, FEED = range(8)
 """``ints``' entries: the counterfactual's rerun (1/0), the version's ``joint_room``, the cup's
-geom, MuJoCo's ``mjSTAGE_VEL``; then what the step writes: the cup touched an object (1/0),
-the chunk it stopped in."""
+geom, MuJoCo's ``mjSTAGE_VEL``; what the step writes: the cup touched an object (1/0), the
+chunk it stopped in; then whether Λ a_sp and the constant torques are due (``chunk.feeds``)."""
 BRAKE_CAP, EXACT_CAP, REFLEX_CAP, TORQUE_CAP, COMP, LOW, HIGH, TWISTS, WATCH_CAP = range(9)
 """``caps``' rows: ``BRAKE_FROM``, ``EXACT_FROM`` and ``SPEED_REFLEX`` of the speed limits, the
 torque limits, the joints' damping cancelled (``JOINT_COMP``), the position limits, the
@@ -219,13 +220,23 @@ def braked_steps(fp, ints, steps, pushed, base0, tau_last, m_inv, caps, reach, q
 
 @_jit
 def control_step(fp, par, var, targets, kmat, gain, m_inv, jac, caps, reach, ints, q, qd, qacc,
-                 ctrl, xpos, xmat, objects, site):  # fmt: skip
-    """The control step's chunks (``var``'s rows; ``targets``: each chunk's target rotation)
-    from the first chunk's law on (its Jacobian and the model terms are the caller's), then
-    ``mj_kinematics`` and ``mj_comPos``. ``par`` as ``chunk.chunk``'s, its last torques
-    (35:42) kept up to date. Returns 0, or ``TRIP``/``SINGULAR`` with the chunk in ``ints``
-    (nothing after it run)."""
+                 ctrl, xpos, xmat, objects, site, lam, jt_damp, dyn_inv, pull_home, joint_damping,
+                 v_sp, v_prev, inv_dt):  # fmt: skip
+    """The control step's feedforward terms where due (``chunk.feeds`` into ``par``: Λ a_sp,
+    the constant torques), its chunks (``var``'s rows; ``targets``: each chunk's target
+    rotation) from the first chunk's law on (its Jacobian and the model refresh are the
+    caller's), then ``mj_kinematics`` and ``mj_comPos``. ``par`` as ``chunk.chunk``'s, its
+    last torques (35:42) kept up to date. Returns 0, or ``TRIP``/``SINGULAR`` with the chunk
+    in ``ints`` (nothing after it run)."""
     m, d = fp[MODEL], fp[DATA]
+    acc, feed = ints[ACC] != 0, ints[FEED] != 0
+    if acc or feed:
+        acc_ff, const = feeds(fp, lam, jt_damp, dyn_inv, pull_home, joint_damping, v_sp, v_prev,
+                              inv_dt, acc, feed)  # fmt: skip
+        if acc:
+            par[22:28] = acc_ff
+        if feed:
+            par[28:35] = const
     h = par[17]
     tau_last = par[35:42]
     base0 = np.empty(N)
