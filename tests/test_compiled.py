@@ -600,7 +600,7 @@ def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path, monkeypatch):
     path(False)
     plain, braked = _study_rollout(2, 20003, 160, TWIST)
     assert braked > 5  # the brake's chunks ran, not only watched ones
-    tripped, braked_too = _study_rollout(3, 20014, 60, FAST_PUSH)
+    tripped, braked_too = _study_rollout(3, 20014, 45, FAST_PUSH)
     path(True)
     from strol_gym.envs.study import chunk, step_kernel
 
@@ -616,7 +616,7 @@ def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path, monkeypatch):
     # steps and the reflexes inside it) ran, where it applies
     assert _study_rollout(2, 20003, 160, TWIST)[0] == plain
     assert len(codes) > 100 or chunk.functions() is None
-    assert _study_rollout(3, 20014, 60, FAST_PUSH)[0] == tripped
+    assert _study_rollout(3, 20014, 45, FAST_PUSH)[0] == tripped
     assert braked_too > 0 and (step_kernel.TRIP in codes or chunk.functions() is None)
 
 
