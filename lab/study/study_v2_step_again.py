@@ -8,7 +8,6 @@ env's own fields put back; the second run must end in the same joint positions),
 
 from __future__ import annotations
 
-import argparse
 import os
 import time
 from typing import Any
@@ -16,12 +15,9 @@ from typing import Any
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import gymnasium as gym  # noqa: E402
 import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
 
-import strol_gym  # noqa: E402, F401  (registers the envs)
-from strol_gym import checks  # noqa: E402
+from lab.study.study_v2_step_costs import arguments, episode_env, run_episode  # noqa: E402
 
 FIELDS = (
     *("_time", "_touched", "_braked", "_reflex", "_n_reflex", "_brake_q", "_active"),
@@ -31,17 +27,8 @@ FIELDS = (
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--task", type=int, default=2, choices=(1, 2, 3))
-    p.add_argument("--seed", type=int, default=20100)
-    args = p.parse_args()
-    import torch
-
-    from strol_gym.wrappers import OnlineLearningWrapper
-
-    torch.set_num_threads(1)
-    env = OnlineLearningWrapper(gym.make("StROL-Study-v2", task=args.task), "strol")
-    inner: Any = env.unwrapped
+    args = arguments(__doc__ or "")
+    env, inner = episode_env(args.task)
     model, scratch = inner.model, mujoco.MjData(inner.model)
     simulate, clock = inner._simulate, time.process_time
     spent, steps = {"first": 0.0, "again": 0.0}, [0]
@@ -70,12 +57,8 @@ def main() -> None:
         steps[0] += 1
 
     inner._simulate = twice
-    zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
-    env.reset(seed=args.seed)
     load = os.getloadavg()[0]
-    truncated = False
-    while not truncated:
-        _, _, _, truncated, _ = env.step(zero)
+    run_episode(env, args.seed)
     n = steps[0]
     first, again = (1e6 * spent[k] / n for k in ("first", "again"))
     print(

@@ -40,18 +40,40 @@ KERNELS = (("step_kernel", "control_step"), ("chunk", "chunk"), ("chunk", "refre
 """Compiled kernels timed as their module's attribute (called through it)."""
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def arguments(doc: str) -> argparse.Namespace:
+    """--task and --seed (the episode's)."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
     p.add_argument("--task", type=int, default=2, choices=(1, 2, 3))
     p.add_argument("--seed", type=int, default=20100)
-    args = p.parse_args()
-    import importlib
+    return p.parse_args()
 
+
+def episode_env(task: int) -> tuple[Any, Any]:
+    """(StROL-Study-v2 with its default person in ``OnlineLearningWrapper`` with StROL, the
+    study env itself), on one thread."""
     import torch
 
     from strol_gym.wrappers import OnlineLearningWrapper
 
     torch.set_num_threads(1)
+    env = OnlineLearningWrapper(gym.make("StROL-Study-v2", task=task), "strol")
+    return env, env.unwrapped
+
+
+def run_episode(env: Any, seed: int) -> dict[str, Any]:
+    """One episode with zero residual actions; its last info."""
+    zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
+    env.reset(seed=seed)
+    truncated = False
+    while not truncated:
+        _, _, _, truncated, info = env.step(zero)
+    return info
+
+
+def main() -> None:
+    args = arguments(__doc__ or "")
+    import importlib
+
     clock = time.process_time
     spent: dict[str, float] = defaultdict(float)
     calls: dict[str, int] = defaultdict(int)
@@ -74,8 +96,7 @@ def main() -> None:
             continue
         if use_fast() and hasattr(mod, name):
             setattr(mod, name, timed(f"{module}.{name}", getattr(mod, name)))
-    env = OnlineLearningWrapper(gym.make("StROL-Study-v2", task=args.task), "strol")
-    inner: Any = env.unwrapped
+    env, inner = episode_env(args.task)
     for name in PARTS:
         if hasattr(inner, name):
             setattr(inner, name, timed(name, getattr(inner, name)))
@@ -99,12 +120,8 @@ def main() -> None:
         calls[key] += 1
 
     inner._simulate = step
-    zero = np.zeros(checks.space_shape("action_space", env.action_space), np.float32)
-    env.reset(seed=args.seed)
     load = os.getloadavg()[0]
-    truncated = False
-    while not truncated:
-        _, _, _, truncated, info = env.step(zero)
+    info = run_episode(env, args.seed)
     steps = calls["_simulate"]
     print(
         f"task {args.task} seed {args.seed}, compiled {use_fast()}: {steps} control steps, "

@@ -25,7 +25,12 @@ import numpy as np
 from llvmlite import ir
 from numba import njit, types
 
-from strol_gym.envs.panda.ik_kernel import _addresses, _c_function, intrinsic
+from strol_gym.envs.panda.ik_kernel import (
+    _addresses,
+    _c_function,
+    _call_md,
+    intrinsic,
+)
 from strol_gym.envs.study.data_layout import contact_layout
 from strol_gym.envs.study.scene import HOLD
 
@@ -47,21 +52,9 @@ _p, _i, _f = types.intp, types.int32, types.float64
 
 
 @intrinsic
-def _call_md(typingctx, address, m, d):
-    """mj_step(m, d) at ``address``."""
-    return _c_function(None, (_p, _p))
-
-
-@intrinsic
 def _call_skip(typingctx, address, m, d, skipstage, skipsensor):
     """mj_forwardSkip(m, d, skipstage, skipsensor) at ``address``."""
     return _c_function(None, (_p, _p, _i, _i))
-
-
-@intrinsic
-def _call_jac(typingctx, address, m, d, jacp, jacr, site):
-    """mj_jacSite(m, d, jacp, jacr, site) at ``address``."""
-    return _c_function(None, (_p, _p, _p, _p, _i))
 
 
 @intrinsic

@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from strol_gym.envs.panda.ik_kernel import _call_jac
 from strol_gym.envs.study.chunk import (
     BRAKE_ALL,
     COM_POS,
@@ -37,7 +38,6 @@ from strol_gym.envs.study.chunk import (
     STEP1,
     STEP2,
     TORQUES,
-    _call_jac,
     _call_md,
     _call_skip,
     _jit,
