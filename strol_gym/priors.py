@@ -9,6 +9,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from strol_gym import checks
+from strol_gym.compiled import use_fast
 from strol_gym.registry import Registry
 
 
@@ -81,9 +82,30 @@ class MixturePrior:
             rng = rngs[0]
             i = rng.integers(0, k)
             return (self.modes[i] + self.jitter * rng.standard_normal(self.dim))[None]
-        idx = np.array([rng.integers(0, k) for rng in rngs], dtype=np.int64)
-        z = np.array([rng.standard_normal(self.dim) for rng in rngs]).reshape(len(rngs), self.dim)
-        return self.modes[idx] + self.jitter * z
+        drawn = _compiled_draws(rngs, k, self.dim)
+        if drawn is None:
+            idx = np.array([rng.integers(0, k) for rng in rngs], dtype=np.int64)
+            z = np.array([rng.standard_normal(self.dim) for rng in rngs])
+            drawn = idx, z.reshape(len(rngs), self.dim)
+        return self.modes[drawn[0]] + self.jitter * drawn[1]
+
+
+def _compiled_draws(
+    rngs: Sequence[np.random.Generator], k: int, dim: int
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``integers(0, k)`` then ``standard_normal(dim)`` from each generator in one compiled
+    call (``pcg64_fill.mixture``, numpy's numbers): (indices, normals (B, dim)); None where the
+    fast kernels are off or it cannot give numpy's numbers (a generator not a ``PCG64``)."""
+    if not (use_fast() and 0 < k < 2**32 - 1):
+        return None
+    from strol_gym.pcg64_fill import addresses, mixture
+
+    states = addresses(rngs, ("mixture",))
+    if states is None:
+        return None
+    idx, z = np.empty(len(rngs), dtype=np.int64), np.empty((len(rngs), dim))
+    mixture(states, k, idx, z)
+    return idx, z
 
 
 def sample_each(prior: Prior, rngs: Sequence[np.random.Generator]) -> np.ndarray:

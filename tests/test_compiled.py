@@ -225,6 +225,33 @@ def test_the_compiled_pcg64_uniforms_are_numpys():
     assert addresses([ours[0], np.random.Generator(np.random.Philox(1))]) is None
 
 
+def test_the_compiled_mixture_draws_are_numpys(path):
+    """``pcg64_fill.mixture``: ``integers(0, k)`` then ``standard_normal(d)`` per generator, the
+    numbers and the states after them (the 32-bit draw's kept half carried into the next
+    round; 5,000 normals of one generator reach the ziggurat's rare paths); the bimodal
+    prior's θ* of many generators the same on both paths."""
+    from strol_gym.pcg64_fill import addresses, mixture
+    from strol_gym.priors import MixturePrior
+
+    seeds = (0, 7, 2**40, 12)
+    ours = [np.random.default_rng(s) for s in seeds]
+    theirs = [np.random.default_rng(s) for s in seeds]
+    for k, d in ((2, 2), (5, 3), (1, 2), (2, 1)):
+        idx, z = np.empty(4, dtype=np.int64), np.empty((4, d))
+        mixture(addresses(ours, ("mixture",)), k, idx, z)
+        assert idx.tolist() == [g.integers(0, k) for g in theirs]
+        assert z.tobytes() == np.stack([g.standard_normal(d) for g in theirs]).tobytes()
+    z = np.empty((1, 5000))
+    mixture(addresses(ours[:1], ("mixture",)), 1, idx[:1], z)
+    assert z.tobytes() == theirs[0].standard_normal(5000).tobytes()
+    assert [g.bit_generator.state for g in ours] == [g.bit_generator.state for g in theirs]
+    prior, thetas = MixturePrior(np.array([[0.8, -0.8], [-0.8, 0.8], [0.0, 0.5]])), []
+    for fast in (True, False):
+        path(fast)
+        thetas.append(prior.sample_each([np.random.default_rng(s) for s in seeds]).tobytes())
+    assert thetas[0] == thetas[1]
+
+
 def test_a_model_or_task_that_changes_what_the_drawn_kernel_repeats_draws_as_usual(path):
     from strol_gym.humans.builtin import NominalModel
 
@@ -323,6 +350,9 @@ def test_the_robot_step_runs_compiled_and_refuses_as_the_contract(path):
     env = RobotEnv()
     env.reset(seed=1)
     assert env._fused_step() is not None
+    assert env._reset_draws(env.np_random) is not None  # θ* and the start drawn compiled
+    uniform = RobotEnv(prior="uniform")
+    assert uniform._reset_draws(uniform.np_random) is None
     state = env.np_random.bit_generator.state
     with pytest.raises(ValueError, match="action must be finite"):
         env.step(np.array([0.0, np.nan, 0.0]))
@@ -444,6 +474,46 @@ def test_batched_ik_solves_are_the_same_bytes_on_both_paths(path, monkeypatch, h
         assert (arms._kernels() is not None) == fast
     assert out[0] == out[1]
     assert max(restarts) > ik_batched.SINGLE_RETRY  # the batched restart ran
+    env.close()
+
+
+def test_the_robots_features_of_many_states_are_the_same_on_both_paths(path):
+    """``RobotTask.features`` of (B, 3) states: the compiled loop gives numpy's bits below and
+    above the size where numpy works per object and axis; a Task that changes its offsets
+    keeps numpy's path."""
+
+    class Shifted(RobotTask):
+        def _offsets(self, x):
+            return super()._offsets(x + 0.01)
+
+    x = np.random.default_rng(9).uniform(-1.0, 1.5, (1100, 3))
+    got = {}
+    for fast in (False, True):
+        path(fast)
+        for n in (2, 999, 1100):
+            got[fast, n] = RobotTask().features(x[:n]).tobytes()
+        got[fast, "shifted"] = Shifted().features(x).tobytes()
+    assert all(got[True, k] == got[False, k] for k in (2, 999, 1100, "shifted"))
+    assert got[True, "shifted"] != got[True, 1100]
+
+
+def test_the_batched_seed_lookup_is_the_same_on_both_paths(path):
+    """``BatchedPandaIK.reference``: the seed table's posture nearest each target (outside the
+    box: the nearest edge; a cell without a posture: NaN) on both paths."""
+    from strol_gym.envs.panda import ik_batched
+
+    env = gym.make("StROL-Robot-v0").unwrapped
+    targets = np.random.default_rng(8).uniform(-0.5, 1.2, (2000, 3))
+    got = []
+    for fast in (False, True):
+        path(fast)
+        arms = ik_batched.BatchedPandaIK(env.ik, 4)
+        arms.seeds = arms.seeds.copy()
+        arms.seeds[::2, 1::3] = np.nan
+        got.append(arms.reference(targets).tobytes())
+        assert (arms._kernels() is not None) == fast
+    assert got[0] == got[1]
+    assert np.isnan(np.frombuffer(got[0])).any()
     env.close()
 
 

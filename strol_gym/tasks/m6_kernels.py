@@ -14,8 +14,9 @@ A nominal person's whole correction from their draws (the candidates' scaling, t
 the noise) runs as one call where the search allows it: ``robot_m6_drawn``, and
 ``highway_m6_drawn`` for the people the Highway's screen settles alone.
 
-Beside the searches: the candidates' scaling (``unit_to_box``) and the Highway's φ of one
-state (``highway_phi``), the same operations as their plain paths in one compiled call each.
+Beside the searches: the candidates' scaling (``unit_to_box``), the Highway's φ of one state
+(``highway_phi``) and the Robot's of many (``robot_features``), the same operations as their
+plain paths in one compiled call each.
 """
 
 from __future__ import annotations
@@ -38,6 +39,19 @@ def unit_to_box(u: np.ndarray, scale: np.ndarray) -> None:
                 v = u[i, j, c] * 2.0
                 v = v + -1.0
                 u[i, j, c] = v * scale[c]
+
+
+@compiled
+def robot_features(x: np.ndarray, objects: np.ndarray, out: np.ndarray) -> None:
+    """``RobotTask.features`` of states ``x`` (B, 3) into ``out`` (B, 2), ``objects`` the plate
+    and the cup (2, 3): the operations of ``RobotTask._features_one`` per state."""
+    p0, p1 = objects[0, 0], objects[0, 1]
+    c0, c1, c2 = objects[1, 0], objects[1, 1], objects[1, 2]
+    for b in range(x.shape[0]):
+        d0, d1 = p0 - x[b, 0], p1 - x[b, 1]
+        e0, e1, e2 = c0 - x[b, 0], c1 - x[b, 1], c2 - x[b, 2]
+        out[b, 0] = -math.sqrt(d0 * d0 + d1 * d1)
+        out[b, 1] = -math.sqrt((e0 * e0 + e2 * e2) + e1 * e1)
 
 
 @compiled

@@ -16,6 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from strol_gym.compiled import use_fast
 from strol_gym.draws import uniform_rows
 from strol_gym.planning import plan_linear_reward
 from strol_gym.priors import MixturePrior, Prior
@@ -123,8 +124,18 @@ class RobotTask(Task):
         return np.stack([self.plate, self.cup])
 
     def features(self, x: np.ndarray) -> np.ndarray:
-        if type(x) is np.ndarray and x.shape == (3,) and x.dtype == np.float64:
-            return np.array(self._features_one(*x.tolist()))
+        if type(x) is np.ndarray and x.dtype == np.float64:
+            if x.shape == (3,):
+                return np.array(self._features_one(*x.tolist()))
+            if x.ndim == 2 and x.shape[1] == 3 and len(x) > 1:
+                kernel = _features_kernel(self)
+                if kernel is not None:  # a vector env's states: one compiled call
+                    out = np.empty((len(x), 2))
+                    kernel(x, self._objects, out)
+                    return out
+        return self._features_numpy(x)
+
+    def _features_numpy(self, x: np.ndarray) -> np.ndarray:
         diff = self._offsets(np.asarray(x, dtype=np.float64))  # (..., 2, 3)
         # C order whatever the layout of diff: sums over φ (returns, plan values) reduce in
         # memory order, and the same layout gives the same rounding.
@@ -376,3 +387,32 @@ class RobotTask(Task):
         cost of broadcasting array bounds."""
         lo = self.workspace_low
         return lo + (self.workspace_high - lo) * unit
+
+
+@functools.cache
+def _features_checked() -> Callable | None:
+    """``m6_kernels.robot_features`` where it gives numpy's φ (``RobotTask._features_numpy``,
+    the sum over the axes in the order of numpy's einsum here) on probe states of both of
+    its layouts, checked once per process; else None."""
+    from strol_gym.tasks.m6_kernels import robot_features
+
+    task = RobotTask()
+    for n in (5, 1100):  # below and above _LONG numbers
+        x = np.random.default_rng(n).uniform(-2.0, 2.0, (n, 3))
+        out = np.empty((n, 2))
+        robot_features(x, task._objects, out)
+        if out.tobytes() != task._features_numpy(x).tobytes():
+            return None
+    return robot_features
+
+
+_FEATURES = ("_features_numpy", "_offsets", "_features_one", "_objects")
+"""What ``robot_features`` computes over again of ``RobotTask``."""
+
+
+def _features_kernel(task: RobotTask) -> Callable | None:
+    """The compiled φ of many states, or None: the plain kernels, a Task class that changes
+    what it repeats, or numpy summing in another order here."""
+    if not (use_fast() and task._unchanged(RobotTask, _FEATURES)):
+        return None
+    return _features_checked()

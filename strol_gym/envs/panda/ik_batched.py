@@ -250,6 +250,14 @@ class BatchedPandaIK:
         """The seed table's configuration nearest each target, (B, 7); NaN rows: none."""
         if self.seeds is None:
             return np.full((len(target), N_ARM), np.nan)
+        kernels = self._kernels()
+        if kernels is not None:
+            out = np.empty((len(target), N_ARM))
+            kernels.references(
+                np.ascontiguousarray(target, dtype=np.float64), self.seeds, self._seed_low,
+                self._seed_step, self._seed_max, out,
+            )  # fmt: skip
+            return out
         idx = np.rint((target - self._seed_low) / self._seed_step).astype(int)
         np.minimum(np.maximum(idx, 0), self._seed_max, out=idx)
         return self.seeds[idx[:, 0], idx[:, 1], idx[:, 2]]

@@ -256,16 +256,22 @@ def _solve(
 
 
 @_jit
+def _cell(v, low, step, top):
+    """The seed table's index along one axis nearest ``v`` (round(): half to even), clipped."""
+    return min(max(int(np.rint((v - low) / step)), 0), top)
+
+
+@_jit
 def reference(target, seeds, seed_low, seed_step, seed_top, no_ref):
     """``PandaIK.reference``: (the seed table's posture nearest the task-frame ``target``,
     whether there is one); ``no_ref`` where the table is empty or holds none there."""
     if seeds.shape[0] == 0:
         return no_ref, False
-    idx = np.empty(3, dtype=np.intp)
-    for i in range(3):
-        k = int(np.rint((target[i] - seed_low[i]) / seed_step[i]))  # round(): half to even
-        idx[i] = min(max(k, 0), seed_top[i])
-    ref = seeds[idx[0], idx[1], idx[2]]
+    ref = seeds[
+        _cell(target[0], seed_low[0], seed_step[0], seed_top[0]),
+        _cell(target[1], seed_low[1], seed_step[1], seed_top[1]),
+        _cell(target[2], seed_low[2], seed_step[2], seed_top[2]),
+    ]
     if np.isnan(ref[0]):
         return no_ref, False
     return ref, True

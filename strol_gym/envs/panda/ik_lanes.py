@@ -25,11 +25,19 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from strol_gym.envs.panda.ik_kernel import _dls, _dot9, _fma, _one, addresses, restart
+from strol_gym.envs.panda.ik_kernel import (
+    _cell,
+    _dls,
+    _dot9,
+    _fma,
+    _one,
+    addresses,
+    restart,
+)
 from strol_gym.envs.panda.ik_step import dls_solve
 from strol_gym.envs.panda.model import N_ARM
 
-__all__ = ["addresses", "batched_forward", "batched_solve", "restart"]
+__all__ = ["addresses", "batched_forward", "batched_solve", "references", "restart"]
 
 _jit: Any = njit(cache=True, nogil=True, error_model="numpy")
 """IEEE division (inf or NaN, no ZeroDivisionError branch), so that the lanes' loops vectorise;
@@ -167,6 +175,19 @@ def _pack(a, keep, n):
             if keep[lane]:
                 a[c, k] = a[c, lane]
                 k += 1
+
+
+@_jit
+def references(target, seeds, seed_low, seed_step, seed_top, out):
+    """``BatchedPandaIK.reference`` of task-frame targets (B, 3) into ``out`` (B, 7): the
+    table's row at each target's cell (``ik_kernel._cell``: numpy's rounding and clip), NaN
+    where it holds no posture, as the table's own rows."""
+    for b in range(target.shape[0]):
+        i = _cell(target[b, 0], seed_low[0], seed_step[0], seed_top[0])
+        j = _cell(target[b, 1], seed_low[1], seed_step[1], seed_top[1])
+        k = _cell(target[b, 2], seed_low[2], seed_step[2], seed_top[2])
+        for m in range(N_ARM):
+            out[b, m] = seeds[i, j, k, m]
 
 
 @_jit

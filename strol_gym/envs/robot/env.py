@@ -18,6 +18,7 @@ from strol_gym.envs.robot.scene import TABLE_TOP, build_model
 from strol_gym.envs.robot.seeds import seed_table
 from strol_gym.humans.builtin import drawn_teacher
 from strol_gym.humans.interface import SimulatedHuman
+from strol_gym.priors import MixturePrior
 from strol_gym.tasks.robot import RobotTask
 
 _DYNAMICS = ("dynamics", "dynamics_one")
@@ -42,6 +43,7 @@ _STEP_HOOKS = (
 """The contract's hooks the compiled step and reset repeat: an env class that overrides one
 takes the contract's."""
 _STEP_CLASSES: dict[type, bool] = {}
+_F64 = np.dtype(np.float64)  # a dtype compared by identity: == against the type converts it
 
 
 class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
@@ -235,8 +237,16 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         sk, ap, prm = fused[:3]
         gym.Env.reset(self, seed=seed)
         rng = self.np_random
-        theta_star = self.draw_theta_stars([rng])[0]
-        unit = rng.random(3)  # ``RobotTask.sample_starts``' draws, as rng.random((1, 3))
+        draws = self._reset_draws(rng)
+        if draws is None:
+            theta_star = self.draw_theta_stars([rng])[0]
+            unit = rng.random(3)  # ``RobotTask.sample_starts``' draws, as rng.random((1, 3))
+        else:  # the same draws and numbers in one compiled call
+            prior, states = draws
+            theta_star, unit = np.empty((1, 2)), np.empty(3)
+            idx, z = np.empty(1, dtype=np.int64), np.empty((1, 2))
+            sk.robot_draws(states, prior.modes, prior.jitter, idx, z, theta_star[0], unit)
+            theta_star = theta_star[0]
         self._start_episode(theta_star, rng)
         th = self.theta_hat
         obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.PLACED)
@@ -270,7 +280,7 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
             or action.shape != (3,)
             or not self._started
             or type(th) is not np.ndarray
-            or th.dtype != np.float64
+            or th.dtype is not _F64
             or th.shape != (2,)
         ):
             return super().step(action)
@@ -280,23 +290,31 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         if human is not None and correcting(self.steps, self.n_corrections):
             teach = self.ik.__dict__.get("_teach")  # asked once per episode's person
             if teach is None or teach[0] is not human:
-                teach = self.ik.__dict__["_teach"] = (human, self._teacher(human))
+                teach = self.ik.__dict__["_teach"] = (human, self._teacher(human), None, 0)
             if teach[1] is None or not all(map(math.isfinite, action.tolist())):
                 return super().step(action)  # (a bad action raises there, before any draw)
             prm, units = teach[1]
             person = cast(SimulatedHuman, human)  # ``_teacher`` found one
+            rng = person.rng
+            if teach[2] is not rng:  # where the kernel draws (0: numpy draws here)
+                teach = self.ik.__dict__["_teach"] = (human, teach[1], rng, _state(rng))
+            state = teach[3]
             person.begin()
-            person.rng.random(out=units)  # the draws of ``NominalModel.drawn_corrections``
-            person.rng.standard_normal(out=noise)
+            if not state:  # the draws of ``NominalModel.drawn_corrections``
+                rng.random(out=units)
+                rng.standard_normal(out=noise)
             theta_star = person.theta_star  # a SimulatedHuman's: float64, as ``theta_star``
             mode = 1
         else:
+            state = 0
             theta_star = self.theta_star
             if theta_star.shape != (2,):
                 return super().step(action)  # (a person's θ* is the prior's: two numbers)
         obs_row, out = np.empty(sk.OBS, dtype=np.float32), np.empty(sk.OUT)
         x = self._x
-        done = sk.robot_step(ap, prm, x, action, th, theta_star, units, noise, obs_row, out, mode)
+        done = sk.robot_step(
+            ap, prm, x, action, th, theta_star, units, noise, obs_row, out, mode, state
+        )
         if done == sk.BAD_ACTION:
             return super().step(action)  # raises, naming the action
         u_h = out[sk.U_H : sk.U_H + 3]
@@ -358,6 +376,28 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         ik.__dict__["_fused_step"] = fused
         return fused
 
+    def _reset_draws(self, rng: np.random.Generator) -> tuple[MixturePrior, np.ndarray] | None:
+        """(the prior, the generator's state address) where ``step_kernel.robot_draws`` repeats
+        the reset's θ* and start draws: the contract's ``draw_theta_stars``, a
+        ``MixturePrior`` of two weights, a numpy ``PCG64`` the compiled draws agree with;
+        else None."""
+        memo = self.ik.__dict__.get("_reset_draws")
+        if memo is not None and memo[0] is rng and memo[1] is self.task.prior:
+            return memo[2]
+        prior, found = self.task.prior, None
+        if (
+            type(self).draw_theta_stars is CorrectionEnv.draw_theta_stars
+            and type(prior) is MixturePrior
+            and prior.dim == 2
+            and 0 < len(prior.modes) < 2**32 - 1
+        ):
+            from strol_gym.pcg64_fill import addresses
+
+            states = addresses([rng], ("fill", "mixture"))
+            found = None if states is None else (prior, states)
+        self.ik.__dict__["_reset_draws"] = (rng, prior, found)
+        return found
+
     def _teacher(self, human: Any) -> tuple[np.ndarray, np.ndarray] | None:
         """(``robot_step``'s parameters with this person's σ and ε, a buffer for their uniform
         draws) where ``human`` is an eq. M6 teacher whose correction ``robot_step`` repeats
@@ -392,6 +432,14 @@ class RobotEnv(MujocoRendering, CorrectionEnv, gym.Env):
         self._renderer = None
         self._viewer = None
         self._build(qpos)
+
+
+def _state(rng: np.random.Generator) -> int:
+    """The address ``robot_step`` draws a person's numbers through, or 0 (numpy draws them)."""
+    from strol_gym.pcg64_fill import addresses
+
+    states = addresses([rng], ("fill", "mixture"))
+    return 0 if states is None else int(states[0])
 
 
 def _split(row: np.ndarray) -> dict[str, np.ndarray]:

@@ -36,6 +36,7 @@ from strol_gym.envs.panda.ik_kernel import (
     solver,
 )
 from strol_gym.envs.panda.model import N_ARM, Q_HOME
+from strol_gym.pcg64_fill import fill_row, mixture, normals
 from strol_gym.tasks.m6_kernels import robot_m6_drawn
 
 OBS, OUT = 10, 20
@@ -157,6 +158,18 @@ def _reached(ap, prm, target, iters, obs, out):
 
 
 @_jit
+def robot_draws(states, modes, jitter, idx, z, theta, unit):
+    """A reset's draws from the generator at ``states[0]``: θ* from the mixture prior (its
+    index and jitter as ``MixturePrior.sample_each``, then modes[i] + jitter·z into ``theta``),
+    then the start's uniforms ``unit`` (3,) (``rng.random(3)``); ``idx`` (1,), ``z`` (1, d)
+    scratch."""
+    mixture(states, modes.shape[0], idx, z)
+    for j in range(theta.shape[0]):
+        theta[j] = modes[idx[0], j] + jitter * z[0, j]
+    fill_row(states[0], unit)
+
+
+@_jit
 def robot_place(ap, prm, unit, theta_hat, obs, out):
     """A reset's start: x0 = low + (high − low)·U in the box from the uniform draws ``unit`` (3,)
     (``RobotTask._in_box``), the arm put there as ``RobotEnv.move_to`` does (the seed table's
@@ -180,16 +193,21 @@ def robot_place(ap, prm, unit, theta_hat, obs, out):
 
 
 @_jit
-def robot_step(ap, prm, x, action, theta_hat, theta_star, units, noise, obs, out, mode):
+def robot_step(ap, prm, x, action, theta_hat, theta_star, units, noise, obs, out, mode, state):
     """One env step: ``mode`` 0 no correction (u_H = 0), 1 the eq. M6 teacher's from its draws
-    ``units`` (1, K, 3) and ``noise`` (1, 3). ``ap``: ``arm_pointers``; ``prm``:
-    ``step_params``. Writes ``obs`` (float32: x', u_H, θ̂, φ) and ``out`` (float64, at ``X``,
-    ``TARGET`` ...); returns ``OK`` or, having moved nothing, ``BAD_ACTION`` /
-    ``BAD_CORRECTION``."""
+    ``units`` (1, K, 3) and ``noise`` (1, 3), drawn here first (after the action's check, as
+    ``Generator.random(out=units)`` then ``standard_normal(out=noise)``) from the generator
+    whose ``ctypes.state_address`` is ``state`` unless that is 0. ``ap``: ``arm_pointers``;
+    ``prm``: ``step_params``. Writes ``obs`` (float32: x', u_H, θ̂, φ) and ``out`` (float64, at
+    ``X``, ``TARGET`` ...); returns ``OK`` or, having moved nothing, ``BAD_ACTION`` (nothing
+    drawn) / ``BAD_CORRECTION``."""
     lo, hi, scale = prm[9:12], prm[12:15], prm[21:24]
     for i in range(3):  # as ``CorrectionEnv._robot_action``
         if not math.isfinite(action[i]):
             return BAD_ACTION
+    if mode == 1 and state != 0:
+        fill_row(state, units.reshape(units.size))
+        normals(state, noise.reshape(noise.size))
     u_r, u_h = out[U_R : U_R + 3], out[U_H : U_H + 3]
     for i in range(3):
         v = float(action[i])

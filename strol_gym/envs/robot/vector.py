@@ -46,8 +46,9 @@ class VectorRobotEnv(VectorCorrectionEnv):
     def _step_rows(self, rows, u_h, u_r):
         target = self.task.dynamics(self._x[rows], u_h, u_r)
         err = self.ik.solve(target, rows)
+        ee = self.ik.ee  # a fresh array: every row's, or the rows' own
         return (
-            self.ik.ee[rows],
+            ee if len(rows) == self.num_envs else ee[rows],
             np.zeros(len(rows), dtype=bool),
             {
                 "target": target,
