@@ -73,6 +73,27 @@ EXTRAS = (
     "Task 1's own shortfall slope",
     "wait x shortfall",
 )
+IMPATIENT_EXTRAS = (
+    "nothing more",
+    "Task 1's own shortfall slope",
+    "Task 1's own impatience",
+    "Task 1's own wait slope",
+    "plan accepted (s < 0.1)",
+    "plan accepted (s < 0.1) x wait",
+    "corrections so far",
+    "clock (min)",
+    "robot arrived",
+    "shortfall x path left",
+    "path left",
+)
+"""Rows on the shipped ``impatient`` form (a_Task + b s + (c + d s) log(1 + τ)) with one
+covariate more: min(s, 1) or min(s, 1)·log(1 + τ) or log(1 + τ) in Task 1 only (Task 1's own
+reaction: its low-shortfall rate is read off Tasks 2-3 otherwise), 1 (or log(1 + τ)) while the
+plan is within 0.1 of θ*'s, log(1 + corrections so far), minutes of the robot's motion; 1 once
+the robot stands at its goal, min(s, 1) times the share of its current plan still to play, or
+that share alone (the authors' robot played each plan over 45 s less the motion so far, at
+least 5 s, then held its last waypoint: it arrives at max(45, t_last + 5) s of motion)."""
+ARRIVE, LEAST = 45.0, 5.0
 """One covariate more: the shortfall the last correction removed, log(1 + corrections so far),
 the minutes of the robot's motion, 1 until the first correction (the first push's timing its
 own), 1 while the robot's plan is within s0 of θ*'s (a person satisfied with what the robot
@@ -88,6 +109,8 @@ class Result:
     heldout: float
     ratio: float
     frailty_v: float = math.nan
+    task1_strol: float = math.nan
+    """Corrections expected along Task 1's StROL paths (one covariate more only)."""
 
 
 def _map(sessions: Sequence[timing.TimedSession], fn: Transform) -> list[timing.TimedSession]:
@@ -210,6 +233,49 @@ def _extra_columns(
     return o
 
 
+def _impatient_columns(
+    s: timing.TimedSession, extra: str, seg: np.ndarray, wait: np.ndarray, now: np.ndarray
+) -> np.ndarray:
+    """Columns a_1..a_3, min(s, 1), log(1 + τ), min(s, 1)·log(1 + τ), ``extra``
+    (:data:`IMPATIENT_EXTRAS`) at rows in plan segment ``seg``."""
+    sf = np.minimum(s.shortfall, 1.0)[seg]
+    lw = np.log1p(wait * DT)
+    o = np.zeros((len(seg), 7))
+    o[:, s.task - 1] = 1.0
+    o[:, 3], o[:, 4], o[:, 5] = sf, lw, sf * lw
+    t1 = float(s.task == 1)
+    last = (now - wait) * DT
+    arrive = np.where(seg > 0, np.maximum(ARRIVE, last + LEAST), ARRIVE) / DT
+    left = np.clip((arrive - now) / np.maximum(arrive - (now - wait) * (seg > 0), 1.0), 0.0, 1.0)
+    col = {
+        IMPATIENT_EXTRAS[0]: np.zeros(len(seg)),
+        IMPATIENT_EXTRAS[1]: sf * t1,
+        IMPATIENT_EXTRAS[2]: sf * lw * t1,
+        IMPATIENT_EXTRAS[3]: lw * t1,
+        IMPATIENT_EXTRAS[4]: (s.shortfall[seg] < 0.1) * 1.0,
+        IMPATIENT_EXTRAS[5]: (s.shortfall[seg] < 0.1) * lw,
+        IMPATIENT_EXTRAS[6]: np.log1p(seg),
+        IMPATIENT_EXTRAS[7]: now * DT / 60.0,
+        IMPATIENT_EXTRAS[8]: (now >= arrive) * 1.0,
+        IMPATIENT_EXTRAS[9]: sf * left,
+        IMPATIENT_EXTRAS[10]: left,
+    }
+    o[:, 6] = col[extra]
+    return o
+
+
+def _columns(
+    s: timing.TimedSession, extra: str, seg: np.ndarray, wait: np.ndarray, now: np.ndarray
+) -> np.ndarray:
+    if extra.startswith(IMPATIENT):
+        return _impatient_columns(s, extra[len(IMPATIENT) :], seg, wait, now)
+    return _extra_columns(s, extra, seg, wait, now)
+
+
+IMPATIENT = "impatient + "
+"""Prefix of an ``extra`` on the impatient form (:func:`_columns`)."""
+
+
 def _extra_design(ss: Sequence[timing.TimedSession], extra: str) -> tuple[np.ndarray, ...]:
     """(grid rows, their sessions, event rows, their sessions) of :func:`_extra_columns`."""
     grid, gs, at, es = [], [], [], []
@@ -217,25 +283,37 @@ def _extra_design(ss: Sequence[timing.TimedSession], extra: str) -> tuple[np.nda
         t = np.arange(s.samples)
         k = np.searchsorted(s.events, t, side="left")
         j = np.arange(len(s.events))
-        grid.append(_extra_columns(s, extra, k, t - np.r_[0, s.events][k], t))
+        grid.append(_columns(s, extra, k, t - np.r_[0, s.events][k], t))
         gs.append(np.full(len(t), i))
-        at.append(_extra_columns(s, extra, j, s.events - np.r_[0, s.events][j], s.events))
+        at.append(_columns(s, extra, j, s.events - np.r_[0, s.events][j], s.events))
         es.append(np.full(len(j), i))
     return np.concatenate(grid), np.concatenate(gs), np.concatenate(at), np.concatenate(es)
 
 
-def _extra_fit(ss: Sequence[timing.TimedSession], extra: str) -> np.ndarray:
-    x, _, xe, _ = _extra_design(ss, extra)
-    c = np.zeros(6)
-    c[:3] = -3.0
+def fit_columns(x: np.ndarray, xe: np.ndarray) -> np.ndarray:
+    """The maximum-likelihood coefficients of a hazard exp(x · c) on the path grid ``x`` with
+    events at rows ``xe`` (first three columns: the Tasks' intercepts); Newton's method, a
+    column all zero (no such term, a Task absent) left at 0 (an intercept at −30)."""
+    keep = np.abs(x).sum(0) > 0
+    c = np.zeros(x.shape[1])
+    c[:3] = np.where(keep[:3], -3.0, -30.0)
+    x, xe = x[:, keep], xe[:, keep]
+    ck = c[keep]
     for _ in range(timing.NEWTON_ITERS):
-        w = DT * np.exp(x @ c)
-        step = np.linalg.solve((x * w[:, None]).T @ x + 1e-9 * np.eye(6), xe.sum(0) - x.T @ w)
+        w = DT * np.exp(x @ ck)
+        hess = (x * w[:, None]).T @ x + 1e-9 * np.eye(len(ck))
+        step = np.linalg.solve(hess, xe.sum(0) - x.T @ w)
         big = float(np.abs(step).max())
-        c = c + (step * 2.0 / big if big > 2.0 else step)
+        ck = ck + (step * 2.0 / big if big > 2.0 else step)
         if big < 1e-10:
             break
+    c[keep] = ck
     return c
+
+
+def _extra_fit(ss: Sequence[timing.TimedSession], extra: str) -> np.ndarray:
+    x, _, xe, _ = _extra_design(ss, extra)
+    return fit_columns(x, xe)
 
 
 def _extra_ll(ss: Sequence[timing.TimedSession], extra: str, c: np.ndarray) -> float:
@@ -251,7 +329,9 @@ def _extra(sessions: Sequence[timing.TimedSession], extra: str) -> Result:
         return float(DT * np.exp(_extra_design(ss, extra)[0] @ c).sum())
 
     held = _extra_ll(test, extra, c)
-    return Result(c.tolist(), _extra_ll(train, extra, c), held, expected(test) / expected(one))
+    ratio = expected(test) / expected(one)
+    t1 = expected([s for s in test if s.task == 1])
+    return Result(c.tolist(), _extra_ll(train, extra, c), held, ratio, task1_strol=t1)
 
 
 def _extra_lopo(sessions: Sequence[timing.TimedSession], extra: str) -> float:
@@ -318,7 +398,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             lambda ss: _frailty_lopo(ss, cap),
         )
     )
-    for extra in EXTRAS:
+    for extra in (*EXTRAS, *(IMPATIENT + e for e in IMPATIENT_EXTRAS)):
         rows.append(
             (
                 f"capped at 1 + {extra}",
@@ -326,7 +406,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 lambda ss, e=extra: _extra_lopo(ss, e),
             )
         )
-    print("form | LOPO log L (One, MOF) | held-out log L (StROL) | StROL/One [95 %] | coef (v)")
+    print("form | LOPO log L (One, MOF) | held-out log L (StROL) | StROL/One [95 %] | coef (v; …)")
     pick = {int(v) for v in args.rows.split(",") if v}
     for k, (name, run, lopo) in enumerate(rows):
         if pick and k not in pick:
@@ -334,6 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         r = run(sessions)
         lo, hi = _bootstrap(sessions, run, args.reps) if args.reps else (math.nan, math.nan)
         v = f" v={r.frailty_v:.3f}" if math.isfinite(r.frailty_v) else ""
+        v += f"; Task 1 StROL expected {r.task1_strol:.1f}" if math.isfinite(r.task1_strol) else ""
         coef = ", ".join(f"{c:+.3f}" for c in r.coef)
         cells = f"{lopo(sessions):.1f} | {r.heldout:.1f} | {r.ratio:.3f} [{lo:.3f}, {hi:.3f}]"
         print(f"{name} | {cells} | {coef}{v}", flush=True)
