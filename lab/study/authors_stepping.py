@@ -14,7 +14,7 @@ same pushes, with the Task's own φ:
 
 One's update does not depend on θ̂, so a session's net move is the norm of its summed steps.
 
-    python -m lab.study.authors_stepping sim --users 12 --seed 20000
+    python -m lab.study.authors_stepping sim --users 12 --seed 20000 [--ramp 1.0]
     python -m lab.study.authors_stepping real LOGS
 """
 
@@ -55,10 +55,14 @@ def pair_steps(learner: Any, poses: np.ndarray) -> np.ndarray:
     return np.asarray(learner.theta, dtype=np.float64) - before
 
 
-def sim_session(number: int, seed: int) -> Row:
+def sim_session(number: int, seed: int, ramp: float | None = None) -> Row:
     """One simulated session of Task ``number``: per correction v2's step, the authors' step,
-    the logged poses, |u_H| and the span of the logged poses (positions, m)."""
-    env = OnlineLearningWrapper(gym.make("StROL-Study-v2", task=number), "one")
+    the logged poses, |u_H| and the span of the logged poses (positions, m). ``ramp``: the
+    people's force rises (and falls) over that many s instead of their own."""
+    kwargs: dict[str, Any] = {"task": number}
+    if ramp is not None:
+        kwargs["person"] = {"name": "fitted", "kwargs": {"ramp": ramp}}
+    env = OnlineLearningWrapper(gym.make("StROL-Study-v2", **kwargs), "one")
     _, info = env.reset(seed=seed)
     theta0 = np.asarray(info["theta_hat0"], dtype=np.float64)
     authors = authors_one(env.task)
@@ -170,15 +174,20 @@ def main(argv: list[str] | None = None) -> None:
     s = sub.add_parser("sim", help="simulated sessions on StROL-Study-v2")
     s.add_argument("--users", type=int, default=12)
     s.add_argument("--seed", type=int, default=20000)
+    s.add_argument(
+        "--ramp", type=float, default=None, help="the push's rise (s; default: the population's)"
+    )
     r = sub.add_parser("real", help="the people's corrections, imported with --authors-updates")
     r.add_argument("logs", type=Path)
     args = p.parse_args(argv)
     if args.what == "sim":
         if not 1 <= args.users <= 1000:
             p.error(f"--users must be in [1, 1000], got {args.users}")
+        if args.ramp is not None and not 0.05 <= args.ramp <= 5.0:
+            p.error(f"--ramp must be in [0.05, 5] s, got {args.ramp}")
         sessions = []
         for number in (1, 2, 3):
-            done = [sim_session(number, args.seed + k) for k in range(args.users)]
+            done = [sim_session(number, args.seed + k, args.ramp) for k in range(args.users)]
             print(summary(done, f"Task {number}"), flush=True)
             sessions += done
         print(summary(sessions, "all Tasks"))
