@@ -556,9 +556,12 @@ def test_the_study_walk_out_is_the_plain_bytes_in_any_batch(path):
         assert _walk_out(plans[rows], KEEP_OUT, bound, low, high).tobytes() == alone.tobytes()
 
 
-def _study_rollout(task: int, seed: int, steps: int) -> tuple[str, int]:
-    """StROL-Study-v2 with its default person and a hard twist (the brake, the reflexes, the
-    counterfactual): (a hash of every step's observation, u_H and joint state, braked chunks)."""
+def _study_rollout(
+    task: int, seed: int, steps: int, push: tuple[tuple[float, ...], tuple[float, ...], float]
+) -> tuple[str, int]:
+    """StROL-Study-v2 with its default person and a scripted push (force, torque, seconds) at
+    step 10 (the brake, the reflexes, the counterfactual): (a hash of every step's
+    observation, u_H and joint state, the brake's own chunks the plain path ran)."""
     from strol_gym.envs.study.controller import ImpedanceController
 
     env = gym.make("StROL-Study-v2", task=task).unwrapped
@@ -574,8 +577,8 @@ def _study_rollout(task: int, seed: int, steps: int) -> tuple[str, int]:
     env.reset(seed=seed)
     zero = np.zeros(env.action_space.shape, np.float32)
     for step in range(steps):
-        if step == 40:
-            env.apply_wrench([0.0, 40.0, 0.0], [0.0, 0.0, 6.0], duration=0.5)
+        if step == 10:
+            env.apply_wrench(*push)
         obs, _, _, trunc, info = env.step(zero)
         for key in sorted(obs):
             h.update(np.asarray(obs[key]).tobytes())
@@ -586,24 +589,35 @@ def _study_rollout(task: int, seed: int, steps: int) -> tuple[str, int]:
     return h.hexdigest(), braked[0]
 
 
+TWIST = ((0.0, 40.0, 0.0), (0.0, 0.0, 6.0), 0.5)
+"""A hard twist: the brake's own chunks run."""
+FAST_PUSH = ((19.5, 20.5, 38.4), (-0.3, -0.9, 3.6), 3.0)
+"""A push that drives the arm into the speed reflex inside a physics chunk (Task 3, seed
+20014)."""
+
+
 def test_study_v2_rollouts_are_the_same_bytes_on_both_paths(path, monkeypatch):
     path(False)
-    plain, braked = _study_rollout(2, 20003, 160)
+    plain, braked = _study_rollout(2, 20003, 160, TWIST)
     assert braked > 5  # the brake's chunks ran, not only watched ones
+    tripped, braked_too = _study_rollout(3, 20014, 45, FAST_PUSH)
     path(True)
-    from strol_gym.envs.study import chunk
+    from strol_gym.envs.study import chunk, step_kernel
 
-    calls = [0]
-    run = chunk.chunk
+    codes: list[int] = []
+    run = step_kernel.control_step
 
     def counting(*args):
-        calls[0] += 1
-        return run(*args)
+        codes.append(run(*args))
+        return codes[-1]
 
-    monkeypatch.setattr(chunk, "chunk", counting)
-    assert _study_rollout(2, 20003, 160) == (plain, braked)
-    # the compiled chunk (MuJoCo and numpy's BLAS called from the loop) ran, where it applies
-    assert calls[0] > 100 or chunk.functions() is None
+    monkeypatch.setattr(step_kernel, "control_step", counting)
+    # the compiled control step (MuJoCo and numpy's BLAS called from the loop, the brake's own
+    # steps and the reflexes inside it) ran, where it applies
+    assert _study_rollout(2, 20003, 160, TWIST)[0] == plain
+    assert len(codes) > 100 or chunk.functions() is None
+    assert _study_rollout(3, 20014, 45, FAST_PUSH)[0] == tripped
+    assert braked_too > 0 and (step_kernel.TRIP in codes or chunk.functions() is None)
 
 
 def test_the_study_chunk_calls_numpys_own_blas(path):
@@ -617,3 +631,31 @@ def test_the_study_chunk_calls_numpys_own_blas(path):
 
     fp = chunk.functions()
     assert fp is not None and chunk._agrees(fp, cases=5)
+
+
+def test_the_compiled_step_reads_mujocos_contacts_as_the_binding_shows_them(path):
+    """``step_kernel.touches`` reads ``mjData``'s contacts by address (``data_layout``): a
+    sphere sunk in a plane touches it, and nothing else; no contacts, no touch."""
+    import mujoco
+
+    from strol_gym.envs.study import data_layout
+
+    path(True)
+    from strol_gym.envs.study import chunk, step_kernel
+
+    found = chunk.functions()
+    if found is None:
+        pytest.skip("no compiled chunk on this platform (the plain path runs)")
+    assert data_layout.contact_layout() is not None
+    model = mujoco.MjModel.from_xml_string(data_layout._PROBE)
+    data = mujoco.MjData(model)
+    fp = np.array([*found, model._address, data._address], np.intp)
+    floor, ball = (mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, n) for n in ("floor", "ball"))
+    mujoco.mj_forward(model, data)
+    assert data.ncon == 1 and {data.contact.geom1[0], data.contact.geom2[0]} == {floor, ball}
+    assert step_kernel.touches(fp, ball, np.array([floor], np.int64))
+    assert step_kernel.touches(fp, floor, np.array([7, ball], np.int64))
+    assert not step_kernel.touches(fp, ball, np.array([ball + 5], np.int64))
+    data.qpos[2] = 1.0  # lifted clear of the plane
+    mujoco.mj_forward(model, data)
+    assert data.ncon == 0 and not step_kernel.touches(fp, ball, np.array([floor], np.int64))

@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/speed/study_env.py [--task 1] [--repeats 3] [--version v1]
     .venv/bin/python benchmarks/speed/study_env.py --episode [--task 1] [--repeats 1]
+    .venv/bin/python benchmarks/speed/study_env.py --episode --task all --repeats 2 --versions v2
 
 ``--episode``: v2's figure, the physics over whole 60 s episodes with the default person,
 v1 and v2 alternately in one process (``episode_physics``); beside the ratio against bare
@@ -9,7 +10,9 @@ v1 and v2 alternately in one process (``episode_physics``); beside the ratio aga
 every state the episode visited (a control step's ten physics steps from each, its torques
 held), since one state's physics cost can differ from the episode's by 1.7x; and
 ``ratio_paired``: the same, each bare control step timed just before the env's own from the
-same state, so that both meet the same moment's load on a shared machine.
+same state, so that both meet the same moment's load on a shared machine. ``--task all``
+runs Tasks 1-3 and ends with v2's ``ratio_paired`` per Task (the lowest of its seeds), the
+study's physics target (≥ 0.7 on every Task).
 
 1. **Physics overhead**: physics steps per second of the env (controller, wrench bookkeeping,
    feature computation; no user, no planning, no rendering; 200 env steps = 2,000 physics
@@ -201,9 +204,14 @@ def realtime_factor(task: int, repeats: int, version: str = V0.name) -> tuple[fl
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--task", type=int, default=1, choices=(1, 2, 3))
+    p.add_argument("--task", default="1", choices=("1", "2", "3", "all"))
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--version", default=V1.name, choices=tuple(VERSIONS), help="the env version")
+    p.add_argument(
+        "--versions",
+        default=f"{V1.name},{V2.name}",
+        help="--episode: the versions timed, comma-separated (default v1,v2)",
+    )
     p.add_argument(
         "--episode",
         action="store_true",
@@ -211,25 +219,43 @@ def main() -> None:
         "alternately in this process (StROL-Study-v2's figure)",
     )
     args = p.parse_args()
+    tasks = (1, 2, 3) if args.task == "all" else (int(args.task),)
     if args.episode:
-        print(f"task {args.task}; load average before: {os.getloadavg()[0]:.2f}")
-        for r in range(args.repeats):
-            for version in (V1.name, V2.name):
-                env_rate, bare_rate, ratio, summary = episode_physics(args.task, version, SEED + r)
-                print(
-                    f"{version} seed {SEED + r}: physics {env_rate:,.0f} steps/s, bare mj_step "
-                    f"{bare_rate:,.0f}/s, ratio {ratio:.2f} (target >= 0.70); {summary}"
-                )
-        print(f"load average after: {os.getloadavg()[0]:.2f}")
+        versions = [v.strip() for v in args.versions.split(",")]
+        unknown = sorted(set(versions) - set(VERSIONS))
+        if unknown:
+            p.error(f"--versions: unknown {unknown}; choose from {sorted(VERSIONS)}")
+        paired: dict[int, list[float]] = {}
+        for task in tasks:
+            print(f"task {task}; load average before: {os.getloadavg()[0]:.2f}")
+            for r in range(args.repeats):
+                for version in versions:
+                    env_rate, bare_rate, ratio, summary = episode_physics(task, version, SEED + r)
+                    print(
+                        f"{version} seed {SEED + r}: physics {env_rate:,.0f} steps/s, bare "
+                        f"mj_step {bare_rate:,.0f}/s, ratio {ratio:.2f} (target >= 0.70); "
+                        f"{summary}"
+                    )
+                    if version == V2.name:
+                        paired.setdefault(task, []).append(summary["ratio_paired"])
+            print(f"load average after: {os.getloadavg()[0]:.2f}")
+        for task, ratios in paired.items():
+            print(
+                f"v2 task {task}: ratio_paired {min(ratios):.2f} (lowest of seeds "
+                f"{SEED}-{SEED + len(ratios) - 1}: {ratios}; target >= 0.70)"
+            )
         return
+    if len(tasks) > 1:
+        p.error("--task all needs --episode")
+    task = tasks[0]
     load = os.getloadavg()
-    print(f"{VERSIONS[args.version].env_id} task {args.task}; load average before: {load[0]:.2f}")
-    env_rate, bare_rate, ratio = physics_ratio(args.task, args.repeats, version=args.version)
+    print(f"{VERSIONS[args.version].env_id} task {task}; load average before: {load[0]:.2f}")
+    env_rate, bare_rate, ratio = physics_ratio(task, args.repeats, version=args.version)
     print(
         f"physics overhead: env {env_rate:,.0f} physics steps/s, bare mj_step "
         f"{bare_rate:,.0f}/s, ratio {ratio:.2f} (target >= 0.70)"
     )
-    factor, summary = realtime_factor(args.task, args.repeats, args.version)
+    factor, summary = realtime_factor(task, args.repeats, args.version)
     print(
         f"60 s episode, simulated user + StROL: {factor:.1f}x real time (target >= 30); {summary}"
     )

@@ -22,16 +22,28 @@ import os
 from typing import Any
 
 import numpy as np
+from llvmlite import ir
 from numba import njit, types
 
-from strol_gym.envs.panda.ik_kernel import _addresses, _c_function, intrinsic
+from strol_gym.envs.panda.ik_kernel import (
+    _addresses,
+    _c_function,
+    _call_md,
+    intrinsic,
+)
+from strol_gym.envs.study.data_layout import contact_layout
 from strol_gym.envs.study.scene import HOLD
 
 ROW_MAJOR, NO_TRANS, TRANS = 101, 111, 112
 """CBLAS's ``CblasRowMajor``, ``CblasNoTrans`` and ``CblasTrans``."""
-STEP, GEMV, GEMM, FULL_M, GESV, MODEL, DATA = range(7)
-"""Where ``functions()`` puts each C function's address, then where the controller puts the
-model's and the data's."""
+(STEP, GEMV, GEMM, FULL_M, GESV, STEP1, STEP2, FORWARD_SKIP, JAC_SITE, KINEMATICS, COM_POS,
+ NCON_AT, CONTACT_AT, CONTACT_SIZE, GEOM1_AT, GEOM2_AT, MODEL, DATA) = range(18)  # fmt: skip
+"""Where ``functions()`` puts each C function's address and ``mjData``'s contact layout
+(``data_layout.contact_layout``), then where the controller puts the model's and the data's."""
+_MUJOCO = (
+    *("mj_step", "mj_fullM", "mj_step1", "mj_step2", "mj_forwardSkip", "mj_jacSite"),
+    *("mj_kinematics", "mj_comPos"),
+)
 BRAKE_ALL = -1
 """``chunk``'s answer when the chunk's physics is the brake's from its first step."""
 
@@ -40,9 +52,29 @@ _p, _i, _f = types.intp, types.int32, types.float64
 
 
 @intrinsic
-def _call_md(typingctx, address, m, d):
-    """mj_step(m, d) at ``address``."""
-    return _c_function(None, (_p, _p))
+def _call_skip(typingctx, address, m, d, skipstage, skipsensor):
+    """mj_forwardSkip(m, d, skipstage, skipsensor) at ``address``."""
+    return _c_function(None, (_p, _p, _i, _i))
+
+
+@intrinsic
+def _load_i32(typingctx, address):
+    """The C ``int`` at ``address``."""
+
+    def codegen(context, builder, signature, llargs):
+        return builder.load(builder.inttoptr(llargs[0], ir.IntType(32).as_pointer()))
+
+    return types.int32(types.intp), codegen
+
+
+@intrinsic
+def _load_ptr(typingctx, address):
+    """The pointer at ``address``, as an integer."""
+
+    def codegen(context, builder, signature, llargs):
+        return builder.load(builder.inttoptr(llargs[0], ir.IntType(64).as_pointer()))
+
+    return types.intp(types.intp), codegen
 
 
 @intrinsic
@@ -308,14 +340,14 @@ def functions() -> np.ndarray | None:
     """The C functions' addresses (``STEP``, ``GEMV``, ``GEMM``, ``FULL_M``, ``GESV``:
     MuJoCo's, then numpy's OpenBLAS's), or None: no such libraries or symbols, or products
     that do not give numpy's bits (``_agrees``)."""
-    blas, mj = _numpy_blas(), _addresses(("mj_step", "mj_fullM"))
+    blas, mj, layout = _numpy_blas(), _addresses(_MUJOCO), contact_layout()
     names = ("scipy_cblas_dgemv64_", "scipy_cblas_dgemm64_", "scipy_dgesv_64_")
-    if blas is None or mj is None or not all(hasattr(blas, n) for n in names):
+    if blas is None or mj is None or layout is None or not all(hasattr(blas, n) for n in names):
         return None
     gemv_fn, gemm_fn, gesv_fn = (
         ctypes.cast(getattr(blas, n), ctypes.c_void_p).value for n in names
     )
-    fp = np.array([mj[0], gemv_fn, gemm_fn, mj[1], gesv_fn], dtype=np.intp)
+    fp = np.array([mj[0], gemv_fn, gemm_fn, mj[1], gesv_fn, *mj[2:], *layout], dtype=np.intp)
     return fp if _agrees(fp) else None
 
 
@@ -349,6 +381,11 @@ def _agrees(fp: np.ndarray, cases: int = 50) -> bool:
         same &= info == 0 and x.tobytes() == np.linalg.solve(m[:7, :7], jt).tobytes()
         info, x = solve(fp[GESV], m[:6, :6].copy(), None)
         same &= info == 0 and x.tobytes() == np.linalg.inv(m[:6, :6]).tobytes()
+        for k in range(1, 8):  # the brake's solves: a few held joints, one right-hand side
+            held = rng.permutation(7)[:k]
+            a, b = m[np.ix_(held, held)], rng.standard_normal(k)
+            info, x = solve(fp[GESV], a, b.reshape(k, 1).copy())
+            same &= info == 0 and x.ravel().tobytes() == np.linalg.solve(a, b).tobytes()
     return bool(same)
 
 

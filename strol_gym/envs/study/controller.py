@@ -117,7 +117,12 @@ MODEL_EVERY = 4
 """Control steps between refreshes of Λ, D and the null-space projector (0.2 s)."""
 _ZERO6 = [0.0] * 6
 _ZERO7 = [0.0] * 7
+_ZERO13 = [0.0] * 13
 _TWISTS = np.array(LIMIT_JOINTS)
+_STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
+_kernels: Any = None
+"""(``chunk``, ``step_kernel``) once a controller found the compiled chunk's C functions
+(those modules import numba: imported only then)."""
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
 
@@ -194,6 +199,19 @@ class ImpedanceController:
             dt = HOLD * self.model.opt.timestep
             self._admit = Admittance(self.stiffness, self.rot_stiffness, dt)
         self._fp: np.ndarray | None = None  # the compiled chunk's C addresses, once looked up
+        self._dt = float(self.model.opt.timestep)  # MjModel.opt builds a wrapper per access
+        self._caps = np.array(
+            [
+                BRAKE_FROM * VELOCITY_LIMIT,
+                EXACT_FROM * VELOCITY_LIMIT,
+                SPEED_REFLEX * VELOCITY_LIMIT,
+                TORQUE_LIMIT,
+                [JOINT_COMP * c for c in JOINT_DAMPING.tolist()],
+                *self._jnt_range,
+                _TWISTS,
+                WATCH_FROM * VELOCITY_LIMIT,
+            ]
+        )  # ``step_kernel``'s rows
 
     def _control_state(self) -> dict[str, Any]:
         """The controller's state (v1's), to run the simulation again from here."""
@@ -308,14 +326,16 @@ class ImpedanceController:
         self._warnings = warnings
         return not bad
 
-    def _model_terms(self, v_sp: np.ndarray) -> None:
+    def _model_terms(self, v_sp: np.ndarray, defer: bool = False) -> tuple[bool, bool, list]:
         """The model-based terms of the control law, at the current pose: the cup's
         task-space inertia Λ, the damping D = √K Λ^½ + Λ^½ √K (critical for the arm's real
         inertia, which v0's scalar gains underestimate 2-5x) and the null-space projector N,
         folded into joint-space matrices (refreshed every ``MODEL_EVERY`` control steps: the
         pose changes little in between); and, when the setpoint's velocity changes, its
         acceleration feedforward Λ a_sp and the torques that move along it (Jᵀ D v_sp and the
-        joints' viscous damping at J̄ v_sp, J̄ = M⁻¹ Jᵀ Λ)."""
+        joints' viscous damping at J̄ v_sp, J̄ = M⁻¹ Jᵀ Λ). ``defer``: the compiled path's
+        feedforward is the caller's (``_step_compiled``): returns whether Λ a_sp and the
+        constant torques are due, and v_sp as a list."""
         refresh = self._model_age <= 0
         if refresh:
             self._model_age = MODEL_EVERY
@@ -325,9 +345,10 @@ class ImpedanceController:
         v_list = v_sp.tolist()
         fp = self._fp if self._fp is not None and use_fast() else None
         if fp is not None and self.version.track_bandwidth:  # the same sums, compiled
-            from strol_gym.envs.study import chunk
-
+            chunk = _kernels[0]
             acc, feed = v_list != self._v_prev, refresh or v_list != self._v_feed
+            if defer:
+                return acc, feed, v_list
             if acc or feed:
                 v_prev = np.array(self._v_prev)
                 acc_ff, const = chunk.feeds(
@@ -339,7 +360,7 @@ class ImpedanceController:
                 self._v_prev = v_list
             if feed:
                 self._v_feed, self._const = v_list, const.tolist()
-            return
+            return False, False, v_list
         if v_list == self._v_prev:
             self._acc_ff = _ZERO6
         else:
@@ -350,6 +371,7 @@ class ImpedanceController:
             self._v_feed = v_list
             feed = self._jt_damp.dot(v_sp) + JOINT_DAMPING * self._dyn_inv.dot(v_sp)
             self._const = (feed + self._pull_home).tolist()
+        return False, False, v_list
 
     def _refresh_terms(self) -> None:
         """``_model_terms``' refresh: M, Λ, the gains and the null-space pull at this pose."""
@@ -390,9 +412,7 @@ class ImpedanceController:
         fp = self._chunk_functions()
         if fp is None:
             return False
-        from strol_gym.envs.study import chunk
-
-        ok, *terms = chunk.refresh(
+        ok, *terms = _kernels[0].refresh(
             fp, self._mass, self._jac, self._qpos, self._q_home, self._jnt_range, _TWISTS,
             LAMBDA_REG, v.track_bandwidth, K_NULL, D_NULL, K_LIMIT, LIMIT_BAND,
         )  # fmt: skip
@@ -421,13 +441,20 @@ class ImpedanceController:
             self._time += CONTROL_DT
             return
         self._push_at_cup()
+        v = self.version
+        fp = self._chunk_functions() if v.track_bandwidth and v.joint_brake else None
+        # the whole step compiled; a target rotation from a C-ordered setpoint's is C-ordered
+        if fp is not None and self._sp_R.flags.c_contiguous:
+            self._step_compiled(fp, v_sp)
+            self._time += CONTROL_DT
+            return
         jac, jp, jr, ctrl, site = self._jac, self._jacp, self._jacr, self._ctrl, self._site
         q, qd = self._qpos, self._qvel
         xpos, xmat_t, sp_r = self._site_xpos, self._site_xmat.T, self._sp_R
         (spx, spy, spz), kp, kr = self._sp[:3].tolist(), self._k[0], 2.0 * self._k[1]
         vx, vy, vz, wx, wy, wz = v_sp
         integrate = not self._active
-        dt_i = HOLD * self.model.opt.timestep
+        dt_i = HOLD * self._dt
         band = self.version.track_bandwidth
         if band:  # v2: the integral of the stiffness wrench K e (K = ω² Λ)
             gp, gr = (g * dt_i for g in self.version.integral_gain or K_INTEGRAL)
@@ -436,31 +463,17 @@ class ImpedanceController:
         ip, ir = self._integral_max
         vlim, half = self._vlim, self._half_vlim
         brake = self.version.joint_brake
-        adm = self.version.admittance
         wext = self._wrench.tolist()
-        pushed = brake and self._hand_xfrc.any()
-        fp = self._chunk_functions() if band and brake else None
-        dt, par = m.opt.timestep, None
-        for i in range(self._n_sub // HOLD):
-            mujoco.mj_jacSite(m, d, jp, jr, site)
-            if i == 0:
-                self._model_terms(np.array(v_sp))
+        pushed = brake and any(wext)  # the hand's applied wrench is nonzero (_push_at_cup)
+        dt, par = self._dt, None
+        mujoco.mj_jacSite(m, d, jp, jr, site)
+        self._model_terms(np.array(v_sp))
+        admitted = self._admitted(sp_r, wext, dt_i)
+        chunks = admitted or [(0.0, 0.0, 0.0, sp_r, None, None, self._adm)] * (self._n_sub // HOLD)
+        for i, (ox, oy, oz, target_r, feed, damp, self._adm) in enumerate(chunks):
+            if i:
+                mujoco.mj_jacSite(m, d, jp, jr, site)
             x, y, z = xpos.tolist()
-            ox = oy = oz = 0.0
-            target_r, feed, damp = sp_r, None, None
-            if adm and (self._adm is not REST or any(wext)):
-                # The admittance target over this chunk (its midpoint), its velocity and
-                # acceleration fed forward, the person's wrench cancelled (the target moves
-                # for it): the tracking law carries the cup along δ.
-                s0 = self._adm
-                s1 = self._adm = self._cap_speed(self._admit.step(s0, wext))
-                ox, oy, oz, rx, ry, rz = (0.5 * (a + b) for a, b in zip(s0, s1[:6], strict=False))
-                target_r = rotation(rx, ry, rz).dot(sp_r)
-                inv = 1.0 / dt_i
-                acc = [(b - a) * inv for a, b in zip(s0[6:], s1[6:], strict=True)]
-                feed = self._lam.dot(acc) - wext
-                vel = [(b - a) * inv for a, b in zip(s0[:6], s1[:6], strict=True)]
-                damp = self._jt_damp.dot(vel).tolist()
             # The setpoint where it is at this chunk's start (it moves linearly over the
             # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
             back = CONTROL_DT - i * dt_i
@@ -543,13 +556,115 @@ class ImpedanceController:
         if not use_fast():
             return None
         if self._fp is None:
-            from strol_gym.envs.study import chunk
+            global _kernels
+            from strol_gym.envs.study import chunk, step_kernel
 
             found = chunk.functions()
             if found is None:
                 return None
+            _kernels = chunk, step_kernel
             self._fp = np.array([*found, self.model._address, self.data._address], np.intp)
+            self._objects = np.array(sorted(self._object_geoms), dtype=np.int64)
+            # the compiled control step's buffers (scratch: nothing is kept in them between
+            # steps); the chunks without the admittance differ in ``back`` alone
+            n, dt_i = self._n_sub // HOLD, HOLD * self._dt
+            self._par, self._ints = np.zeros(chunk.PAR), np.zeros(8, dtype=np.int64)
+            self._targets, self._var_still = np.empty((n, 3, 3)), np.zeros((n, step_kernel.VAR))
+            self._var_still[:, 3] = [CONTROL_DT - i * dt_i for i in range(n)]
+            gains = self.version.integral_gain or K_INTEGRAL
+            self._step_head = [g * dt_i for g in gains] + list(self._integral_max) + [self._dt]
         return self._fp
+
+    def _admitted(
+        self, sp_r: np.ndarray, wext: list[float], dt_i: float
+    ) -> list[tuple[Any, ...]] | None:
+        """Each chunk's admittance terms (the target's offset and rotation, its wrench feed and
+        damping torques, None where they do not apply) and the admittance's state after it:
+        they do not depend on the physics, so a control step computes them up front. None:
+        the admittance does not act this step (at rest, nobody pushes)."""
+        if not (self.version.admittance and (self._adm is not REST or any(wext))):
+            return None
+        chunks = []
+        for _ in range(self._n_sub // HOLD):
+            ox = oy = oz = 0.0
+            target_r, feed, damp = sp_r, None, None
+            if self.version.admittance and (self._adm is not REST or any(wext)):
+                # The admittance target over this chunk (its midpoint), its velocity and
+                # acceleration fed forward, the person's wrench cancelled (the target moves
+                # for it): the tracking law carries the cup along δ.
+                s0 = self._adm
+                s1 = self._adm = self._cap_speed(self._admit.step(s0, wext))
+                ox, oy, oz, rx, ry, rz = (0.5 * (a + b) for a, b in zip(s0, s1[:6], strict=False))
+                target_r = rotation(rx, ry, rz).dot(sp_r)
+                inv = 1.0 / dt_i
+                acc = [(b - a) * inv for a, b in zip(s0[6:], s1[6:], strict=True)]
+                feed = self._lam.dot(acc) - wext
+                vel = [(b - a) * inv for a, b in zip(s0[:6], s1[:6], strict=True)]
+                damp = self._jt_damp.dot(vel).tolist()
+            chunks.append((ox, oy, oz, target_r, feed, damp, self._adm))
+        return chunks
+
+    def _step_compiled(self, fp: np.ndarray, v_sp: Velocity) -> None:
+        """A control step of v2's law (``track_bandwidth``, ``joint_brake``) by one call of
+        ``step_kernel.control_step``: the Jacobian, the model refresh when due and the
+        admittance's chunk terms first (``_model_terms``, ``_admitted``), the feedforward
+        terms, the chunks and their physics in the kernel; then what it hands back."""
+        chunk, step_kernel = _kernels
+        m, d, sp_r = self.model, self.data, self._sp_R
+        wext = self._wrench.tolist()
+        pushed = any(wext)  # the hand's applied wrench is nonzero (_push_at_cup)
+        mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._site)
+        v = np.array(v_sp)
+        acc, feed, v_list = self._model_terms(v, defer=True)
+        chunks = self._admitted(sp_r, wext, HOLD * self._dt)
+        par, targets, var, ints = self._par, self._targets, self._var_still, self._ints
+        spx, spy, spz = self._sp[:3].tolist()
+        par[: chunk.INTEGRAL + 6] = [
+            spx, spy, spz, 0.0, 0.0, 0.0, *v_sp, CONTROL_DT, *self._step_head, not self._active,
+            not pushed, 0.0, 0.0, *_ZERO6, *(_ZERO7 if feed else self._const), *self._tau_last,
+            *_ZERO13, *self._integral,
+        ]  # fmt: skip
+        if chunks is None:
+            targets[:] = sp_r
+        else:
+            n, dt_i = len(chunks), HOLD * self._dt
+            var = np.zeros((n, step_kernel.VAR))
+            for i, (ox, oy, oz, target_r, feed_w, damp, _) in enumerate(chunks):
+                var[i, :6] = ox, oy, oz, CONTROL_DT - i * dt_i, feed_w is not None, damp is not None
+                if feed_w is not None:
+                    var[i, 6:12] = feed_w
+                if damp is not None:
+                    var[i, 12:19] = damp
+                targets[i] = target_r
+        ints[:] = (
+            self._rerun, self.version.joint_room, self._cup_geom, _STAGE_VEL, self._touched, 0,
+            acc, feed,
+        )  # fmt: skip
+        v_prev = np.array(self._v_prev) if acc else v
+        code = step_kernel.control_step(
+            fp, par, var, targets, self._kmat, self._gain, self._m_inv, self._jac, self._caps,
+            POSITION_REFLEX, ints, self._qpos, self._qvel, self._qacc, self._ctrl,
+            self._site_xpos, self._site_xmat, self._objects, self._site, self._lam,
+            self._jt_damp, self._dyn_inv, self._pull_home, JOINT_DAMPING, v, v_prev,
+            1.0 / CONTROL_DT,
+        )  # fmt: skip
+        self._acc_ff = par[22:28].tolist() if acc else _ZERO6
+        if acc:
+            self._v_prev = v_list
+        if feed:
+            self._v_feed, self._const = v_list, par[28:35].tolist()
+        if par[18]:  # it integrated
+            self._integral = par[chunk.INTEGRAL : chunk.INTEGRAL + 6].tolist()
+        self._tau_last = par[35:42].tolist()
+        self._touched = bool(ints[step_kernel.TOUCHED])
+        if chunks is not None:
+            self._adm = chunks[ints[step_kernel.AT_CHUNK] if code else -1][6]
+        if code == step_kernel.SINGULAR:
+            raise np.linalg.LinAlgError("Singular matrix")
+        if code == step_kernel.TRIP:
+            self._trip()
+            mujoco.mj_kinematics(self.model, self.data)
+            mujoco.mj_comPos(self.model, self.data)
 
     def _chunk_par(self, head: tuple[Any, ...]) -> np.ndarray:
         """``chunk.chunk``'s ``par`` for this control step (``head``: its entries up to the
