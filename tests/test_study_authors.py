@@ -34,6 +34,7 @@ def test_record_samples_counts_new_running_maxima():
     assert sa.record_samples([16, 20, 18, 25, 25, 24, 35]) == 4
     assert sa.record_samples([]) == 0
     assert sa.record_samples([30, 20, 10]) == 1
+    assert sa.new_maxima([16, 20, 18, 25, 25, 24, 35]) == [0, 1, 3, 6]
 
 
 def test_correction_time_resamples_then_counts_then_times_005():

@@ -53,14 +53,20 @@ def resample_hold(times: Any, values: Any, dt: float = AUTHORS_DT) -> np.ndarray
     return v[idx]
 
 
-def record_samples(force: Any) -> int:
-    """How many samples exceed the running maximum of the ones before them (from 0): the
-    samples the authors' loop logs during one correction."""
-    peak, count = 0.0, 0
-    for f in np.asarray(force, dtype=np.float64).reshape(-1).tolist():
+def new_maxima(force: Any) -> list[int]:
+    """The indices of the samples that exceed the running maximum of the ones before them
+    (from 0): where the authors' loop logged a pose during one correction."""
+    peak, out = 0.0, []
+    for i, f in enumerate(np.asarray(force, dtype=np.float64).reshape(-1).tolist()):
         if f > peak:
-            peak, count = f, count + 1
-    return count
+            peak = f
+            out.append(i)
+    return out
+
+
+def record_samples(force: Any) -> int:
+    """How many samples the authors' loop logs during one correction (``new_maxima``)."""
+    return len(new_maxima(force))
 
 
 def correction_samples(record: Mapping[str, Any], dt: float = AUTHORS_DT) -> int:
