@@ -123,6 +123,8 @@ _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 _kernels: Any = None
 """(``chunk``, ``step_kernel``) once a controller found the compiled chunk's C functions
 (those modules import numba: imported only then)."""
+_loaded = False
+"""Whether a controller loaded the compiled step's kernels (``_load_kernels``: once a process)."""
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
 
@@ -691,7 +693,8 @@ class ImpedanceController:
         if not (v.track_bandwidth and v.joint_brake and v.joint_room):
             return
         fp = self._chunk_functions()
-        if fp is None:
+        global _loaded
+        if fp is None or _loaded:
             return
         import numba
 
@@ -707,6 +710,7 @@ class ImpedanceController:
         for kernel, args in ((chunk.refresh, refresh), (step_kernel.control_step, step)):
             if isinstance(kernel, numba.core.dispatcher.Dispatcher):  # not a wrapper (a spy)
                 kernel.compile(tuple(numba.typeof(a) for a in args))
+        _loaded = True
 
     def _chunk_par(self, head: tuple[Any, ...]) -> np.ndarray:
         """``chunk.chunk``'s ``par`` for this control step (``head``: its entries up to the
