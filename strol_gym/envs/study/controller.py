@@ -123,6 +123,8 @@ _STAGE_VEL = int(mujoco.mjtStage.mjSTAGE_VEL)
 _kernels: Any = None
 """(``chunk``, ``step_kernel``) once a controller found the compiled chunk's C functions
 (those modules import numba: imported only then)."""
+_loaded = False
+"""Whether a controller loaded the compiled step's kernels (``_load_kernels``: once a process)."""
 LAMBDA_REG = 1e-2 * np.eye(6)
 """Added to J M⁻¹ Jᵀ before inverting it: near a singular pose Λ stays ≤ ~100 kg."""
 
@@ -641,13 +643,7 @@ class ImpedanceController:
             acc, feed,
         )  # fmt: skip
         v_prev = np.array(self._v_prev) if acc else v
-        code = step_kernel.control_step(
-            fp, par, var, targets, self._kmat, self._gain, self._m_inv, self._jac, self._caps,
-            POSITION_REFLEX, ints, self._qpos, self._qvel, self._qacc, self._ctrl,
-            self._site_xpos, self._site_xmat, self._objects, self._site, self._lam,
-            self._jt_damp, self._dyn_inv, self._pull_home, JOINT_DAMPING, v, v_prev,
-            1.0 / CONTROL_DT,
-        )  # fmt: skip
+        code = step_kernel.control_step(*self._step_args(fp, var, v, v_prev))
         self._acc_ff = par[22:28].tolist() if acc else _ZERO6
         if acc:
             self._v_prev = v_list
@@ -665,6 +661,56 @@ class ImpedanceController:
             self._trip()
             mujoco.mj_kinematics(self.model, self.data)
             mujoco.mj_comPos(self.model, self.data)
+
+    def _step_args(
+        self,
+        fp: np.ndarray,
+        var: np.ndarray,
+        v: np.ndarray,
+        v_prev: np.ndarray,
+        terms: tuple[np.ndarray, ...] | None = None,
+    ) -> tuple[Any, ...]:
+        """``step_kernel.control_step``'s arguments (``var``: the chunks' own terms; ``v``,
+        ``v_prev``: the setpoint's velocity now and before; ``terms``: the model's K, G, M⁻¹,
+        Λ, Jᵀ D, J̄ Λ and pull, by default the last refresh's)."""
+        kmat, gain, m_inv, lam, jt_damp, dyn_inv, pull_home = terms or (
+            self._kmat, self._gain, self._m_inv, self._lam, self._jt_damp, self._dyn_inv,
+            self._pull_home,
+        )  # fmt: skip
+        return (
+            fp, self._par, var, self._targets, kmat, gain, m_inv, self._jac, self._caps,
+            POSITION_REFLEX, self._ints, self._qpos, self._qvel, self._qacc, self._ctrl,
+            self._site_xpos, self._site_xmat, self._objects, self._site, lam, jt_damp, dyn_inv,
+            pull_home, JOINT_DAMPING, v, v_prev, 1.0 / CONTROL_DT,
+        )  # fmt: skip
+
+    def _load_kernels(self) -> None:
+        """Where v2's compiled step runs: look its C functions up (``chunk.functions`` checks
+        them, once a process) and load its kernels from numba's disk cache now, as the env is
+        built, not inside the first control step's physics (~100 ms, once a process). Nothing
+        runs: the kernels are typed on arguments of the types the steps pass."""
+        v = self.version
+        if not (v.track_bandwidth and v.joint_brake and v.joint_room):
+            return
+        fp = self._chunk_functions()
+        global _loaded
+        if fp is None or _loaded:
+            return
+        import numba
+
+        chunk, step_kernel = _kernels
+        n, speed = N_ARM, np.zeros(6)
+        refresh = (
+            fp, self._mass, self._jac, self._qpos, self._q_home, self._jnt_range, _TWISTS,
+            LAMBDA_REG, v.track_bandwidth, K_NULL, D_NULL, K_LIMIT, LIMIT_BAND,
+        )  # fmt: skip
+        shapes = ((6, 6), (n, 2 * n), (n, n), (6, 6), (n, 6), (n, 6), (n,))
+        blank = tuple(np.zeros(shape) for shape in shapes)  # the refresh's outputs' types
+        step = self._step_args(fp, self._var_still, speed, speed, blank)
+        for kernel, args in ((chunk.refresh, refresh), (step_kernel.control_step, step)):
+            if isinstance(kernel, numba.core.dispatcher.Dispatcher):  # not a wrapper (a spy)
+                kernel.compile(tuple(numba.typeof(a) for a in args))
+        _loaded = True
 
     def _chunk_par(self, head: tuple[Any, ...]) -> np.ndarray:
         """``chunk.chunk``'s ``par`` for this control step (``head``: its entries up to the

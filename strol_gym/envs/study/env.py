@@ -307,6 +307,7 @@ class StudyEnv(ImpedanceController, MujocoRendering, CorrectionEnv, gym.Env):
         geom = functools.partial(mujoco.mj_name2id, m, mujoco.mjtObj.mjOBJ_GEOM)
         self._cup_geom = geom("cup")
         self._object_geoms = frozenset(geom(n) for n in ("pitcher", "plate", "riser", "table"))
+        self._load_kernels()
 
     def _reset_sim(self) -> None:
         m, d = self.model, self.data
