@@ -729,3 +729,63 @@ def test_the_compiled_step_reads_mujocos_contacts_as_the_binding_shows_them(path
     data.qpos[2] = 1.0  # lifted clear of the plane
     mujoco.mj_forward(model, data)
     assert data.ncon == 0 and not step_kernel.touches(fp, ball, np.array([floor], np.int64))
+
+
+ADMITTANCE_CASES = (
+    ((0.0,) * 12, (30.0, -12.0, 5.0, 0.4, -0.2, 1.5)),  # a push from rest
+    ((1e-6, 0.0, -2e-6, 0.0, 1e-6, 0.0, 3e-6, 0.0, 0.0, -1e-6, 0.0, 2e-6), (0.0,) * 6),
+    ((0.02, -0.01, 0.03, 0.1, -0.2, 0.3, 4.0, -3.0, 2.0, 5.0, -6.0, 7.0), (60.0, 0, 0, 0, 0, 3.0)),
+)
+"""The admittance's state before a control step and the person's wrench: a push from rest, a
+state that settles to REST within the step with nobody pushing, a fast one the joints' speed
+cap scales down."""
+
+
+def test_the_compiled_admittance_terms_are_the_plain_bits(path):
+    """``step_kernel.admitted`` writes ``_admitted``'s chunk terms and states, bit for bit."""
+    path(True)
+    from strol_gym.envs.study import step_kernel
+    from strol_gym.envs.study.admittance import REST
+    from strol_gym.envs.study.scene import HOLD
+    from strol_gym.tasks.study import CONTROL_DT
+
+    env = gym.make("StROL-Study-v2", task=3).unwrapped
+    env.reset(seed=20100)
+    env.step(np.zeros(env.action_space.shape, np.float32))
+    fp = env._chunk_functions()
+    if fp is None:
+        pytest.skip("no compiled chunk on this platform (the plain path runs)")
+    n, dt_i = len(env._var_still), HOLD * env._dt
+    sp_r = np.ascontiguousarray(env._sp_R)
+    settled = 0
+    for state, wext in ADMITTANCE_CASES:
+        start = REST if not any(state) else state
+        env._adm = start
+        chunks = env._admitted(sp_r, list(wext), dt_i)
+        var, targets, states = (
+            np.zeros((n, step_kernel.VAR)),
+            np.empty((n, 3, 3)),
+            np.zeros((n, 13)),
+        )
+        terms = (env._lam, env._jt_damp, env._dyn_inv)
+        step_kernel.admitted(
+            fp, env._adm_coef, np.array(start), start is REST, np.array(wext, float), *terms,
+            sp_r, dt_i, CONTROL_DT, var, targets, states,
+        )  # fmt: skip
+        for i, (ox, oy, oz, target_r, feed, damp, adm) in enumerate(chunks):
+            assert var[i, :6].tolist() == [
+                ox,
+                oy,
+                oz,
+                CONTROL_DT - i * dt_i,
+                feed is not None,
+                damp is not None,
+            ]
+            assert targets[i].tobytes() == target_r.tobytes()
+            assert var[i, 6:12].tobytes() == (np.zeros(6) if feed is None else feed).tobytes()
+            assert var[i, 12:].tolist() == (damp or [0.0] * 7)
+            assert (states[i, 12] == 1.0) == (adm is REST) and states[i, :12].tolist() == list(adm)
+            settled += adm is REST
+    assert settled > 0  # the settling case reached REST
+    fast = env._admit.step(ADMITTANCE_CASES[2][0], list(ADMITTANCE_CASES[2][1]))
+    assert env._cap_speed(fast) != fast  # the fast case was scaled down

@@ -62,6 +62,11 @@ class Admittance:
             return REST
         return (*d1, *v1)
 
+    def coefficients(self) -> tuple[float, ...]:
+        """Φ's entries (δ from δ, δ̇, u; δ̇ from δ, δ̇, u) and 1/M per axis, as ``step`` uses
+        them (the compiled step's copy of ``step``)."""
+        return (*self._phi, *self._gain)
+
     def mass(self) -> tuple[float, float]:
         """The virtual mass (kg) and rotational inertia (kg m²)."""
         return self.omega**-2 * self.stiffness, self.omega**-2 * self.rot_stiffness

@@ -575,6 +575,9 @@ class ImpedanceController:
             self._var_still[:, 3] = [CONTROL_DT - i * dt_i for i in range(n)]
             gains = self.version.integral_gain or K_INTEGRAL
             self._step_head = [g * dt_i for g in gains] + list(self._integral_max) + [self._dt]
+            if self.version.admittance:  # ``step_kernel.admitted``'s constants and output
+                self._adm_coef = np.array([*self._admit.coefficients(), *self._cap_vlim])
+                self._adm_states = np.zeros((n, 13))
         return self._fp
 
     def _admitted(
@@ -618,7 +621,11 @@ class ImpedanceController:
         mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._site)
         v = np.array(v_sp)
         acc, feed, v_list = self._model_terms(v, defer=True)
-        chunks = self._admitted(sp_r, wext, HOLD * self._dt)
+        terms = (self._lam, self._jt_damp, self._dyn_inv)
+        acting = self.version.admittance and (self._adm is not REST or pushed)
+        # the admittance's chunk terms compiled where its products' operands are C-ordered
+        compiled = acting and all(a.flags.c_contiguous for a in terms)
+        chunks = None if compiled else self._admitted(sp_r, wext, HOLD * self._dt)
         par, targets, var, ints = self._par, self._targets, self._var_still, self._ints
         spx, spy, spz = self._sp[:3].tolist()
         par[: chunk.INTEGRAL + 6] = [
@@ -626,7 +633,13 @@ class ImpedanceController:
             not pushed, 0.0, 0.0, *_ZERO6, *(_ZERO7 if feed else self._const), *self._tau_last,
             *_ZERO13, *self._integral,
         ]  # fmt: skip
-        if chunks is None:
+        if compiled:
+            var, states = np.zeros((len(var), step_kernel.VAR)), self._adm_states
+            step_kernel.admitted(
+                fp, self._adm_coef, np.array(self._adm), self._adm is REST, np.array(wext),
+                *terms, sp_r, HOLD * self._dt, CONTROL_DT, var, targets, states,
+            )  # fmt: skip
+        elif chunks is None:
             targets[:] = sp_r
         else:
             n, dt_i = len(chunks), HOLD * self._dt
@@ -655,6 +668,9 @@ class ImpedanceController:
         self._touched = bool(ints[step_kernel.TOUCHED])
         if chunks is not None:
             self._adm = chunks[ints[step_kernel.AT_CHUNK] if code else -1][6]
+        elif compiled:
+            last = states[ints[step_kernel.AT_CHUNK] if code else -1].tolist()
+            self._adm = REST if last[12] else tuple(last[:12])
         if code == step_kernel.SINGULAR:
             raise np.linalg.LinAlgError("Singular matrix")
         if code == step_kernel.TRIP:
@@ -707,7 +723,15 @@ class ImpedanceController:
         shapes = ((6, 6), (n, 2 * n), (n, n), (6, 6), (n, 6), (n, 6), (n,))
         blank = tuple(np.zeros(shape) for shape in shapes)  # the refresh's outputs' types
         step = self._step_args(fp, self._var_still, speed, speed, blank)
-        for kernel, args in ((chunk.refresh, refresh), (step_kernel.control_step, step)):
+        kernels = [(chunk.refresh, refresh), (step_kernel.control_step, step)]
+        if v.admittance:
+            wext = np.zeros(6)
+            admitted = (
+                fp, self._adm_coef, np.zeros(12), True, wext, *blank[3:6], np.eye(3),
+                self._dt, CONTROL_DT, self._var_still, self._targets, self._adm_states,
+            )  # fmt: skip
+            kernels.append((step_kernel.admitted, admitted))
+        for kernel, args in kernels:
             if isinstance(kernel, numba.core.dispatcher.Dispatcher):  # not a wrapper (a spy)
                 kernel.compile(tuple(numba.typeof(a) for a in args))
         _loaded = True

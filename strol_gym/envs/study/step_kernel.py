@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from strol_gym.envs.panda.ik_kernel import _call_jac
+from strol_gym.envs.study.admittance import SETTLED
 from strol_gym.envs.study.chunk import (
     BRAKE_ALL,
     COM_POS,
@@ -25,6 +26,7 @@ from strol_gym.envs.study.chunk import (
     CONTACT_SIZE,
     DATA,
     FORWARD_SKIP,
+    GEMM,
     GEMV,
     GEOM1_AT,
     GEOM2_AT,
@@ -46,6 +48,7 @@ from strol_gym.envs.study.chunk import (
     _ptr,
     chunk,
     feeds,
+    gemm,
     gemv,
     solve,
 )
@@ -273,3 +276,85 @@ def control_step(fp, par, var, targets, kmat, gain, m_inv, jac, caps, reach, int
 
 
 __all__ = ["INTEGRAL", "SINGULAR", "TRIP", "VAR", "control_step"]
+
+
+@_jit
+def admitted(fp, coef, state, rest, wext, lam, jt_damp, dyn_inv, sp_r, dt_i, control_dt, var,
+             targets, states):  # fmt: skip
+    """``ImpedanceController._admitted`` (``Admittance.step``, ``_cap_speed``, ``rotation``,
+    the products by numpy's BLAS) into ``control_step``'s ``var`` and ``targets``, and each
+    chunk's admittance state after it into ``states`` (its 13th entry 1.0 where it is REST).
+    ``coef``: the admittance's Φ (6) and 1/M (6), then the joints' speed caps (7); ``state``,
+    ``rest``: the admittance's state before the step and whether it is REST."""
+    p00, p01, p10, p11, c0, c1 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5]
+    pushed = False
+    for k in range(6):
+        if wext[k] != 0.0:
+            pushed = True
+    s0, s1 = state.copy(), np.zeros(12)
+    inv = 1.0 / dt_i
+    rot, acc, vel = np.zeros((3, 3)), np.zeros(6), np.zeros(6)
+    feed, damp, need = np.zeros(6), np.zeros(N), np.zeros(N)
+    for i in range(var.shape[0]):
+        var[i, :] = 0.0
+        var[i, 3] = control_dt - i * dt_i
+        if rest and not pushed:  # the admittance does not act: the setpoint's rotation
+            targets[i] = sp_r
+            states[i, :12] = s0
+            states[i, 12] = 1.0
+            continue
+        top = 0.0
+        for k in range(6):
+            u = wext[k] * coef[6 + k]
+            s1[k] = p00 * s0[k] + p01 * s0[6 + k] + c0 * u
+            s1[6 + k] = p10 * s0[k] + p11 * s0[6 + k] + c1 * u
+        for k in range(12):
+            a = abs(s1[k])
+            if k == 0 or a > top:
+                top = a
+        rest = not pushed and top < SETTLED
+        if rest:
+            s1[:] = 0.0
+        gemv(fp[GEMV], dyn_inv, s1[6:].copy(), need)
+        over = 0.0
+        for j in range(N):
+            a = abs(need[j]) / coef[12 + j]
+            if j == 0 or a > over:
+                over = a
+        if not over <= 1.0:
+            for k in range(6, 12):
+                s1[k] = s1[k] / over
+        ox, oy, oz = 0.5 * (s0[0] + s1[0]), 0.5 * (s0[1] + s1[1]), 0.5 * (s0[2] + s1[2])
+        rx, ry, rz = 0.5 * (s0[3] + s1[3]), 0.5 * (s0[4] + s1[4]), 0.5 * (s0[5] + s1[5])
+        _rotation(rx, ry, rz, rot)
+        out = np.zeros((3, 3))
+        gemm(fp[GEMM], rot, sp_r, out)
+        targets[i] = out
+        for k in range(6):
+            acc[k] = (s1[6 + k] - s0[6 + k]) * inv
+            vel[k] = (s1[k] - s0[k]) * inv
+        gemv(fp[GEMV], lam, acc, feed)
+        gemv(fp[GEMV], jt_damp, vel, damp)
+        var[i, 0], var[i, 1], var[i, 2], var[i, 4], var[i, 5] = ox, oy, oz, 1.0, 1.0
+        for k in range(6):
+            var[i, 6 + k] = feed[k] - wext[k]
+        var[i, 12 : 12 + N] = damp
+        states[i, :12] = s1
+        states[i, 12] = 1.0 if rest else 0.0
+        s0[:] = s1
+
+
+@_jit
+def _rotation(rx, ry, rz, out):
+    """``admittance.rotation`` into ``out`` (Rodrigues, its operations in order)."""
+    angle = math.sqrt(rx * rx + ry * ry + rz * rz)
+    out[:] = 0.0
+    if angle < 1e-12:
+        out[0, 0] = out[1, 1] = out[2, 2] = 1.0
+        return
+    x, y, z = rx / angle, ry / angle, rz / angle
+    s, c = math.sin(angle), math.cos(angle)
+    t = 1.0 - c
+    out[0, 0], out[0, 1], out[0, 2] = c + t * x * x, t * x * y - s * z, t * x * z + s * y
+    out[1, 0], out[1, 1], out[1, 2] = t * x * y + s * z, c + t * y * y, t * y * z - s * x
+    out[2, 0], out[2, 1], out[2, 2] = t * x * z - s * y, t * y * z + s * x, c + t * z * z
