@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from strol_gym.benchmarks import cli
+from strol_gym.benchmarks.experiments import study as study_cmd
 from strol_gym.benchmarks.sessions import fit_timing
 from strol_gym.envs.study import population
 from strol_gym.envs.study.participant import FittedParticipant
@@ -205,6 +206,28 @@ def test_study_with_learners_without_strol_says_h3_was_not_evaluated(tmp_path, c
     with pytest.raises(SystemExit) as e:
         cli.main([*argv, "--learners", "one,nope"])
     assert e.value.code == 2
+
+
+def test_study_tests_h3_for_the_reference_learner(tmp_path, capsys):
+    """--reference: H3 tests that learner against One and MOF, the tables say which; a name
+    not run is refused naming the flag, and One or MOF cannot be tested against itself."""
+    out = tmp_path / "study"
+    argv = ["study", "--task", "1", "--users", "2", "--jobs", "1", "--quiet", "--no-plots"]
+    argv += ["--env-version", "v0", "--learners", "one,mof,gradient"]
+    assert cli.main([*argv, "--out", str(out), "--reference", "gradient"]) == 0
+    text = capsys.readouterr().out
+    assert "H3 verdicts (Gradient vs One and MOF" in text
+    assert "ANOVA over One, MOF and Gradient" in text
+    study = json.loads((out / "study.json").read_text())
+    assert study["h3_evaluated"] is True and [v["task"] for v in study["verdicts"]] == [1]
+    assert {tuple(p["means"]) for p in study["pooled"]} == {("one", "mof", "gradient")}
+    with pytest.raises(SystemExit) as e:
+        cli.main([*argv, "--out", str(tmp_path / "b"), "--reference", "strol"])
+    assert e.value.code == 2 and "--reference must be one of" in capsys.readouterr().err
+    config = study_cmd.study_config
+    learners = ("one", "mof", "gradient")
+    assert not study_cmd.h3_evaluable(config((1,), 2, learners=learners, reference="one"))
+    assert not study_cmd.h3_evaluable(config((1,), 2, learners=learners))  # no strol
 
 
 def test_simulate_draws_the_process_the_likelihood_scores():

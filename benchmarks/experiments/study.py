@@ -84,8 +84,6 @@ LABELS = {
 }
 H3_BASELINES = ("one", "mof")
 H3_METRICS = ("regret", "correction_time")
-POOLED_LEARNERS = ("one", "mof", "strol")
-"""The paper's H3 analysis compares these three (its study had no Gradient or e2e)."""
 POOLED_METRICS = ("regret", "regret_authors", "correction_time", "correction_time_authors")
 PAPER = {
     "regret_authors": {"one": (4.904, 1.125), "mof": (2.42, 0.48), "strol": (1.03, 0.08)},
@@ -163,20 +161,36 @@ def study_config(
     learners: Sequence[str] = PAPER_LEARNERS,
     version: str = DEFAULT_VERSION,
     participant: str | None = None,
+    reference: str | None = None,
 ) -> BenchConfig:
-    """The study's paired benchmark: one experiment per Task, ``users`` user seeds each."""
+    """The study's paired benchmark: one experiment per Task, ``users`` user seeds each.
+    ``reference``: the learner H3 tests against One and MOF (default StROL)."""
     condition = study_condition(version, participant)
     exps = tuple(Experiment(study_env(t, version), condition, runs=users, seed=seed) for t in tasks)
     learners = tuple(dict.fromkeys(learners))
     if not learners:
         raise ValueError("--learners must name at least one learner")
-    reference = REFERENCE_LEARNER if REFERENCE_LEARNER in learners else learners[0]
+    if reference is not None and reference not in learners:
+        raise ValueError(
+            f"--reference must be one of the learners run ({', '.join(learners)}), "
+            f"got {reference!r}"
+        )
+    if reference is None:
+        reference = REFERENCE_LEARNER if REFERENCE_LEARNER in learners else learners[0]
     return BenchConfig(exps, learners, reference, BLOCK)
 
 
-def h3_evaluable(learners: Sequence[str]) -> bool:
-    """Whether H3 can be tested: StROL, One and MOF all ran."""
-    return all(name in learners for name in POOLED_LEARNERS)
+def h3_learners(config: BenchConfig) -> tuple[str, ...]:
+    """The learners H3 compares: One, MOF and the tested one (the config's reference)."""
+    return (*H3_BASELINES, config.reference)
+
+
+def h3_evaluable(config: BenchConfig) -> bool:
+    """Whether H3 can be tested: the tested learner (StROL unless ``--reference``), One and
+    MOF all ran."""
+    return config.reference not in H3_BASELINES and all(
+        name in config.learners for name in h3_learners(config)
+    )
 
 
 def _task_of(env: str) -> int:
@@ -200,7 +214,8 @@ def h3_verdicts(a: Analysis) -> list[dict[str, Any]]:
                 sig = t["significant"]
                 word = "no significant difference"
                 if sig:
-                    word = "StROL lower" if t["mean_diff"] < 0 else "StROL higher"
+                    who = display(a.config.reference)
+                    word = f"{who} lower" if t["mean_diff"] < 0 else f"{who} higher"
                 ok = ok and sig and t["mean_diff"] < 0
                 parts.append(
                     f"{LABELS[metric]} vs {display(base)}: {word} (Δ = {t['mean_diff']:+.3f}, "
@@ -371,7 +386,8 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     write_csv(rd.path / "summary.csv", a.summary, SUMMARY_COLUMNS)
     write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
-    h3 = h3_evaluable(rd.config.learners)
+    h3 = h3_evaluable(rd.config)
+    tested = display(rd.config.reference)
     verd = h3_verdicts(a) if h3 else []
     anova = [
         f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: {_anova_text(r)}"
@@ -394,13 +410,13 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     ]
     if h3:
         md += [
-            "H3 verdicts (StROL vs One and MOF; Holm-corrected paired t-tests, α = 0.05):",
+            f"H3 verdicts ({tested} vs One and MOF; Holm-corrected paired t-tests, α = 0.05):",
             "",
         ]
     else:
         md.append(
-            "H3 was not evaluated: it compares StROL with One and MOF, and the learners run "
-            f"were {', '.join(rd.config.learners)}."
+            f"H3 was not evaluated: it compares {tested} with One and MOF, and the learners "
+            f"run were {', '.join(rd.config.learners)}."
         )
     for v in verd:
         md.append(f"- **Task {v['task']}: {v['verdict']}**")
@@ -408,12 +424,13 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     envs = [e.env for e in rd.config.experiments]
     md += ["", *robust_markdown(a, envs)]
     pooled = [
-        pooled_tests(records, envs, POOLED_LEARNERS, m)
+        pooled_tests(records, envs, h3_learners(rd.config), m)
         for m in POOLED_METRICS
         if h3 and any(m in r for r in records)
     ]
     if pooled:
-        md += ["", *pooled_markdown(pooled, len(envs), rd.config.experiments[0].runs)]
+        runs = rd.config.experiments[0].runs
+        md += ["", *pooled_markdown(pooled, len(envs), runs, tested)]
     write_text_atomic(rd.path / "study_table.md", "\n".join(md) + "\n")
     paths = make_plots(a, records, rd.path / "plots") if plots else []
     result = {
@@ -454,14 +471,17 @@ def add_authors_regret(records: list[RunRecord]) -> None:
             r["regret_authors"] = float(v)
 
 
-def pooled_markdown(pooled: Sequence[dict[str, Any]], n_tasks: int, users: int) -> list[str]:
+def pooled_markdown(
+    pooled: Sequence[dict[str, Any]], n_tasks: int, users: int, tested: str = "StROL"
+) -> list[str]:
     """The paper's H3 analysis: each user's values averaged over the Tasks, a repeated-measures
-    ANOVA over One, MOF and StROL, then the pairs (Holm)."""
+    ANOVA over One, MOF and the tested learner (``tested``, as tables spell it), then the pairs
+    (Holm)."""
     md = [
         "## H3 pooled the paper's way",
         "",
         f"Each simulated user's value averaged over the {n_tasks} Tasks, then a "
-        "repeated-measures ANOVA over One, MOF and StROL (Greenhouse–Geisser) and paired tests "
+        f"repeated-measures ANOVA over One, MOF and {tested} (Greenhouse–Geisser) and paired tests "
         "of every pair (Holm over the three pairs), as the paper analysed its 12 participants. "
         f"The per-Task verdicts above are the stricter test (each Task alone, {users} users, "
         "Holm over four baselines).",
@@ -527,7 +547,14 @@ class Study(BenchExperiment):
             type=learner_list,
             default=list(PAPER_LEARNERS),
             help="comma-separated registered names or module:attr, a --plugin's too (default: "
-            "the paper's five); H3 is evaluated only with one, mof and strol among them",
+            "the paper's five); H3 is evaluated only with one, mof and strol (or "
+            "--reference) among them",
+        )
+        p.add_argument(
+            "--reference",
+            default=None,
+            metavar="NAME",
+            help="the learner H3 tests against One and MOF (default strol); one of --learners",
         )
         p.add_argument("--out", default=None, help="results folder (default results/study)")
         p.add_argument(
@@ -553,7 +580,13 @@ class Study(BenchExperiment):
             learners = getattr(args, "learners", None) or list(PAPER_LEARNERS)
             check_learner_names(learners)
             return study_config(
-                args.task, args.users, args.seed, learners, version=version, participant=who
+                args.task,
+                args.users,
+                args.seed,
+                learners,
+                version=version,
+                participant=who,
+                reference=getattr(args, "reference", None),
             )
         except ValueError as e:
             print(f"strol-bench study: error: {e}", file=sys.stderr)
