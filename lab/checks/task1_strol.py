@@ -13,6 +13,9 @@ sessions: what the person saw there, against what the fit on One and MOF makes o
    One and MOF: leave-one-person-out log L, held-out log L on StROL, expected StROL/One and the
    expected count per Task and learner against the real one.
 4. People: the rank correlation over people of their One + MOF count and their StROL count.
+5. In-sample: the shipped form fitted on every session, StROL's included, and what it expects
+   per Task and learner along the real paths against the real count (with the Poisson
+   probability of the real count or fewer): whether any fit of that form reaches Task 1's StROL.
 
     python -m lab.checks.task1_strol LOGS --data DATA
 """
@@ -247,6 +250,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"Task {task}" if task else "pooled"
         print(f"4. {where}: Spearman(One + MOF, StROL) over {len(a)} people "
               f"{float(r.statistic):.2f}, p {float(r.pvalue):.2f}")  # fmt: skip
+    every = timing.fit(sessions, "impatient", DT)
+    expected = timing.predicted_counts(every, sessions)
+    print("5. impatient fitted on every session: expected / real (P(real or fewer))")
+    for task in timing.TASKS:
+        row: list[str] = []
+        for lr in LEARNERS:
+            pick = [i for i, s in enumerate(sessions) if s.task == task and s.learner == lr]
+            e = float(expected[pick].sum())
+            n = sum(len(sessions[i].events) for i in pick)
+            row.append(f"{lr} {e:.1f} / {n} ({poisson.cdf(n, e):.3f})")
+        print(f"  Task {task}: " + ", ".join(row))
     return 0
 
 
