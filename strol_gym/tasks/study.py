@@ -649,8 +649,8 @@ def _keep_out_walk(
         off = np.broadcast_to(axis(pos[..., 1:, :]), (*pos.shape[:-1][:-1], pos.shape[-2] - 1, 3))
         off = np.ascontiguousarray(off).reshape(rows.shape[0], -1, 3)
         kernels.walk_shell(rows, off, shoulder, inner, radius, SHELL_ROUNDS, hulls, lo3, hi3)
-        kernels.walk_out(rows, rows, hulls, bound, lo3, hi3, WALK_ROUNDS)  # in place: step t
-        # reads its own planned waypoint before writing it
+        # in place: step t reads its own planned waypoint before writing it
+        kernels.walk_out(rows, rows, hulls, bound, lo3, hi3, WALK_ROUNDS, _per_first(pos))
 
     return walk
 
@@ -691,7 +691,11 @@ def _walk_out(
 
     The planner's per-waypoint projection can lengthen a step at a hull's edge; this pass keeps
     the plan at the robot's pace, in the box and out of the hulls. With the compiled kernels
-    (``strol_gym.compiled``) one loop does it (``study_kernels.walk_out``, the same bytes)."""
+    (``strol_gym.compiled``) one loop does it (``study_kernels.walk_out``, the same bytes).
+
+    The plans along ``plans``' first axis are walked apart (one θ's plans, or its planner's
+    starts, together: whether a round of pushing or the shortening runs is decided per first
+    index, and a plan with none is left as it is): a θ's plans do not depend on the batch."""
     if use_fast() and plans.dtype == np.float64 and plans.ndim >= 2 and plans.shape[-1] >= 3:
         from strol_gym.tasks.study_kernels import walk_out
 
@@ -706,6 +710,7 @@ def _walk_out(
             np.ascontiguousarray(low, dtype=f64),
             np.ascontiguousarray(high, dtype=f64),
             WALK_ROUNDS,
+            _per_first(plans),
         )
         return walked.reshape(plans.shape)
     out = plans.copy()
@@ -736,8 +741,11 @@ def _walk_out(
         q += prev
         np.minimum(np.maximum(q, lo, out=q), hi, out=q)
         short = need - _dot3(n, (q - prev)[..., None, :])  # > 0: the step crosses it
-        pushed = 0
-        while pushed < WALK_ROUNDS and (short > 0).any():
+        active = _any_per_first(short > 0, q.ndim)
+        pushed = active.copy()
+        for _ in range(WALK_ROUNDS):
+            if not active.any():
+                break
             # back onto each half-space along its normal, less the coordinates held at a box
             # face the normal points out of: there the step slides along the face (beside the
             # pitcher, where it pokes out of the box, it rises instead of leaving the box)
@@ -747,26 +755,41 @@ def _walk_out(
             room = np.where(held.any(-1), room, 1.0)
             ok = (short > 0) & (room > 1e-9)  # room 0: every way back is held, none taken
             push = np.where(ok, short / np.where(ok, room, 1.0), 0.0)[..., None] * free
+            moved = q.copy()
             for k in range(len(rad)):  # hull by hull: the same bits in any batch
-                q += push[..., k, :]
-            np.minimum(np.maximum(q, lo, out=q), hi, out=q)
+                moved += push[..., k, :]
+            np.minimum(np.maximum(moved, lo, out=moved), hi, out=moved)
+            q = np.where(active, moved, q)
             short = need - _dot3(n, (q - prev)[..., None, :])
-            pushed += 1
-        if pushed:  # shorten the step towards prev: into the step box and each half-space
-            # prev is in (beyond rounding: the hull test below catches a waypoint rounded in)
+            active &= _any_per_first(short > 0, q.ndim)
+        if pushed.any():  # shorten the step towards prev: into the step box and each
+            # half-space prev is in (beyond rounding: the hull test below catches a waypoint
+            # rounded in)
             step = q - prev
             scale = np.minimum(1.0, bound / np.maximum(np.abs(step).max(-1), 1e-12))
             cut = (need <= 0) & (short > 1e-12)
-            if cut.any():
-                frac = np.where(cut, -need / np.where(cut, short - need, 1.0), 1.0)
-                scale = np.minimum(scale, frac.min(-1))
-            q = prev + step * scale[..., None]
+            frac = np.where(cut, -need / np.where(cut, short - need, 1.0), 1.0)
+            scale = np.minimum(scale, frac.min(-1))  # 1 where nothing is cut: scale ≤ 1 kept
+            q = np.where(pushed, prev + step * scale[..., None], q)
         # q is between prev and a point of the box: in the box within rounding. A waypoint
         # rounded into a hull that prev was outside of (q on its surface) stays at prev
         gone = q[..., None, :2] - centre
         into = (np.hypot(gone[..., 0], gone[..., 1]) < rad) & (q[..., None, 2] < top) & outside
         p[..., t, :] = np.where(into.any(-1)[..., None], prev, q)
     return out
+
+
+def _any_per_first(mask: np.ndarray, ndim: int) -> np.ndarray:
+    """Whether any entry of ``mask`` is set, per index of its first axis, shaped to broadcast
+    against an array of ``ndim`` axes with the same first axis (``_walk_out``'s groups)."""
+    if ndim <= 1:  # one plan: one group
+        return np.asarray(mask.any())
+    return mask.reshape(len(mask), -1).any(1).reshape((len(mask),) + (1,) * (ndim - 1))
+
+
+def _per_first(plans: np.ndarray) -> int:
+    """How many (T+1, s) plans each index of ``plans``' first axis holds (1 for one plan)."""
+    return int(np.prod(plans.shape[1:-2], dtype=np.int64)) if plans.ndim > 2 else 1
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
