@@ -220,3 +220,35 @@ def test_replay_paper_needs_flag_and_poses(gdir, logs, tmp_path, capsys):
     bare.write_text("\n".join(lines) + "\n")
     one = ["replay", str(bare), "--learners", "one@authors", "--no-plots"]
     assert "no 'authors_poses'" in cli_error([*one, "--out", str(tmp_path / "b")], capsys)
+
+
+def test_paper_strol_drives_study_v2_stepping_per_pair_of_poses(gdir, monkeypatch):
+    """lab/study/paper_strol.py: without STROL_AUTHORS_GHAT it says which variable to set; with
+    it, one v2 push of length L is L / 1.26 cm pair updates of the paper's rule along the push
+    (in the authors' frame), from the learner's own θ̂, and θ̂ moves."""
+    from lab.study import paper_strol
+    from strol_gym.benchmarks.sessions.authors_frame import fit_transform
+    from strol_gym.benchmarks.sessions.authors_rules import rule_learner
+    from strol_gym.tasks.study import STUDY_TASKS_V2
+
+    task = STUDY_TASKS_V2[1]()
+    monkeypatch.delenv(paper_strol.ENV, raising=False)
+    with pytest.raises(ValueError, match=paper_strol.ENV):
+        paper_strol.PaperStrolV2(task)
+    monkeypatch.setenv(paper_strol.ENV, str(gdir))
+    learner = paper_strol.PaperStrolV2(task)
+    rng = np.random.default_rng(SEED)
+    theta0 = rng.uniform(-1.0, 1.0, task.dim)
+    learner.reset(theta0)
+    x, u = np.asarray(task.start, dtype=np.float64), np.array([0.06, -0.02, -0.03])
+    after = learner.update(x, u, np.zeros(3))
+    n = round(float(np.linalg.norm(u)) / paper_strol.POSE_STEP)  # 0.07 m: 6 pairs
+    cup = np.zeros((n + 1, 6))
+    cup[:, :3] = x + np.outer(np.arange(n + 1) / n, u)
+    poses = fit_transform().to_logged(cup)[:, :3]
+    rule = rule_learner("strol-paper", 1, gdir)
+    rule.reset(theta0)
+    for a, b in itertools.pairwise(poses):
+        rule.update(a, 3.0 * (b - a), np.zeros(3))
+    assert n == 6 and not np.allclose(after, theta0)
+    np.testing.assert_allclose(after, rule.theta, rtol=0, atol=1e-12)
