@@ -387,7 +387,8 @@ def write_study_reports(rd: ResultsDir, *, plots: bool = True) -> dict[str, Any]
     write_csv(rd.path / "stats.csv", a.posthoc, STATS_COLUMNS)
     write_csv(rd.path / "anova.csv", a.anova, ANOVA_COLUMNS)
     h3 = h3_evaluable(rd.config)
-    tested = display(rd.config.reference)
+    # the learner H3 tests: the reference, unless that is a baseline (no StROL run)
+    tested = "StROL" if rd.config.reference in H3_BASELINES else display(rd.config.reference)
     verd = h3_verdicts(a) if h3 else []
     anova = [
         f"- Task {_task_of(r['env'])}, {LABELS[r['metric']]}: {_anova_text(r)}"

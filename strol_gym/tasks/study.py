@@ -789,7 +789,7 @@ def _any_per_first(mask: np.ndarray, ndim: int) -> np.ndarray:
 
 def _per_first(plans: np.ndarray) -> int:
     """How many (T+1, s) plans each index of ``plans``' first axis holds (1 for one plan)."""
-    return int(np.prod(plans.shape[1:-2], dtype=np.int64)) if plans.ndim > 2 else 1
+    return max(1, int(np.prod(plans.shape[1:-2], dtype=np.int64))) if plans.ndim > 2 else 1
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
