@@ -103,10 +103,10 @@ def main(argv: list[str] | None = None) -> int:
     """Each study folder's H3 lines, then all of them pooled: the paper's pooled tests over One,
     MOF and the reference learner, and its corrections per session against One's."""
     import argparse
-    import glob
     import json
 
     from strol_gym.benchmarks.analysis.report import pooled_tests
+    from strol_gym.benchmarks.engine.results import ResultsDir
     from strol_gym.benchmarks.experiments.study import add_authors_regret
 
     ap = argparse.ArgumentParser(description=main.__doc__)
@@ -116,11 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     learners = ("one", "mof", args.learner)
     pooled: list[RunRecord] = []
     for folder in args.folders:
-        recs: list[RunRecord] = [
-            r
-            for f in sorted(glob.glob(f"{folder}/records/*.json"))
-            for r in json.load(open(f))["records"]
-        ]
+        recs = ResultsDir.load(folder).read_records()
         pooled += recs
         study = json.load(open(f"{folder}/study.json"))
         verdicts = "; ".join(f"Task {v['task']}: {v['verdict']}" for v in study["verdicts"])

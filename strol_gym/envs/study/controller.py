@@ -445,7 +445,7 @@ class ImpedanceController:
         self._push_at_cup()
         v = self.version
         fp = self._chunk_functions() if v.track_bandwidth and v.joint_brake else None
-        # the whole step compiled; a target rotation from a C-ordered setpoint's is C-ordered
+        # the whole step compiled (a setpoint rotation not C-ordered: the plain path, same bytes)
         if fp is not None and self._sp_R.flags.c_contiguous:
             self._step_compiled(fp, v_sp)
             self._time += CONTROL_DT
@@ -467,7 +467,6 @@ class ImpedanceController:
         brake = self.version.joint_brake
         wext = self._wrench.tolist()
         pushed = brake and any(wext)  # the hand's applied wrench is nonzero (_push_at_cup)
-        dt, par = self._dt, None
         mujoco.mj_jacSite(m, d, jp, jr, site)
         self._model_terms(np.array(v_sp))
         admitted = self._admitted(sp_r, wext, dt_i)
@@ -479,14 +478,6 @@ class ImpedanceController:
             # The setpoint where it is at this chunk's start (it moves linearly over the
             # step): a staircase setpoint would put the cup ¾ of a step ahead of it.
             back = CONTROL_DT - i * dt_i
-            if fp is not None and target_r.flags.c_contiguous:  # the same law, compiled
-                if par is None:
-                    head = (spx, spy, spz, ox, oy, oz, *v_sp, back, gp, gr, ip, ir, dt)
-                    par = self._chunk_par((*head, integrate, not pushed))
-                self._compiled_chunk(fp, par, (ox, oy, oz, back), target_r, feed, damp)
-                if self._braked:
-                    break
-                continue
             (_, r01, r02), (r10, _, r12), (r20, r21, _) = target_r.dot(xmat_t).tolist()
             e = (
                 spx + ox - vx * back - x,
@@ -593,7 +584,7 @@ class ImpedanceController:
         for _ in range(self._n_sub // HOLD):
             ox = oy = oz = 0.0
             target_r, feed, damp = sp_r, None, None
-            if self.version.admittance and (self._adm is not REST or any(wext)):
+            if self._adm is not REST or any(wext):  # it may settle within the step
                 # The admittance target over this chunk (its midpoint), its velocity and
                 # acceleration fed forward, the person's wrench cancelled (the target moves
                 # for it): the tracking law carries the cup along δ.
@@ -735,54 +726,6 @@ class ImpedanceController:
             if isinstance(kernel, numba.core.dispatcher.Dispatcher):  # not a wrapper (a spy)
                 kernel.compile(tuple(numba.typeof(a) for a in args))
         _loaded = True
-
-    def _chunk_par(self, head: tuple[Any, ...]) -> np.ndarray:
-        """``chunk.chunk``'s ``par`` for this control step (``head``: its entries up to the
-        step flag); the chunks write their own entries (``_compiled_chunk``)."""
-        from strol_gym.envs.study import chunk
-
-        par = np.zeros(chunk.PAR)
-        par[:20] = head
-        par[22:35] = [*self._acc_ff, *self._const]
-        par[chunk.INTEGRAL : chunk.INTEGRAL + 6] = self._integral
-        return par
-
-    def _compiled_chunk(
-        self,
-        fp: np.ndarray,
-        par: np.ndarray,
-        at: tuple[float, float, float, float],
-        target_r: np.ndarray,
-        feed: np.ndarray | None,
-        damp: list[float] | None,
-    ) -> None:
-        """A chunk of the ``track_bandwidth`` law and its physics steps by ``chunk.chunk``
-        (``at``: the admittance's offset and ``back``, this chunk's entries of ``par``), then
-        what the plain path does after them: the brake's steps if the checks call for them,
-        the contact."""
-        from strol_gym.envs.study import chunk
-
-        par[3:6], par[12] = at[:3], at[3]
-        par[35:42] = self._tau_last
-        par[20], par[21] = feed is not None, damp is not None
-        if feed is not None:
-            par[42:48] = feed
-        if damp is not None:
-            par[48:55] = damp
-        left = chunk.chunk(
-            fp, par, target_r, self._kmat, self._gain, self._m_inv, self._jac, self._watch_cap,
-            self._brake_cap, self._qpos, self._qvel, self._qacc, self._ctrl, self._site_xpos,
-            self._site_xmat,
-        )  # fmt: skip
-        if par[18]:  # it integrated
-            self._integral = par[chunk.INTEGRAL : chunk.INTEGRAL + 6].tolist()
-        if left == chunk.BRAKE_ALL:
-            self._braked_steps(not par[19], HOLD)
-            return
-        self._tau_last = par[chunk.TORQUES : chunk.TORQUES + 7].tolist()
-        self._note_contact()
-        if left:
-            self._braked_steps(False, left)
 
     def _posture(self) -> tuple[np.ndarray, np.ndarray]:
         """v2's posture spring (``joint_room``) per joint: its stiffness (``K_NULL``, plus
